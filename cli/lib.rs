@@ -1,0 +1,1 @@
+//! The `uavloc` command-line interface.

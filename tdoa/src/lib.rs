@@ -1,0 +1,29 @@
+//! # uavloc-tdoa — the TDOA maths core of uavloc
+//!
+//! Pure functions over plain data (no IPC): the measurement model of paper Section 2, the FIM and CRLB
+//! (Section 3.3), the global CRLB over the target-position uncertainty (Sections 3.4, 4.1–4.2) computed
+//! five ways behind one trait, Chan's estimator, and Monte Carlo helpers.
+//!
+//! Conventions: 2-D, positions in metres, times in seconds (σ may be given in ns), angles in radians;
+//! `uavs[0]` is the reference UAV; range differences are `d_i = r_i − r_0`, i = 1..N−1; 3 ≤ N ≤ 8.
+
+pub mod chan;
+mod error;
+pub mod fim;
+pub mod geometry;
+pub mod global;
+pub mod montecarlo;
+pub mod rng;
+pub mod singular;
+pub mod support;
+
+pub use chan::{ChanSolution, chan};
+pub use error::TdoaError;
+pub use fim::{Crlb, crlb, fim, fim_derivatives, trace_crlb, trace_derivatives};
+pub use geometry::{NoiseModel, RangeDiffs, SPEED_OF_LIGHT, Sensors};
+pub use global::{GlobalCrlb, GlobalReport, GlobalValue, Method, global_crlb};
+pub use singular::{SingularReport, singular_report};
+pub use support::{DEFAULT_KAPPA, Uncertainty, eq36_side};
+
+/// Largest number of UAVs supported (fixed-capacity messages carry up to this many).
+pub const MAX_UAVS: usize = 8;
