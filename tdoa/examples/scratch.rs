@@ -1,53 +1,37 @@
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::Vector2;
+use tdoa::global::*;
 use tdoa::*;
 fn main() {
-    let s =
-        Sensors::new(&[[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]], NoiseModel::uniform(3, 28.7712).unwrap())
-            .unwrap();
-    let z = Vector2::new(25000.0, 15000.0);
-    let c = crlb(&s, &z).unwrap();
-    println!("crlb {} ratio {} cond {}", c.crlb_m, c.crlb_m / 28.7712, c.cond);
-    let d = s.range_differences(&z);
-    let sol = chan(&s, &d, None).unwrap();
-    println!("{:?}", sol);
-    let mut amb = 0;
-    let mut wrong = 0;
-    let mut rng = tdoa::rng::stream(1, 0, tdoa::rng::Purpose::RmseResamples);
-    for _ in 0..2000 {
-        let d = montecarlo::noisy_range_diffs(&s, &z, &mut rng);
-        if let Ok(sol) = chan(&s, &d, None) {
-            if sol.ambiguous {
-                amb += 1;
-                if (sol.position - z).norm() > 5000.0 {
-                    wrong += 1;
-                }
-            }
-        }
-    }
-    println!("ambiguous {amb} wrong-first {wrong}");
-    println!("{:?}", montecarlo::rmse(&s, &z, 2000, 1, None));
-    println!("{:?}", montecarlo::rmse(&s, &z, 2000, 1, Some(Vector2::new(24000.0, 14000.0))));
-    let m = c.bound;
-    for sc in [0.25, 0.5, 0.75, 1.0] {
-        let cov = m * sc * sc;
-        let u = Uncertainty::with_eq36_side(z, cov, s.mean_range(&z), DEFAULT_KAPPA).unwrap();
-        print!("scale {sc} side {:.0} ", u.side());
-        for meth in Method::ALL {
-            let g = meth.build(200, 7).unwrap();
-            let r = global_crlb(g.as_ref(), &s, &u);
-            print!("{}={:.1} ", meth, r.value.trace_m2.sqrt());
-        }
-        println!("sing {:?}", singular_report(&s, &u));
-    }
-    // 4 UAVs
-    let s4 = Sensors::new(
-        &[[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0], [0.0, 9000.0]],
-        NoiseModel::uniform(4, 28.7712).unwrap(),
+    let s = Sensors::new(
+        &[[-13143.509208019279, 0.0], [13718.924205146921, -6997.3804266435], [16046.972168813067, -8575.246053861854]],
+        NoiseModel::uniform(3, 5.0).unwrap(),
     )
     .unwrap();
-    let d4 = s4.range_differences(&z);
-    let sol4 = chan(&s4, &d4, None).unwrap();
-    println!("{:?} crlb {:?}", sol4, crlb(&s4, &z).unwrap().bound);
-    println!("{:?}", montecarlo::rmse(&s4, &z, 2000, 1, None));
-    let _ = Matrix2::<f64>::identity();
+    let z = Vector2::new(-29610.73043753697, 0.0);
+    let c = crlb(&s, &z).unwrap();
+    println!("cond {} crlb {}", c.cond, c.crlb_m);
+    for eps in [0.05, 0.2, 0.5] {
+        let r = s.positions().iter().map(|w| (w - z).norm()).fold(f64::INFINITY, f64::min);
+        let ell = r / c.cond.sqrt();
+        let lmax = tdoa::fim::sym_eigenvalues(&c.bound).1;
+        let cov = c.bound * (eps * ell).powi(2) / lmax;
+        let u = Uncertainty::with_eq36_side(z, cov, s.mean_range(&z), DEFAULT_KAPPA).unwrap();
+        let exact = global_crlb(&Quadrature::default(), &s, &u).value;
+        let mut zs = vec![];
+        for seed in 0..400 {
+            let r = global_crlb(&MonteCarlo::new(1000, seed, McScheme::UniformWeighted).unwrap(), &s, &u).value;
+            zs.push((r.trace_m2 - exact.trace_m2) / r.stderr_m2.unwrap());
+        }
+        zs.sort_by(f64::total_cmp);
+        let mean: f64 = zs.iter().sum::<f64>() / 400.0;
+        let sd = (zs.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / 400.0).sqrt();
+        println!(
+            "eps {eps} side {} sing {:?} exact {:?} z mean {mean:.3} sd {sd:.3} min {:.2} max {:.2}",
+            u.side(),
+            singular_report(&s, &u),
+            exact,
+            zs[0],
+            zs[399]
+        );
+    }
 }

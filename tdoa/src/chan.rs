@@ -15,7 +15,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Rotation2, Vector2, Vector3};
 
-use crate::fim::{crlb, inverse_spd};
+use crate::fim::crlb;
 use crate::{RangeDiffs, Sensors, TdoaError};
 
 /// The result of one Chan solve.
@@ -126,51 +126,72 @@ fn chan3(sensors: &Sensors, d: &RangeDiffs, prior: Option<Vector2<f64>>) -> Resu
     Ok(ChanSolution { position, covariance, ambiguous, candidates })
 }
 
+/// Least squares `min |A x − b|` by SVD after column equilibration; returns x and `(AᵀA)⁻¹`, or an
+/// error when A is rank deficient (reciprocal condition below 1e-12).
+fn lstsq(a: DMatrix<f64>, b: &DVector<f64>, what: &str) -> Result<(DVector<f64>, DMatrix<f64>), TdoaError> {
+    let n = a.ncols();
+    let scale = DVector::from_fn(n, |j, _| 1.0 / a.column(j).norm().max(f64::MIN_POSITIVE));
+    let a_s = a * DMatrix::from_diagonal(&scale);
+    let svd = a_s.svd(true, true);
+    let (smax, smin) = (svd.singular_values.max(), svd.singular_values.min());
+    if !(smin > 1e-12 * smax) {
+        return Err(TdoaError::Degenerate(format!("{what} is rank deficient")));
+    }
+    let x_s = svd.solve(b, 0.0).map_err(|e| TdoaError::Degenerate(format!("{what}: {e}")))?;
+    let v_t = svd.v_t.as_ref().ok_or_else(|| TdoaError::Degenerate(format!("{what}: no SVD")))?;
+    let inv_s2 = DMatrix::from_diagonal(&svd.singular_values.map(|s| 1.0 / (s * s)));
+    let d = DMatrix::from_diagonal(&scale);
+    let cov = &d * v_t.transpose() * inv_s2 * v_t * &d;
+    Ok((x_s.component_mul(&scale), cov))
+}
+
 fn chan_wls(sensors: &Sensors, d: &RangeDiffs) -> Result<ChanSolution, TdoaError> {
     let w = sensors.positions();
+    let spread = scale_of(sensors);
+    let far = w.iter().max_by(|a, b| (*a - w[0]).norm().total_cmp(&(*b - w[0]).norm())).map(|p| p - w[0]);
+    if let Some(dir) = far.map(|v| v / v.norm()) {
+        let off = w.iter().map(|p| ((p - w[0]).x * dir.y - (p - w[0]).y * dir.x).abs()).fold(0.0, f64::max);
+        if off <= 1e-9 * spread {
+            return Err(TdoaError::Degenerate("all UAVs lie on one line; TDOA cannot fix the emitter".into()));
+        }
+    }
     let d = d.as_slice();
     let m = d.len();
-    let q = sensors.noise().q();
-    let q_inv = q.clone().try_inverse().ok_or_else(|| TdoaError::Degenerate("Q is singular".into()))?;
+    let q_chol =
+        sensors.noise().q().cholesky().ok_or_else(|| TdoaError::Degenerate("Q is not positive definite".into()))?;
     let rel: Vec<Vector2<f64>> = w[1..].iter().map(|wi| wi - w[0]).collect();
     let g = DMatrix::from_fn(m, 3, |i, j| 2.0 * if j < 2 { rel[i][j] } else { d[i] });
     let h = DVector::from_fn(m, |i, _| rel[i].norm_squared() - d[i] * d[i]);
-    let solve = |weight: &DMatrix<f64>| -> Result<(Vector3<f64>, Matrix3<f64>), TdoaError> {
-        let gtw = g.transpose() * weight;
-        let normal = &gtw * &g;
-        let normal3 = Matrix3::from_fn(|i, j| normal[(i, j)]);
-        let rcond = {
-            let e = normal3.symmetric_eigenvalues();
-            e.min() / e.max()
-        };
-        if !(rcond > 1e-14) {
-            return Err(TdoaError::Degenerate("the UAVs are collinear; Chan's first step is rank deficient".into()));
-        }
-        let inv = normal3.try_inverse().ok_or_else(|| TdoaError::Degenerate("Chan's first step is singular".into()))?;
-        let rhs = &gtw * &h;
-        Ok((inv * Vector3::new(rhs[0], rhs[1], rhs[2]), inv))
+    // Step 1: whiten the error ψ ≈ −2 B n (cov 4 B Q B) with C⁻¹ B⁻¹, Q = C Cᵀ. First B = I (W = Q⁻¹),
+    // then twice with the estimated ranges B = diag(r_i).
+    let step1 = |ranges: &[f64]| -> Result<(Vector3<f64>, DMatrix<f64>), TdoaError> {
+        let b_inv = DMatrix::from_fn(m, m, |i, j| if i == j { 1.0 / ranges[i] } else { 0.0 });
+        let a = q_chol.l().solve_lower_triangular(&(&b_inv * &g)).expect("Cholesky factor is invertible");
+        let rhs = q_chol.l().solve_lower_triangular(&(&b_inv * &h)).expect("Cholesky factor is invertible");
+        let (theta, _) = lstsq(a.clone(), &rhs, "Chan's first step (UAVs nearly collinear)")?;
+        Ok((Vector3::new(theta[0], theta[1], theta[2]), a))
     };
-    // Step 1: first with W = Q⁻¹, then twice re-weighted with the estimated ranges.
-    let (mut theta, mut inv) = solve(&q_inv)?;
+    let mut ranges = vec![1.0; m];
+    let (mut theta, mut a1) = step1(&ranges)?;
     for _ in 0..2 {
         let z1 = Vector2::new(theta[0], theta[1]);
-        let b_inv = DMatrix::from_fn(m, m, |i, j| if i == j { 1.0 / (z1 - rel[i]).norm().max(1e-9) } else { 0.0 });
-        let weight = &b_inv * &q_inv * &b_inv;
-        (theta, inv) = solve(&weight)?;
+        for (i, r) in ranges.iter_mut().enumerate() {
+            *r = (z1 - rel[i]).norm().max(1e-9);
+        }
+        (theta, a1) = step1(&ranges)?;
     }
-    // cov(θ₁) = (Gᵀ (4BQB)⁻¹ G)⁻¹ = 4 (Gᵀ W G)⁻¹.
-    let cov1 = inv * 4.0;
     let e = Vector2::new(theta[0], theta[1]);
     let r = e.norm();
-    let step1 = |z: Vector2<f64>| -> Result<ChanSolution, TdoaError> {
+    let fallback = |z: Vector2<f64>| -> Result<ChanSolution, TdoaError> {
         let position = w[0] + z;
         let covariance = covariance_at(sensors, &position)?;
         Ok(ChanSolution { position, covariance, ambiguous: false, candidates: vec![position] })
     };
-    if !(r > 1e-9 * scale_of(sensors)) || theta[2] <= 0.0 {
-        return step1(e);
+    if !(r > 1e-9 * spread) || theta[2] <= 0.0 {
+        return fallback(e);
     }
-    // Step 2 in the frame where e lies on the diagonal.
+    // Step 2, in the frame where e lies on the diagonal: h₂ = G₂ θ₂ + ψ₂ with
+    // cov ψ₂ = (2B₂) cov(θ₁) (2B₂) and cov(θ₁) = 4 (A₁ᵀA₁)⁻¹, so ψ₂ is whitened by M = A₁ Tᵀ (2B₂)⁻¹ / 2.
     let rot = Rotation2::new(std::f64::consts::FRAC_PI_4 - e.y.atan2(e.x));
     let t = Matrix3::new(
         rot[(0, 0)],
@@ -183,29 +204,26 @@ fn chan_wls(sensors: &Sensors, d: &RangeDiffs) -> Result<ChanSolution, TdoaError
         0.0,
         1.0,
     );
-    let cov_t = t * cov1 * t.transpose();
     let er = rot * e;
-    let b2 = Matrix3::from_diagonal(&Vector3::new(er.x, er.y, theta[2]));
-    let psi2 = b2 * cov_t * b2 * 4.0;
-    let g2 = nalgebra::Matrix3x2::new(1.0, 0.0, 0.0, 1.0, 1.0, 1.0);
-    let h2 = Vector3::new(er.x * er.x, er.y * er.y, theta[2] * theta[2]);
-    let Some(w2) = psi2.try_inverse() else { return step1(e) };
-    let normal2 = g2.transpose() * w2 * g2;
-    let Some(cov2) = inverse_spd(&Matrix2::from_fn(|i, j| 0.5 * (normal2[(i, j)] + normal2[(j, i)]))) else {
-        return step1(e);
+    let b2_inv = Matrix3::from_diagonal(&Vector3::new(0.5 / er.x, 0.5 / er.y, 0.5 / theta[2]));
+    let tt = DMatrix::from_fn(3, 3, |i, j| t[(j, i)]);
+    let whiten = &a1 * tt * DMatrix::from_fn(3, 3, |i, j| b2_inv[(i, j)]) * 0.5;
+    let g2 = DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+    let h2 = DVector::from_row_slice(&[er.x * er.x, er.y * er.y, theta[2] * theta[2]]);
+    let Ok((theta2, cov2)) = lstsq(&whiten * g2, &(&whiten * h2), "Chan's second step") else {
+        return fallback(e);
     };
-    let theta2 = cov2 * (g2.transpose() * w2 * h2);
-    if !(theta2.x > 0.0 && theta2.y > 0.0) {
-        return step1(e);
+    if !(theta2[0] > 0.0 && theta2[1] > 0.0) {
+        return fallback(e);
     }
-    let zr = Vector2::new(theta2.x.sqrt(), theta2.y.sqrt());
+    let zr = Vector2::new(theta2[0].sqrt(), theta2[1].sqrt());
     let dinv = Matrix2::new(0.5 / zr.x, 0.0, 0.0, 0.5 / zr.y);
-    let cov_zr = dinv * cov2 * dinv;
+    let cov_zr = dinv * Matrix2::from_fn(|i, j| cov2[(i, j)]) * dinv;
     let position = w[0] + rot.inverse() * zr;
     let rm = rot.matrix();
     let covariance = rm.transpose() * cov_zr * rm;
     if !(position.x.is_finite() && position.y.is_finite() && covariance.iter().all(|v| v.is_finite())) {
-        return step1(e);
+        return fallback(e);
     }
     Ok(ChanSolution { position, covariance, ambiguous: false, candidates: vec![position] })
 }

@@ -20,7 +20,7 @@ impl PreparedObjective for Prepared {
     fn evaluate(&self, sensors: &Sensors) -> GlobalValue {
         let trace_m2 = trace_derivatives(sensors, &self.estimate)
             .map_or(f64::INFINITY, |d| d.value + 0.5 * (self.cov * d.hessian).trace());
-        GlobalValue { trace_m2, stderr_m2: None, evaluations: 1 }
+        GlobalValue { trace_m2, stderr_m2: None, evaluations: 1, effective_samples: None }
     }
 }
 

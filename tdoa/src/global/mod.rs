@@ -42,6 +42,10 @@ pub struct GlobalValue {
     pub stderr_m2: Option<f64>,
     /// Number of `tr F⁻¹` evaluations spent.
     pub evaluations: usize,
+    /// Kish's effective sample size `1/Σω²` of sampling methods. The standard error is only
+    /// trustworthy when this is large (tens or more): eq. 60's uniform points in a wide square around a
+    /// narrow Gaussian can leave one point carrying nearly all the weight.
+    pub effective_samples: Option<f64>,
 }
 
 /// A method prepared for one uncertainty, ready to evaluate many UAV geometries.

@@ -56,6 +56,11 @@ impl PreparedObjective for NodeRule {
         let stderr_m2 = self
             .with_stderr
             .then(|| values.iter().zip(&self.weights).map(|(h, w)| w * w * (h - sum) * (h - sum)).sum::<f64>().sqrt());
-        GlobalValue { trace_m2: sum, stderr_m2, evaluations: self.points.len() }
+        GlobalValue {
+            trace_m2: sum,
+            stderr_m2,
+            evaluations: self.points.len(),
+            effective_samples: self.with_stderr.then(|| self.effective_sample_size()),
+        }
     }
 }

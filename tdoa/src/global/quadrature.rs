@@ -89,7 +89,7 @@ impl PreparedObjective for Prepared {
             if converged || !cur.trace_m2.is_finite() || panels >= self.quad.max_panels {
                 // Not converged at the finest level: report the estimated error as the standard error.
                 let stderr_m2 = (!converged).then(|| (cur.trace_m2 - prev.trace_m2).abs());
-                return GlobalValue { trace_m2: cur.trace_m2, stderr_m2, evaluations };
+                return GlobalValue { trace_m2: cur.trace_m2, stderr_m2, evaluations, effective_samples: None };
             }
             prev = cur;
             panels *= 2;
