@@ -1,1 +1,143 @@
-//! The `uavloc` command-line interface.
+//! # uavloc — the command-line calculator of the uavloc workspace
+//!
+//! Every subcommand is a module with a clap `Args` struct, a `run(&Args)` function that returns a
+//! serde-serialisable report (callable without the process), and a [`output::Report`] impl that
+//! renders it as an aligned table. `main.rs` only parses, dispatches and maps errors to exit codes.
+//!
+//! To add a subcommand: create its module, add a variant to [`Command`] (with `about`, `long_about`,
+//! `after_help`), and one dispatch line in `main.rs`.
+
+use clap::{Parser, Subcommand};
+
+pub mod args;
+pub mod crlb;
+pub mod error;
+pub mod global;
+pub mod locate;
+pub mod output;
+pub mod rmse;
+
+pub use error::CliError;
+pub use output::{Diagnostic, Report, Table};
+
+const LONG_ABOUT: &str = "\
+uavloc — passive TDOA localisation of a radio emitter by a UAV swarm.
+
+3 to 8 UAVs time the arrival of the emitter's signal; the differences of arrival times give range
+differences d_i = r_i − r_0 relative to the reference UAV0 (the first --uav). These calculator
+subcommands evaluate the maths of the method for one geometry: the Cramér–Rao lower bound, the
+global CRLB over an uncertain target position, Chan's closed-form position fix, and the Monte Carlo
+RMSE of that fix.
+
+Units: positions and range sigmas in metres, time sigmas (--sigma-ns) in nanoseconds, covariances
+in m². Negative coordinates can be typed directly: --uav -1500,200.
+
+Output: an aligned table, or JSON with --json. Exit codes: 0 success, 1 computation gave no usable
+answer, 2 bad input (one 'error: ...' line on stderr).";
+
+/// The top-level command line.
+#[derive(Parser, Debug, Clone, PartialEq)]
+#[command(
+    name = "uavloc",
+    version,
+    about = "uavloc — passive TDOA localisation of a radio emitter by a UAV swarm",
+    long_about = LONG_ABOUT,
+    after_help = "Run 'uavloc <COMMAND> --help' for the units, conventions and an example of each command.",
+    propagate_version = true,
+    arg_required_else_help = true
+)]
+pub struct Cli {
+    /// Print the result as JSON on stdout instead of a table.
+    #[arg(long, global = true)]
+    pub json: bool,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands. Each variant's `about` is its one-line description in `uavloc --help`.
+#[derive(Subcommand, Debug, Clone, PartialEq)]
+pub enum Command {
+    /// Single-point CRLB of the emitter position for given UAVs, target and noise
+    #[command(
+        long_about = crlb::LONG_ABOUT,
+        after_help = crlb::AFTER_HELP
+    )]
+    Crlb(crlb::CrlbArgs),
+    /// Global CRLB over an uncertain target position, by one of five methods
+    #[command(
+        long_about = global::LONG_ABOUT,
+        after_help = global::AFTER_HELP
+    )]
+    Global(global::GlobalArgs),
+    /// Emitter position and its covariance from measured range differences (Chan)
+    #[command(
+        long_about = locate::LONG_ABOUT,
+        after_help = locate::AFTER_HELP
+    )]
+    Locate(locate::LocateArgs),
+    /// Monte Carlo RMSE of Chan's estimator compared with the CRLB
+    #[command(
+        long_about = rmse::LONG_ABOUT,
+        after_help = rmse::AFTER_HELP
+    )]
+    Rmse(rmse::RmseArgs),
+}
+
+/// A clap parse error as one line: the first paragraph of clap's message with its lines joined
+/// (e.g. `error: the following required arguments were not provided: --target <X,Y>`).
+pub fn one_line_clap_error(e: &clap::Error) -> String {
+    let text = e.to_string();
+    let first: Vec<&str> = text
+        .lines()
+        .take_while(|l| !l.trim().is_empty() && !l.starts_with("Usage:"))
+        .map(str::trim)
+        .filter(|l| !l.starts_with("tip:"))
+        .collect();
+    let line = first.join(" ");
+    if line.starts_with("error:") { line } else { format!("error: {line}") }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    use super::*;
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn negative_values_and_following_flags() {
+        let cli = Cli::try_parse_from([
+            "uavloc",
+            "crlb",
+            "--uav",
+            "-1500,200",
+            "--uav",
+            "0,0",
+            "--uav=-3,-4",
+            "--target",
+            "-3,-40",
+            "--sigma",
+            "1",
+        ])
+        .unwrap();
+        let Command::Crlb(a) = cli.command else { panic!("not crlb") };
+        assert_eq!(a.sensors.uav.uavs.len(), 3);
+        assert_eq!(a.sensors.uav.uavs[0].0, [-1500.0, 200.0]);
+        assert_eq!(a.sensors.uav.uavs[2].0, [-3.0, -4.0]);
+        assert_eq!(a.target.0, [-3.0, -40.0]);
+    }
+
+    #[test]
+    fn clap_errors_fit_on_one_line() {
+        let e = Cli::try_parse_from(["uavloc", "crlb", "--uav", "0,0", "--sigma", "1"]).unwrap_err();
+        let line = one_line_clap_error(&e);
+        assert!(line.starts_with("error:") && !line.contains('\n') && line.contains("--target"), "{line}");
+        let e = Cli::try_parse_from(["uavloc", "crlb", "--uav", "1,2,3"]).unwrap_err();
+        let line = one_line_clap_error(&e);
+        assert!(line.contains("--uav") && line.contains("1,2,3"), "{line}");
+    }
+}

@@ -1,1 +1,70 @@
-fn main() {}
+//! The `uavloc` command-line interface: parse, dispatch, print, map errors to exit codes.
+
+use std::io::Write;
+use std::process::ExitCode;
+
+use clap::Parser;
+use clap::error::ErrorKind;
+use uavloc::{Cli, CliError, Command, Diagnostic, Report, crlb, global, locate, one_line_clap_error, rmse};
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            return match e.kind() {
+                ErrorKind::DisplayHelp
+                | ErrorKind::DisplayVersion
+                | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+                    let _ = e.print();
+                    ExitCode::from(if e.use_stderr() { 2 } else { 0 })
+                }
+                _ => {
+                    eprintln!("{}", one_line_clap_error(&e));
+                    ExitCode::from(2)
+                }
+            };
+        }
+    };
+    let json = cli.json;
+    match &cli.command {
+        Command::Crlb(a) => emit(crlb::run(a), json),
+        Command::Global(a) => emit(global::run(a), json),
+        Command::Locate(a) => emit(locate::run(a), json),
+        Command::Rmse(a) => emit(rmse::run(a), json),
+    }
+}
+
+/// Prints a result (JSON or table) and its diagnostics, or the error; returns the exit code.
+fn emit<R: Report>(result: Result<R, CliError>, json: bool) -> ExitCode {
+    let report = match result {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return e.exit_code();
+        }
+    };
+    let text = if json {
+        match serde_json::to_string_pretty(&report) {
+            Ok(s) => s + "\n",
+            Err(e) => {
+                eprintln!("error: cannot encode the result as JSON: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    } else {
+        report.table().render()
+    };
+    // A closed pipe (e.g. `| head`) is not an error worth a panic.
+    let _ = std::io::stdout().lock().write_all(text.as_bytes());
+    let mut code = ExitCode::SUCCESS;
+    for d in report.diagnostics() {
+        match d {
+            Diagnostic::Warning(m) => eprintln!("warning: {m}"),
+            Diagnostic::Failure(m) => {
+                eprintln!("error: {m}");
+                code = ExitCode::from(uavloc::error::EXIT_FAILED);
+            }
+        }
+    }
+    code
+}

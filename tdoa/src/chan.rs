@@ -13,6 +13,9 @@
 //! - N ≥ 4: two-step WLS, the first step re-weighted with the estimated ranges (`W = (B Q B)⁻¹`,
 //!   `B = diag(r_i)`), the second exploiting `r₀² = (x−x₀)² + (y−y₀)²`.
 
+// Negated comparisons are deliberate here: `!(a > b)` also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Rotation2, Vector2, Vector3};
 
 use crate::fim::crlb;

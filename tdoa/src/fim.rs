@@ -59,13 +59,13 @@ fn weighted_outer(sensors: &Sensors, a: &[Vector2<f64>], b: &[Vector2<f64>]) -> 
     let m = sensors.len() - 1;
     let noise = sensors.noise();
     let mut out = Matrix2::zeros();
-    for i in 0..m {
+    for (i, ai) in a.iter().enumerate().take(m) {
         // c = Σ_j Qinv_ij b_j
         let mut c = Vector2::zeros();
         for (j, bj) in b.iter().enumerate().take(m) {
             c += noise.q_inv(i, j) * bj;
         }
-        out += a[i] * c.transpose();
+        out += ai * c.transpose();
     }
     out
 }
@@ -74,7 +74,9 @@ fn weighted_outer(sensors: &Sensors, a: &[Vector2<f64>], b: &[Vector2<f64>]) -> 
 pub fn fim(sensors: &Sensors, z: &Vector2<f64>) -> Option<Matrix2<f64>> {
     let rays = Rays::new(sensors, z)?;
     let g = rays.jacobian();
-    Some(weighted_outer(sensors, &g, &g))
+    let f = weighted_outer(sensors, &g, &g);
+    // Symmetric in exact arithmetic; make it so in floating point too.
+    Some(0.5 * (f + f.transpose()))
 }
 
 /// Inverse of a symmetric 2×2 matrix if it is numerically non-singular and positive definite.
@@ -171,6 +173,7 @@ pub fn fim_derivatives(sensors: &Sensors, z: &Vector2<f64>) -> Option<FimDerivat
         }
         out
     };
+    #[allow(clippy::needless_range_loop)]
     for p in 0..2 {
         let h0 = hess_r(0, p);
         for i in 1..n {
@@ -184,6 +187,7 @@ pub fn fim_derivatives(sensors: &Sensors, z: &Vector2<f64>) -> Option<FimDerivat
         }
     }
     let f = weighted_outer(sensors, &g, &g);
+    let f = 0.5 * (f + f.transpose());
     let mut d = [Matrix2::zeros(); 2];
     for p in 0..2 {
         let a = weighted_outer(sensors, &gp[p], &g);

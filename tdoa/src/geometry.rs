@@ -205,8 +205,8 @@ impl Sensors {
     /// Ranges `r_i = |z − w_i|` (eq. 1), metres.
     pub fn ranges(&self, z: &Vector2<f64>) -> [f64; MAX_UAVS] {
         let mut r = [0.0; MAX_UAVS];
-        for i in 0..self.n {
-            r[i] = (z - self.pos[i]).norm();
+        for (ri, w) in r.iter_mut().zip(self.positions()) {
+            *ri = (z - w).norm();
         }
         r
     }

@@ -87,7 +87,7 @@ impl Uncertainty {
         sym_eigenvalues(&self.cov).1.sqrt()
     }
 
-    /// Same support and centre, covariance multiplied by `factor` (the uncertainty scale squared).
+    /// Same support and centre with another covariance `cov` (m²).
     pub fn with_cov(&self, cov: Matrix2<f64>) -> Result<Self, TdoaError> {
         Self::new(self.estimate, cov, self.side)
     }

@@ -38,7 +38,8 @@ use crate::{Sensors, TdoaError, Uncertainty};
 pub struct GlobalValue {
     /// Approximation of `tr Cr_Φ` (eq. 52), m²; +∞ where the integrand is infinite at a node.
     pub trace_m2: f64,
-    /// Standard error of `trace_m2` (m²) for sampling methods.
+    /// Error estimate of `trace_m2` (m²): the sampling standard error for `mc`; for `quadrature` only when
+    /// it stopped at its finest level without converging (the change between the last two levels).
     pub stderr_m2: Option<f64>,
     /// Number of `tr F⁻¹` evaluations spent.
     pub evaluations: usize,
@@ -131,10 +132,11 @@ pub struct GlobalReport {
 /// Evaluates `method` once for `sensors` and `unc`, with the singular-locus check.
 pub fn global_crlb(method: &dyn GlobalCrlb, sensors: &Sensors, unc: &Uncertainty) -> GlobalReport {
     let singular = singular_report(sensors, unc);
-    let mut value = method.prepare(unc).evaluate(sensors);
-    if singular.intersects_support && method.estimates_integral() {
-        value.trace_m2 = f64::INFINITY;
-        value.stderr_m2 = None;
-    }
+    let value = if singular.intersects_support && method.estimates_integral() {
+        // The exact value is +∞; whatever a finite rule would return here is noise, so don't compute it.
+        GlobalValue { trace_m2: f64::INFINITY, stderr_m2: None, evaluations: 0, effective_samples: None }
+    } else {
+        method.prepare(unc).evaluate(sensors)
+    };
     GlobalReport { value, singular }
 }

@@ -1,0 +1,223 @@
+//! Parsing shared by the subcommands: coordinate pairs, number lists, the UAV list with its noise
+//! (`--uav`, `--sigma`, `--sigma-ns`) and the conversion to [`tdoa::Sensors`].
+//!
+//! All numeric flags accept values that start with a hyphen (`--uav -1500,200`, `--sigma -1` reaches our
+//! own check and gets a clear message instead of clap's "unexpected argument").
+
+use clap::Args;
+use nalgebra::{Matrix2, Vector2};
+use tdoa::{MAX_UAVS, NoiseModel, Sensors};
+
+use crate::error::CliError;
+
+/// Smallest number of UAVs a TDOA fix needs.
+pub const MIN_UAVS: usize = 3;
+
+/// A position `X,Y` in metres, parsed from the command line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Point(pub [f64; 2]);
+
+impl Point {
+    /// As a nalgebra vector.
+    pub fn vector(&self) -> Vector2<f64> {
+        Vector2::new(self.0[0], self.0[1])
+    }
+}
+
+/// A comma-separated list of finite numbers, parsed from the command line.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NumList(pub Vec<f64>);
+
+/// Parses one finite number; `what` describes it in the error.
+fn parse_number(text: &str, what: &str) -> Result<f64, String> {
+    let t = text.trim();
+    if t.is_empty() {
+        return Err(format!("{what} is empty"));
+    }
+    let v: f64 = t.parse().map_err(|_| format!("{what} '{t}' is not a number"))?;
+    if v.is_finite() { Ok(v) } else { Err(format!("{what} '{t}' is not a finite number")) }
+}
+
+/// Splits `text` at commas into exactly `n` finite numbers (or any positive count if `n` is `None`).
+fn parse_numbers(text: &str, n: Option<usize>, shape: &str) -> Result<Vec<f64>, String> {
+    if text.trim().is_empty() {
+        return Err(format!("empty value, expected {shape}"));
+    }
+    let parts: Vec<&str> = text.split(',').collect();
+    if let Some(n) = n
+        && parts.len() != n
+    {
+        return Err(format!("expected {shape} ({n} comma-separated numbers), got {} value(s)", parts.len()));
+    }
+    parts.iter().enumerate().map(|(i, p)| parse_number(p, &format!("value {}", i + 1))).collect()
+}
+
+/// clap value parser for `X,Y`.
+pub fn parse_point(text: &str) -> Result<Point, String> {
+    let v = parse_numbers(text, Some(2), "X,Y")?;
+    Ok(Point([v[0], v[1]]))
+}
+
+/// clap value parser for `V0,V1,..` (one or more numbers).
+pub fn parse_list(text: &str) -> Result<NumList, String> {
+    parse_numbers(text, None, "a number or a comma-separated list").map(NumList)
+}
+
+/// clap value parser for one finite number.
+pub fn parse_finite(text: &str) -> Result<f64, String> {
+    parse_number(text, "value")
+}
+
+/// clap value parser for a whole number ≥ 0 (counts and seeds).
+pub fn parse_count<T: std::str::FromStr>(text: &str) -> Result<T, String> {
+    text.trim().parse().map_err(|_| format!("'{}' is not a whole number >= 0", text.trim()))
+}
+
+/// clap value parser for the 2×2 covariance `VXX,VXY,VYY` (m²). Positive definiteness is checked later
+/// by the maths core, which names the matrix.
+pub fn parse_cov(text: &str) -> Result<Matrix2<f64>, String> {
+    let v = parse_numbers(text, Some(3), "VXX,VXY,VYY")?;
+    Ok(Matrix2::new(v[0], v[1], v[1], v[2]))
+}
+
+/// `value > 0`, else an input error naming `flag`.
+pub fn require_positive(flag: &str, value: f64, unit: &str) -> Result<f64, CliError> {
+    if value > 0.0 { Ok(value) } else { Err(CliError::Input(format!("{flag} must be > 0 {unit}(got {value})"))) }
+}
+
+/// The UAV positions (`--uav`, repeated).
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct UavArgs {
+    /// UAV position X,Y in metres; repeat 3 to 8 times. The first --uav is the reference UAV0.
+    ///
+    /// Negative coordinates are fine: `--uav -1500,200` or `--uav=-1500,200`.
+    #[arg(
+        long = "uav",
+        value_name = "X,Y",
+        required = true,
+        allow_hyphen_values = true,
+        value_parser = parse_point,
+        help_heading = "Geometry"
+    )]
+    pub uavs: Vec<Point>,
+}
+
+impl UavArgs {
+    /// The positions, after checking the count (3..=8).
+    pub fn positions(&self) -> Result<Vec<[f64; 2]>, CliError> {
+        let n = self.uavs.len();
+        if !(MIN_UAVS..=MAX_UAVS).contains(&n) {
+            return Err(CliError::Input(format!(
+                "--uav given {n} time(s); need between {MIN_UAVS} and {MAX_UAVS} UAVs (repeat --uav X,Y once per UAV)"
+            )));
+        }
+        Ok(self.uavs.iter().map(|p| p.0).collect())
+    }
+}
+
+/// The measurement noise: exactly one of `--sigma` (metres) or `--sigma-ns` (nanoseconds).
+#[derive(Args, Debug, Clone, PartialEq)]
+#[group(required = true, multiple = false)]
+pub struct SigmaArgs {
+    /// Range standard deviation in metres: one value for all UAVs, or one per UAV (S0 is UAV0).
+    ///
+    /// A list must have exactly as many values as there are --uav, in the same order. Every value must be > 0.
+    #[arg(long, value_name = "S|S0,S1,..", allow_hyphen_values = true, value_parser = parse_list, help_heading = "Noise")]
+    pub sigma: Option<NumList>,
+    /// Time-of-arrival standard deviation in ns: one value for all UAVs, or one per UAV.
+    ///
+    /// Converted to a range standard deviation with c = 299792458 m/s (1 ns ≈ 0.2998 m). A list must have
+    /// exactly as many values as there are --uav, in the same order. Every value must be > 0.
+    #[arg(
+        long = "sigma-ns",
+        value_name = "T|T0,T1,..",
+        allow_hyphen_values = true,
+        value_parser = parse_list,
+        help_heading = "Noise"
+    )]
+    pub sigma_ns: Option<NumList>,
+}
+
+impl SigmaArgs {
+    /// The noise model for `n` UAVs.
+    pub fn noise(&self, n: usize) -> Result<NoiseModel, CliError> {
+        let (flag, list, unit, time) = match (&self.sigma, &self.sigma_ns) {
+            (Some(s), None) => ("--sigma", s, "m", false),
+            (None, Some(t)) => ("--sigma-ns", t, "ns", true),
+            _ => {
+                return Err(CliError::Input("give exactly one of --sigma (metres) or --sigma-ns (nanoseconds)".into()));
+            }
+        };
+        let values = match list.0.len() {
+            1 => vec![list.0[0]; n],
+            k if k == n => list.0.clone(),
+            k => {
+                return Err(CliError::Input(format!(
+                    "{flag} has {k} values but there are {n} UAVs (give one value for all UAVs, or exactly one per UAV)"
+                )));
+            }
+        };
+        for (i, &v) in values.iter().enumerate() {
+            if v <= 0.0 {
+                let which = if list.0.len() == 1 { String::new() } else { format!(" (UAV {i})") };
+                return Err(CliError::Input(format!("{flag} must be > 0 {unit}{which}, got {v}")));
+            }
+        }
+        let model =
+            if time { NoiseModel::from_time_sigmas_ns(&values) } else { NoiseModel::from_range_sigmas(&values) };
+        model.map_err(CliError::tdoa_in(flag))
+    }
+}
+
+/// UAVs and their noise: everything needed to build [`tdoa::Sensors`].
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct SensorArgs {
+    #[command(flatten)]
+    pub uav: UavArgs,
+    #[command(flatten)]
+    pub sigma: SigmaArgs,
+}
+
+impl SensorArgs {
+    /// Validated sensors (count, σ, distinct positions).
+    pub fn sensors(&self) -> Result<Sensors, CliError> {
+        let positions = self.uav.positions()?;
+        let noise = self.sigma.noise(positions.len())?;
+        Sensors::new(&positions, noise).map_err(CliError::tdoa_in("--uav"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_and_lists() {
+        assert_eq!(parse_point("-1500,200.5").unwrap(), Point([-1500.0, 200.5]));
+        assert_eq!(parse_point(" 1 , 2 ").unwrap(), Point([1.0, 2.0]));
+        for bad in ["1,2,3", "1", "a,b", "", "nan,0", "0,inf", "1,", ",1", "1e400,0"] {
+            assert!(parse_point(bad).is_err(), "{bad} should be rejected");
+        }
+        assert_eq!(parse_list("1").unwrap(), NumList(vec![1.0]));
+        assert_eq!(parse_list("-1,2.5,3e2").unwrap(), NumList(vec![-1.0, 2.5, 300.0]));
+        assert!(parse_list("1,,2").is_err());
+        assert!(parse_cov("1,0").is_err());
+        assert_eq!(parse_count::<usize>(" 12 "), Ok(12));
+        assert!(parse_count::<usize>("-1").is_err());
+        assert!(parse_count::<u64>("1.5").is_err());
+        assert_eq!(parse_cov("4,1,9").unwrap(), Matrix2::new(4.0, 1.0, 1.0, 9.0));
+    }
+
+    #[test]
+    fn sigma_expansion_and_errors() {
+        let s = SigmaArgs { sigma: Some(NumList(vec![2.0])), sigma_ns: None };
+        assert_eq!(s.noise(4).unwrap().sigmas(), &[2.0; 4]);
+        let s = SigmaArgs { sigma: Some(NumList(vec![1.0, 2.0])), sigma_ns: None };
+        assert!(matches!(s.noise(3), Err(CliError::Input(m)) if m.contains("--sigma")));
+        let s = SigmaArgs { sigma: None, sigma_ns: Some(NumList(vec![0.0])) };
+        assert!(matches!(s.noise(3), Err(CliError::Input(m)) if m.contains("--sigma-ns")));
+        let s = SigmaArgs { sigma: None, sigma_ns: Some(NumList(vec![10.0])) };
+        let m = s.noise(3).unwrap();
+        assert!((m.sigmas()[0] - 10.0 * tdoa::SPEED_OF_LIGHT / 1e9).abs() < 1e-12);
+    }
+}
