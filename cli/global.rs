@@ -139,6 +139,10 @@ pub struct GlobalReport {
     pub stderr_trace_m2: Option<Option<f64>>,
     /// Number of `tr F⁻¹` evaluations spent.
     pub evaluations: usize,
+    /// Kish's effective sample size of the `mc` weights (key present for `mc` only): its standard error
+    /// means little when this is a handful.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub effective_samples: Option<f64>,
     /// Estimated error of a quadrature that stopped before converging, m² (diagnostic, not in JSON).
     #[serde(skip)]
     pub unconverged_m2: Option<f64>,
@@ -172,6 +176,7 @@ pub fn compute(
         singular_distance_m: finite(r.singular.distance_m),
         stderr_trace_m2: (method == Method::Mc).then_some(trace_m2.and(stderr)),
         evaluations: r.value.evaluations,
+        effective_samples: r.value.effective_samples,
         unconverged_m2: if method == Method::Quadrature { trace_m2.and(stderr) } else { None },
     })
 }
@@ -232,6 +237,7 @@ impl Report for GlobalReport {
         t.row("support side", format!("{} m", num(self.side_m)))
             .row("singular locus", locus)
             .row("evaluations", self.evaluations.to_string())
+            .row_opt("effective samples", self.effective_samples.map(num))
     }
 
     fn diagnostics(&self) -> Vec<Diagnostic> {

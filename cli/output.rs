@@ -38,6 +38,14 @@ impl Table {
     }
 
     /// Adds a row; `value` already carries its unit.
+    /// Adds a row only when there is a value.
+    pub fn row_opt(self, label: impl Into<String>, value: Option<String>) -> Self {
+        match value {
+            Some(v) => self.row(label, v),
+            None => self,
+        }
+    }
+
     pub fn row(mut self, label: impl Into<String>, value: impl Into<String>) -> Self {
         self.rows.push((label.into(), value.into()));
         self
