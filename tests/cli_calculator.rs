@@ -259,7 +259,9 @@ fn global_all_methods_at_the_nominal_geometry() {
         ]);
         if m == "mc" {
             expected.insert("stderr_trace_m2".into());
+            expected.insert("effective_samples".into());
             assert!(f(&v, "stderr_trace_m2") > 0.0);
+            assert!(f(&v, "effective_samples") >= 1.0 && f(&v, "effective_samples") <= 200.0);
         }
         assert_eq!(keys(&v), expected, "{m}: {v}");
         assert_eq!(v["method"], Value::String(m.into()));

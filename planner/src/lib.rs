@@ -1,1 +1,41 @@
-//! placeholder
+//! # uavloc-planner — the step-by-step heading planner of uavloc
+//!
+//! Pure functions over plain data (paper Sections 3.1, 3.5–3.6, 4.3, 5.4): at every step each UAV
+//! chooses a new heading; the headings minimise a CRLB criterion of the next waypoints (single-point,
+//! Monte Carlo or analytical global CRLB, or a 25-point cubature) under four motion constraints, with
+//! PSO, GA or ACO_R. The fixed-formation baseline needs no solver.
+//!
+//! - [`scenario`]: the run's settings from TOML ([`Scenario`]; default = the paper's Table 1 case);
+//! - [`kinematics`]: fixed-speed circular-arc motion (eq. 54);
+//! - [`constraints`]: turn radius, spacing, approach distance, heading cone (eqs. 55–59);
+//! - [`fitness`]: the lexicographic penalised fitness (eq. 78);
+//! - [`objective`]: the criteria, one adapter over `tdoa`'s global CRLB methods;
+//! - [`formation`]: the traditional fixed-formation baseline;
+//! - [`solver`], [`pso`], [`ga`], [`aco`]: one solver trait, three solvers;
+//! - [`step`]: one planning step, [`plan_step`].
+//!
+//! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
+
+pub mod aco;
+pub mod constraints;
+pub mod fitness;
+pub mod formation;
+pub mod ga;
+pub mod kinematics;
+pub mod objective;
+pub mod pso;
+pub mod scenario;
+pub mod solver;
+pub mod step;
+
+pub use aco::{Aco, AcoConfig};
+pub use constraints::{ActiveConstraint, ConstraintKind, ConstraintReport, Constraints};
+pub use fitness::Fitness;
+pub use formation::formation_headings;
+pub use ga::{Ga, GaConfig};
+pub use kinematics::{bearing, next_position, turn_angle, turn_radius, wrap_angle};
+pub use objective::{CrlbObjective, ObjectiveKind, PlanObjective};
+pub use pso::{Pso, PsoConfig};
+pub use scenario::{PlannerTarget, RangeSigma, Scenario, ScenarioError, TargetMode};
+pub use solver::{EarlyStop, SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult};
+pub use step::{PlanError, PlanOutput, PlanRequest, plan_step};

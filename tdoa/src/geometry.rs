@@ -162,8 +162,11 @@ impl Sensors {
         }
         let mut pos = [Vector2::zeros(); MAX_UAVS];
         for (i, p) in uavs.iter().enumerate() {
-            check_finite(&format!("x of UAV {i}"), p[0])?;
-            check_finite(&format!("y of UAV {i}"), p[1])?;
+            // Format the message only on failure: this runs for every planner candidate.
+            if !(p[0].is_finite() && p[1].is_finite()) {
+                check_finite(&format!("x of UAV {i}"), p[0])?;
+                check_finite(&format!("y of UAV {i}"), p[1])?;
+            }
             pos[i] = Vector2::new(p[0], p[1]);
         }
         for a in 0..n {

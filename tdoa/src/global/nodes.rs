@@ -44,18 +44,19 @@ impl NodeRule {
 
 impl PreparedObjective for NodeRule {
     fn evaluate(&self, sensors: &Sensors) -> GlobalValue {
-        let mut sum = 0.0;
-        let mut values = Vec::with_capacity(if self.with_stderr { self.points.len() } else { 0 });
+        // One pass: Σω h, Σω² h, Σω² h², Σω²; then Σω²(h − ĥ)² = Σω²h² − 2ĥ Σω²h + ĥ² Σω².
+        let (mut sum, mut s1, mut s2, mut s0) = (0.0, 0.0, 0.0, 0.0);
         for (p, w) in self.points.iter().zip(&self.weights) {
             let h = trace_crlb(sensors, p);
             sum += w * h;
             if self.with_stderr {
-                values.push(h);
+                let w2 = w * w;
+                s0 += w2;
+                s1 += w2 * h;
+                s2 += w2 * h * h;
             }
         }
-        let stderr_m2 = self
-            .with_stderr
-            .then(|| values.iter().zip(&self.weights).map(|(h, w)| w * w * (h - sum) * (h - sum)).sum::<f64>().sqrt());
+        let stderr_m2 = self.with_stderr.then(|| (s2 - 2.0 * sum * s1 + sum * sum * s0).max(0.0).sqrt());
         GlobalValue {
             trace_m2: sum,
             stderr_m2,

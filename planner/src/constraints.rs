@@ -1,0 +1,405 @@
+//! The four motion constraints of one planning step (paper Section 3.5, eqs. 54–59).
+//!
+//! For candidate headings `φ_i` and the resulting next waypoints `w_i^{t+1}`:
+//!
+//! | name | constraint | paper | normalised violation |
+//! |---|---|---|---|
+//! | `turn_radius` | `R_i = L/|θ_i| ≥ R_min`, i.e. `|θ_i| ≤ L/R_min` | eqs. 54, 55 | `(|θ_i| − θ_max)/θ_max` |
+//! | `spacing` | `|w_i^{t+1} − w_j^{t+1}| ≥ D_min` for every pair | eq. 56 | `(D_min − D_ij)/D_min` |
+//! | `approach` | `|w_i^{t+1} − ẑ| ≥ L_min` | eq. 57 | `(L_min − L_i)/L_min` |
+//! | `heading_cone` | `|wrap(φ_i − α_i)| ≤ Δα`, `α_i` the bearing from `w_i^t` to ẑ | eqs. 58, 59 | `(|φ_i − α_i| − Δα)/Δα` |
+//!
+//! The approach and cone constraints use the planner's estimate ẑ: the true emitter is unknown to it.
+//! The paper writes strict inequalities; the bounds are treated as closed here so that a plan on a
+//! bound is feasible. A bound of 0 (for `R_min`, `D_min`, `L_min`) switches that constraint off.
+//!
+//! Units: metres, radians.
+
+use std::fmt;
+
+use nalgebra::Vector2;
+
+use crate::kinematics::{bearing, max_turn, turn_angle, turn_radius, wrap_angle};
+use crate::scenario::Scenario;
+
+/// A constraint within this relative distance of its bound is reported as active (binding) even
+/// when it holds — our choice, so that a plan shows which limits shaped it.
+pub const BINDING_TOLERANCE: f64 = 1e-3;
+
+/// Relative excesses up to this are rounding, not violation: a heading clamped exactly onto the cone
+/// bound `α + Δα` can come back from `wrap(φ − α)` one ulp beyond it.
+pub const FEASIBILITY_EPS: f64 = 1e-9;
+
+/// Normalised violation `excess/bound`, with excesses within [`FEASIBILITY_EPS`] counted as 0.
+#[inline]
+fn normalised(excess: f64, bound: f64) -> f64 {
+    let v = excess / bound;
+    if v > FEASIBILITY_EPS { v } else { 0.0 }
+}
+
+/// Which of the four constraints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConstraintKind {
+    /// Turn radius ≥ `R_min` (eq. 55).
+    TurnRadius,
+    /// Pairwise UAV spacing ≥ `D_min` (eq. 56).
+    Spacing,
+    /// Distance to ẑ ≥ `L_min` (eq. 57).
+    Approach,
+    /// Heading within `α_i ± Δα` (eq. 58).
+    HeadingCone,
+}
+
+impl ConstraintKind {
+    /// The snake-case name used in reports: `turn_radius`, `spacing`, `approach`, `heading_cone`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ConstraintKind::TurnRadius => "turn_radius",
+            ConstraintKind::Spacing => "spacing",
+            ConstraintKind::Approach => "approach",
+            ConstraintKind::HeadingCone => "heading_cone",
+        }
+    }
+}
+
+impl fmt::Display for ConstraintKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One constraint that is violated or binding (within [`BINDING_TOLERANCE`] of its bound).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ActiveConstraint {
+    /// Which constraint.
+    pub kind: ConstraintKind,
+    /// The UAV it concerns (the first of the pair for `spacing`).
+    pub uav: usize,
+    /// The second UAV of a `spacing` pair.
+    pub other: Option<usize>,
+    /// The constrained quantity: turn radius (m), spacing (m), distance to ẑ (m) or the heading's
+    /// offset from the bearing to ẑ (rad, absolute).
+    pub value: f64,
+    /// Its bound: `R_min`, `D_min`, `L_min` (m) or `Δα` (rad).
+    pub bound: f64,
+    /// Normalised violation (0 when the constraint holds and is only binding).
+    pub violation: f64,
+}
+
+impl ActiveConstraint {
+    /// Whether the constraint is violated (not merely binding).
+    pub fn is_violated(&self) -> bool {
+        self.violation > 0.0
+    }
+}
+
+impl fmt::Display for ActiveConstraint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.other {
+            Some(b) => write!(f, "{}(UAV {}, UAV {})", self.kind, self.uav, b)?,
+            None => write!(f, "{}(UAV {})", self.kind, self.uav)?,
+        }
+        if self.is_violated() { write!(f, " violated by {:.3e}", self.violation) } else { f.write_str(" binding") }
+    }
+}
+
+/// The constraint check of one candidate plan.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ConstraintReport {
+    /// Sum of the normalised violation magnitudes; 0 when every constraint holds.
+    pub violation: f64,
+    /// The violated and the binding constraints.
+    pub active: Vec<ActiveConstraint>,
+}
+
+impl ConstraintReport {
+    /// Whether every constraint holds.
+    pub fn is_feasible(&self) -> bool {
+        self.violation == 0.0
+    }
+}
+
+/// The constraint parameters of a scenario (eq. 59).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Constraints {
+    /// Arc length flown per step `L = v·Δt`, metres.
+    pub arc_len: f64,
+    /// Minimum turn radius `R_min`, metres.
+    pub r_min: f64,
+    /// Minimum spacing between UAVs `D_min`, metres.
+    pub d_min: f64,
+    /// Minimum distance to the (estimated) emitter `L_min`, metres.
+    pub l_min: f64,
+    /// Half-width `Δα` of the heading cone around the bearing to ẑ, radians.
+    pub delta_alpha: f64,
+}
+
+impl Constraints {
+    /// The constraints of `scenario`.
+    pub fn from_scenario(scenario: &Scenario) -> Self {
+        Self {
+            arc_len: scenario.speed * scenario.dt,
+            r_min: scenario.r_min,
+            d_min: scenario.d_min,
+            l_min: scenario.l_min,
+            delta_alpha: scenario.delta_alpha,
+        }
+    }
+
+    /// Largest turn per step that keeps `R ≥ R_min`: `min(π, L/R_min)`, radians.
+    pub fn max_turn(&self) -> f64 {
+        max_turn(self.arc_len, self.r_min)
+    }
+
+    /// The heading cone `[α − Δα, α + Δα]` (radians, unwrapped around `α ∈ (−π, π]`, so `hi` may exceed
+    /// π) of a UAV at `position` with the emitter estimated at `estimate` (eq. 58).
+    pub fn cone(&self, position: Vector2<f64>, estimate: Vector2<f64>) -> (f64, f64) {
+        let alpha = bearing(position, estimate);
+        (alpha - self.delta_alpha, alpha + self.delta_alpha)
+    }
+
+    /// The full report for a candidate: current `positions` and `headings`, the estimate ẑ, the
+    /// candidate headings `new_headings` and the next waypoints `next` they lead to.
+    pub fn check(
+        &self,
+        positions: &[Vector2<f64>],
+        headings: &[f64],
+        estimate: Vector2<f64>,
+        new_headings: &[f64],
+        next: &[Vector2<f64>],
+    ) -> ConstraintReport {
+        let mut active = Vec::new();
+        let mut violation = 0.0;
+        self.visit(positions, headings, estimate, new_headings, next, |c| {
+            violation += c.violation;
+            active.push(c);
+        });
+        ConstraintReport { violation, active }
+    }
+
+    /// Only the total normalised violation of [`Constraints::check`] (no allocation).
+    pub fn violation(
+        &self,
+        positions: &[Vector2<f64>],
+        headings: &[f64],
+        estimate: Vector2<f64>,
+        new_headings: &[f64],
+        next: &[Vector2<f64>],
+    ) -> f64 {
+        let mut violation = 0.0;
+        self.visit(positions, headings, estimate, new_headings, next, |c| violation += c.violation);
+        violation
+    }
+
+    /// Calls `sink` for every violated or binding constraint.
+    fn visit(
+        &self,
+        positions: &[Vector2<f64>],
+        headings: &[f64],
+        estimate: Vector2<f64>,
+        new_headings: &[f64],
+        next: &[Vector2<f64>],
+        mut sink: impl FnMut(ActiveConstraint),
+    ) {
+        let n = positions.len().min(headings.len()).min(new_headings.len()).min(next.len());
+        let theta_max = self.max_turn();
+        let lower_bound = |kind, uav, other, value: f64, bound: f64| -> Option<ActiveConstraint> {
+            (bound > 0.0 && value <= bound * (1.0 + BINDING_TOLERANCE)).then(|| ActiveConstraint {
+                kind,
+                uav,
+                other,
+                value,
+                bound,
+                violation: normalised(bound - value, bound),
+            })
+        };
+        for i in 0..n {
+            // Turn radius, in terms of the turn angle so that the violation grows with the excess turn.
+            let theta = turn_angle(headings[i], new_headings[i]).abs();
+            if self.r_min > 0.0 && theta >= theta_max * (1.0 - BINDING_TOLERANCE) {
+                sink(ActiveConstraint {
+                    kind: ConstraintKind::TurnRadius,
+                    uav: i,
+                    other: None,
+                    value: turn_radius(headings[i], new_headings[i], self.arc_len),
+                    bound: self.r_min,
+                    violation: normalised(theta - theta_max, theta_max),
+                });
+            }
+            // Heading cone around the bearing from the current position to ẑ.
+            let off = wrap_angle(new_headings[i] - bearing(positions[i], estimate)).abs();
+            if off >= self.delta_alpha * (1.0 - BINDING_TOLERANCE) {
+                sink(ActiveConstraint {
+                    kind: ConstraintKind::HeadingCone,
+                    uav: i,
+                    other: None,
+                    value: off,
+                    bound: self.delta_alpha,
+                    violation: normalised(off - self.delta_alpha, self.delta_alpha),
+                });
+            }
+            // Approach distance of the next waypoint to ẑ.
+            if let Some(c) = lower_bound(ConstraintKind::Approach, i, None, (next[i] - estimate).norm(), self.l_min) {
+                sink(c);
+            }
+            // Spacing of the next waypoints.
+            for j in i + 1..n {
+                if let Some(c) =
+                    lower_bound(ConstraintKind::Spacing, i, Some(j), (next[i] - next[j]).norm(), self.d_min)
+                {
+                    sink(c);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fitness::Fitness;
+    use crate::kinematics::next_position;
+
+    fn constraints() -> Constraints {
+        Constraints { arc_len: 500.0, r_min: 1000.0, d_min: 500.0, l_min: 3000.0, delta_alpha: 25f64.to_radians() }
+    }
+
+    /// Three UAVs far apart, west of ẑ, all heading straight at it.
+    fn situation() -> (Vec<Vector2<f64>>, Vec<f64>, Vector2<f64>) {
+        let p = vec![Vector2::new(0.0, 0.0), Vector2::new(0.0, 5000.0), Vector2::new(0.0, -5000.0)];
+        let z = Vector2::new(20000.0, 0.0);
+        let h = p.iter().map(|q| bearing(*q, z)).collect();
+        (p, h, z)
+    }
+
+    fn report(c: &Constraints, p: &[Vector2<f64>], h: &[f64], z: Vector2<f64>, phi: &[f64]) -> ConstraintReport {
+        let next: Vec<_> = (0..p.len()).map(|i| next_position(p[i], h[i], phi[i], 50.0, 10.0)).collect();
+        let r = c.check(p, h, z, phi, &next);
+        assert_eq!(r.violation, c.violation(p, h, z, phi, &next));
+        r
+    }
+
+    fn violated(r: &ConstraintReport) -> Vec<(ConstraintKind, usize, Option<usize>)> {
+        r.active.iter().filter(|c| c.is_violated()).map(|c| (c.kind, c.uav, c.other)).collect()
+    }
+
+    #[test]
+    fn straight_at_the_target_is_feasible() {
+        let (p, h, z) = situation();
+        let r = report(&constraints(), &p, &h, z, &h);
+        assert!(r.is_feasible(), "{r:?}");
+        assert!(r.active.is_empty());
+    }
+
+    #[test]
+    fn turn_radius() {
+        let c = constraints();
+        let (p, h, z) = situation();
+        // A 20° turn (< 28.6° = L/R_min) is fine; the cone is 25°.
+        let mut phi = h.clone();
+        phi[1] = h[1] + 20f64.to_radians();
+        assert!(report(&c, &p, &h, z, &phi).is_feasible());
+        // Current heading far from the bearing: a 40° turn back into the cone breaks the turn limit only.
+        let mut h2 = h.clone();
+        h2[1] = h[1] + 60f64.to_radians();
+        let phi = h.clone();
+        let r = report(&c, &p, &h2, z, &phi);
+        assert_eq!(violated(&r), vec![(ConstraintKind::TurnRadius, 1, None)]);
+        let excess = (60f64.to_radians() - 0.5) / 0.5;
+        assert!((r.violation - excess).abs() < 1e-12);
+        assert!((r.active[0].value - 500.0 / 60f64.to_radians()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn spacing() {
+        let c = constraints();
+        let p = vec![Vector2::new(0.0, 0.0), Vector2::new(0.0, 600.0), Vector2::new(0.0, -5000.0)];
+        let z = Vector2::new(20000.0, 0.0);
+        let h: Vec<f64> = p.iter().map(|q| bearing(*q, z)).collect();
+        // Flying straight keeps them ≈ 600 m apart: fine.
+        assert!(report(&c, &p, &h, z, &h).is_feasible());
+        // UAV 0 turns left and UAV 1 right (inside turn and cone limits): they close in below 500 m.
+        let mut phi = h.clone();
+        phi[0] = h[0] + 24f64.to_radians();
+        phi[1] = h[1] - 24f64.to_radians();
+        let r = report(&c, &p, &h, z, &phi);
+        assert_eq!(violated(&r), vec![(ConstraintKind::Spacing, 0, Some(1))]);
+    }
+
+    #[test]
+    fn approach() {
+        let c = constraints();
+        let (mut p, _, z) = situation();
+        p[0] = Vector2::new(16800.0, 0.0);
+        let h: Vec<f64> = p.iter().map(|q| bearing(*q, z)).collect();
+        // Next waypoint 2700 m from ẑ < 3000 m.
+        let r = report(&c, &p, &h, z, &h);
+        assert_eq!(violated(&r), vec![(ConstraintKind::Approach, 0, None)]);
+        assert!((r.violation - 300.0 / 3000.0).abs() < 1e-9);
+        p[0] = Vector2::new(16000.0, 0.0);
+        assert!(report(&c, &p, &h, z, &h).is_feasible());
+    }
+
+    #[test]
+    fn heading_cone() {
+        let c = constraints();
+        let (p, h, z) = situation();
+        let mut phi = h.clone();
+        phi[2] = h[2] - 27f64.to_radians();
+        let r = report(&c, &p, &h, z, &phi);
+        assert_eq!(violated(&r), vec![(ConstraintKind::HeadingCone, 2, None)]);
+        phi[2] = h[2] - 24f64.to_radians();
+        assert!(report(&c, &p, &h, z, &phi).is_feasible());
+    }
+
+    #[test]
+    fn heading_cone_wraps_across_pi() {
+        let c = constraints();
+        // ẑ due west: α = π; a heading of −170° is 10° off, inside the cone.
+        let p = vec![Vector2::new(0.0, 0.0), Vector2::new(0.0, 5000.0), Vector2::new(0.0, -5000.0)];
+        let z = Vector2::new(-20000.0, 0.0);
+        let h: Vec<f64> = p.iter().map(|q| bearing(*q, z)).collect();
+        let mut phi = h.clone();
+        phi[0] = (-170f64).to_radians();
+        assert!(report(&c, &p, &h, z, &phi).is_feasible());
+        phi[0] = (-150f64).to_radians();
+        assert!(!report(&c, &p, &h, z, &phi).is_feasible());
+    }
+
+    #[test]
+    fn binding_constraints_are_reported_but_feasible() {
+        let c = constraints();
+        let (p, h, z) = situation();
+        let mut phi = h.clone();
+        phi[0] = h[0] + c.delta_alpha;
+        let r = report(&c, &p, &h, z, &phi);
+        assert!(r.is_feasible());
+        assert_eq!(r.active.len(), 1);
+        assert_eq!(r.active[0].kind, ConstraintKind::HeadingCone);
+        assert!(!r.active[0].is_violated());
+    }
+
+    #[test]
+    fn zero_bounds_switch_constraints_off() {
+        let c = Constraints { r_min: 0.0, d_min: 0.0, l_min: 0.0, ..constraints() };
+        let p = vec![Vector2::new(0.0, 0.0), Vector2::new(0.0, 10.0), Vector2::new(30.0, 0.0)];
+        let z = Vector2::new(100.0, 0.0);
+        let h = vec![3.0, 3.0, 3.0];
+        let phi: Vec<f64> = p.iter().map(|q| bearing(*q, z)).collect();
+        assert!(report(&c, &p, &h, z, &phi).is_feasible());
+    }
+
+    #[test]
+    fn infeasible_with_tiny_objective_loses_to_feasible_with_huge_objective() {
+        let c = constraints();
+        let (p, h, z) = situation();
+        let mut phi = h.clone();
+        phi[2] = h[2] - 26f64.to_radians();
+        let next: Vec<_> = (0..3).map(|i| next_position(p[i], h[i], phi[i], 50.0, 10.0)).collect();
+        let bad = Fitness::new(c.violation(&p, &h, z, &phi, &next), 1e-9);
+        let good = Fitness::feasible(1e30);
+        assert!(!bad.is_feasible());
+        assert!(good < bad);
+    }
+}

@@ -1,0 +1,205 @@
+//! The planning criteria: what a candidate set of next waypoints is worth (paper eqs. 51–52, 60, 74).
+//!
+//! | name | criterion | paper |
+//! |---|---|---|
+//! | `single` | `tr F⁻¹(ẑ)` at the next waypoints | single-point method |
+//! | `mc` | eq. 60 with K uniform points in the support, drawn once per step | MC method |
+//! | `analytical` | `tr F⁻¹(ẑ) + ½ tr(M H(ẑ))` | eq. 74 |
+//! | `cubature` | 25-point Gauss–Hermite rule (beyond the paper) | — |
+//! | `formation` | no criterion: the fixed-formation baseline of [`crate::formation`] | traditional method |
+//!
+//! All criteria are the one adapter [`CrlbObjective`] over `tdoa`'s [`GlobalCrlb`] methods: prepared
+//! once per planning step for the uncertainty `(ẑ, M, A)`, then evaluated for every candidate. The `mc`
+//! samples come from `derive_seed(run_seed, step, Purpose::ObjectiveSamples)`, so every candidate of a
+//! step sees the same points (common random numbers).
+
+use std::fmt;
+use std::str::FromStr;
+
+use nalgebra::Vector2;
+use tdoa::global::{GlobalCrlb, Method, PreparedObjective};
+use tdoa::rng::{Purpose, derive_seed};
+use tdoa::{MAX_UAVS, NoiseModel, Sensors, TdoaError, Uncertainty};
+
+/// The planning choices accepted on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ObjectiveKind {
+    /// `tr F⁻¹(ẑ)`.
+    Single,
+    /// Monte Carlo global CRLB (eq. 60).
+    Mc,
+    /// Second-order analytical global CRLB (eq. 74).
+    Analytical,
+    /// 25-point Gauss–Hermite global CRLB (beyond the paper).
+    Cubature,
+    /// The fixed-formation baseline (no optimisation).
+    Formation,
+}
+
+impl ObjectiveKind {
+    /// All planning choices.
+    pub const ALL: [ObjectiveKind; 5] = [
+        ObjectiveKind::Single,
+        ObjectiveKind::Mc,
+        ObjectiveKind::Analytical,
+        ObjectiveKind::Cubature,
+        ObjectiveKind::Formation,
+    ];
+
+    /// The lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ObjectiveKind::Single => "single",
+            ObjectiveKind::Mc => "mc",
+            ObjectiveKind::Analytical => "analytical",
+            ObjectiveKind::Cubature => "cubature",
+            ObjectiveKind::Formation => "formation",
+        }
+    }
+
+    /// The global-CRLB method this choice optimises; `formation` optimises nothing and reports the
+    /// single-point criterion `tr F⁻¹(ẑ)` of its plan.
+    pub fn criterion(self) -> Method {
+        match self {
+            ObjectiveKind::Single | ObjectiveKind::Formation => Method::Single,
+            ObjectiveKind::Mc => Method::Mc,
+            ObjectiveKind::Analytical => Method::Analytical,
+            ObjectiveKind::Cubature => Method::Cubature,
+        }
+    }
+
+    /// Whether the headings come from a solver (false for `formation`).
+    pub fn is_optimised(self) -> bool {
+        self != ObjectiveKind::Formation
+    }
+}
+
+impl fmt::Display for ObjectiveKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for ObjectiveKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        ObjectiveKind::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| {
+            format!("unknown objective '{s}' (expected one of: single, mc, analytical, cubature, formation)")
+        })
+    }
+}
+
+/// A criterion prepared for one planning step, evaluated at candidate next waypoints.
+pub trait PlanObjective: Send + Sync {
+    /// The criterion's value for UAVs at `next` (metres), m²; `+∞` when the geometry is invalid
+    /// (coincident UAVs, wrong count) or the FIM is singular.
+    fn evaluate(&self, next: &[Vector2<f64>]) -> f64;
+}
+
+/// The one adapter from a `tdoa` global-CRLB method to a [`PlanObjective`].
+pub struct CrlbObjective {
+    method: Method,
+    prepared: Box<dyn PreparedObjective>,
+    noise: NoiseModel,
+}
+
+impl fmt::Debug for CrlbObjective {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("CrlbObjective").field("method", &self.method).finish_non_exhaustive()
+    }
+}
+
+impl CrlbObjective {
+    /// Prepares `method` for the uncertainty `unc` of planning step `step` of run `run_seed`; the UAVs
+    /// have range noise `noise`. `mc_samples` (K ≥ 2) is used by `mc` only, whose points are drawn from
+    /// `derive_seed(run_seed, step, Purpose::ObjectiveSamples)`.
+    pub fn prepare(
+        method: Method,
+        unc: &Uncertainty,
+        noise: NoiseModel,
+        mc_samples: usize,
+        run_seed: u64,
+        step: u64,
+    ) -> Result<Self, TdoaError> {
+        let built: Box<dyn GlobalCrlb> =
+            method.build(mc_samples, derive_seed(run_seed, step, Purpose::ObjectiveSamples))?;
+        Ok(Self { method, prepared: built.prepare(unc), noise })
+    }
+
+    /// Which method this is.
+    pub fn method(&self) -> Method {
+        self.method
+    }
+}
+
+impl PlanObjective for CrlbObjective {
+    fn evaluate(&self, next: &[Vector2<f64>]) -> f64 {
+        if next.len() > MAX_UAVS {
+            return f64::INFINITY;
+        }
+        let mut uavs = [[0.0; 2]; MAX_UAVS];
+        for (u, p) in uavs.iter_mut().zip(next) {
+            *u = [p.x, p.y];
+        }
+        match Sensors::new(&uavs[..next.len()], self.noise.clone()) {
+            Ok(sensors) => self.prepared.evaluate(&sensors).trace_m2,
+            Err(_) => f64::INFINITY,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Matrix2;
+
+    fn setup() -> (Uncertainty, NoiseModel, Vec<Vector2<f64>>) {
+        let z = Vector2::new(25000.0, 15000.0);
+        let unc = Uncertainty::with_eq36_side(z, Matrix2::new(4e5, 1e5, 1e5, 2e5), 20000.0, 0.1).unwrap();
+        let noise = NoiseModel::uniform(3, 28.7712).unwrap();
+        let uavs = vec![Vector2::new(1500.0, 500.0), Vector2::new(10000.0, 1500.0), Vector2::new(5000.0, 8500.0)];
+        (unc, noise, uavs)
+    }
+
+    #[test]
+    fn adapter_matches_tdoa() {
+        let (unc, noise, uavs) = setup();
+        let pts: Vec<[f64; 2]> = uavs.iter().map(|p| [p.x, p.y]).collect();
+        let sensors = Sensors::new(&pts, noise.clone()).unwrap();
+        for kind in [ObjectiveKind::Single, ObjectiveKind::Mc, ObjectiveKind::Analytical, ObjectiveKind::Cubature] {
+            let obj = CrlbObjective::prepare(kind.criterion(), &unc, noise.clone(), 200, 5, 2).unwrap();
+            let seed = derive_seed(5, 2, Purpose::ObjectiveSamples);
+            let direct = kind.criterion().build(200, seed).unwrap().prepare(&unc).evaluate(&sensors).trace_m2;
+            assert_eq!(obj.evaluate(&uavs).to_bits(), direct.to_bits(), "{kind}");
+            assert!(direct.is_finite() && direct > 0.0);
+        }
+    }
+
+    #[test]
+    fn mc_samples_are_common_within_a_step_and_differ_between_steps() {
+        let (unc, noise, uavs) = setup();
+        let a = CrlbObjective::prepare(Method::Mc, &unc, noise.clone(), 200, 5, 2).unwrap();
+        let b = CrlbObjective::prepare(Method::Mc, &unc, noise.clone(), 200, 5, 2).unwrap();
+        let c = CrlbObjective::prepare(Method::Mc, &unc, noise, 200, 5, 3).unwrap();
+        assert_eq!(a.evaluate(&uavs), b.evaluate(&uavs));
+        assert_ne!(a.evaluate(&uavs), c.evaluate(&uavs));
+    }
+
+    #[test]
+    fn invalid_geometry_is_infinite() {
+        let (unc, noise, mut uavs) = setup();
+        uavs[2] = uavs[1];
+        let obj = CrlbObjective::prepare(Method::Analytical, &unc, noise, 200, 0, 0).unwrap();
+        assert_eq!(obj.evaluate(&uavs), f64::INFINITY);
+        assert_eq!(obj.evaluate(&uavs[..2]), f64::INFINITY);
+    }
+
+    #[test]
+    fn names_round_trip() {
+        for k in ObjectiveKind::ALL {
+            assert_eq!(k.name().parse::<ObjectiveKind>().unwrap(), k);
+        }
+        assert!("quadrature".parse::<ObjectiveKind>().is_err());
+    }
+}

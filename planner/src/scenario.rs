@@ -1,0 +1,607 @@
+//! The scenario of a run, loaded from TOML: geometry, motion, noise, constraints, planner and solver
+//! settings. [`Scenario::default()`] is the paper's nominal three-UAV case (Section 5.1, Table 1).
+//!
+//! # Conventions
+//!
+//! - Lengths in metres, times in seconds, speeds in m/s.
+//! - **Angles**: in TOML every angle is in *degrees* and its key ends in `_deg` (`delta_alpha_deg`,
+//!   `headings_deg`); in Rust every angle is in *radians* (the fields `delta_alpha`, `headings`).
+//! - Every key is optional: a missing key takes its nominal value, a missing `headings_deg` means
+//!   "each UAV heads straight at the emitter". Unknown keys are errors.
+//! - Values the paper does not state are marked "our choice" in their doc comment.
+//!
+//! [`Scenario::from_toml_str`] and [`Scenario::from_file`] parse and then [`Scenario::validate`]; every
+//! error names the offending key.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Matrix2, Vector2};
+use tdoa::geometry::COINCIDENCE_TOLERANCE_M;
+use tdoa::{DEFAULT_KAPPA, MAX_UAVS, NoiseModel};
+use thiserror::Error;
+
+use crate::aco::AcoConfig;
+use crate::ga::GaConfig;
+use crate::kinematics::bearing;
+use crate::pso::PsoConfig;
+use crate::solver::EarlyStop;
+
+/// Smallest covariance (m², times the identity) handed to the planner in controlled mode: at scale
+/// s = 0 the covariance `s² σ_t² I` would be zero, which no [`tdoa::Uncertainty`] accepts. (1 cm)² makes
+/// every criterion equal to `single` to within ~1e-8 relative.
+pub const MIN_CONTROLLED_VARIANCE_M2: f64 = 1e-4;
+
+/// Why a scenario was refused. Every variant names the key.
+#[derive(Debug, Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("cannot read scenario file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// TOML syntax, an unknown key or a value of the wrong type.
+    #[error("scenario{}: {message}", match (key, line) {
+        (Some(k), Some(l)) => format!(" key `{k}` (line {l})"),
+        (Some(k), None) => format!(" key `{k}`"),
+        (None, Some(l)) => format!(" (line {l})"),
+        (None, None) => String::new(),
+    })]
+    Parse {
+        /// The key the error is about, when it can be located (`table.key` inside a table).
+        key: Option<String>,
+        /// 1-based line of the error, when known.
+        line: Option<usize>,
+        /// What is wrong.
+        message: String,
+    },
+    /// A value outside its allowed range.
+    #[error("scenario key `{key}`: {reason}")]
+    Invalid {
+        /// The key, e.g. `speed`, `uavs`, `pso.particles`.
+        key: String,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+impl ScenarioError {
+    /// The key the error is about, if any.
+    pub fn key(&self) -> Option<&str> {
+        match self {
+            ScenarioError::Io { .. } => None,
+            ScenarioError::Parse { key, .. } => key.as_deref(),
+            ScenarioError::Invalid { key, .. } => Some(key),
+        }
+    }
+}
+
+fn invalid(key: &str, reason: impl Into<String>) -> ScenarioError {
+    ScenarioError::Invalid { key: key.to_string(), reason: reason.into() }
+}
+
+/// Range standard deviation: one value for every UAV or one per UAV (metres).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(untagged, expecting = "a range sigma in metres: one number, or a list with one number per UAV")]
+pub enum RangeSigma {
+    /// The same σ for every UAV.
+    Uniform(f64),
+    /// σ of each UAV, index 0 being the reference.
+    PerUav(Vec<f64>),
+}
+
+/// Where the planner's target (ẑ, M) comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TargetMode {
+    /// The live Chan estimate of each step and its covariance (paper Sections 5.1–5.5).
+    #[default]
+    Chan,
+    /// A controlled planner-side error (paper Section 5.6): ẑ = z* + s·e0, M = s²·σ_t²·I.
+    Controlled,
+}
+
+/// The planner's belief about the target: ẑ (m) and its covariance M (m²).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlannerTarget {
+    /// ẑ, metres.
+    pub estimate: Vector2<f64>,
+    /// M, m².
+    pub covariance: Matrix2<f64>,
+}
+
+/// A run's scenario. `Default` is the paper's Table 1 nominal case; see the module docs for units.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Scenario {
+    /// UAV positions at step 0, metres; index 0 is the reference UAV. 3 to 8 UAVs.
+    /// Paper: [1500, 500], [10000, 1500], [5000, 8500].
+    pub uavs: Vec<[f64; 2]>,
+    /// Initial headings, radians (TOML: `headings_deg`, degrees). `None`: each UAV heads at the
+    /// emitter ([`Scenario::initial_headings`]) — our reading of "the UAVs moving toward the target".
+    #[serde(rename = "headings_deg", with = "opt_degrees", skip_serializing_if = "Option::is_none")]
+    pub headings: Option<Vec<f64>>,
+    /// True emitter position, metres. Paper: [25000, 15000].
+    pub emitter: [f64; 2],
+    /// UAV speed v, m/s. Paper: 50.
+    pub speed: f64,
+    /// Planning interval Δt, s. Paper: 10 (so L = v·Δt = 500 m per step).
+    pub dt: f64,
+    /// Range noise σ per UAV, metres (a scalar or a per-UAV list) — our choice 28.7712 m, the project's
+    /// nominal value (the paper states no range σ in metres).
+    pub sigma: RangeSigma,
+    /// Planning steps of a run — our choice 24 (the project's nominal run length).
+    pub steps: usize,
+    /// Half-width Δα of the heading cone around the bearing to ẑ (eq. 58), radians
+    /// (TOML: `delta_alpha_deg`, degrees) — our choice 25°.
+    #[serde(rename = "delta_alpha_deg", with = "degrees")]
+    pub delta_alpha: f64,
+    /// Minimum approach distance L_min to ẑ (eq. 57), metres — our choice 3000.
+    pub l_min: f64,
+    /// Minimum UAV spacing D_min (eq. 56), metres — our choice 500.
+    pub d_min: f64,
+    /// Minimum turn radius R_min (eq. 55), metres — our choice 1000 (a 28.6° turn per 500 m step).
+    pub r_min: f64,
+    /// Planner-side target standard deviation σ_t of the controlled mode, metres: M = s²·σ_t²·I —
+    /// our choice 500. (In `chan` mode M is Chan's covariance and σ_t = sqrt(λ_max(M)) is derived.)
+    pub sigma_t: f64,
+    /// κ of eq. 36, `A = min(10 σ_t, 6 σ_t + κ r_avg)` — our choice [`tdoa::DEFAULT_KAPPA`] = 0.1.
+    pub kappa: f64,
+    /// Target-position samples K of the `mc` criterion (eq. 60). Paper: 200.
+    pub mc_samples: usize,
+    /// Inner TDOA-noise resamples R per RMSE point (eq. 79). Paper: 30.
+    pub rmse_resamples: usize,
+    /// Run seed of the seeded streams (`tdoa::rng`) — our choice 1.
+    pub seed: u64,
+    /// Where the planner's ẑ and M come from. Default `chan`.
+    pub target: TargetMode,
+    /// Controlled mode: the planner-side error e0 at scale 1, metres — our choice [300, −400] (|e0| = σ_t).
+    pub e0: [f64; 2],
+    /// Controlled mode: the scale s ≥ 0 (error s·e0, covariance s²·σ_t²·I). Default 1.
+    pub scale: f64,
+    /// Early stopping shared by the solvers (`[early_stop]`).
+    pub early_stop: EarlyStop,
+    /// PSO settings (`[pso]`).
+    pub pso: PsoConfig,
+    /// GA settings (`[ga]`).
+    pub ga: GaConfig,
+    /// ACO settings (`[aco]`).
+    pub aco: AcoConfig,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Self {
+            uavs: vec![[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]],
+            headings: None,
+            emitter: [25000.0, 15000.0],
+            speed: 50.0,
+            dt: 10.0,
+            sigma: RangeSigma::Uniform(28.7712),
+            steps: 24,
+            delta_alpha: 25f64.to_radians(),
+            l_min: 3000.0,
+            d_min: 500.0,
+            r_min: 1000.0,
+            sigma_t: 500.0,
+            kappa: DEFAULT_KAPPA,
+            mc_samples: 200,
+            rmse_resamples: 30,
+            seed: 1,
+            target: TargetMode::Chan,
+            e0: [300.0, -400.0],
+            scale: 1.0,
+            early_stop: EarlyStop::default(),
+            pso: PsoConfig::default(),
+            ga: GaConfig::default(),
+            aco: AcoConfig::default(),
+        }
+    }
+}
+
+impl Scenario {
+    /// Parses TOML and validates.
+    pub fn from_toml_str(text: &str) -> Result<Self, ScenarioError> {
+        let scenario: Scenario = toml::from_str(text).map_err(|e| parse_error(text, &e))?;
+        scenario.validate()?;
+        Ok(scenario)
+    }
+
+    /// Reads, parses and validates a TOML file.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self, ScenarioError> {
+        let path = path.as_ref();
+        let text =
+            std::fs::read_to_string(path).map_err(|source| ScenarioError::Io { path: path.to_path_buf(), source })?;
+        Self::from_toml_str(&text)
+    }
+
+    /// The scenario as TOML (angles in degrees).
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("a scenario always serialises")
+    }
+
+    /// Checks every value; the error names the first offending key.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        let n = self.uavs.len();
+        if !(3..=MAX_UAVS).contains(&n) {
+            return Err(invalid("uavs", format!("need 3 to {MAX_UAVS} UAVs, got {n}")));
+        }
+        for (i, p) in self.uavs.iter().enumerate() {
+            finite_all(&format!("uavs[{i}]"), p)?;
+        }
+        for a in 0..n {
+            for b in a + 1..n {
+                let d = dist(self.uavs[a], self.uavs[b]);
+                if d < COINCIDENCE_TOLERANCE_M {
+                    return Err(invalid("uavs", format!("UAV {a} and UAV {b} coincide (distance {d:.3e} m)")));
+                }
+            }
+        }
+        finite_all("emitter", &self.emitter)?;
+        for (i, p) in self.uavs.iter().enumerate() {
+            if dist(*p, self.emitter) < COINCIDENCE_TOLERANCE_M {
+                return Err(invalid("emitter", format!("the emitter sits on UAV {i}")));
+            }
+        }
+        if let Some(h) = &self.headings {
+            if h.len() != n {
+                return Err(invalid("headings_deg", format!("expected {n} headings (one per UAV), got {}", h.len())));
+            }
+            finite_all("headings_deg", h)?;
+        }
+        positive("speed", self.speed)?;
+        positive("dt", self.dt)?;
+        match &self.sigma {
+            RangeSigma::Uniform(s) => positive("sigma", *s)?,
+            RangeSigma::PerUav(s) => {
+                if s.len() != n {
+                    return Err(invalid("sigma", format!("expected {n} values (one per UAV), got {}", s.len())));
+                }
+                for v in s {
+                    positive("sigma", *v)?;
+                }
+            }
+        }
+        nonzero("steps", self.steps)?;
+        finite("delta_alpha_deg", self.delta_alpha)?;
+        if !(self.delta_alpha > 0.0 && self.delta_alpha <= std::f64::consts::PI) {
+            return Err(invalid(
+                "delta_alpha_deg",
+                format!("must be in (0, 180] degrees, got {}", self.delta_alpha.to_degrees()),
+            ));
+        }
+        non_negative("l_min", self.l_min)?;
+        non_negative("d_min", self.d_min)?;
+        non_negative("r_min", self.r_min)?;
+        positive("sigma_t", self.sigma_t)?;
+        non_negative("kappa", self.kappa)?;
+        if self.mc_samples < 2 {
+            return Err(invalid("mc_samples", format!("need at least 2 samples, got {}", self.mc_samples)));
+        }
+        nonzero("rmse_resamples", self.rmse_resamples)?;
+        finite_all("e0", &self.e0)?;
+        non_negative("scale", self.scale)?;
+        non_negative("early_stop.tolerance", self.early_stop.tolerance)?;
+        nonzero("pso.particles", self.pso.particles)?;
+        nonzero("pso.iterations", self.pso.iterations)?;
+        positive("pso.v_max_fraction", self.pso.v_max_fraction)?;
+        if self.ga.population < 2 {
+            return Err(invalid("ga.population", format!("need at least 2 individuals, got {}", self.ga.population)));
+        }
+        nonzero("ga.generations", self.ga.generations)?;
+        nonzero("ga.tournament", self.ga.tournament)?;
+        probability("ga.crossover_rate", self.ga.crossover_rate)?;
+        non_negative("ga.blx_alpha", self.ga.blx_alpha)?;
+        probability("ga.mutation_rate", self.ga.mutation_rate)?;
+        non_negative("ga.mutation_scale", self.ga.mutation_scale)?;
+        if self.ga.elites >= self.ga.population {
+            return Err(invalid("ga.elites", format!("must be below ga.population ({})", self.ga.population)));
+        }
+        nonzero("aco.archive", self.aco.archive)?;
+        nonzero("aco.ants", self.aco.ants)?;
+        nonzero("aco.iterations", self.aco.iterations)?;
+        positive("aco.evaporation", self.aco.evaporation)?;
+        positive("aco.elite_fraction", self.aco.elite_fraction)?;
+        Ok(())
+    }
+
+    /// Number of UAVs.
+    pub fn uav_count(&self) -> usize {
+        self.uavs.len()
+    }
+
+    /// UAV positions at step 0, metres.
+    pub fn uav_positions(&self) -> Vec<Vector2<f64>> {
+        self.uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect()
+    }
+
+    /// True emitter position, metres.
+    pub fn emitter_position(&self) -> Vector2<f64> {
+        Vector2::new(self.emitter[0], self.emitter[1])
+    }
+
+    /// Initial headings, radians: the given ones, or each UAV's bearing to the emitter.
+    pub fn initial_headings(&self) -> Vec<f64> {
+        match &self.headings {
+            Some(h) => h.clone(),
+            None => {
+                let z = self.emitter_position();
+                self.uav_positions().into_iter().map(|p| bearing(p, z)).collect()
+            }
+        }
+    }
+
+    /// Per-UAV range σ, metres.
+    pub fn range_sigmas(&self) -> Vec<f64> {
+        match &self.sigma {
+            RangeSigma::Uniform(s) => vec![*s; self.uavs.len()],
+            RangeSigma::PerUav(s) => s.clone(),
+        }
+    }
+
+    /// The noise model of the range differences (eq. 19).
+    pub fn noise_model(&self) -> Result<NoiseModel, ScenarioError> {
+        NoiseModel::from_range_sigmas(&self.range_sigmas()).map_err(|e| invalid("sigma", e.to_string()))
+    }
+
+    /// Arc length flown per step, `L = v·Δt`, metres.
+    pub fn arc_length(&self) -> f64 {
+        self.speed * self.dt
+    }
+
+    /// In controlled mode, the planner's target for the true emitter `truth`: ẑ = truth + s·e0 and
+    /// M = max(s²·σ_t², [`MIN_CONTROLLED_VARIANCE_M2`])·I (paper Section 5.6). `None` in `chan` mode.
+    pub fn controlled_target(&self, truth: Vector2<f64>) -> Option<PlannerTarget> {
+        (self.target == TargetMode::Controlled).then(|| {
+            let s = self.scale;
+            let var = (s * s * self.sigma_t * self.sigma_t).max(MIN_CONTROLLED_VARIANCE_M2);
+            PlannerTarget {
+                estimate: truth + Vector2::new(self.e0[0], self.e0[1]) * s,
+                covariance: Matrix2::identity() * var,
+            }
+        })
+    }
+}
+
+fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+fn finite(key: &str, v: f64) -> Result<(), ScenarioError> {
+    if v.is_finite() { Ok(()) } else { Err(invalid(key, format!("must be a finite number, got {v}"))) }
+}
+
+fn finite_all(key: &str, v: &[f64]) -> Result<(), ScenarioError> {
+    v.iter().try_for_each(|x| finite(key, *x))
+}
+
+fn positive(key: &str, v: f64) -> Result<(), ScenarioError> {
+    finite(key, v)?;
+    if v > 0.0 { Ok(()) } else { Err(invalid(key, format!("must be > 0, got {v}"))) }
+}
+
+fn non_negative(key: &str, v: f64) -> Result<(), ScenarioError> {
+    finite(key, v)?;
+    if v >= 0.0 { Ok(()) } else { Err(invalid(key, format!("must be ≥ 0, got {v}"))) }
+}
+
+fn probability(key: &str, v: f64) -> Result<(), ScenarioError> {
+    finite(key, v)?;
+    if (0.0..=1.0).contains(&v) { Ok(()) } else { Err(invalid(key, format!("must be in [0, 1], got {v}"))) }
+}
+
+fn nonzero(key: &str, v: usize) -> Result<(), ScenarioError> {
+    if v > 0 { Ok(()) } else { Err(invalid(key, "must be at least 1, got 0")) }
+}
+
+/// Turns a TOML error into [`ScenarioError::Parse`], locating the key from the error's byte span.
+fn parse_error(text: &str, err: &toml::de::Error) -> ScenarioError {
+    let span = err.span();
+    let line = span.as_ref().map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
+    let key = span.and_then(|s| key_at(text, s.start));
+    ScenarioError::Parse { key, line, message: err.message().trim().to_string() }
+}
+
+/// The dotted key whose value (or name) contains byte `pos`: the nearest `key =` at or above that line,
+/// prefixed by the enclosing `[table]`.
+fn key_at(text: &str, pos: usize) -> Option<String> {
+    let pos = pos.min(text.len());
+    let upto_line_end = text[pos..].find('\n').map_or(text.len(), |i| pos + i);
+    let mut key: Option<String> = None;
+    for raw in text[..upto_line_end].lines().rev() {
+        let line = raw.trim();
+        if let Some(table) = table_header(line) {
+            return Some(match key {
+                Some(k) => format!("{table}.{k}"),
+                None => table.to_string(),
+            });
+        }
+        if key.is_none()
+            && let Some((lhs, _)) = line.split_once('=')
+        {
+            let lhs = lhs.trim().trim_matches('"');
+            if !lhs.is_empty() && lhs.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.') {
+                key = Some(lhs.to_string());
+            }
+        }
+    }
+    key
+}
+
+/// The name of a `[table]` or `[[array]]` header line (not a row of an inline array such as `[1.0, 2.0],`).
+fn table_header(line: &str) -> Option<&str> {
+    let line = line.split('#').next()?.trim();
+    let inner = line.strip_prefix('[')?.strip_suffix(']')?;
+    let inner = inner.trim_start_matches('[').trim_end_matches(']').trim();
+    let is_key = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | ' ' | '"');
+    (!inner.is_empty() && inner.chars().all(is_key) && inner.chars().any(|c| c.is_ascii_alphabetic())).then_some(inner)
+}
+
+/// Serde adapter: radians in Rust, degrees in TOML.
+mod degrees {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(rad: &f64, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_f64(rad.to_degrees())
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        f64::deserialize(d).map(f64::to_radians)
+    }
+}
+
+/// Serde adapter for an optional list of angles: radians in Rust, degrees in TOML.
+mod opt_degrees {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(rad: &Option<Vec<f64>>, s: S) -> Result<S::Ok, S::Error> {
+        rad.as_ref().map(|v| v.iter().map(|r| r.to_degrees()).collect::<Vec<_>>()).serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec<f64>>, D::Error> {
+        Option::<Vec<f64>>::deserialize(d).map(|v| v.map(|v| v.into_iter().map(f64::to_radians).collect()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const NOMINAL: &str = include_str!("../../scenarios/nominal.toml");
+
+    #[test]
+    fn nominal_file_is_the_default() {
+        let s = Scenario::from_toml_str(NOMINAL).unwrap();
+        assert_eq!(s, Scenario::default());
+        Scenario::default().validate().unwrap();
+    }
+
+    #[test]
+    fn empty_file_is_the_default() {
+        assert_eq!(Scenario::from_toml_str("").unwrap(), Scenario::default());
+    }
+
+    #[test]
+    fn default_headings_point_at_the_emitter() {
+        let s = Scenario::default();
+        let h = s.initial_headings();
+        let z = s.emitter_position();
+        for (p, h) in s.uav_positions().iter().zip(h) {
+            let d = (z - p).normalize();
+            assert!((d.x - h.cos()).abs() < 1e-12 && (d.y - h.sin()).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn degrees_in_toml_radians_in_rust() {
+        let s = Scenario::from_toml_str("delta_alpha_deg = 30\nheadings_deg = [0, 90, -180]").unwrap();
+        assert!((s.delta_alpha - std::f64::consts::FRAC_PI_6).abs() < 1e-15);
+        let h = s.headings.clone().unwrap();
+        assert!((h[1] - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+        assert_eq!(s.initial_headings(), h);
+        let back = Scenario::from_toml_str(&s.to_toml_string()).unwrap();
+        assert!((back.delta_alpha - s.delta_alpha).abs() < 1e-15);
+    }
+
+    #[test]
+    fn sigma_scalar_or_list() {
+        let s = Scenario::from_toml_str("sigma = [10.0, 20.0, 30.0]").unwrap();
+        assert_eq!(s.range_sigmas(), vec![10.0, 20.0, 30.0]);
+        assert_eq!(s.noise_model().unwrap().sigmas(), &[10.0, 20.0, 30.0]);
+        assert_eq!(Scenario::default().range_sigmas(), vec![28.7712; 3]);
+        let e = Scenario::from_toml_str("sigma = [10.0, 20.0]").unwrap_err();
+        assert_eq!(e.key(), Some("sigma"));
+    }
+
+    fn key_of(text: &str) -> String {
+        let e = Scenario::from_toml_str(text).unwrap_err();
+        let key = e.key().unwrap_or_else(|| panic!("no key in {e}")).to_string();
+        assert!(e.to_string().contains(&key), "{e}");
+        key
+    }
+
+    #[test]
+    fn unknown_keys_are_named() {
+        assert_eq!(key_of("speed = 50\nsped = 3"), "sped");
+        assert_eq!(key_of("[pso]\nparticles = 40\nparticle = 3"), "pso.particle");
+        let e = Scenario::from_toml_str("sped = 3").unwrap_err();
+        assert!(e.to_string().contains("unknown field"), "{e}");
+    }
+
+    #[test]
+    fn wrong_types_are_named() {
+        assert_eq!(key_of("speed = \"fast\""), "speed");
+        assert_eq!(key_of("dt = 10\nsteps = 2.5"), "steps");
+        assert_eq!(key_of("[aco]\nants = \"many\""), "aco.ants");
+        assert_eq!(key_of("uavs = [\n  [0.0, 0.0],\n  [1.0, \"x\"],\n]"), "uavs");
+        assert_eq!(key_of("target = \"oracle\""), "target");
+        assert_eq!(key_of("sigma = \"x\""), "sigma");
+        assert_eq!(key_of("[early_stop]\nwindow = -1"), "early_stop.window");
+    }
+
+    #[test]
+    fn invalid_values_are_named() {
+        let cases = [
+            ("uavs = [[0.0, 0.0], [1.0, 0.0]]", "uavs"),
+            ("uavs = [[0,0],[1,0],[2,0],[3,0],[4,0],[5,0],[6,0],[7,0],[8,0]]", "uavs"),
+            ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, 0.0]]", "uavs"),
+            ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, inf]]", "uavs[2]"),
+            ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, 1e400]]", "uavs"),
+            ("emitter = [1500.0, 500.0]", "emitter"),
+            ("emitter = [nan, 0.0]", "emitter"),
+            ("speed = 0", "speed"),
+            ("speed = -5.0", "speed"),
+            ("speed = inf", "speed"),
+            ("dt = 0", "dt"),
+            ("steps = 0", "steps"),
+            ("sigma = 0.0", "sigma"),
+            ("sigma = [1.0, -1.0, 1.0]", "sigma"),
+            ("delta_alpha_deg = 0", "delta_alpha_deg"),
+            ("delta_alpha_deg = 181", "delta_alpha_deg"),
+            ("l_min = -1", "l_min"),
+            ("d_min = -1", "d_min"),
+            ("r_min = -1", "r_min"),
+            ("sigma_t = 0", "sigma_t"),
+            ("kappa = -0.1", "kappa"),
+            ("mc_samples = 1", "mc_samples"),
+            ("rmse_resamples = 0", "rmse_resamples"),
+            ("scale = -1", "scale"),
+            ("headings_deg = [0.0, 1.0]", "headings_deg"),
+            ("[pso]\nparticles = 0", "pso.particles"),
+            ("[pso]\niterations = 0", "pso.iterations"),
+            ("[ga]\npopulation = 0", "ga.population"),
+            ("[ga]\nmutation_rate = 2.0", "ga.mutation_rate"),
+            ("[ga]\nelites = 40", "ga.elites"),
+            ("[aco]\nants = 0", "aco.ants"),
+            ("[aco]\nevaporation = 0", "aco.evaporation"),
+            ("[early_stop]\ntolerance = -1", "early_stop.tolerance"),
+        ];
+        for (text, key) in cases {
+            let e = Scenario::from_toml_str(text).unwrap_err();
+            assert_eq!(e.key(), Some(key), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn controlled_target_scales_error_and_covariance() {
+        let mut s = Scenario::from_toml_str("target = \"controlled\"\ne0 = [30.0, 40.0]\nscale = 0.5").unwrap();
+        let truth = s.emitter_position();
+        let t = s.controlled_target(truth).unwrap();
+        assert_eq!(t.estimate, truth + Vector2::new(15.0, 20.0));
+        assert_eq!(t.covariance, Matrix2::identity() * (0.25 * 500.0 * 500.0));
+        s.scale = 0.0;
+        let t0 = s.controlled_target(truth).unwrap();
+        assert_eq!(t0.estimate, truth);
+        assert_eq!(t0.covariance, Matrix2::identity() * MIN_CONTROLLED_VARIANCE_M2);
+        assert!(Scenario::default().controlled_target(truth).is_none());
+    }
+
+    #[test]
+    fn from_file_reports_missing_files() {
+        let e = Scenario::from_file("/nonexistent/scenario.toml").unwrap_err();
+        assert!(matches!(e, ScenarioError::Io { .. }));
+    }
+}

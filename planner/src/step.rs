@@ -1,0 +1,349 @@
+//! One planning step as a pure function (paper Section 3.6, eq. 59, with the criterion of eq. 52, 60
+//! or 74 and the solver of Section 4.3 / 5.4).
+//!
+//! Given the current UAV positions and headings, the planner's estimate ẑ and its covariance M:
+//!
+//! 1. the target uncertainty is `Uncertainty::with_eq36_side(ẑ, M, r_avg, κ)`: a Gaussian `N(ẑ, M)`
+//!    truncated to a square of side `A = min(10 σ_t, 6 σ_t + κ r_avg)` (eq. 36) with
+//!    `σ_t = sqrt(λ_max(M))` (our rule: the scenario's `sigma_t` is only the controlled mode's input)
+//!    and `r_avg` the mean distance from the *current* UAV positions to ẑ (eq. 35);
+//! 2. the criterion is prepared once for that uncertainty (`mc` samples from
+//!    `derive_seed(run_seed, step, ObjectiveSamples)`);
+//! 3. the solver (seeded by `derive_seed(run_seed, step, Solver)`) searches the headings, UAV i inside
+//!    its cone `α_i ± Δα` (unwrapped around `α_i`), starting from the current headings moved into the
+//!    cone, minimising the lexicographic [`Fitness`] (constraint violation, then criterion);
+//!    `formation` skips the search and uses [`formation_headings`];
+//! 4. the chosen headings (wrapped into (−π, π]), the waypoints they lead to, the criterion there and
+//!    the violated or binding constraints are returned with the iteration and evaluation counts and
+//!    the wall-clock planning time.
+
+use std::time::Instant;
+
+use nalgebra::{Matrix2, Vector2};
+use tdoa::rng::{Purpose, derive_seed};
+use tdoa::{MAX_UAVS, TdoaError, Uncertainty};
+use thiserror::Error;
+
+use crate::constraints::{ActiveConstraint, Constraints};
+use crate::fitness::Fitness;
+use crate::formation::formation_headings;
+use crate::kinematics::{next_position, turn_angle, wrap_angle};
+use crate::objective::{CrlbObjective, ObjectiveKind, PlanObjective};
+use crate::scenario::{Scenario, ScenarioError};
+use crate::solver::{SearchSpace, SearchSpaceError, SolverKind};
+
+/// Why a planning step could not run.
+#[derive(Debug, Error)]
+pub enum PlanError {
+    /// Lists that must have one entry per UAV do not.
+    #[error("{what}: expected {expected} values (one per UAV), got {got}")]
+    LengthMismatch {
+        /// Which list.
+        what: &'static str,
+        /// The scenario's UAV count.
+        expected: usize,
+        /// The length given.
+        got: usize,
+    },
+    /// A position, heading, estimate or covariance entry is NaN or infinite.
+    #[error("{what} is not a finite number ({value})")]
+    NotFinite {
+        /// Which input.
+        what: String,
+        /// Its value.
+        value: f64,
+    },
+    /// The scenario is invalid.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// The estimate and covariance do not form a valid uncertainty (e.g. M not positive definite),
+    /// or the criterion could not be built.
+    #[error("target uncertainty: {0}")]
+    Uncertainty(#[from] TdoaError),
+    /// The heading cones could not form a search space.
+    #[error(transparent)]
+    SearchSpace(#[from] SearchSpaceError),
+}
+
+/// The inputs of one planning step.
+#[derive(Debug, Clone, Copy)]
+pub struct PlanRequest<'a> {
+    /// Current UAV positions, metres.
+    pub positions: &'a [Vector2<f64>],
+    /// Current headings, radians.
+    pub headings: &'a [f64],
+    /// The planner's estimate ẑ of the emitter, metres.
+    pub estimate: Vector2<f64>,
+    /// Its covariance M, m² (symmetric positive definite).
+    pub covariance: Matrix2<f64>,
+    /// Motion, noise, constraint, criterion and solver settings.
+    pub scenario: &'a Scenario,
+    /// The planning criterion (or `formation`).
+    pub objective: ObjectiveKind,
+    /// The solver (ignored by `formation`).
+    pub solver: SolverKind,
+    /// The run seed.
+    pub run_seed: u64,
+    /// The step index (0-based).
+    pub step: u64,
+}
+
+/// The plan of one step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanOutput {
+    /// Commanded headings, radians in (−π, π].
+    pub headings: Vec<f64>,
+    /// The next waypoints these headings lead to, metres.
+    pub waypoints: Vec<Vector2<f64>>,
+    /// The criterion at the waypoints, m² (`formation`: the single-point `tr F⁻¹(ẑ)`).
+    pub objective_value: f64,
+    /// Violation and criterion of the plan.
+    pub fitness: Fitness,
+    /// Violated or binding constraints of the plan.
+    pub active_constraints: Vec<ActiveConstraint>,
+    /// Solver iterations run (0 for `formation`).
+    pub iterations: usize,
+    /// Criterion evaluations by the solver (0 for `formation`).
+    pub evaluations: usize,
+    /// Wall-clock time of the whole step, milliseconds.
+    pub plan_time_ms: f64,
+}
+
+fn check_finite(what: impl Fn() -> String, value: f64) -> Result<(), PlanError> {
+    if value.is_finite() { Ok(()) } else { Err(PlanError::NotFinite { what: what(), value }) }
+}
+
+/// Next waypoints of all UAVs for headings `phi`, on the stack.
+fn waypoints_of(
+    positions: &[Vector2<f64>],
+    headings: &[f64],
+    phi: &[f64],
+    scenario: &Scenario,
+) -> [Vector2<f64>; MAX_UAVS] {
+    let mut next = [Vector2::zeros(); MAX_UAVS];
+    for i in 0..positions.len() {
+        next[i] = next_position(positions[i], headings[i], phi[i], scenario.speed, scenario.dt);
+    }
+    next
+}
+
+/// Plans one step; see the module docs.
+pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
+    let start = Instant::now();
+    let sc = req.scenario;
+    sc.validate()?;
+    let n = sc.uav_count();
+    for (what, got) in [("positions", req.positions.len()), ("headings", req.headings.len())] {
+        if got != n {
+            return Err(PlanError::LengthMismatch { what, expected: n, got });
+        }
+    }
+    for (i, p) in req.positions.iter().enumerate() {
+        check_finite(|| format!("x of UAV {i}"), p.x)?;
+        check_finite(|| format!("y of UAV {i}"), p.y)?;
+        check_finite(|| format!("heading of UAV {i}"), req.headings[i])?;
+    }
+    let (pos, psi, z) = (req.positions, req.headings, req.estimate);
+    let constraints = Constraints::from_scenario(sc);
+    let r_avg = pos.iter().map(|p| (p - z).norm()).sum::<f64>() / n as f64;
+    let unc = Uncertainty::with_eq36_side(z, req.covariance, r_avg, sc.kappa)?;
+    let objective = CrlbObjective::prepare(
+        req.objective.criterion(),
+        &unc,
+        sc.noise_model()?,
+        sc.mc_samples,
+        req.run_seed,
+        req.step,
+    )?;
+
+    let (chosen, iterations, evaluations) = if req.objective.is_optimised() {
+        let mut lo = Vec::with_capacity(n);
+        let mut hi = Vec::with_capacity(n);
+        let mut start_point = Vec::with_capacity(n);
+        for i in 0..n {
+            let (l, h) = constraints.cone(pos[i], z);
+            let alpha = 0.5 * (l + h);
+            lo.push(l);
+            hi.push(h);
+            start_point.push(alpha + turn_angle(alpha, psi[i]));
+        }
+        let space = SearchSpace::new(lo, hi, start_point)?;
+        let solver = req.solver.build(sc.pso, sc.ga, sc.aco, sc.early_stop);
+        let mut fitness = |phi: &[f64]| {
+            let next = waypoints_of(pos, psi, phi, sc);
+            Fitness::new(constraints.violation(pos, psi, z, phi, &next[..n]), objective.evaluate(&next[..n]))
+        };
+        let result = solver.minimize(&mut fitness, &space, derive_seed(req.run_seed, req.step, Purpose::Solver));
+        (result.best, result.iterations, result.evaluations)
+    } else {
+        (formation_headings(pos, psi, z, &constraints), 0, 0)
+    };
+
+    let next = waypoints_of(pos, psi, &chosen, sc);
+    let waypoints = next[..n].to_vec();
+    let report = constraints.check(pos, psi, z, &chosen, &waypoints);
+    let objective_value = objective.evaluate(&waypoints);
+    Ok(PlanOutput {
+        headings: chosen.iter().map(|h| wrap_angle(*h)).collect(),
+        waypoints,
+        objective_value,
+        fitness: Fitness::new(report.violation, objective_value),
+        active_constraints: report.active,
+        iterations,
+        evaluations,
+        plan_time_ms: start.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::bearing;
+    use tdoa::{Sensors, crlb};
+
+    /// A planning situation: scenario, current positions and headings, ẑ and M.
+    struct Case {
+        sc: Scenario,
+        pos: Vec<Vector2<f64>>,
+        psi: Vec<f64>,
+        z: Vector2<f64>,
+        m: Matrix2<f64>,
+    }
+
+    impl Case {
+        /// The nominal step 0 with ẑ = truth and M = F⁻¹(truth).
+        fn nominal() -> Self {
+            let sc = Scenario::default();
+            let sensors = Sensors::new(&sc.uavs, sc.noise_model().unwrap()).unwrap();
+            let z = sc.emitter_position();
+            let m = crlb(&sensors, &z).unwrap().bound;
+            Self { pos: sc.uav_positions(), psi: sc.initial_headings(), z, m, sc }
+        }
+
+        fn request(&self, objective: ObjectiveKind, solver: SolverKind) -> PlanRequest<'_> {
+            PlanRequest {
+                positions: &self.pos,
+                headings: &self.psi,
+                estimate: self.z,
+                covariance: self.m,
+                scenario: &self.sc,
+                objective,
+                solver,
+                run_seed: 42,
+                step: 3,
+            }
+        }
+
+        fn assert_in_cones(&self, out: &PlanOutput, label: &str) {
+            for (i, (p, h)) in self.pos.iter().zip(&out.headings).enumerate() {
+                let off = turn_angle(bearing(*p, self.z), *h).abs();
+                assert!(off <= self.sc.delta_alpha + 1e-12, "{label}: UAV {i} off by {off}");
+                assert!(*h > -std::f64::consts::PI && *h <= std::f64::consts::PI);
+            }
+        }
+    }
+
+    fn bits(out: &PlanOutput) -> Vec<u64> {
+        let mut v: Vec<u64> = out.headings.iter().map(|h| h.to_bits()).collect();
+        v.extend(out.waypoints.iter().flat_map(|w| [w.x.to_bits(), w.y.to_bits()]));
+        v.push(out.objective_value.to_bits());
+        v.push(out.fitness.violation().to_bits());
+        v.extend([out.iterations as u64, out.evaluations as u64, out.active_constraints.len() as u64]);
+        v
+    }
+
+    #[test]
+    fn deterministic() {
+        let case = Case::nominal();
+        for objective in ObjectiveKind::ALL {
+            for solver in SolverKind::ALL {
+                let req = case.request(objective, solver);
+                let a = plan_step(&req).unwrap();
+                let b = plan_step(&req).unwrap();
+                assert_eq!(bits(&a), bits(&b), "{objective} {solver}");
+                assert_eq!(a.active_constraints, b.active_constraints);
+            }
+        }
+        // Another seed changes the solver's trajectory.
+        let req = case.request(ObjectiveKind::Analytical, SolverKind::Pso);
+        let a = plan_step(&req).unwrap();
+        let c = plan_step(&PlanRequest { run_seed: 43, ..req }).unwrap();
+        assert_ne!(bits(&a), bits(&c));
+    }
+
+    #[test]
+    fn nominal_plans_are_feasible_and_beat_flying_straight() {
+        let case = Case::nominal();
+        let sc = &case.sc;
+        let noise = sc.noise_model().unwrap();
+        let r_avg = case.pos.iter().map(|p| (p - case.z).norm()).sum::<f64>() / 3.0;
+        let unc = Uncertainty::with_eq36_side(case.z, case.m, r_avg, sc.kappa).unwrap();
+        let straight: Vec<_> =
+            case.pos.iter().zip(&case.psi).map(|(p, h)| next_position(*p, *h, *h, sc.speed, sc.dt)).collect();
+        let constraints = Constraints::from_scenario(sc);
+        assert!(constraints.check(&case.pos, &case.psi, case.z, &case.psi, &straight).is_feasible());
+        for objective in ObjectiveKind::ALL {
+            for solver in SolverKind::ALL {
+                if objective != ObjectiveKind::Analytical && solver != SolverKind::Pso {
+                    continue; // every criterion with PSO, every solver with the analytical criterion
+                }
+                let label = format!("{objective}/{solver}");
+                let out = plan_step(&case.request(objective, solver)).unwrap();
+                assert!(out.fitness.is_feasible(), "{label}: {:?}", out.active_constraints);
+                assert!(out.active_constraints.iter().all(|c| !c.is_violated()));
+                case.assert_in_cones(&out, &label);
+                for i in 0..3 {
+                    let w = next_position(case.pos[i], case.psi[i], out.headings[i], sc.speed, sc.dt);
+                    assert!((w - out.waypoints[i]).norm() < 1e-6);
+                }
+                if objective.is_optimised() {
+                    let obj = CrlbObjective::prepare(objective.criterion(), &unc, noise.clone(), sc.mc_samples, 42, 3)
+                        .unwrap();
+                    let keep = obj.evaluate(&straight);
+                    assert!(out.objective_value < keep, "{label}: planned {} vs straight {keep}", out.objective_value);
+                    assert!(out.iterations >= 1 && out.evaluations > 0);
+                } else {
+                    assert_eq!((out.iterations, out.evaluations), (0, 0));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn cones_straddling_pi_are_respected() {
+        // ẑ due west of the swarm: every cone is centred near ±π.
+        let sc = Scenario {
+            uavs: vec![[30000.0, 1000.0], [32000.0, -1500.0], [31000.0, 4000.0]],
+            emitter: [0.0, 0.0],
+            ..Scenario::default()
+        };
+        let case = Case {
+            pos: sc.uav_positions(),
+            psi: sc.initial_headings(),
+            z: Vector2::new(0.0, 0.0),
+            m: Matrix2::new(4e4, 0.0, 0.0, 9e4),
+            sc,
+        };
+        for solver in SolverKind::ALL {
+            let out = plan_step(&case.request(ObjectiveKind::Analytical, solver)).unwrap();
+            assert!(out.fitness.is_feasible(), "{solver}: {:?}", out.active_constraints);
+            case.assert_in_cones(&out, solver.name());
+        }
+    }
+
+    #[test]
+    fn invalid_inputs_are_refused() {
+        let case = Case::nominal();
+        let req = case.request(ObjectiveKind::Single, SolverKind::Pso);
+        assert!(matches!(
+            plan_step(&PlanRequest { headings: &case.psi[..2], ..req }),
+            Err(PlanError::LengthMismatch { what: "headings", .. })
+        ));
+        let bad = [case.psi[0], f64::NAN, case.psi[2]];
+        assert!(matches!(plan_step(&PlanRequest { headings: &bad, ..req }), Err(PlanError::NotFinite { .. })));
+        assert!(matches!(
+            plan_step(&PlanRequest { covariance: Matrix2::new(1.0, 0.0, 0.0, -1.0), ..req }),
+            Err(PlanError::Uncertainty(_))
+        ));
+    }
+}
