@@ -16,6 +16,7 @@ pub mod global;
 pub mod locate;
 pub mod output;
 pub mod rmse;
+pub mod simulate;
 
 pub use error::CliError;
 pub use output::{Diagnostic, Report, Table};
@@ -81,6 +82,12 @@ pub enum Command {
         after_help = rmse::AFTER_HELP
     )]
     Rmse(rmse::RmseArgs),
+    /// Run the paper's closed loop (emitter → Chan → planner → move) in one process.
+    #[command(
+        long_about = simulate::LONG_ABOUT,
+        after_help = simulate::AFTER_HELP
+    )]
+    Simulate(simulate::SimulateArgs),
 }
 
 /// A clap parse error as one line: the first paragraph of clap's message with its lines joined

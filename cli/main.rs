@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use clap::error::ErrorKind;
-use uavloc::{Cli, CliError, Command, Diagnostic, Report, crlb, global, locate, one_line_clap_error, rmse};
+use uavloc::{Cli, CliError, Command, Diagnostic, Report, crlb, global, locate, one_line_clap_error, rmse, simulate};
 
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -31,6 +31,7 @@ fn main() -> ExitCode {
         Command::Global(a) => emit(global::run(a), json),
         Command::Locate(a) => emit(locate::run(a), json),
         Command::Rmse(a) => emit(rmse::run(a), json),
+        Command::Simulate(a) => emit(simulate::run(a), json),
     }
 }
 

@@ -1,0 +1,59 @@
+//! The record of one run, step by step: what `uavloc simulate --json` prints and what the monitor
+//! rebuilds from the messages it receives in the process pipeline (same shape, so the two compare).
+//!
+//! Units: metres, m², radians, milliseconds.
+
+use planner::Scenario;
+use serde::{Deserialize, Serialize};
+
+/// One planning step. Step 0 is the initial geometry; the last step has no plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepRecord {
+    /// Planning step index.
+    pub step: u64,
+    /// UAV positions at this step, metres (`[x, y]` per UAV, UAV0 first).
+    pub uavs: Vec<[f64; 2]>,
+    /// Headings chosen at this step for the next interval, radians (current headings on the last step).
+    pub headings_rad: Vec<f64>,
+    /// The estimator's ẑ at this step, metres.
+    pub estimate: [f64; 2],
+    /// The covariance M of ẑ, m² (`[[xx, xy], [yx, yy]]`).
+    pub estimate_cov: [[f64; 2]; 2],
+    /// `ok`, `ambiguous` or `failed` (on failure ẑ is the previous estimate).
+    pub estimate_status: String,
+    /// Single-point CRLB `sqrt(tr F⁻¹)` at the TRUE emitter for this geometry, metres (paper's Figure 5).
+    pub crlb_true_m: f64,
+    /// RMSE of Chan over R noise resamples at this geometry (paper Section 5.3), metres.
+    pub rmse_m: Option<f64>,
+    /// Objective value of the chosen headings (the planner's criterion, as `sqrt` of its trace, m);
+    /// `None` on the last step (nothing is planned) or when infinite.
+    pub objective_value: Option<f64>,
+    /// Wall-clock time of the planning step, milliseconds (`None` on the last step).
+    pub plan_ms: Option<f64>,
+    /// Constraints active (violated or within 0.1 % of their bound) at the chosen headings.
+    pub active_constraints: Vec<String>,
+}
+
+/// A whole run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    /// The scenario as run.
+    pub scenario: Scenario,
+    /// Objective name (`single`, `mc`, `analytical`, `cubature`, `formation`).
+    pub objective: String,
+    /// Solver name (`pso`, `ga`, `aco`).
+    pub solver: String,
+    /// Run seed.
+    pub seed: u64,
+    /// True emitter position, metres.
+    pub emitter: [f64; 2],
+    /// Step 0 (initial geometry) to the final step.
+    pub steps: Vec<StepRecord>,
+}
+
+impl RunRecord {
+    /// CRLB at the truth on the last step, metres.
+    pub fn final_crlb_m(&self) -> Option<f64> {
+        self.steps.last().map(|s| s.crlb_true_m)
+    }
+}
