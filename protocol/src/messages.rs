@@ -1,0 +1,914 @@
+//! Fixed-layout message types.
+//!
+//! Every message is `#[repr(C)]` plain old data: integers, `f64`s and byte arrays only (no `bool`, no Rust
+//! enum, no pointer), with all padding spelled out as `reserved` fields, so that **any** bit pattern is a
+//! valid value of the type. That is what makes receiving from shared memory sound, and what lets the tests
+//! build messages from random bytes. A receiver must still call `validate` before trusting the content.
+//!
+//! Each type pins its iceoryx2 identity with `#[type_name("uavloc::<Name>/v<N>")]`; a process built with a
+//! different layout or version fails to open the service (`IncompatibleTypes`) instead of misreading it.
+//! Changing a layout means bumping both the type name and the `VERSION` constant.
+//!
+//! Per-UAV arrays have room for [`MAX_UAVS`] entries; only the first `count` are used (the range differences:
+//! the first `count − 1`). The accessors return slices of exactly the used length.
+
+use core::fmt;
+
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::validate::Rejection;
+use crate::{MAX_UAVS, MIN_UAVS, ProtocolError};
+
+/// The current `CLOCK_MONOTONIC` time in nanoseconds: the same clock in every process of the machine, so
+/// stamps taken in different processes can be subtracted. Never 0 in practice (0 means "not stamped").
+pub fn now_ns() -> u64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid, writable `timespec` for the duration of the call; `CLOCK_MONOTONIC` is
+    // supported on every platform iceoryx2 runs on. The call writes only `ts`.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    assert_eq!(rc, 0, "clock_gettime(CLOCK_MONOTONIC) failed");
+    (ts.tv_sec as u64).wrapping_mul(1_000_000_000).wrapping_add(ts.tv_nsec as u64)
+}
+
+/// Which message type; indexes per-type tables (e.g. in [`RejectionCounter`](crate::RejectionCounter)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum MessageKind {
+    /// [`Measurement`].
+    Measurement,
+    /// [`Estimate`].
+    Estimate,
+    /// [`Command`].
+    Command,
+    /// [`Truth`].
+    Truth,
+}
+
+impl MessageKind {
+    /// All kinds, in index order.
+    pub const ALL: [MessageKind; 4] =
+        [MessageKind::Measurement, MessageKind::Estimate, MessageKind::Command, MessageKind::Truth];
+
+    /// Stable lower-case name (`"measurement"`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            MessageKind::Measurement => "measurement",
+            MessageKind::Estimate => "estimate",
+            MessageKind::Command => "command",
+            MessageKind::Truth => "truth",
+        }
+    }
+
+    /// Position in [`MessageKind::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl fmt::Display for MessageKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Monotonic timestamps ([`now_ns`]) of one planning step's chain; 0 means "not stamped / not applicable".
+///
+/// The chain of step k: the command of step k−1 (the *trigger*) reaches emitter-sim, which moves the UAVs
+/// and publishes the measurement; the estimator receives it and publishes the estimate; the planner receives
+/// that and publishes the command. Each message carries the stamps of everything upstream of it, so the
+/// monitor (or anyone) can compute [`Latencies`] from the last message alone.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, ZeroCopySend)]
+#[type_name("uavloc::Stamps/v1")]
+#[repr(C)]
+pub struct Stamps {
+    /// Publish time of the message that carries these stamps (set by [`TopicPublisher::send`](crate::TopicPublisher::send)).
+    pub published_ns: u64,
+    /// Publish time of the command that triggered this step (0 at the first step).
+    pub trigger_command_published_ns: u64,
+    /// When emitter-sim received that command.
+    pub trigger_command_received_ns: u64,
+    /// When the measurement of this step was published.
+    pub measurement_published_ns: u64,
+    /// When the estimator received it.
+    pub measurement_received_ns: u64,
+    /// When the estimate was published.
+    pub estimate_published_ns: u64,
+    /// When the planner received it.
+    pub estimate_received_ns: u64,
+    /// When the command of this step was published.
+    pub command_published_ns: u64,
+}
+
+impl Stamps {
+    /// Records that a message of `kind` is published at `t`: sets [`published_ns`](Self::published_ns) and the
+    /// kind's own slot (a [`Truth`] has none).
+    pub fn mark_published(&mut self, kind: MessageKind, t: u64) {
+        self.published_ns = t;
+        match kind {
+            MessageKind::Measurement => self.measurement_published_ns = t,
+            MessageKind::Estimate => self.estimate_published_ns = t,
+            MessageKind::Command => self.command_published_ns = t,
+            MessageKind::Truth => {}
+        }
+    }
+
+    /// The stamps for a message made from an upstream message of `kind` with stamps `upstream`, received at
+    /// `received_ns`. A measurement or estimate carries its chain forward (adding the receive time); a
+    /// command starts the chain of the next step (only the trigger stamps survive). `published_ns` and the
+    /// downstream slots are cleared: they are set when the new message is sent.
+    pub fn carried_from(kind: MessageKind, upstream: &Stamps, received_ns: u64) -> Stamps {
+        match kind {
+            MessageKind::Measurement => Stamps {
+                published_ns: 0,
+                measurement_received_ns: received_ns,
+                estimate_published_ns: 0,
+                estimate_received_ns: 0,
+                command_published_ns: 0,
+                ..*upstream
+            },
+            MessageKind::Estimate => {
+                Stamps { published_ns: 0, estimate_received_ns: received_ns, command_published_ns: 0, ..*upstream }
+            }
+            MessageKind::Command => Stamps {
+                trigger_command_published_ns: upstream.command_published_ns,
+                trigger_command_received_ns: received_ns,
+                ..Stamps::default()
+            },
+            MessageKind::Truth => Stamps { published_ns: 0, ..*upstream },
+        }
+    }
+
+    /// Per-hop and end-to-end latencies of the chain (each `None` when a stamp is missing).
+    pub fn latencies(&self) -> Latencies {
+        Latencies {
+            trigger_hop_ns: span_ns(self.trigger_command_published_ns, self.trigger_command_received_ns),
+            emitter_ns: span_ns(self.trigger_command_received_ns, self.measurement_published_ns),
+            measurement_hop_ns: span_ns(self.measurement_published_ns, self.measurement_received_ns),
+            estimator_ns: span_ns(self.measurement_received_ns, self.estimate_published_ns),
+            estimate_hop_ns: span_ns(self.estimate_published_ns, self.estimate_received_ns),
+            planner_ns: span_ns(self.estimate_received_ns, self.command_published_ns),
+            end_to_end_ns: span_ns(self.measurement_published_ns, self.command_published_ns),
+            cycle_ns: span_ns(self.trigger_command_published_ns, self.command_published_ns),
+        }
+    }
+
+    /// Time from this message's publication to `now` (e.g. `now_ns()` right after receiving it).
+    pub fn age_ns(&self, now: u64) -> Option<u64> {
+        span_ns(self.published_ns, now)
+    }
+}
+
+/// `end − start` when both are stamped (non-zero) and in order.
+pub fn span_ns(start: u64, end: u64) -> Option<u64> {
+    (start != 0 && end != 0 && end >= start).then(|| end - start)
+}
+
+/// Latencies derived from [`Stamps`], nanoseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Latencies {
+    /// Trigger command: published → received by emitter-sim.
+    pub trigger_hop_ns: Option<u64>,
+    /// emitter-sim: command received → measurement published.
+    pub emitter_ns: Option<u64>,
+    /// Measurement: published → received by the estimator.
+    pub measurement_hop_ns: Option<u64>,
+    /// Estimator: measurement received → estimate published.
+    pub estimator_ns: Option<u64>,
+    /// Estimate: published → received by the planner.
+    pub estimate_hop_ns: Option<u64>,
+    /// Planner: estimate received → command published.
+    pub planner_ns: Option<u64>,
+    /// Measurement published → command published (the estimator + planner pipeline).
+    pub end_to_end_ns: Option<u64>,
+    /// Trigger command published → this step's command published (one whole closed-loop cycle).
+    pub cycle_ns: Option<u64>,
+}
+
+/// Common header of every message.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, ZeroCopySend)]
+#[type_name("uavloc::Header/v1")]
+#[repr(C)]
+pub struct Header {
+    /// Layout version of the message type (its `VERSION`).
+    pub version: u32,
+    /// Explicit padding; 0 when sent, ignored when received.
+    pub reserved: u32,
+    /// Planning step (0-based).
+    pub step: u64,
+    /// Sequence number of this publisher's stream; strictly increasing.
+    pub seq: u64,
+    /// Monotonic stamps of this step's chain.
+    pub stamps: Stamps,
+}
+
+impl Header {
+    /// A header with no stamps.
+    pub fn new(version: u32, step: u64, seq: u64) -> Self {
+        Header { version, reserved: 0, step, seq, stamps: Stamps::default() }
+    }
+}
+
+/// What every message type offers, so that transport and validation can be generic.
+pub trait Message: ZeroCopySend + fmt::Debug + Copy + Send + 'static {
+    /// Which type this is.
+    const KIND: MessageKind;
+    /// Layout version (also in the pinned type name).
+    const VERSION: u32;
+    /// The pinned iceoryx2 type name (the `#[type_name]` attribute; a test keeps them equal).
+    const TYPE_NAME: &'static str;
+
+    /// The header.
+    fn header(&self) -> &Header;
+
+    /// The header, mutably.
+    fn header_mut(&mut self) -> &mut Header;
+
+    /// Checks the message; see [`crate::validate`].
+    fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection>;
+
+    /// Carries the stamps of `upstream`, received at `received_ns`, into this message
+    /// (see [`Stamps::carried_from`]).
+    fn carrying<U: Message>(mut self, upstream: &U, received_ns: u64) -> Self {
+        self.header_mut().stamps = Stamps::carried_from(U::KIND, &upstream.header().stamps, received_ns);
+        self
+    }
+}
+
+macro_rules! impl_message {
+    ($ty:ident, $kind:expr, $version:expr, $name:expr) => {
+        impl $ty {
+            /// Layout version; bump together with the type name.
+            pub const VERSION: u32 = $version;
+        }
+
+        impl Message for $ty {
+            const KIND: MessageKind = $kind;
+            const VERSION: u32 = $version;
+            const TYPE_NAME: &'static str = $name;
+
+            fn header(&self) -> &Header {
+                &self.header
+            }
+
+            fn header_mut(&mut self) -> &mut Header {
+                &mut self.header
+            }
+
+            fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
+                $ty::validate(self, last_seq)
+            }
+        }
+    };
+}
+
+/// Checks a UAV count for a constructor.
+fn check_count(n: usize) -> Result<usize, ProtocolError> {
+    if (MIN_UAVS..=MAX_UAVS).contains(&n) { Ok(n) } else { Err(ProtocolError::BadCount(n)) }
+}
+
+fn check_len(field: &'static str, expected: usize, got: usize) -> Result<(), ProtocolError> {
+    if expected == got { Ok(()) } else { Err(ProtocolError::LengthMismatch { field, expected, got }) }
+}
+
+/// The used length of per-UAV arrays for a raw `count` (clamped so accessors never panic on bad input).
+fn used(count: u32) -> usize {
+    (count as usize).min(MAX_UAVS)
+}
+
+/// A fixed 16-byte ASCII name, NUL-padded (e.g. a solver or objective name).
+///
+/// Valid when it has 1 to 16 printable ASCII characters (0x20..=0x7E) followed only by NULs.
+#[derive(Clone, Copy, Default, PartialEq, Eq, Hash, ZeroCopySend)]
+#[type_name("uavloc::Name16/v1")]
+#[repr(C)]
+pub struct Name16 {
+    /// The raw bytes.
+    pub bytes: [u8; 16],
+}
+
+impl Name16 {
+    /// Capacity in bytes.
+    pub const CAPACITY: usize = 16;
+
+    /// Encodes `name` (1 to 16 printable ASCII characters).
+    pub fn new(field: &'static str, name: &str) -> Result<Self, ProtocolError> {
+        let b = name.as_bytes();
+        if b.is_empty() || b.len() > Self::CAPACITY || !b.iter().all(|c| (0x20..=0x7E).contains(c)) {
+            return Err(ProtocolError::BadName { field, name: name.to_owned() });
+        }
+        let mut bytes = [0u8; 16];
+        bytes[..b.len()].copy_from_slice(b);
+        Ok(Name16 { bytes })
+    }
+
+    /// Whether the bytes form a valid name.
+    pub fn is_valid(&self) -> bool {
+        self.as_str().is_some()
+    }
+
+    /// The name, or `None` if the bytes are not a valid name.
+    pub fn as_str(&self) -> Option<&str> {
+        let len = self.bytes.iter().position(|&c| c == 0).unwrap_or(Self::CAPACITY);
+        let (text, pad) = self.bytes.split_at(len);
+        if len == 0 || !text.iter().all(|c| (0x20..=0x7E).contains(c)) || pad.iter().any(|&c| c != 0) {
+            return None;
+        }
+        // Printable ASCII is valid UTF-8.
+        core::str::from_utf8(text).ok()
+    }
+}
+
+impl fmt::Debug for Name16 {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.as_str() {
+            Some(s) => write!(f, "Name16({s:?})"),
+            None => write!(f, "Name16(invalid {:?})", self.bytes),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Measurement
+// ---------------------------------------------------------------------------------------------------------
+
+/// emitter-sim → estimator: the UAV geometry and the noisy range differences of one step.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("uavloc::Measurement/v1")]
+#[repr(C)]
+pub struct Measurement {
+    /// Common header.
+    pub header: Header,
+    /// Number of UAVs N (3..=8).
+    pub count: u32,
+    /// Explicit padding; 0 when sent.
+    pub reserved: u32,
+    /// UAV positions (metres) at the measurement time; `uavs[0]` is the reference.
+    pub uavs: [[f64; 2]; MAX_UAVS],
+    /// Range differences `d_i = r_i − r_0`, i = 1..N−1 (metres); `diffs[i − 1]` belongs to UAV i.
+    pub diffs: [f64; MAX_UAVS - 1],
+    /// Per-UAV range noise standard deviation (metres, > 0).
+    pub sigmas: [f64; MAX_UAVS],
+    /// Current UAV headings (radians).
+    pub headings: [f64; MAX_UAVS],
+}
+
+impl_message!(Measurement, MessageKind::Measurement, 1, "uavloc::Measurement/v1");
+
+impl Measurement {
+    /// A measurement of `uavs.len()` UAVs; `diffs` must have one entry fewer, `sigmas` and `headings` one
+    /// per UAV. Content (finiteness, σ > 0) is checked by [`validate`](Self::validate), not here.
+    pub fn new(
+        step: u64,
+        seq: u64,
+        uavs: &[[f64; 2]],
+        diffs: &[f64],
+        sigmas: &[f64],
+        headings: &[f64],
+    ) -> Result<Self, ProtocolError> {
+        let n = check_count(uavs.len())?;
+        check_len("diffs", n - 1, diffs.len())?;
+        check_len("sigmas", n, sigmas.len())?;
+        check_len("headings", n, headings.len())?;
+        let mut m = Measurement {
+            header: Header::new(Self::VERSION, step, seq),
+            count: n as u32,
+            reserved: 0,
+            uavs: [[0.0; 2]; MAX_UAVS],
+            diffs: [0.0; MAX_UAVS - 1],
+            sigmas: [0.0; MAX_UAVS],
+            headings: [0.0; MAX_UAVS],
+        };
+        m.uavs[..n].copy_from_slice(uavs);
+        m.diffs[..n - 1].copy_from_slice(diffs);
+        m.sigmas[..n].copy_from_slice(sigmas);
+        m.headings[..n].copy_from_slice(headings);
+        Ok(m)
+    }
+
+    /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
+    pub fn len(&self) -> usize {
+        used(self.count)
+    }
+
+    /// Whether no UAV is in use (never true for a valid message).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// UAV positions in use.
+    pub fn uavs(&self) -> &[[f64; 2]] {
+        &self.uavs[..self.len()]
+    }
+
+    /// Range differences in use (`count − 1` of them).
+    pub fn diffs(&self) -> &[f64] {
+        &self.diffs[..self.len().saturating_sub(1)]
+    }
+
+    /// Range sigmas in use.
+    pub fn sigmas(&self) -> &[f64] {
+        &self.sigmas[..self.len()]
+    }
+
+    /// Headings in use.
+    pub fn headings(&self) -> &[f64] {
+        &self.headings[..self.len()]
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Estimate
+// ---------------------------------------------------------------------------------------------------------
+
+/// Outcome of an estimation, as carried in [`Estimate::status`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum EstimateStatus {
+    /// A unique, usable fix.
+    Ok = 0,
+    /// A usable fix chosen among several candidates (e.g. Chan's two roots).
+    Ambiguous = 1,
+    /// No fix; position and covariance are meaningless (NaN).
+    Failed = 2,
+}
+
+impl EstimateStatus {
+    /// Decodes the wire value.
+    pub fn from_u8(v: u8) -> Option<Self> {
+        match v {
+            0 => Some(EstimateStatus::Ok),
+            1 => Some(EstimateStatus::Ambiguous),
+            2 => Some(EstimateStatus::Failed),
+            _ => None,
+        }
+    }
+
+    /// Stable lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            EstimateStatus::Ok => "ok",
+            EstimateStatus::Ambiguous => "ambiguous",
+            EstimateStatus::Failed => "failed",
+        }
+    }
+}
+
+/// The estimator's result for one step: what goes into [`Estimate::new`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Fix {
+    /// A unique fix with its covariance (m², symmetric positive definite).
+    Ok {
+        /// Estimated emitter position, metres.
+        position: [f64; 2],
+        /// Its covariance, m².
+        covariance: [[f64; 2]; 2],
+    },
+    /// A fix chosen among several candidates.
+    Ambiguous {
+        /// Estimated emitter position, metres.
+        position: [f64; 2],
+        /// Its covariance, m².
+        covariance: [[f64; 2]; 2],
+    },
+    /// No fix.
+    Failed,
+}
+
+impl Fix {
+    /// The wire status.
+    pub fn status(&self) -> EstimateStatus {
+        match self {
+            Fix::Ok { .. } => EstimateStatus::Ok,
+            Fix::Ambiguous { .. } => EstimateStatus::Ambiguous,
+            Fix::Failed => EstimateStatus::Failed,
+        }
+    }
+}
+
+/// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("uavloc::Estimate/v1")]
+#[repr(C)]
+pub struct Estimate {
+    /// Common header (step of the measurement it was made from).
+    pub header: Header,
+    /// Id of the estimator process instance (e.g. pid and start time), to tell restarts apart.
+    pub instance: u64,
+    /// Number of UAVs N (3..=8).
+    pub count: u32,
+    /// [`EstimateStatus`] as `u8` (0 ok, 1 ambiguous, 2 failed).
+    pub status: u8,
+    /// Explicit padding; 0 when sent.
+    pub reserved: [u8; 3],
+    /// Estimated emitter position, metres (NaN when failed).
+    pub position: [f64; 2],
+    /// Its covariance, m², row-major (NaN when failed).
+    pub covariance: [[f64; 2]; 2],
+    /// UAV positions the estimate was computed for, metres.
+    pub uavs: [[f64; 2]; MAX_UAVS],
+    /// UAV headings at that time, radians.
+    pub headings: [f64; MAX_UAVS],
+}
+
+impl_message!(Estimate, MessageKind::Estimate, 1, "uavloc::Estimate/v1");
+
+impl Estimate {
+    /// An estimate for `uavs.len()` UAVs (`headings` one per UAV).
+    pub fn new(
+        step: u64,
+        seq: u64,
+        instance: u64,
+        uavs: &[[f64; 2]],
+        headings: &[f64],
+        fix: Fix,
+    ) -> Result<Self, ProtocolError> {
+        let n = check_count(uavs.len())?;
+        check_len("headings", n, headings.len())?;
+        let (position, covariance) = match fix {
+            Fix::Ok { position, covariance } | Fix::Ambiguous { position, covariance } => (position, covariance),
+            Fix::Failed => ([f64::NAN; 2], [[f64::NAN; 2]; 2]),
+        };
+        let mut e = Estimate {
+            header: Header::new(Self::VERSION, step, seq),
+            instance,
+            count: n as u32,
+            status: fix.status() as u8,
+            reserved: [0; 3],
+            position,
+            covariance,
+            uavs: [[0.0; 2]; MAX_UAVS],
+            headings: [0.0; MAX_UAVS],
+        };
+        e.uavs[..n].copy_from_slice(uavs);
+        e.headings[..n].copy_from_slice(headings);
+        Ok(e)
+    }
+
+    /// The estimate of `measurement` (received at `received_ns`): same step, same UAV geometry, the
+    /// measurement's stamps carried forward.
+    pub fn from_measurement(
+        measurement: &Measurement,
+        received_ns: u64,
+        seq: u64,
+        instance: u64,
+        fix: Fix,
+    ) -> Result<Self, ProtocolError> {
+        Ok(Estimate::new(measurement.header.step, seq, instance, measurement.uavs(), measurement.headings(), fix)?
+            .carrying(measurement, received_ns))
+    }
+
+    /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
+    pub fn len(&self) -> usize {
+        used(self.count)
+    }
+
+    /// Whether no UAV is in use (never true for a valid message).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// UAV positions in use.
+    pub fn uavs(&self) -> &[[f64; 2]] {
+        &self.uavs[..self.len()]
+    }
+
+    /// Headings in use.
+    pub fn headings(&self) -> &[f64] {
+        &self.headings[..self.len()]
+    }
+
+    /// The decoded status (`None` for an unknown wire value).
+    pub fn status(&self) -> Option<EstimateStatus> {
+        EstimateStatus::from_u8(self.status)
+    }
+
+    /// The fix (`None` for an unknown status).
+    pub fn fix(&self) -> Option<Fix> {
+        let (position, covariance) = (self.position, self.covariance);
+        Some(match self.status()? {
+            EstimateStatus::Ok => Fix::Ok { position, covariance },
+            EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
+            EstimateStatus::Failed => Fix::Failed,
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Command
+// ---------------------------------------------------------------------------------------------------------
+
+/// The planner's output for one step: what goes into [`Command::new`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlanInfo<'a> {
+    /// Commanded headings, radians (one per UAV).
+    pub headings: &'a [f64],
+    /// The waypoints these headings lead to, metres (one per UAV).
+    pub waypoints: &'a [[f64; 2]],
+    /// The criterion value at the waypoints.
+    pub objective: f64,
+    /// Solver name (1 to 16 printable ASCII characters, e.g. `"pso"`).
+    pub solver: &'a str,
+    /// Objective name (1 to 16 printable ASCII characters, e.g. `"trace-crlb"`).
+    pub objective_name: &'a str,
+    /// Planning time, microseconds.
+    pub plan_time_us: u64,
+    /// Bitmask of violated or binding constraints (bit meanings defined by the planner).
+    pub active_constraints: u64,
+}
+
+/// planner → emitter-sim, monitor: the headings to fly for the next step.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("uavloc::Command/v1")]
+#[repr(C)]
+pub struct Command {
+    /// Common header (step of the estimate it was planned from).
+    pub header: Header,
+    /// Id of the planner process instance that made it.
+    pub planner_instance: u64,
+    /// Planning time, microseconds.
+    pub plan_time_us: u64,
+    /// Bitmask of violated or binding constraints.
+    pub active_constraints: u64,
+    /// Number of UAVs N (3..=8).
+    pub count: u32,
+    /// Explicit padding; 0 when sent.
+    pub reserved: u32,
+    /// Criterion value at the waypoints.
+    pub objective: f64,
+    /// Commanded headings, radians.
+    pub headings: [f64; MAX_UAVS],
+    /// Waypoints, metres.
+    pub waypoints: [[f64; 2]; MAX_UAVS],
+    /// Solver name.
+    pub solver: Name16,
+    /// Objective name.
+    pub objective_name: Name16,
+}
+
+impl_message!(Command, MessageKind::Command, 1, "uavloc::Command/v1");
+
+impl Command {
+    /// A command for `plan.headings.len()` UAVs.
+    pub fn new(step: u64, seq: u64, planner_instance: u64, plan: &PlanInfo<'_>) -> Result<Self, ProtocolError> {
+        let n = check_count(plan.headings.len())?;
+        check_len("waypoints", n, plan.waypoints.len())?;
+        let mut c = Command {
+            header: Header::new(Self::VERSION, step, seq),
+            planner_instance,
+            plan_time_us: plan.plan_time_us,
+            active_constraints: plan.active_constraints,
+            count: n as u32,
+            reserved: 0,
+            objective: plan.objective,
+            headings: [0.0; MAX_UAVS],
+            waypoints: [[0.0; 2]; MAX_UAVS],
+            solver: Name16::new("solver", plan.solver)?,
+            objective_name: Name16::new("objective_name", plan.objective_name)?,
+        };
+        c.headings[..n].copy_from_slice(plan.headings);
+        c.waypoints[..n].copy_from_slice(plan.waypoints);
+        Ok(c)
+    }
+
+    /// The command planned from `estimate` (received at `received_ns`): same step, stamps carried forward.
+    pub fn from_estimate(
+        estimate: &Estimate,
+        received_ns: u64,
+        seq: u64,
+        planner_instance: u64,
+        plan: &PlanInfo<'_>,
+    ) -> Result<Self, ProtocolError> {
+        Ok(Command::new(estimate.header.step, seq, planner_instance, plan)?.carrying(estimate, received_ns))
+    }
+
+    /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
+    pub fn len(&self) -> usize {
+        used(self.count)
+    }
+
+    /// Whether no UAV is in use (never true for a valid message).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Headings in use.
+    pub fn headings(&self) -> &[f64] {
+        &self.headings[..self.len()]
+    }
+
+    /// Waypoints in use.
+    pub fn waypoints(&self) -> &[[f64; 2]] {
+        &self.waypoints[..self.len()]
+    }
+
+    /// Sets the solver name.
+    pub fn set_solver(&mut self, name: &str) -> Result<(), ProtocolError> {
+        self.solver = Name16::new("solver", name)?;
+        Ok(())
+    }
+
+    /// The solver name (`None` if the bytes are not a valid name).
+    pub fn solver(&self) -> Option<&str> {
+        self.solver.as_str()
+    }
+
+    /// Sets the objective name.
+    pub fn set_objective_name(&mut self, name: &str) -> Result<(), ProtocolError> {
+        self.objective_name = Name16::new("objective_name", name)?;
+        Ok(())
+    }
+
+    /// The objective name (`None` if the bytes are not a valid name).
+    pub fn objective_name(&self) -> Option<&str> {
+        self.objective_name.as_str()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Truth
+// ---------------------------------------------------------------------------------------------------------
+
+/// emitter-sim → monitor only: the true emitter position of a step (never seen by estimator or planner).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("uavloc::Truth/v1")]
+#[repr(C)]
+pub struct Truth {
+    /// Common header (step of the measurement it belongs to).
+    pub header: Header,
+    /// True emitter position, metres.
+    pub position: [f64; 2],
+}
+
+impl_message!(Truth, MessageKind::Truth, 1, "uavloc::Truth/v1");
+
+impl Truth {
+    /// The truth of `step`.
+    pub fn new(step: u64, seq: u64, position: [f64; 2]) -> Self {
+        Truth { header: Header::new(Self::VERSION, step, seq), position }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layout_is_stable() {
+        use core::mem::{align_of, size_of};
+        // Changing any of these changes the wire format: bump the type names and VERSION constants.
+        assert_eq!((size_of::<Stamps>(), align_of::<Stamps>()), (64, 8));
+        assert_eq!((size_of::<Header>(), align_of::<Header>()), (88, 8));
+        assert_eq!((size_of::<Name16>(), align_of::<Name16>()), (16, 1));
+        assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (408, 8));
+        assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (344, 8));
+        assert_eq!((size_of::<Command>(), align_of::<Command>()), (352, 8));
+        assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (104, 8));
+    }
+
+    #[test]
+    fn layout_has_no_implicit_padding() {
+        use core::mem::{offset_of, size_of};
+        // Every byte belongs to a field: offsets are contiguous.
+        assert_eq!(offset_of!(Header, stamps) + size_of::<Stamps>(), size_of::<Header>());
+        assert_eq!(offset_of!(Header, step), 8);
+        assert_eq!(offset_of!(Measurement, headings) + 8 * MAX_UAVS, size_of::<Measurement>());
+        assert_eq!(offset_of!(Measurement, uavs), 96);
+        assert_eq!(offset_of!(Estimate, position), 88 + 8 + 8);
+        assert_eq!(offset_of!(Estimate, headings) + 8 * MAX_UAVS, size_of::<Estimate>());
+        assert_eq!(offset_of!(Command, objective), 88 + 32);
+        assert_eq!(offset_of!(Command, objective_name) + 16, size_of::<Command>());
+        assert_eq!(offset_of!(Truth, position) + 16, size_of::<Truth>());
+    }
+
+    #[test]
+    fn type_names_are_pinned_and_versioned() {
+        fn check<T: Message>() {
+            // SAFETY: `type_name` is an `unsafe fn` of the ZeroCopySend trait only because implementors must
+            // keep it unique; calling it has no preconditions.
+            let pinned = unsafe { <T as ZeroCopySend>::type_name() };
+            assert_eq!(pinned, T::TYPE_NAME);
+            assert!(pinned.starts_with("uavloc::"), "{pinned}");
+            assert!(pinned.ends_with(&format!("/v{}", T::VERSION)), "{pinned} vs version {}", T::VERSION);
+        }
+        check::<Measurement>();
+        check::<Estimate>();
+        check::<Command>();
+        check::<Truth>();
+    }
+
+    #[test]
+    fn constructors_check_shapes() {
+        let uavs = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        assert!(Measurement::new(0, 0, &uavs, &[1.0, 2.0], &[1.0; 3], &[0.0; 3]).is_ok());
+        assert_eq!(Measurement::new(0, 0, &uavs[..2], &[1.0], &[1.0; 2], &[0.0; 2]), Err(ProtocolError::BadCount(2)));
+        assert_eq!(
+            Measurement::new(0, 0, &uavs, &[1.0; 3], &[1.0; 3], &[0.0; 3]),
+            Err(ProtocolError::LengthMismatch { field: "diffs", expected: 2, got: 3 })
+        );
+        assert!(matches!(
+            Estimate::new(0, 0, 0, &[[0.0; 2]; 9], &[0.0; 9], Fix::Failed),
+            Err(ProtocolError::BadCount(9))
+        ));
+        let plan = PlanInfo {
+            headings: &[0.0; 3],
+            waypoints: &uavs,
+            objective: 1.0,
+            solver: "a-solver-name-too-long",
+            objective_name: "trace",
+            plan_time_us: 0,
+            active_constraints: 0,
+        };
+        assert!(matches!(Command::new(0, 0, 0, &plan), Err(ProtocolError::BadName { field: "solver", .. })));
+    }
+
+    #[test]
+    fn names_round_trip_and_reject_bad_bytes() {
+        let n = Name16::new("x", "trace-crlb").unwrap();
+        assert_eq!(n.as_str(), Some("trace-crlb"));
+        assert_eq!(Name16::new("x", "0123456789abcdef").unwrap().as_str(), Some("0123456789abcdef"));
+        assert!(Name16::new("x", "").is_err());
+        assert!(Name16::new("x", "ümlaut").is_err());
+        assert!(Name16::new("x", "tab\there").is_err());
+        assert_eq!(Name16::default().as_str(), None);
+        let mut gap = n;
+        gap.bytes[12] = b'x'; // a byte after the NUL terminator
+        assert_eq!(gap.as_str(), None);
+    }
+
+    #[test]
+    fn stamps_carry_forward_and_give_latencies() {
+        let uavs = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        let mut cmd0 = Command::new(
+            0,
+            1,
+            7,
+            &PlanInfo {
+                headings: &[0.0; 3],
+                waypoints: &uavs,
+                objective: 1.0,
+                solver: "pso",
+                objective_name: "trace",
+                plan_time_us: 5,
+                active_constraints: 0,
+            },
+        )
+        .unwrap();
+        cmd0.header.stamps.mark_published(MessageKind::Command, 100);
+        let mut m = Measurement::new(1, 1, &uavs, &[1.0, 2.0], &[1.0; 3], &[0.0; 3]).unwrap().carrying(&cmd0, 110);
+        m.header.stamps.mark_published(MessageKind::Measurement, 150);
+        let mut e = Estimate::from_measurement(
+            &m,
+            160,
+            1,
+            9,
+            Fix::Ok { position: [1.0, 2.0], covariance: [[1.0, 0.0], [0.0, 1.0]] },
+        )
+        .unwrap();
+        assert_eq!(e.header.step, 1);
+        assert_eq!(e.uavs(), m.uavs());
+        e.header.stamps.mark_published(MessageKind::Estimate, 200);
+        let mut c = Command::from_estimate(&e, 210, 2, 7, &cmd0_plan(&uavs)).unwrap();
+        c.header.stamps.mark_published(MessageKind::Command, 300);
+        let l = c.header.stamps.latencies();
+        assert_eq!(
+            l,
+            Latencies {
+                trigger_hop_ns: Some(10),
+                emitter_ns: Some(40),
+                measurement_hop_ns: Some(10),
+                estimator_ns: Some(40),
+                estimate_hop_ns: Some(10),
+                planner_ns: Some(90),
+                end_to_end_ns: Some(150),
+                cycle_ns: Some(200),
+            }
+        );
+        assert_eq!(c.header.stamps.age_ns(305), Some(5));
+        // The next measurement starts a new chain.
+        let next = Measurement::new(2, 2, &uavs, &[1.0, 2.0], &[1.0; 3], &[0.0; 3]).unwrap().carrying(&c, 320);
+        assert_eq!(
+            next.header.stamps,
+            Stamps { trigger_command_published_ns: 300, trigger_command_received_ns: 320, ..Stamps::default() }
+        );
+        assert_eq!(Stamps::default().latencies(), Latencies::default());
+        assert_eq!(span_ns(5, 3), None);
+    }
+
+    fn cmd0_plan(uavs: &[[f64; 2]]) -> PlanInfo<'_> {
+        PlanInfo {
+            headings: &[0.1, 0.2, 0.3],
+            waypoints: uavs,
+            objective: 2.0,
+            solver: "pso",
+            objective_name: "trace",
+            plan_time_us: 80,
+            active_constraints: 0b101,
+        }
+    }
+
+    #[test]
+    fn now_ns_is_monotonic_and_nonzero() {
+        let a = now_ns();
+        let b = now_ns();
+        assert!(a > 0 && b >= a);
+    }
+}

@@ -1,0 +1,549 @@
+//! What a receiver checks before trusting a message.
+//!
+//! Messages arrive as raw bytes from shared memory written by another process: the layout makes every bit
+//! pattern a valid Rust value, but not a meaningful message. `validate(&self, last_seq)` checks, in order:
+//!
+//! 1. the header version equals the type's `VERSION` ([`Rejection::BadVersion`]);
+//! 2. the UAV count is in `3..=8` ([`Rejection::BadCount`]; not for [`Truth`]);
+//! 3. the estimate status is known ([`Rejection::UnknownStatus`]) and the names are valid ASCII
+//!    ([`Rejection::BadName`]);
+//! 4. every *used* float is finite ([`Rejection::NotFinite`]): the first `count` entries of per-UAV arrays,
+//!    the first `count − 1` range differences, and the scalars; a failed estimate's position and covariance
+//!    are not used (they are NaN by construction);
+//! 5. range sigmas are > 0 ([`Rejection::NonPositiveSigma`]) and an estimate's covariance is symmetric
+//!    positive definite ([`Rejection::NotPositiveDefinite`]);
+//! 6. the sequence number is strictly greater than that of the last *accepted* message of the stream
+//!    ([`Rejection::Stale`]; a repeat or a step back).
+//!
+//! A *stream* is what one receiver hears on one topic; `last_seq` is the last accepted sequence number of it.
+//! A second publisher on the same topic (e.g. a planner taking over) must continue the numbering above the
+//! last one it saw, or receivers must reset `last_seq` when they see a new instance id; otherwise its
+//! messages are rejected as stale.
+//!
+//! Unused array entries and the `reserved` fields are ignored. [`RejectionCounter::check`] runs the
+//! validation, tracks the last accepted sequence number and counts rejections per type and kind.
+
+use core::fmt;
+
+use thiserror::Error;
+
+use crate::messages::{Command, Estimate, EstimateStatus, Measurement, Message, MessageKind, Truth};
+use crate::{MAX_UAVS, MIN_UAVS};
+
+/// Why a received message was rejected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum Rejection {
+    /// The header version is not the receiver's.
+    #[error("version {got} (expected {expected})")]
+    BadVersion {
+        /// The receiver's version.
+        expected: u32,
+        /// The message's version.
+        got: u32,
+    },
+    /// The UAV count is outside `3..=8`.
+    #[error("UAV count {count} outside {MIN_UAVS}..={MAX_UAVS}")]
+    BadCount {
+        /// The message's count.
+        count: u32,
+    },
+    /// A used float is NaN or infinite.
+    #[error("{field} is not finite")]
+    NotFinite {
+        /// Which field.
+        field: &'static str,
+    },
+    /// A range sigma is ≤ 0.
+    #[error("range sigma of UAV {index} is not positive")]
+    NonPositiveSigma {
+        /// Which UAV.
+        index: usize,
+    },
+    /// The covariance is not symmetric positive definite.
+    #[error("covariance is not symmetric positive definite")]
+    NotPositiveDefinite,
+    /// The estimate status is not 0, 1 or 2.
+    #[error("unknown estimate status {status}")]
+    UnknownStatus {
+        /// The wire value.
+        status: u8,
+    },
+    /// The sequence number does not exceed the last accepted one.
+    #[error("stale: seq {seq} after {last}")]
+    Stale {
+        /// The message's sequence number.
+        seq: u64,
+        /// The last accepted sequence number.
+        last: u64,
+    },
+    /// A name is not valid ASCII (see [`Name16`](crate::Name16)).
+    #[error("{field} is not a valid name")]
+    BadName {
+        /// Which name.
+        field: &'static str,
+    },
+}
+
+impl Rejection {
+    /// All kind strings, in [`kind_index`](Self::kind_index) order.
+    pub const KINDS: [&'static str; 8] = [
+        "bad_version",
+        "bad_count",
+        "not_finite",
+        "non_positive_sigma",
+        "not_positive_definite",
+        "unknown_status",
+        "stale",
+        "bad_name",
+    ];
+
+    /// Stable snake_case name of the reason (for logs and counters).
+    pub fn kind(&self) -> &'static str {
+        Self::KINDS[self.kind_index()]
+    }
+
+    /// Position of [`kind`](Self::kind) in [`KINDS`](Self::KINDS).
+    pub fn kind_index(&self) -> usize {
+        match self {
+            Rejection::BadVersion { .. } => 0,
+            Rejection::BadCount { .. } => 1,
+            Rejection::NotFinite { .. } => 2,
+            Rejection::NonPositiveSigma { .. } => 3,
+            Rejection::NotPositiveDefinite => 4,
+            Rejection::UnknownStatus { .. } => 5,
+            Rejection::Stale { .. } => 6,
+            Rejection::BadName { .. } => 7,
+        }
+    }
+}
+
+fn check_version(expected: u32, got: u32) -> Result<(), Rejection> {
+    if got == expected { Ok(()) } else { Err(Rejection::BadVersion { expected, got }) }
+}
+
+/// Checks the count and returns it as a usable length.
+fn check_count(count: u32) -> Result<usize, Rejection> {
+    let n = count as usize;
+    if (MIN_UAVS..=MAX_UAVS).contains(&n) { Ok(n) } else { Err(Rejection::BadCount { count }) }
+}
+
+fn check_finite<'a>(field: &'static str, values: impl IntoIterator<Item = &'a f64>) -> Result<(), Rejection> {
+    if values.into_iter().all(|v| v.is_finite()) { Ok(()) } else { Err(Rejection::NotFinite { field }) }
+}
+
+fn check_seq(seq: u64, last_seq: Option<u64>) -> Result<(), Rejection> {
+    match last_seq {
+        Some(last) if seq <= last => Err(Rejection::Stale { seq, last }),
+        _ => Ok(()),
+    }
+}
+
+/// Relative tolerance on `|c01 − c10|` for a covariance to count as symmetric.
+pub const SYMMETRY_TOLERANCE: f64 = 1e-9;
+
+/// Whether a finite 2×2 matrix is symmetric (within [`SYMMETRY_TOLERANCE`]) positive definite.
+///
+/// Overflow-safe: uses the correlation `c01 / (√c00 √c11)` instead of the determinant.
+pub fn is_symmetric_positive_definite(c: &[[f64; 2]; 2]) -> bool {
+    let (a, b, d) = (c[0][0], 0.5 * (c[0][1] + c[1][0]), c[1][1]);
+    let scale = c[0][0].abs().max(c[1][1].abs()).max(c[0][1].abs()).max(c[1][0].abs());
+    let symmetric = (c[0][1] - c[1][0]).abs() <= SYMMETRY_TOLERANCE * scale;
+    symmetric && a > 0.0 && d > 0.0 && (b / a.sqrt() / d.sqrt()).abs() < 1.0
+}
+
+impl Measurement {
+    /// Checks the measurement; see the [module docs](crate::validate).
+    pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
+        check_version(Self::VERSION, self.header.version)?;
+        let n = check_count(self.count)?;
+        check_finite("uavs", self.uavs[..n].iter().flatten())?;
+        check_finite("diffs", &self.diffs[..n - 1])?;
+        check_finite("sigmas", &self.sigmas[..n])?;
+        check_finite("headings", &self.headings[..n])?;
+        if let Some(index) = self.sigmas[..n].iter().position(|&s| s <= 0.0) {
+            return Err(Rejection::NonPositiveSigma { index });
+        }
+        check_seq(self.header.seq, last_seq)
+    }
+}
+
+impl Estimate {
+    /// Checks the estimate; see the [module docs](crate::validate).
+    pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
+        check_version(Self::VERSION, self.header.version)?;
+        let n = check_count(self.count)?;
+        let status = EstimateStatus::from_u8(self.status).ok_or(Rejection::UnknownStatus { status: self.status })?;
+        check_finite("uavs", self.uavs[..n].iter().flatten())?;
+        check_finite("headings", &self.headings[..n])?;
+        if status != EstimateStatus::Failed {
+            check_finite("position", &self.position)?;
+            check_finite("covariance", self.covariance.iter().flatten())?;
+            if !is_symmetric_positive_definite(&self.covariance) {
+                return Err(Rejection::NotPositiveDefinite);
+            }
+        }
+        check_seq(self.header.seq, last_seq)
+    }
+}
+
+impl Command {
+    /// Checks the command; see the [module docs](crate::validate).
+    pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
+        check_version(Self::VERSION, self.header.version)?;
+        let n = check_count(self.count)?;
+        if !self.solver.is_valid() {
+            return Err(Rejection::BadName { field: "solver" });
+        }
+        if !self.objective_name.is_valid() {
+            return Err(Rejection::BadName { field: "objective_name" });
+        }
+        check_finite("objective", [&self.objective])?;
+        check_finite("headings", &self.headings[..n])?;
+        check_finite("waypoints", self.waypoints[..n].iter().flatten())?;
+        check_seq(self.header.seq, last_seq)
+    }
+}
+
+impl Truth {
+    /// Checks the truth; see the [module docs](crate::validate).
+    pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
+        check_version(Self::VERSION, self.header.version)?;
+        check_finite("position", &self.position)?;
+        check_seq(self.header.seq, last_seq)
+    }
+}
+
+/// Counts accepted messages and rejections per message type and rejection kind (for the monitor).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct RejectionCounter {
+    rejected: [[u64; Rejection::KINDS.len()]; MessageKind::ALL.len()],
+    accepted: [u64; MessageKind::ALL.len()],
+}
+
+impl RejectionCounter {
+    /// All counts zero.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Validates `msg` against the stream's last accepted sequence number, counts the outcome and, on
+    /// acceptance, advances `last_seq`.
+    pub fn check<T: Message>(&mut self, msg: &T, last_seq: &mut Option<u64>) -> Result<(), Rejection> {
+        match msg.validate(*last_seq) {
+            Ok(()) => {
+                *last_seq = Some(msg.header().seq);
+                self.record_accepted(T::KIND);
+                Ok(())
+            }
+            Err(r) => {
+                self.record(T::KIND, &r);
+                Err(r)
+            }
+        }
+    }
+
+    /// Counts one rejection.
+    pub fn record(&mut self, msg: MessageKind, rejection: &Rejection) {
+        self.rejected[msg.index()][rejection.kind_index()] += 1;
+    }
+
+    /// Counts one accepted message.
+    pub fn record_accepted(&mut self, msg: MessageKind) {
+        self.accepted[msg.index()] += 1;
+    }
+
+    /// Rejections of `msg` messages for reason `kind` (a [`Rejection::kind`] string; 0 if unknown).
+    pub fn count(&self, msg: MessageKind, kind: &str) -> u64 {
+        Rejection::KINDS.iter().position(|k| *k == kind).map_or(0, |i| self.rejected[msg.index()][i])
+    }
+
+    /// All rejections of `msg` messages.
+    pub fn rejected(&self, msg: MessageKind) -> u64 {
+        self.rejected[msg.index()].iter().sum()
+    }
+
+    /// Accepted `msg` messages.
+    pub fn accepted(&self, msg: MessageKind) -> u64 {
+        self.accepted[msg.index()]
+    }
+
+    /// All rejections.
+    pub fn total(&self) -> u64 {
+        self.rejected.iter().flatten().sum()
+    }
+
+    /// The non-zero rejection counts as (message type, kind, count), in index order.
+    pub fn iter(&self) -> impl Iterator<Item = (MessageKind, &'static str, u64)> + '_ {
+        MessageKind::ALL.into_iter().flat_map(move |m| {
+            Rejection::KINDS
+                .iter()
+                .enumerate()
+                .map(move |(i, k)| (m, *k, self.rejected[m.index()][i]))
+                .filter(|&(_, _, c)| c > 0)
+        })
+    }
+}
+
+impl fmt::Display for RejectionCounter {
+    /// E.g. `rejected 3 (measurement: stale 2, bad_count 1)` or `rejected 0`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "rejected {}", self.total())?;
+        let mut open = false;
+        for m in MessageKind::ALL {
+            if self.rejected(m) == 0 {
+                continue;
+            }
+            f.write_str(if open { "; " } else { " (" })?;
+            open = true;
+            write!(f, "{m}:")?;
+            let mut first = true;
+            for (_, kind, count) in self.iter().filter(|&(mk, _, _)| mk == m) {
+                write!(f, "{}{kind} {count}", if first { " " } else { ", " })?;
+                first = false;
+            }
+        }
+        if open {
+            f.write_str(")")?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::messages::{Fix, PlanInfo};
+
+    const UAVS: [[f64; 2]; 4] = [[0.0, 0.0], [1000.0, 0.0], [0.0, 1000.0], [1000.0, 1000.0]];
+
+    fn measurement() -> Measurement {
+        Measurement::new(3, 10, &UAVS, &[10.0, -5.0, 2.5], &[3.0; 4], &[0.1, 0.2, 0.3, 0.4]).unwrap()
+    }
+
+    fn estimate() -> Estimate {
+        let fix = Fix::Ok { position: [500.0, 400.0], covariance: [[4.0, 1.0], [1.0, 9.0]] };
+        Estimate::new(3, 10, 42, &UAVS, &[0.1, 0.2, 0.3, 0.4], fix).unwrap()
+    }
+
+    fn command() -> Command {
+        Command::new(
+            3,
+            10,
+            7,
+            &PlanInfo {
+                headings: &[0.5; 4],
+                waypoints: &UAVS,
+                objective: 12.5,
+                solver: "pso",
+                objective_name: "trace-crlb",
+                plan_time_us: 120,
+                active_constraints: 0,
+            },
+        )
+        .unwrap()
+    }
+
+    fn truth() -> Truth {
+        Truth::new(3, 10, [480.0, 410.0])
+    }
+
+    #[test]
+    fn accepts_good_messages() {
+        for last in [None, Some(0), Some(9)] {
+            assert_eq!(measurement().validate(last), Ok(()));
+            assert_eq!(estimate().validate(last), Ok(()));
+            assert_eq!(command().validate(last), Ok(()));
+            assert_eq!(truth().validate(last), Ok(()));
+        }
+        let ambiguous = Fix::Ambiguous { position: [1.0, 2.0], covariance: [[1.0, 0.0], [0.0, 1.0]] };
+        assert_eq!(Estimate::new(0, 0, 1, &UAVS[..3], &[0.0; 3], ambiguous).unwrap().validate(None), Ok(()));
+        let failed = Estimate::new(0, 0, 1, &UAVS[..3], &[0.0; 3], Fix::Failed).unwrap();
+        assert!(failed.position[0].is_nan());
+        assert_eq!(failed.validate(None), Ok(()), "a failed estimate's NaN position is not used");
+        let mut eight = [[0.0; 2]; 8];
+        for (i, p) in eight.iter_mut().enumerate() {
+            *p = [i as f64, 1.0];
+        }
+        assert_eq!(Measurement::new(0, 0, &eight, &[1.0; 7], &[1.0; 8], &[0.0; 8]).unwrap().validate(None), Ok(()));
+    }
+
+    #[test]
+    fn ignores_unused_entries() {
+        let mut m = measurement();
+        m.uavs[7] = [f64::NAN; 2];
+        m.diffs[6] = f64::INFINITY;
+        m.sigmas[5] = -1.0;
+        m.headings[4] = f64::NAN;
+        m.reserved = 77;
+        assert_eq!(m.validate(None), Ok(()));
+    }
+
+    #[test]
+    fn rejects_bad_version() {
+        let mut m = measurement();
+        m.header.version = 2;
+        assert_eq!(m.validate(None), Err(Rejection::BadVersion { expected: 1, got: 2 }));
+        let mut e = estimate();
+        e.header.version = 0;
+        assert_eq!(e.validate(None).unwrap_err().kind(), "bad_version");
+        let mut c = command();
+        c.header.version = u32::MAX;
+        assert_eq!(c.validate(None).unwrap_err().kind(), "bad_version");
+        let mut t = truth();
+        t.header.version = 9;
+        assert_eq!(t.validate(None).unwrap_err().kind(), "bad_version");
+    }
+
+    #[test]
+    fn rejects_bad_count() {
+        for count in [0, 1, 2, 9, 1000, u32::MAX] {
+            let mut m = measurement();
+            m.count = count;
+            assert_eq!(m.validate(None), Err(Rejection::BadCount { count }));
+            let mut e = estimate();
+            e.count = count;
+            assert_eq!(e.validate(None), Err(Rejection::BadCount { count }));
+            let mut c = command();
+            c.count = count;
+            assert_eq!(c.validate(None), Err(Rejection::BadCount { count }));
+            assert!(m.len() <= MAX_UAVS && m.diffs().len() < MAX_UAVS, "accessors clamp");
+        }
+    }
+
+    #[test]
+    fn rejects_not_finite() {
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let cases = [
+                ("uavs", with(measurement(), |m| m.uavs[3][1] = bad).validate(None)),
+                ("diffs", with(measurement(), |m| m.diffs[2] = bad).validate(None)),
+                ("sigmas", with(measurement(), |m| m.sigmas[0] = bad).validate(None)),
+                ("headings", with(measurement(), |m| m.headings[1] = bad).validate(None)),
+                ("uavs", with(estimate(), |e| e.uavs[0][0] = bad).validate(None)),
+                ("headings", with(estimate(), |e| e.headings[3] = bad).validate(None)),
+                ("position", with(estimate(), |e| e.position[1] = bad).validate(None)),
+                ("covariance", with(estimate(), |e| e.covariance[1][0] = bad).validate(None)),
+                ("objective", with(command(), |c| c.objective = bad).validate(None)),
+                ("headings", with(command(), |c| c.headings[2] = bad).validate(None)),
+                ("waypoints", with(command(), |c| c.waypoints[3][0] = bad).validate(None)),
+                ("position", with(truth(), |t| t.position[0] = bad).validate(None)),
+            ];
+            for (field, case) in cases {
+                assert_eq!(case, Err(Rejection::NotFinite { field }), "{field} = {bad}");
+            }
+        }
+    }
+
+    #[test]
+    fn rejects_non_positive_sigma() {
+        for s in [0.0, -0.0, -1.0, -f64::MIN_POSITIVE] {
+            let m = with(measurement(), |m| m.sigmas[2] = s);
+            assert_eq!(m.validate(None), Err(Rejection::NonPositiveSigma { index: 2 }));
+        }
+        assert_eq!(with(measurement(), |m| m.sigmas[0] = f64::MIN_POSITIVE).validate(None), Ok(()));
+    }
+
+    #[test]
+    fn rejects_not_positive_definite() {
+        for cov in [
+            [[0.0, 0.0], [0.0, 1.0]],
+            [[-1.0, 0.0], [0.0, 1.0]],
+            [[1.0, 0.0], [0.0, -1.0]],
+            [[1.0, 1.0], [1.0, 1.0]],         // singular
+            [[1.0, 2.0], [2.0, 1.0]],         // indefinite
+            [[4.0, 1.0], [1.1, 9.0]],         // not symmetric
+            [[1e300, 1e300], [1e300, 1e300]], // singular, where the determinant would overflow
+        ] {
+            let e = with(estimate(), |e| e.covariance = cov);
+            assert_eq!(e.validate(None), Err(Rejection::NotPositiveDefinite), "{cov:?}");
+        }
+        for cov in [
+            [[1e300, 0.0], [0.0, 1e300]],
+            [[1e-300, 0.0], [0.0, 1e-300]],
+            [[4.0, 1.0], [1.0 + 1e-12, 9.0]],
+            [[2.0, -1.999], [-1.999, 2.0]],
+        ] {
+            assert!(is_symmetric_positive_definite(&cov), "{cov:?}");
+        }
+    }
+
+    #[test]
+    fn rejects_unknown_status() {
+        for status in [3u8, 4, 128, 255] {
+            let e = with(estimate(), |e| e.status = status);
+            assert_eq!(e.validate(None), Err(Rejection::UnknownStatus { status }));
+            assert_eq!(e.fix(), None);
+        }
+    }
+
+    #[test]
+    fn rejects_stale() {
+        assert_eq!(measurement().validate(Some(10)), Err(Rejection::Stale { seq: 10, last: 10 }));
+        assert_eq!(estimate().validate(Some(11)), Err(Rejection::Stale { seq: 10, last: 11 }));
+        assert_eq!(command().validate(Some(u64::MAX)), Err(Rejection::Stale { seq: 10, last: u64::MAX }));
+        assert_eq!(truth().validate(Some(10)).unwrap_err().kind(), "stale");
+    }
+
+    #[test]
+    fn rejects_bad_name() {
+        let c = with(command(), |c| c.solver.bytes = [0; 16]);
+        assert_eq!(c.validate(None), Err(Rejection::BadName { field: "solver" }));
+        let c = with(command(), |c| c.objective_name.bytes[0] = 0xC3);
+        assert_eq!(c.validate(None), Err(Rejection::BadName { field: "objective_name" }));
+        let c = with(command(), |c| c.solver.bytes[15] = b'\n');
+        assert_eq!(c.validate(None).unwrap_err().kind(), "bad_name");
+    }
+
+    #[test]
+    fn kinds_are_stable_and_distinct() {
+        let all = [
+            Rejection::BadVersion { expected: 1, got: 2 },
+            Rejection::BadCount { count: 0 },
+            Rejection::NotFinite { field: "x" },
+            Rejection::NonPositiveSigma { index: 0 },
+            Rejection::NotPositiveDefinite,
+            Rejection::UnknownStatus { status: 9 },
+            Rejection::Stale { seq: 1, last: 2 },
+            Rejection::BadName { field: "solver" },
+        ];
+        for (i, r) in all.iter().enumerate() {
+            assert_eq!(r.kind_index(), i);
+            assert_eq!(r.kind(), Rejection::KINDS[i]);
+            assert!(!r.to_string().is_empty());
+        }
+    }
+
+    #[test]
+    fn counter_tracks_seq_and_counts() {
+        let mut counter = RejectionCounter::new();
+        assert_eq!(counter.to_string(), "rejected 0");
+        let mut last = None;
+        assert!(counter.check(&measurement(), &mut last).is_ok());
+        assert_eq!(last, Some(10));
+        assert_eq!(counter.check(&measurement(), &mut last), Err(Rejection::Stale { seq: 10, last: 10 }));
+        let mut next = measurement();
+        next.header.seq = 11;
+        next.count = 1;
+        assert_eq!(counter.check(&next, &mut last).unwrap_err().kind(), "bad_count");
+        assert_eq!(last, Some(10), "a rejected message does not advance the stream");
+        next.count = 4;
+        assert!(counter.check(&next, &mut last).is_ok());
+        assert_eq!(last, Some(11));
+        let mut cmd_last = None;
+        let bad = with(command(), |c| c.objective = f64::NAN);
+        assert!(counter.check(&bad, &mut cmd_last).is_err());
+        assert_eq!(cmd_last, None);
+
+        assert_eq!(counter.accepted(MessageKind::Measurement), 2);
+        assert_eq!(counter.rejected(MessageKind::Measurement), 2);
+        assert_eq!(counter.count(MessageKind::Measurement, "stale"), 1);
+        assert_eq!(counter.count(MessageKind::Command, "not_finite"), 1);
+        assert_eq!(counter.count(MessageKind::Command, "no_such_kind"), 0);
+        assert_eq!(counter.total(), 3);
+        assert_eq!(counter.to_string(), "rejected 3 (measurement: bad_count 1, stale 1; command: not_finite 1)");
+    }
+
+    fn with<T>(mut msg: T, f: impl FnOnce(&mut T)) -> T {
+        f(&mut msg);
+        msg
+    }
+}

@@ -1,0 +1,308 @@
+//! Real iceoryx2 round trips (in-process threads; every test has its own domain so parallel tests and
+//! leftovers of earlier runs never share a service).
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::*;
+use protocol::messages::{Fix, PlanInfo};
+use protocol::services::{self, Domain};
+use protocol::transport::{MAX_PUBLISHERS, SUBSCRIBER_BUFFER, TopicEvents};
+use protocol::{Command, Estimate, Measurement, Message, Topic, TransportError, Truth, node, now_ns};
+
+fn unique_domain() -> Domain {
+    protocol::transport::quiet_logs();
+    static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    Domain::new(&format!("test-{}-{}-{n}", std::process::id(), now_ns() % 1_000_000_000)).unwrap()
+}
+
+/// The bytes of a message.
+fn bytes_of<T: Message>(msg: &T) -> &[u8] {
+    // SAFETY: the message types are repr(C) with no implicit padding (checked by the layout tests in the
+    // crate), so every byte is an initialised field byte; the slice lives as long as `msg`.
+    unsafe { core::slice::from_raw_parts((msg as *const T).cast::<u8>(), size_of::<T>()) }
+}
+
+const UAVS: [[f64; 2]; 5] = [[0.0, 0.0], [1000.5, -3.25], [0.125, 999.0], [-500.0, 250.0], [1e-9, -1e9]];
+
+fn measurement(seq: u64) -> Measurement {
+    let mut m = Measurement::new(
+        7,
+        seq,
+        &UAVS,
+        &[1.5, -2.5, 3.5, -4.5],
+        &[3.0, 3.1, 3.2, 3.3, 3.4],
+        &[0.1, -0.2, 0.3, -0.4, 3.1],
+    )
+    .unwrap();
+    m.header.stamps.trigger_command_published_ns = 11;
+    m.header.stamps.trigger_command_received_ns = 12;
+    m
+}
+
+fn estimate(seq: u64, fix: Fix) -> Estimate {
+    Estimate::from_measurement(&measurement(seq), 123_456, seq, 0xDEAD_BEEF, fix).unwrap()
+}
+
+fn command(seq: u64) -> Command {
+    let plan = PlanInfo {
+        headings: &[0.5, -0.5, 1.5, -1.5, 3.0],
+        waypoints: &UAVS,
+        objective: 42.125,
+        solver: "pso",
+        objective_name: "trace-crlb",
+        plan_time_us: 321,
+        active_constraints: 0b1011,
+    };
+    Command::from_estimate(&estimate(seq, Fix::Failed), 654_321, seq, 99, &plan).unwrap()
+}
+
+/// Sends `msg` and receives it in the same thread; checks that every byte except the publish stamps
+/// survived and that the stamps are the ones `send` reported.
+fn round_trip<T: Message>(name: &str, msg: T) {
+    let node = node(&format!("{name}-node").replace('/', "-")).unwrap();
+    let subscriber = Topic::<T>::subscriber(&node, name).unwrap();
+    let publisher = Topic::<T>::publisher(&node, name).unwrap();
+    let sent = publisher.send(&msg).unwrap();
+    assert_eq!(sent.subscribers, 1);
+    let received = subscriber.receive_all().unwrap();
+    assert_eq!(received.len(), 1);
+    let mut expected = msg;
+    expected.header_mut().stamps.mark_published(T::KIND, sent.published_ns);
+    assert_eq!(bytes_of(&received[0]), bytes_of(&expected), "{:?}", T::KIND);
+    assert_ne!(received[0].header().stamps.published_ns, 0);
+    assert_eq!(received[0].validate(None), Ok(()));
+    assert!(subscriber.receive_all().unwrap().is_empty(), "drained");
+}
+
+#[test]
+fn every_message_type_round_trips_through_a_real_service() {
+    let d = unique_domain();
+    round_trip(&services::measurement(&d), measurement(1));
+    round_trip(
+        &services::estimate(&d),
+        estimate(2, Fix::Ambiguous { position: [3.5, -7.25], covariance: [[4.0, 0.5], [0.5, 2.0]] }),
+    );
+    // A failed estimate carries NaNs, compared bytewise.
+    let d2 = unique_domain();
+    round_trip(&services::estimate(&d2), estimate(2, Fix::Failed));
+    round_trip(&services::command(&d), command(3));
+    let mut truth = Truth::new(7, 4, [123.5, -456.75]);
+    truth.header.stamps.measurement_published_ns = 5;
+    round_trip(&services::truth(&d), truth);
+}
+
+#[test]
+fn subscriber_in_a_waitset_wakes_on_notify() {
+    let d = unique_domain();
+    let name = services::measurement(&d);
+    let (ready_tx, ready_rx) = mpsc::channel();
+    let sub_name = name.clone();
+    let receiver = thread::spawn(move || {
+        let node = node("waitset-subscriber").unwrap();
+        let subscriber = Topic::<Measurement>::subscriber(&node, &sub_name).unwrap();
+        let waitset = WaitSetBuilder::new().create::<ipc::Service>().unwrap();
+        let guard = waitset.attach_notification(&subscriber).unwrap();
+        ready_tx.send(()).unwrap();
+        let mut got = Vec::new();
+        let start = Instant::now();
+        while got.is_empty() && start.elapsed() < Duration::from_secs(10) {
+            waitset
+                .wait_and_process_once_with_timeout(
+                    |id| {
+                        if id.has_event_from(&guard) {
+                            got.extend(subscriber.receive_all().unwrap().into_iter().map(|m| (m, now_ns())));
+                        }
+                        CallbackProgression::Continue
+                    },
+                    Duration::from_secs(5),
+                )
+                .unwrap();
+        }
+        got
+    });
+    ready_rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    let node = node("waitset-publisher").unwrap();
+    let publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
+    let sent = publisher.send(&measurement(5)).unwrap();
+    let got = receiver.join().unwrap();
+    assert_eq!(got.len(), 1, "woken within the timeout with exactly the message sent");
+    let (m, received_ns) = got[0];
+    assert_eq!(m.header.seq, 5);
+    assert_eq!(m.header.stamps.published_ns, sent.published_ns);
+    let latency = m.header.stamps.age_ns(received_ns).unwrap();
+    assert!(latency < 2_000_000_000, "wake-up took {latency} ns");
+}
+
+#[test]
+fn spin_then_block_wait_times_out_then_receives() {
+    let d = unique_domain();
+    let name = services::estimate(&d);
+    let node = node("wait-test").unwrap();
+    let subscriber = Topic::<Estimate>::subscriber(&node, &name).unwrap();
+    let start = Instant::now();
+    assert!(subscriber.wait(Duration::from_micros(200), Duration::from_millis(50)).unwrap().is_empty());
+    assert!(start.elapsed() >= Duration::from_millis(40), "waited {:?}", start.elapsed());
+
+    let (tx, rx) = mpsc::channel::<()>();
+    let pub_name = name.clone();
+    let sender = thread::spawn(move || {
+        let node = protocol::node("wait-test-publisher").unwrap();
+        let publisher = Topic::<Estimate>::publisher(&node, &pub_name).unwrap();
+        rx.recv().unwrap();
+        thread::sleep(Duration::from_millis(20));
+        publisher.send(&estimate(1, Fix::Failed)).unwrap();
+        // Keep the publisher alive until the message is received (dropping it is fine too: the sample
+        // stays in the subscriber's buffer; this keeps the test independent of that).
+        rx.recv().ok();
+    });
+    // The publisher-created event may wake a wait with nothing to receive: wait again.
+    let mut got = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    tx.send(()).unwrap();
+    while got.is_empty() && Instant::now() < deadline {
+        got = subscriber.wait(Duration::from_micros(100), Duration::from_secs(5)).unwrap();
+    }
+    drop(tx);
+    sender.join().unwrap();
+    assert_eq!(got.len(), 1);
+    assert_eq!(got[0].header.seq, 1);
+}
+
+#[test]
+fn lifecycle_events_and_several_publishers() {
+    let d = unique_domain();
+    let name = services::command(&d);
+    let node = node("lifecycle").unwrap();
+    let subscriber = Topic::<Command>::subscriber(&node, &name).unwrap();
+    let mut events = TopicEvents::default();
+    let mut out = Vec::new();
+    {
+        // A planner swap: the old and the new planner publish on the same topic for a while.
+        let publishers: Vec<_> =
+            (0..MAX_PUBLISHERS).map(|_| Topic::<Command>::publisher(&node, &name).unwrap()).collect();
+        let extra = Topic::<Command>::publisher(&node, &name);
+        assert!(matches!(extra, Err(TransportError::Failed { .. })), "at most {MAX_PUBLISHERS} publishers");
+        for (i, p) in publishers.iter().enumerate() {
+            p.send(&command(10 + i as u64)).unwrap();
+        }
+        let e = subscriber.receive_into(&mut out).unwrap();
+        events.samples += e.samples;
+        events.publishers_created += e.publishers_created;
+    }
+    let e = subscriber.receive_into(&mut out).unwrap();
+    assert_eq!(out.iter().map(|c| c.header.seq).collect::<Vec<_>>(), vec![10, 11, 12, 13]);
+    assert_eq!(events.publishers_created, MAX_PUBLISHERS as u64);
+    assert!(events.samples >= 1, "sample notifications may be coalesced: {events:?}");
+    assert_eq!(e.publishers_dropped, MAX_PUBLISHERS as u64);
+}
+
+#[test]
+fn subscriber_buffer_keeps_the_newest_samples() {
+    let d = unique_domain();
+    let name = services::truth(&d);
+    let node = node("buffer").unwrap();
+    let subscriber = Topic::<Truth>::subscriber(&node, &name).unwrap();
+    let publisher = Topic::<Truth>::publisher(&node, &name).unwrap();
+    let total = SUBSCRIBER_BUFFER as u64 + 5;
+    for seq in 1..=total {
+        publisher.send(&Truth::new(seq, seq, [0.0, 0.0])).unwrap();
+    }
+    let got: Vec<u64> = subscriber.receive_all().unwrap().iter().map(|t| t.header.seq).collect();
+    assert_eq!(got, (total - SUBSCRIBER_BUFFER as u64 + 1..=total).collect::<Vec<_>>());
+}
+
+#[test]
+fn a_late_subscriber_gets_no_history() {
+    let d = unique_domain();
+    let name = services::measurement(&d);
+    let node = node("history").unwrap();
+    let publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
+    assert_eq!(publisher.send(&measurement(1)).unwrap().subscribers, 0);
+    let subscriber = Topic::<Measurement>::subscriber(&node, &name).unwrap();
+    assert!(subscriber.receive_all().unwrap().is_empty());
+    publisher.send(&measurement(2)).unwrap();
+    assert_eq!(subscriber.receive_all().unwrap().len(), 1);
+}
+
+#[test]
+fn a_different_message_type_cannot_open_a_topic() {
+    let d = unique_domain();
+    let name = services::measurement(&d);
+    let node = node("types").unwrap();
+    let _publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
+    let err = Topic::<Estimate>::subscriber(&node, &name).unwrap_err();
+    assert!(err.to_string().contains("IncompatibleTypes"), "{err}");
+}
+
+#[test]
+fn bad_names_are_reported() {
+    let node = node("names").unwrap();
+    let err = Topic::<Truth>::publisher(&node, "").unwrap_err();
+    assert!(matches!(err, TransportError::BadName { what: "service", .. }), "{err}");
+}
+
+/// Set in a child copy of this test binary: the topic name its publisher uses before it is killed.
+const CHILD_ENV: &str = "UAVLOC_PROTOCOL_TEST_CHILD_TOPIC";
+
+/// Not a test of its own: run as a child process by `a_killed_publisher_is_cleaned_up`.
+#[test]
+fn helper_publisher_process_to_be_killed() {
+    let Ok(name) = std::env::var(CHILD_ENV) else { return };
+    protocol::transport::quiet_logs();
+    let node = node("doomed-publisher").unwrap();
+    let publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
+    publisher.send(&measurement(1)).unwrap();
+    println!("READY"); // libtest may have printed "test <name> ... " on the same line
+    thread::sleep(Duration::from_secs(60));
+    panic!("the parent should have killed this process");
+}
+
+#[test]
+fn a_killed_publisher_is_cleaned_up() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command as Process, Stdio};
+
+    let d = unique_domain();
+    let name = services::measurement(&d);
+    let node = node("survivor").unwrap();
+    let subscriber = Topic::<Measurement>::subscriber(&node, &name).unwrap();
+
+    let mut child = Process::new(std::env::current_exe().unwrap())
+        .args(["helper_publisher_process_to_be_killed", "--exact", "--nocapture", "--test-threads=1"])
+        .env(CHILD_ENV, &name)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdout = BufReader::new(child.stdout.take().unwrap());
+    assert!(stdout.lines().map_while(Result::ok).any(|l| l.ends_with("READY")), "child did not start");
+    let got = subscriber.receive_all().unwrap();
+    assert_eq!(got.iter().map(|m| m.header.seq).collect::<Vec<_>>(), vec![1]);
+    // SIGKILL: no destructor runs, the child's node and ports are left behind. (Samples of a dead
+    // publisher not yet received are lost as soon as anyone cleans the dead node up, which parallel tests
+    // creating nodes may do at any time: hence the receive above, before the kill.)
+    child.kill().unwrap();
+    child.wait().unwrap();
+
+    // A new node cleans the dead one up (or another test's node did already); the subscriber hears of it.
+    let _cleaner = protocol::node("cleaner").unwrap();
+    let mut events = TopicEvents::default();
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while events.publishers_dead == 0 && Instant::now() < deadline {
+        protocol::transport::cleanup_dead_nodes(&node);
+        let e = subscriber.receive_into(&mut Vec::new()).unwrap();
+        events.publishers_dead += e.publishers_dead;
+        thread::sleep(Duration::from_millis(10));
+    }
+    assert_eq!(events.publishers_dead, 1, "{events:?}");
+
+    // The dead publisher's slot is free again: a full set of publishers can attach.
+    let publishers: Vec<_> =
+        (0..MAX_PUBLISHERS).map(|_| Topic::<Measurement>::publisher(&node, &name).unwrap()).collect();
+    publishers[0].send(&measurement(2)).unwrap();
+    assert_eq!(subscriber.receive_all().unwrap()[0].header.seq, 2);
+}
