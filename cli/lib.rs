@@ -13,6 +13,7 @@ pub mod args;
 pub mod crlb;
 pub mod error;
 pub mod global;
+pub mod launch;
 pub mod locate;
 pub mod output;
 pub mod rmse;
@@ -88,6 +89,16 @@ pub enum Command {
         after_help = simulate::AFTER_HELP
     )]
     Simulate(simulate::SimulateArgs),
+    /// Run the closed loop as the four iceoryx2 processes of the pipeline (lock-step).
+    #[command(
+        long_about = launch::LONG_ABOUT,
+        after_help = launch::AFTER_HELP
+    )]
+    Launch(launch::LaunchArgs),
+    /// Run one pipeline process in this binary (what `uavloc launch` starts): emitter-sim, estimator,
+    /// planner, monitor.
+    #[command(hide = true)]
+    Process(launch::ProcessArgs),
 }
 
 /// A clap parse error as one line: the first paragraph of clap's message with its lines joined

@@ -5,7 +5,9 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use clap::error::ErrorKind;
-use uavloc::{Cli, CliError, Command, Diagnostic, Report, crlb, global, locate, one_line_clap_error, rmse, simulate};
+use uavloc::{
+    Cli, CliError, Command, Diagnostic, Report, crlb, global, launch, locate, one_line_clap_error, rmse, simulate,
+};
 
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -32,6 +34,8 @@ fn main() -> ExitCode {
         Command::Locate(a) => emit(locate::run(a), json),
         Command::Rmse(a) => emit(rmse::run(a), json),
         Command::Simulate(a) => emit(simulate::run(a), json),
+        Command::Launch(a) => emit(launch::run(a), json),
+        Command::Process(a) => launch::run_process(a),
     }
 }
 

@@ -1,24 +1,19 @@
-//! The `emitter-sim` process: owns the world (true emitter, UAV kinematics, TDOA noise) and publishes a noisy measurement per step.
-//!
-//! Its logic lives in this crate's library; the iceoryx2 wiring (subscribe → call the library → publish)
-//! arrives with the process-pipeline issue. Until then the binary only documents itself and refuses to
-//! run, so a launcher or systemd unit never mistakes it for a working process.
+//! The `emitter-sim` process: owns the world (true emitter, UAV kinematics, TDOA noise), publishes a noisy
+//! measurement per step and flies the planner's commands, in lock-step. The loop lives in the library
+//! ([`emitter_sim::process`]); `uavloc process emitter-sim` runs the same code.
 
 use clap::Parser;
+use emitter_sim::process::{AFTER_HELP, EmitterSimArgs, main_with};
 
-/// owns the world (true emitter, UAV kinematics, TDOA noise) and publishes a noisy measurement per step.
+/// The simulated world of the uavloc pipeline: publishes the truth and a noisy TDOA measurement per step,
+/// waits for the planner's command for that step, flies it (lock-step) and exits after the last step.
 #[derive(Parser, Debug)]
-#[command(
-    name = "emitter-sim",
-    version,
-    after_help = "Not wired to iceoryx2 yet (process-pipeline issue). For the same loop in one process: `uavloc simulate`."
-)]
-struct Args {}
+#[command(name = "emitter-sim", version, after_help = AFTER_HELP)]
+struct Cli {
+    #[command(flatten)]
+    args: EmitterSimArgs,
+}
 
 fn main() -> std::process::ExitCode {
-    let _ = Args::parse();
-    eprintln!(
-        "error: the emitter-sim process is not wired to iceoryx2 yet; run `uavloc simulate` for the in-process loop"
-    );
-    std::process::ExitCode::from(2)
+    main_with(&Cli::parse().args)
 }

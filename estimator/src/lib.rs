@@ -4,7 +4,12 @@
 //! the prior that resolves the two-root ambiguity of the three-UAV case, and when a solve fails the
 //! previous estimate is kept and reported as [`EstimateStatus::Failed`]. The output never holds a NaN.
 //!
+//! [`process`] is the estimator process: measurement in → [`Estimator::estimate`] → estimate out over
+//! iceoryx2.
+//!
 //! Units: metres (positions), m² (covariance).
+
+pub mod process;
 
 use nalgebra::{Matrix2, Vector2};
 use tdoa::{NoiseModel, RangeDiffs, Sensors, TdoaError, chan};

@@ -1,24 +1,19 @@
-//! The `estimator` process: runs Chan's estimator on each measurement and publishes the estimate with its covariance.
-//!
-//! Its logic lives in this crate's library; the iceoryx2 wiring (subscribe → call the library → publish)
-//! arrives with the process-pipeline issue. Until then the binary only documents itself and refuses to
-//! run, so a launcher or systemd unit never mistakes it for a working process.
+//! The `estimator` process: runs Chan's estimator on each measurement and publishes the estimate with its
+//! covariance. The loop lives in the library ([`estimator::process`]); `uavloc process estimator` runs
+//! the same code.
 
 use clap::Parser;
+use estimator::process::{AFTER_HELP, EstimatorArgs, main_with};
 
-/// runs Chan's estimator on each measurement and publishes the estimate with its covariance.
+/// The estimator process of the uavloc pipeline: on each TDOA measurement, fixes the emitter with Chan's
+/// method (the previous estimate as prior) and publishes the estimate with its covariance.
 #[derive(Parser, Debug)]
-#[command(
-    name = "estimator",
-    version,
-    after_help = "Not wired to iceoryx2 yet (process-pipeline issue). For the same loop in one process: `uavloc simulate`."
-)]
-struct Args {}
+#[command(name = "estimator", version, after_help = AFTER_HELP)]
+struct Cli {
+    #[command(flatten)]
+    args: EstimatorArgs,
+}
 
 fn main() -> std::process::ExitCode {
-    let _ = Args::parse();
-    eprintln!(
-        "error: the estimator process is not wired to iceoryx2 yet; run `uavloc simulate` for the in-process loop"
-    );
-    std::process::ExitCode::from(2)
+    main_with(&Cli::parse().args)
 }

@@ -1,13 +1,19 @@
 //! # uavloc-monitor
 //!
-//! The monitor's logic, free of IPC: per-step metrics against the truth, the run record (the JSON shape
-//! shared by `uavloc simulate` and the process pipeline), and plots of a run.
+//! The monitor's logic: per-step metrics against the truth, the run record (the JSON shape shared by
+//! `uavloc simulate` and the process pipeline), plots of a run; and the monitor process of the pipeline:
+//! [`assemble`] rebuilds the record from the pipeline's messages (no IPC), [`process`] is the iceoryx2
+//! loop around it, [`resources`] lists (and cleans up) a domain's iceoryx2 nodes and services.
 
+pub mod assemble;
 pub mod export;
 pub mod metrics;
 pub mod plot;
+pub mod process;
 pub mod record;
+pub mod resources;
 
+pub use assemble::{Assembler, CompletedStep};
 pub use export::{ExportError, write_run, write_steps_csv, write_trajectory_csv};
 pub use metrics::{StepMetrics, step_metrics};
 pub use plot::{Metric, PlotError, PlotFormat, plot_comparison, plot_metrics, plot_trajectories};

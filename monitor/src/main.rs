@@ -1,22 +1,20 @@
-//! The `monitor` process: subscribes to everything, shows the run live, logs it and plots it at the end.
-//!
-//! Its logic lives in this crate's library; the iceoryx2 wiring (subscribe → call the library → publish)
-//! arrives with the process-pipeline issue. Until then the binary only documents itself and refuses to
-//! run, so a launcher or systemd unit never mistakes it for a working process.
+//! The `monitor` process: subscribes to everything, shows the run live, logs it and writes the record and
+//! plots at the end. The loop lives in the library ([`monitor::process`]); `uavloc process monitor` runs
+//! the same code.
 
 use clap::Parser;
+use monitor::process::{AFTER_HELP, MonitorArgs, main_with};
 
-/// subscribes to everything, shows the run live, logs it and plots it at the end.
+/// The monitor of the uavloc pipeline: subscribes to every topic of a domain, shows one status line per
+/// step (CRLB and RMSE at the truth, latencies, active planner, rejected messages), logs every event as
+/// JSON lines and writes the run record, CSVs and plots when the last step is in.
 #[derive(Parser, Debug)]
-#[command(
-    name = "monitor",
-    version,
-    after_help = "Not wired to iceoryx2 yet (process-pipeline issue). For the same loop in one process: `uavloc simulate`."
-)]
-struct Args {}
+#[command(name = "monitor", version, after_help = AFTER_HELP)]
+struct Cli {
+    #[command(flatten)]
+    args: MonitorArgs,
+}
 
 fn main() -> std::process::ExitCode {
-    let _ = Args::parse();
-    eprintln!("error: the monitor process is not wired to iceoryx2 yet; run `uavloc simulate` for the in-process loop");
-    std::process::ExitCode::from(2)
+    main_with(&Cli::parse().args)
 }

@@ -12,17 +12,21 @@
 //! - [`objective`]: the criteria, one adapter over `tdoa`'s global CRLB methods;
 //! - [`formation`]: the traditional fixed-formation baseline;
 //! - [`solver`], [`pso`], [`ga`], [`aco`]: one solver trait, three solvers;
-//! - [`step`]: one planning step, [`plan_step`].
+//! - [`step`]: one planning step, [`plan_step`];
+//! - [`active_mask`]: the active constraints as the wire bitmask of a `protocol::Command`;
+//! - [`process`]: the planner process (estimate in → `plan_step` → command out over iceoryx2).
 //!
 //! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
 
 pub mod aco;
+pub mod active_mask;
 pub mod constraints;
 pub mod fitness;
 pub mod formation;
 pub mod ga;
 pub mod kinematics;
 pub mod objective;
+pub mod process;
 pub mod pso;
 pub mod scenario;
 pub mod solver;

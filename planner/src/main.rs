@@ -1,22 +1,19 @@
-//! The `planner` process: plans one heading per UAV on each estimate (PSO/GA/ACO over the chosen objective) and publishes the command.
-//!
-//! Its logic lives in this crate's library; the iceoryx2 wiring (subscribe → call the library → publish)
-//! arrives with the process-pipeline issue. Until then the binary only documents itself and refuses to
-//! run, so a launcher or systemd unit never mistakes it for a working process.
+//! The `planner` process: plans one heading per UAV on each estimate (PSO/GA/ACO over the chosen
+//! objective) and publishes the command. The loop lives in the library ([`planner::process`]); `uavloc
+//! process planner` runs the same code.
 
 use clap::Parser;
+use planner::process::{AFTER_HELP, PlannerArgs, main_with};
 
-/// plans one heading per UAV on each estimate (PSO/GA/ACO over the chosen objective) and publishes the command.
+/// The planner process of the uavloc pipeline: on each estimate, plans one heading per UAV (the chosen
+/// objective minimised by PSO, GA or ACO under the motion constraints) and publishes the command.
 #[derive(Parser, Debug)]
-#[command(
-    name = "planner",
-    version,
-    after_help = "Not wired to iceoryx2 yet (process-pipeline issue). For the same loop in one process: `uavloc simulate`."
-)]
-struct Args {}
+#[command(name = "planner", version, after_help = AFTER_HELP)]
+struct Cli {
+    #[command(flatten)]
+    args: PlannerArgs,
+}
 
 fn main() -> std::process::ExitCode {
-    let _ = Args::parse();
-    eprintln!("error: the planner process is not wired to iceoryx2 yet; run `uavloc simulate` for the in-process loop");
-    std::process::ExitCode::from(2)
+    main_with(&Cli::parse().args)
 }

@@ -1,0 +1,683 @@
+//! `uavloc launch`: the process pipeline — monitor, planner, estimator and emitter-sim as child processes
+//! talking over iceoryx2 — run to the end of a scenario, in lock-step; and the hidden
+//! `uavloc process <role>` that makes `uavloc` a multi-call binary (each child is `uavloc` itself, running
+//! the same library entry point as the standalone `monitor`, `planner`, `estimator`, `emitter-sim`
+//! binaries).
+//!
+//! # How a launch runs
+//!
+//! 1. The scenario is loaded as `uavloc simulate` loads it; the domain is `--domain`, else
+//!    `$UAVLOC_DOMAIN`, else `uavloc-<pid>` (unique per launch). A domain with live processes is refused;
+//!    dead leftovers of an earlier crash in it are cleaned up.
+//! 2. The children start in the order monitor → planner → estimator → emitter-sim, each only after the
+//!    previous one has printed `ready` on its stdout (its subscriptions exist), so no message is published
+//!    before its subscribers are there (the topics keep no history). emitter-sim also checks the topics
+//!    itself (≥ 2 measurement subscribers, a planner) before step 0.
+//! 3. The run ends when emitter-sim (after the last step) and the monitor (after recording it) exit 0; the
+//!    estimator and planner are then stopped with SIGTERM (SIGKILL after a grace period). Any child
+//!    exiting early or with an error stops the others and fails the launch.
+//! 4. Stale iceoryx2 resources of the domain (a child killed) are removed, and the launcher checks that
+//!    none are left.
+//!
+//! Every child runs in its own process group (a terminal's Ctrl-C reaches only the launcher, which stops
+//! the children in order) with `PR_SET_PDEATHSIG = SIGTERM`, so none outlives a launcher that dies.
+//! SIGINT/SIGTERM on the launcher stop all children (exit code 1).
+//!
+//! The output is the monitor's run record, i.e. the JSON of `uavloc simulate --json` (built only from what
+//! the monitor received), plus `restarts` (always 0 for now) and `rejected` (invalid messages counted by
+//! all four processes).
+
+use std::io::{BufRead, BufReader};
+use std::os::unix::process::CommandExt as _;
+use std::path::PathBuf;
+use std::process::{Child, ExitCode, Stdio};
+use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
+use std::time::{Duration, Instant};
+
+use clap::{Args, Subcommand};
+use monitor::RunRecord;
+use monitor::resources::{self, DomainResources};
+use planner::{ObjectiveKind, SolverKind, TargetMode};
+use protocol::services::{DOMAIN_ENV, Domain};
+use serde::Serialize;
+
+use crate::error::CliError;
+use crate::output::{Diagnostic, Report, Table};
+use crate::simulate::scenario_from;
+
+pub const LONG_ABOUT: &str = "\
+Run the closed loop as the four processes of the uavloc pipeline, exchanging zero-copy messages over
+iceoryx2: emitter-sim (the world: true emitter, UAV motion, noisy TDOA) → estimator (Chan) → planner
+(objective × solver under the motion constraints) → back to emitter-sim, with the monitor listening to
+everything. Lock-step: the world advances as soon as the planner's command for a step arrives.
+
+For the same scenario, objective, solver, steps and seed the trajectory, the estimates and the metrics
+equal those of `uavloc simulate` exactly (only the planning times differ). The children are `uavloc`
+itself (`uavloc process <role>`), so no other binary is needed.
+
+The monitor shows one line per step on stderr (CRLB and RMSE at the truth, estimate error, hop latencies,
+active planner, rejected messages) unless --headless. At the end the run is printed as a table, or with
+--json as the JSON of `uavloc simulate --json` plus \"restarts\" and \"rejected\".
+
+Only target = \"chan\" scenarios run in the pipeline (controlled mode needs the truth in the planner).
+Exit codes: 0 success, 1 a process failed or the launch was interrupted, 2 bad input.";
+
+pub const AFTER_HELP: &str = "\
+Examples:
+  uavloc launch
+  uavloc launch --headless --json --steps 6 --objective mc
+  uavloc launch --scenario scenarios/nominal.toml --solver ga --domain lab1 --log run.jsonl --out runs/lab1
+
+Each process also runs on its own, e.g. in four terminals (or systemd units) with one --domain:
+  monitor --domain lab1 --log run.jsonl;  planner --domain lab1;  estimator --domain lab1
+  emitter-sim --domain lab1 --min-subscribers 2";
+
+/// Flags of `uavloc launch`.
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct LaunchArgs {
+    /// Scenario TOML file (default: the paper's nominal case; see scenarios/nominal.toml).
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Planning objective: single | mc | analytical | cubature | formation.
+    #[arg(long, default_value = "analytical", value_parser = parse_objective)]
+    pub objective: ObjectiveKind,
+    /// Solver: pso | ga | aco (ignored by formation).
+    #[arg(long, default_value = "pso", value_parser = parse_solver)]
+    pub solver: SolverKind,
+    /// Number of planning steps (default: the scenario's, 24 for the paper).
+    #[arg(long, value_name = "N")]
+    pub steps: Option<usize>,
+    /// Run seed (default: the scenario's).
+    #[arg(long, value_name = "N")]
+    pub seed: Option<u64>,
+    /// Pipeline domain, the prefix of every iceoryx2 service name (default: $UAVLOC_DOMAIN, else
+    /// "uavloc-<pid>", unique per launch).
+    #[arg(long, value_name = "NAME")]
+    pub domain: Option<String>,
+    /// No live view: the monitor and the other processes print only errors.
+    #[arg(long)]
+    pub headless: bool,
+    /// Directory for the monitor's CSVs, run.json and plots (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// The monitor's JSON-lines event log.
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// emitter-sim gives up when a step's command has not arrived after this many seconds.
+    #[arg(long, value_name = "S", default_value_t = 10.0)]
+    pub command_timeout_s: f64,
+    /// Busy-poll this many microseconds before blocking, in every process (0: block at once).
+    #[arg(long, value_name = "US", default_value_t = 0)]
+    pub spin_us: u64,
+}
+
+fn parse_objective(s: &str) -> Result<ObjectiveKind, String> {
+    s.parse::<ObjectiveKind>()
+}
+
+fn parse_solver(s: &str) -> Result<SolverKind, String> {
+    s.parse::<SolverKind>()
+}
+
+/// `uavloc process <role>`: runs one pipeline process in this binary (what `uavloc launch` spawns).
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct ProcessArgs {
+    #[command(subcommand)]
+    pub role: Role,
+}
+
+/// The processes `uavloc` can be.
+#[derive(Subcommand, Debug, Clone, PartialEq)]
+pub enum Role {
+    /// The world: truth and a noisy measurement per step, flies each command (lock-step).
+    #[command(after_help = emitter_sim::process::AFTER_HELP)]
+    EmitterSim(emitter_sim::process::EmitterSimArgs),
+    /// Chan's estimator: an estimate per measurement.
+    #[command(after_help = estimator::process::AFTER_HELP)]
+    Estimator(estimator::process::EstimatorArgs),
+    /// The planner: a command per estimate.
+    #[command(after_help = planner::process::AFTER_HELP)]
+    Planner(planner::process::PlannerArgs),
+    /// The monitor: live view, event log, run record, plots.
+    #[command(after_help = monitor::process::AFTER_HELP)]
+    Monitor(monitor::process::MonitorArgs),
+    /// Lists the iceoryx2 nodes and services of a domain as JSON (optionally removing dead nodes first).
+    Resources(ResourcesArgs),
+}
+
+/// Flags of `uavloc process resources`.
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct ResourcesArgs {
+    /// The domain (default: $UAVLOC_DOMAIN, else "uavloc").
+    #[arg(long, value_name = "NAME")]
+    pub domain: Option<String>,
+    /// Remove the stale resources of the domain's dead nodes before listing.
+    #[arg(long)]
+    pub remove_dead: bool,
+}
+
+/// Runs `uavloc process <role>`.
+pub fn run_process(args: &ProcessArgs) -> ExitCode {
+    match &args.role {
+        Role::EmitterSim(a) => emitter_sim::process::main_with(a),
+        Role::Estimator(a) => estimator::process::main_with(a),
+        Role::Planner(a) => planner::process::main_with(a),
+        Role::Monitor(a) => monitor::process::main_with(a),
+        Role::Resources(a) => {
+            protocol::transport::quiet_logs();
+            let listed =
+                Domain::resolve(a.domain.as_deref()).map_err(|e| CliError::Input(e.to_string())).and_then(|domain| {
+                    if a.remove_dead {
+                        resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
+                    }
+                    resources::list(&domain).map_err(CliError::Failed)
+                });
+            match listed {
+                Ok(r) => {
+                    println!("{}", serde_json::to_string_pretty(&r).unwrap_or_default());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    e.exit_code()
+                }
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Signals
+// ---------------------------------------------------------------------------------------------------------
+
+/// The last SIGINT/SIGTERM the launcher received (0: none).
+static SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+extern "C" fn on_signal(signal: libc::c_int) {
+    SIGNAL.store(signal, Ordering::SeqCst);
+}
+
+/// Routes SIGINT and SIGTERM to [`SIGNAL`] (instead of killing the launcher before it stops its children).
+fn catch_termination_signals() {
+    for signal in [libc::SIGINT, libc::SIGTERM] {
+        // SAFETY: `on_signal` only performs an atomic store, which is async-signal-safe; the sigaction struct
+        // is fully initialised (zeroed, then handler and an empty mask set) before the call.
+        unsafe {
+            let mut action: libc::sigaction = std::mem::zeroed();
+            action.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            libc::sigemptyset(&mut action.sa_mask);
+            libc::sigaction(signal, &action, std::ptr::null_mut());
+        }
+    }
+}
+
+fn signal_name(signal: i32) -> &'static str {
+    if signal == libc::SIGINT { "SIGINT" } else { "SIGTERM" }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Children
+// ---------------------------------------------------------------------------------------------------------
+
+/// The four processes, in start order.
+const START_ORDER: [&str; 4] = ["monitor", "planner", "estimator", "emitter-sim"];
+
+/// How long a child may take to print `ready`.
+const READY_TIMEOUT: Duration = Duration::from_secs(30);
+/// How long the estimator and planner get to exit after SIGTERM before SIGKILL.
+const STOP_GRACE: Duration = Duration::from_secs(5);
+/// How often the launcher looks at its children and signals when nothing else happens.
+const TICK: Duration = Duration::from_millis(50);
+
+enum Event {
+    Line(usize, String),
+    Closed(usize),
+}
+
+struct Proc {
+    role: &'static str,
+    child: Child,
+    ready: bool,
+    /// Its stdout reached end of file (every line it printed has been handled).
+    closed: bool,
+    exit: Option<std::process::ExitStatus>,
+    summary: Option<serde_json::Value>,
+}
+
+impl Proc {
+    fn describe_exit(&self) -> String {
+        match self.exit {
+            Some(s) => match (s.code(), std::os::unix::process::ExitStatusExt::signal(&s)) {
+                (Some(c), _) => format!("exit code {c}"),
+                (None, Some(sig)) => format!("signal {sig}"),
+                _ => "an unknown status".into(),
+            },
+            None => "still running".into(),
+        }
+    }
+}
+
+/// The running children and the lines they print on stdout.
+struct Supervisor {
+    procs: Vec<Proc>,
+    tx: Sender<Event>,
+    rx: Receiver<Event>,
+    record: Option<String>,
+}
+
+impl Supervisor {
+    fn new() -> Self {
+        let (tx, rx) = mpsc::channel();
+        Self { procs: Vec::new(), tx, rx, record: None }
+    }
+
+    fn index(&self, role: &str) -> usize {
+        self.procs.iter().position(|p| p.role == role).expect("a started role")
+    }
+
+    /// Starts `uavloc process <role> <flags> --supervised` with stdout piped to a reader thread.
+    fn spawn(&mut self, role: &'static str, flags: Vec<String>) -> Result<(), CliError> {
+        let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("cannot find this executable: {e}")))?;
+        let mut command = std::process::Command::new(exe);
+        command
+            .arg("process")
+            .arg(role)
+            .args(&flags)
+            .arg("--supervised")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .process_group(0);
+        // SAFETY: the closure runs in the forked child before exec and only makes async-signal-safe system
+        // calls (prctl, getppid, kill on itself); it allocates nothing and touches no lock.
+        #[cfg(target_os = "linux")]
+        unsafe {
+            let parent = libc::getpid();
+            command.pre_exec(move || {
+                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+                if libc::getppid() != parent {
+                    // The launcher died between fork and prctl.
+                    libc::kill(libc::getpid(), libc::SIGTERM);
+                }
+                Ok(())
+            });
+        }
+        let mut child = command.spawn().map_err(|e| CliError::Failed(format!("cannot start the {role}: {e}")))?;
+        let stdout = child.stdout.take().expect("piped stdout");
+        let index = self.procs.len();
+        let tx = self.tx.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(Event::Line(index, line)).is_err() {
+                    return;
+                }
+            }
+            let _ = tx.send(Event::Closed(index));
+        });
+        self.procs.push(Proc { role, child, ready: false, closed: false, exit: None, summary: None });
+        Ok(())
+    }
+
+    fn handle(&mut self, event: Event) {
+        match event {
+            Event::Line(i, line) => {
+                let p = &mut self.procs[i];
+                if line == "ready" {
+                    p.ready = true;
+                } else if let Some(json) = line.strip_prefix("summary ") {
+                    p.summary = serde_json::from_str(json).ok();
+                } else if let Some(json) = line.strip_prefix("record ") {
+                    self.record = Some(json.to_string());
+                }
+            }
+            Event::Closed(i) => {
+                // stdout closed: the child is exiting; reap it.
+                self.procs[i].closed = true;
+                if let Ok(status) = self.procs[i].child.wait() {
+                    self.procs[i].exit = Some(status);
+                }
+            }
+        }
+    }
+
+    /// Handles events for up to [`TICK`], reaps exited children, and reports a pending signal.
+    fn pump(&mut self) -> Result<(), CliError> {
+        match self.rx.recv_timeout(TICK) {
+            Ok(event) => {
+                self.handle(event);
+                while let Ok(event) = self.rx.try_recv() {
+                    self.handle(event);
+                }
+            }
+            Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => {}
+        }
+        for p in &mut self.procs {
+            if p.exit.is_none()
+                && let Ok(Some(status)) = p.child.try_wait()
+            {
+                p.exit = Some(status);
+            }
+        }
+        match SIGNAL.load(Ordering::SeqCst) {
+            0 => Ok(()),
+            s => Err(CliError::Failed(format!("interrupted by {}; stopped every process", signal_name(s)))),
+        }
+    }
+
+    /// Fails if a child has exited although it should still run (`expected` lists the roles allowed to
+    /// have finished, with exit code 0).
+    fn check_exits(&self, finished_ok: &[&str]) -> Result<(), CliError> {
+        for p in &self.procs {
+            if let Some(status) = p.exit
+                && !(finished_ok.contains(&p.role) && status.success())
+            {
+                return Err(CliError::Failed(format!(
+                    "the {} process stopped unexpectedly ({})",
+                    p.role,
+                    p.describe_exit()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn wait_ready(&mut self, role: &str) -> Result<(), CliError> {
+        let i = self.index(role);
+        let deadline = Instant::now() + READY_TIMEOUT;
+        while !self.procs[i].ready {
+            self.pump()?;
+            self.check_exits(&[])?;
+            if Instant::now() > deadline {
+                return Err(CliError::Failed(format!("the {role} process did not get ready within {READY_TIMEOUT:?}")));
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs until emitter-sim and the monitor have finished; the monitor gets `monitor_grace` after
+    /// emitter-sim's end to record the last step (it cannot, if one of the last messages never came).
+    fn wait_for_the_end(&mut self, monitor_grace: Duration) -> Result<(), CliError> {
+        let finished = ["emitter-sim", "monitor"];
+        let (emitter, monitor) = (self.index("emitter-sim"), self.index("monitor"));
+        let mut emitter_done_at = None;
+        loop {
+            self.pump()?;
+            self.check_exits(&finished)?;
+            if self.procs[emitter].exit.is_some() {
+                let since = *emitter_done_at.get_or_insert_with(Instant::now);
+                if self.procs[monitor].exit.is_some() {
+                    return Ok(());
+                }
+                if since.elapsed() > monitor_grace {
+                    return Err(CliError::Failed(format!(
+                        "the monitor did not record the last step within {monitor_grace:?} of the end of the run"
+                    )));
+                }
+            }
+        }
+    }
+
+    /// SIGTERM to every running child, then SIGKILL to those still running after [`STOP_GRACE`]; drains
+    /// their last lines (summaries).
+    fn stop_all(&mut self) {
+        for p in &self.procs {
+            if p.exit.is_none() {
+                // SAFETY: kill(2) on a child we spawned and have not reaped (its pid cannot have been reused).
+                unsafe { libc::kill(p.child.id() as libc::pid_t, libc::SIGTERM) };
+            }
+        }
+        let deadline = Instant::now() + STOP_GRACE;
+        while self.procs.iter().any(|p| p.exit.is_none()) && Instant::now() < deadline {
+            let _ = self.pump();
+        }
+        for p in &mut self.procs {
+            if p.exit.is_none() {
+                eprintln!("warning: the {} process ignored SIGTERM; killing it", p.role);
+                let _ = p.child.kill();
+                p.exit = p.child.wait().ok();
+            }
+        }
+        // Every child has exited: its reader thread forwards the last lines (summaries) and the end of
+        // its pipe.
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while self.procs.iter().any(|p| !p.closed) && Instant::now() < deadline {
+            match self.rx.recv_timeout(TICK) {
+                Ok(event) => self.handle(event),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// The launch
+// ---------------------------------------------------------------------------------------------------------
+
+/// One child's outcome, as reported in the table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChildReport {
+    pub role: String,
+    pub pid: u32,
+    pub exit: String,
+    pub rejected: u64,
+}
+
+/// What `uavloc launch` prints: the monitor's run record (the JSON shape of `uavloc simulate --json`)
+/// plus `restarts` and `rejected`.
+#[derive(Debug, Clone, Serialize)]
+pub struct LaunchReport {
+    #[serde(flatten)]
+    pub run: RunRecord,
+    /// Children restarted after a crash (restarts are not implemented yet: always 0).
+    pub restarts: u64,
+    /// Invalid messages counted and ignored by all four processes.
+    pub rejected: u64,
+    #[serde(skip)]
+    pub domain: String,
+    #[serde(skip)]
+    pub wall_s: f64,
+    #[serde(skip)]
+    pub children: Vec<ChildReport>,
+    #[serde(skip)]
+    pub latency: Option<serde_json::Value>,
+    #[serde(skip)]
+    pub leftovers: DomainResources,
+}
+
+/// The domain of a launch: the flag, else `$UAVLOC_DOMAIN`, else `uavloc-<pid>`.
+fn launch_domain(flag: Option<&str>) -> Result<Domain, CliError> {
+    let env = std::env::var(DOMAIN_ENV).ok().filter(|v| !v.is_empty());
+    let name = flag.map(str::to_string).or(env).unwrap_or_else(|| format!("uavloc-{}", std::process::id()));
+    Domain::new(&name).map_err(|e| CliError::Input(format!("--domain: {e}")))
+}
+
+/// Runs `uavloc launch`.
+pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
+    let start = Instant::now();
+    let sc = scenario_from(args.scenario.as_ref(), args.steps, args.seed)?;
+    if sc.target == TargetMode::Controlled {
+        return Err(CliError::Input(
+            "scenario key `target`: \"controlled\" is not supported by the process pipeline (the planner never \
+             sees the true emitter); use `uavloc simulate` for controlled runs"
+                .into(),
+        ));
+    }
+    if !(args.command_timeout_s > 0.0 && args.command_timeout_s.is_finite()) {
+        return Err(CliError::Input(format!("--command-timeout-s must be > 0, got {}", args.command_timeout_s)));
+    }
+    let domain = launch_domain(args.domain.as_deref())?;
+    protocol::transport::quiet_logs();
+    resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
+    let existing = resources::list(&domain).map_err(CliError::Failed)?;
+    if let Some(node) = existing.alive_nodes().next() {
+        return Err(CliError::Input(format!(
+            "domain {domain} is in use (process node {node} is running); choose another --domain"
+        )));
+    }
+
+    catch_termination_signals();
+    let mut sup = Supervisor::new();
+    let result = start_and_run(&mut sup, args, &domain);
+    sup.stop_all();
+    result?;
+
+    // A child that had to be killed leaves its iceoryx2 node behind: remove it, then check.
+    resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
+    let leftovers = resources::list(&domain).map_err(CliError::Failed)?;
+
+    let record = sup.record.as_deref().ok_or_else(|| CliError::Failed("the monitor sent no run record".into()))?;
+    let mut run: RunRecord =
+        serde_json::from_str(record).map_err(|e| CliError::Failed(format!("the monitor's run record: {e}")))?;
+    // The scenario as loaded here, like `simulate` (the record's copy went through TOML-style degree
+    // conversions on the way).
+    run.scenario = sc;
+    let children: Vec<ChildReport> = sup
+        .procs
+        .iter()
+        .map(|p| ChildReport {
+            role: p.role.to_string(),
+            pid: p.child.id(),
+            exit: p.describe_exit(),
+            rejected: p.summary.as_ref().and_then(|s| s["rejected"].as_u64()).unwrap_or(0),
+        })
+        .collect();
+    let latency = sup.procs[sup.index("monitor")].summary.as_ref().map(|s| s["latency"].clone());
+    Ok(LaunchReport {
+        run,
+        restarts: 0,
+        rejected: children.iter().map(|c| c.rejected).sum(),
+        domain: domain.to_string(),
+        wall_s: start.elapsed().as_secs_f64(),
+        children,
+        latency,
+        leftovers,
+    })
+}
+
+/// Starts the children in order, each after the previous one is ready, and waits for the end of the run.
+fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Result<(), CliError> {
+    let common = ["--domain".to_string(), domain.to_string()];
+    let mut run_flags = Vec::new();
+    if let Some(p) = &args.scenario {
+        run_flags.extend(["--scenario".to_string(), p.display().to_string()]);
+    }
+    if let Some(n) = args.steps {
+        run_flags.extend(["--steps".to_string(), n.to_string()]);
+    }
+    if let Some(s) = args.seed {
+        run_flags.extend(["--seed".to_string(), s.to_string()]);
+    }
+    let spin = ["--spin-us".to_string(), args.spin_us.to_string()];
+    for role in START_ORDER {
+        let mut flags = common.to_vec();
+        match role {
+            "monitor" => {
+                flags.extend(run_flags.iter().cloned());
+                if let Some(p) = &args.log {
+                    flags.extend(["--log".to_string(), p.display().to_string()]);
+                }
+                if let Some(p) = &args.out {
+                    flags.extend(["--out".to_string(), p.display().to_string()]);
+                }
+            }
+            "planner" => {
+                flags.extend(run_flags.iter().cloned());
+                flags.extend([
+                    "--objective".into(),
+                    args.objective.name().into(),
+                    "--solver".into(),
+                    args.solver.name().into(),
+                ]);
+                flags.extend(spin.iter().cloned());
+            }
+            "estimator" => flags.extend(spin.iter().cloned()),
+            _ => {
+                flags.extend(run_flags.iter().cloned());
+                flags.extend(spin.iter().cloned());
+                flags.extend([
+                    "--command-timeout-s".to_string(),
+                    args.command_timeout_s.to_string(),
+                    // The estimator and the monitor.
+                    "--min-subscribers".to_string(),
+                    "2".to_string(),
+                ]);
+            }
+        }
+        if args.headless || role != "monitor" {
+            flags.push("--quiet".into());
+        }
+        sup.spawn(role, flags)?;
+        sup.wait_ready(role)?;
+    }
+    sup.wait_for_the_end(Duration::from_secs_f64(args.command_timeout_s))
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".to_string(), |x| format!("{x:.digits$}"))
+}
+
+impl Report for LaunchReport {
+    fn table(&self) -> Table {
+        let r = &self.run;
+        let last = r.steps.last();
+        let p50 = |key: &str| {
+            self.latency
+                .as_ref()
+                .and_then(|l| l[key]["p50_us"].as_f64())
+                .map_or("-".to_string(), |v| format!("{v:.0} µs"))
+        };
+        let mut t = Table::new()
+            .row("domain", self.domain.clone())
+            .row("objective / solver", format!("{} / {}", r.objective, r.solver))
+            .row("seed", r.seed.to_string())
+            .row("steps recorded", format!("{} (0..{})", r.steps.len(), r.steps.len().saturating_sub(1)))
+            .row("emitter (truth)", format!("({:.1}, {:.1}) m", r.emitter[0], r.emitter[1]))
+            .row("final CRLB at truth", format!("{} m", opt(last.map(|s| s.crlb_true_m), 2)))
+            .row("final RMSE", format!("{} m", opt(last.and_then(|s| s.rmse_m), 2)))
+            .row(
+                "final |ẑ − z|",
+                format!(
+                    "{} m",
+                    opt(last.map(|s| (s.estimate[0] - r.emitter[0]).hypot(s.estimate[1] - r.emitter[1])), 1)
+                ),
+            )
+            .row(
+                "median hops",
+                format!(
+                    "command {}, measurement {}, estimate {}",
+                    p50("command_hop"),
+                    p50("measurement_hop"),
+                    p50("estimate_hop")
+                ),
+            )
+            .row("median cycle", p50("cycle"))
+            .row("rejected messages", self.rejected.to_string())
+            .row("restarts", self.restarts.to_string())
+            .row("wall time", format!("{:.2} s", self.wall_s));
+        for c in &self.children {
+            t = t.row(format!("  {}", c.role), format!("pid {}, {}, rejected {}", c.pid, c.exit, c.rejected));
+        }
+        t
+    }
+
+    fn diagnostics(&self) -> Vec<Diagnostic> {
+        let mut out = Vec::new();
+        if !self.leftovers.is_empty() {
+            out.push(Diagnostic::Warning(format!(
+                "iceoryx2 resources of domain {} are left: nodes {:?}, services {:?}",
+                self.domain,
+                self.leftovers.nodes.iter().map(|n| format!("{} ({})", n.name, n.state)).collect::<Vec<_>>(),
+                self.leftovers.services
+            )));
+        }
+        let n = self.run.steps.iter().filter(|s| s.estimate_status != "ok").count();
+        if n > 0 {
+            out.push(Diagnostic::Warning(format!(
+                "{n} step(s) had an ambiguous or failed estimate (see estimate_status)"
+            )));
+        }
+        out
+    }
+}

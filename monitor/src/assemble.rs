@@ -1,0 +1,340 @@
+//! Rebuilds the [`RunRecord`] of a pipeline run from the messages the monitor receives — the same record,
+//! number for number, that `uavloc simulate` builds in one process.
+//!
+//! Messages of the four topics arrive in any interleaving; the [`Assembler`] keeps them per step and
+//! completes steps strictly in order. Step k is complete when its [`Measurement`], [`Estimate`] and
+//! [`Truth`] have arrived, and — for every step but the last (`scenario.steps`, measured but not planned) —
+//! its [`Command`]. The [`StepRecord`] then takes:
+//!
+//! - `uavs` from the measurement, `headings_rad` from the command (the headings chosen at step k), or on
+//!   the last step the measurement's current headings;
+//! - `estimate`, `estimate_cov`, `estimate_status` from the estimate; a `failed` estimate carries no
+//!   position on the wire, so the last usable (ok / ambiguous) one stands in — which is what the estimator
+//!   library reports on failure;
+//! - `crlb_true_m`, `rmse_m` from [`step_metrics`] with the measurement's geometry and σ, the truth, the
+//!   scenario's R and seed, and the estimate as prior;
+//! - `objective_value` = √(the command's criterion) (`None` when the planner sent the "not finite" marker,
+//!   a negative value), `plan_ms` from the command's microseconds (so rounded to 1 µs);
+//! - `active_constraints` decoded from the command's bitmask ([`planner::active_mask::decode`]: the same
+//!   strings as `simulate`, except that a violated constraint has no magnitude).
+//!
+//! Messages for steps already completed or beyond the last step are ignored (and counted).
+
+use std::collections::BTreeMap;
+
+use nalgebra::Vector2;
+use planner::Scenario;
+use planner::active_mask;
+use protocol::{Command, Estimate, EstimateStatus, Latencies, Measurement, Truth};
+use tdoa::{NoiseModel, Sensors};
+
+use crate::metrics::step_metrics;
+use crate::record::{RunRecord, StepRecord};
+
+/// The planner that produced a step's command.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PlannerInfo {
+    /// Its instance id.
+    pub instance: u64,
+    /// Solver name.
+    pub solver: String,
+    /// Objective name.
+    pub objective: String,
+}
+
+/// One completed step: its record plus what the live view shows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompletedStep {
+    /// The record, as `simulate` would write it.
+    pub record: StepRecord,
+    /// Latencies of the step's chain (from the command's stamps; on the last step from the estimate's).
+    pub latencies: Latencies,
+    /// The planner of the step's command (`None` on the last step).
+    pub planner: Option<PlannerInfo>,
+    /// Distance of the estimate from the truth, metres.
+    pub error_m: f64,
+}
+
+#[derive(Debug, Clone, Default)]
+struct Pending {
+    measurement: Option<Measurement>,
+    estimate: Option<Estimate>,
+    truth: Option<Truth>,
+    command: Option<Command>,
+}
+
+/// Collects messages and completes steps in order; see the module docs.
+#[derive(Debug, Clone)]
+pub struct Assembler {
+    scenario: Scenario,
+    next: u64,
+    pending: BTreeMap<u64, Pending>,
+    usable: Option<([f64; 2], [[f64; 2]; 2])>,
+    steps: Vec<StepRecord>,
+    emitter: Option<[f64; 2]>,
+    names: Option<(String, String)>,
+    ignored: u64,
+}
+
+impl Assembler {
+    /// An assembler for a run of `scenario` (its `steps`, `rmse_resamples` and `seed` are used).
+    pub fn new(scenario: Scenario) -> Self {
+        Self {
+            scenario,
+            next: 0,
+            pending: BTreeMap::new(),
+            usable: None,
+            steps: Vec::new(),
+            emitter: None,
+            names: None,
+            ignored: 0,
+        }
+    }
+
+    /// The last step of the run (`scenario.steps`).
+    pub fn last_step(&self) -> u64 {
+        self.scenario.steps as u64
+    }
+
+    /// The next step to complete.
+    pub fn next_step(&self) -> u64 {
+        self.next
+    }
+
+    /// Whether every step up to the last one is complete.
+    pub fn is_done(&self) -> bool {
+        self.next > self.last_step()
+    }
+
+    /// Messages ignored so far (for a completed step or beyond the last one).
+    pub fn ignored(&self) -> u64 {
+        self.ignored
+    }
+
+    fn slot(&mut self, step: u64) -> Option<&mut Pending> {
+        if step < self.next || step > self.last_step() {
+            self.ignored += 1;
+            return None;
+        }
+        Some(self.pending.entry(step).or_default())
+    }
+
+    /// Adds a (validated) measurement; `false` if it is ignored.
+    pub fn add_measurement(&mut self, m: Measurement) -> bool {
+        self.slot(m.header.step).map(|p| p.measurement = Some(m)).is_some()
+    }
+
+    /// Adds a (validated) estimate; `false` if it is ignored.
+    pub fn add_estimate(&mut self, e: Estimate) -> bool {
+        self.slot(e.header.step).map(|p| p.estimate = Some(e)).is_some()
+    }
+
+    /// Adds a (validated) truth; `false` if it is ignored.
+    pub fn add_truth(&mut self, t: Truth) -> bool {
+        self.slot(t.header.step).map(|p| p.truth = Some(t)).is_some()
+    }
+
+    /// Adds a (validated) command; `false` if it is ignored (also a command for the last step, which is
+    /// never planned). A second command for the same step replaces the first (the newer planner wins).
+    pub fn add_command(&mut self, c: Command) -> bool {
+        if c.header.step >= self.last_step() {
+            self.ignored += 1;
+            return false;
+        }
+        self.slot(c.header.step).map(|p| p.command = Some(c)).is_some()
+    }
+
+    /// Completes every step whose messages are all in, in order.
+    pub fn complete_ready(&mut self) -> Vec<CompletedStep> {
+        let mut done = Vec::new();
+        while !self.is_done() {
+            let k = self.next;
+            let planned = k < self.last_step();
+            let ready = self.pending.get(&k).is_some_and(|p| {
+                p.measurement.is_some()
+                    && p.estimate.is_some()
+                    && p.truth.is_some()
+                    && (!planned || p.command.is_some())
+            });
+            if !ready {
+                break;
+            }
+            let p = self.pending.remove(&k).unwrap_or_default();
+            let (Some(m), Some(e), Some(t)) = (p.measurement, p.estimate, p.truth) else { break };
+            done.push(self.complete(k, &m, &e, &t, p.command.as_ref()));
+            self.next += 1;
+        }
+        done
+    }
+
+    fn complete(&mut self, k: u64, m: &Measurement, e: &Estimate, t: &Truth, c: Option<&Command>) -> CompletedStep {
+        let status = e.status().unwrap_or(EstimateStatus::Failed);
+        if status != EstimateStatus::Failed {
+            self.usable = Some((e.position, e.covariance));
+        }
+        let (position, covariance) = self.usable.unwrap_or(([f64::NAN; 2], [[f64::NAN; 2]; 2]));
+        let truth = Vector2::new(t.position[0], t.position[1]);
+        self.emitter.get_or_insert(t.position);
+        let geometry = NoiseModel::from_range_sigmas(m.sigmas()).and_then(|noise| Sensors::new(m.uavs(), noise)).ok();
+        let (crlb_true_m, rmse_m) = match &geometry {
+            Some(sensors) => {
+                let metrics = step_metrics(
+                    sensors,
+                    &truth,
+                    self.scenario.rmse_resamples,
+                    self.scenario.seed,
+                    k,
+                    Some(Vector2::new(position[0], position[1])),
+                );
+                (metrics.crlb_true_m, metrics.rmse_m)
+            }
+            None => (f64::INFINITY, None),
+        };
+        let mut record = StepRecord {
+            step: k,
+            uavs: m.uavs().to_vec(),
+            headings_rad: m.headings().to_vec(),
+            estimate: position,
+            estimate_cov: covariance,
+            estimate_status: status.name().to_string(),
+            crlb_true_m,
+            rmse_m,
+            objective_value: None,
+            plan_ms: None,
+            active_constraints: Vec::new(),
+        };
+        let mut planner = None;
+        let latencies = match c {
+            Some(c) => {
+                record.headings_rad = c.headings().to_vec();
+                record.objective_value = (c.objective >= 0.0).then(|| c.objective.sqrt());
+                record.plan_ms = Some(c.plan_time_us as f64 / 1e3);
+                record.active_constraints = active_mask::decode(c.active_constraints, c.len());
+                let info = PlannerInfo {
+                    instance: c.planner_instance,
+                    solver: c.solver().unwrap_or("?").to_string(),
+                    objective: c.objective_name().unwrap_or("?").to_string(),
+                };
+                self.names.get_or_insert_with(|| (info.objective.clone(), info.solver.clone()));
+                planner = Some(info);
+                c.header.stamps.latencies()
+            }
+            None => e.header.stamps.latencies(),
+        };
+        let error_m = (position[0] - truth.x).hypot(position[1] - truth.y);
+        self.steps.push(record.clone());
+        CompletedStep { record, latencies, planner, error_m }
+    }
+
+    /// The record of the steps completed so far (the whole run once [`is_done`](Self::is_done)).
+    pub fn record(&self) -> RunRecord {
+        let (objective, solver) = self.names.clone().unwrap_or_else(|| ("-".into(), "-".into()));
+        RunRecord {
+            scenario: self.scenario.clone(),
+            objective,
+            solver,
+            seed: self.scenario.seed,
+            emitter: self.emitter.unwrap_or(self.scenario.emitter),
+            steps: self.steps.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::{Fix, PlanInfo};
+
+    const UAVS: [[f64; 2]; 3] = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
+
+    fn scenario(steps: usize) -> Scenario {
+        Scenario { steps, rmse_resamples: 5, ..Scenario::default() }
+    }
+
+    fn measurement(k: u64) -> Measurement {
+        Measurement::new(k, k + 1, &UAVS, &[-2012.3, -4010.9], &[28.7712; 3], &[0.1, 0.2, 0.3]).unwrap()
+    }
+
+    fn estimate(k: u64, fix: Fix) -> Estimate {
+        Estimate::from_measurement(&measurement(k), 10, k + 1, 7, fix).unwrap()
+    }
+
+    fn ok(x: f64) -> Fix {
+        Fix::Ok { position: [x, 15000.0], covariance: [[4.0e4, 0.0], [0.0, 9.0e4]] }
+    }
+
+    fn command(k: u64, objective: f64, mask: u64) -> Command {
+        let plan = PlanInfo {
+            headings: &[0.5, 0.6, 0.7],
+            waypoints: &UAVS,
+            objective,
+            solver: "pso",
+            objective_name: "analytical",
+            plan_time_us: 1234,
+            active_constraints: mask,
+        };
+        Command::from_estimate(&estimate(k, ok(25000.0)), 20, k + 1, 99, &plan).unwrap()
+    }
+
+    fn truth(k: u64) -> Truth {
+        Truth::new(k, k + 1, [25000.0, 15000.0])
+    }
+
+    #[test]
+    fn completes_steps_in_order_whatever_the_arrival_order() {
+        let mut a = Assembler::new(scenario(2));
+        // Step 1 complete before step 0: nothing is emitted until step 0 is.
+        assert!(a.add_command(command(1, 4.0, 0)));
+        assert!(a.add_truth(truth(1)));
+        assert!(a.add_estimate(estimate(1, Fix::Failed)));
+        assert!(a.add_measurement(measurement(1)));
+        assert!(a.complete_ready().is_empty());
+        a.add_measurement(measurement(0));
+        a.add_truth(truth(0));
+        a.add_estimate(estimate(0, ok(24000.0)));
+        assert!(a.complete_ready().is_empty(), "step 0 still lacks its command");
+        a.add_command(command(0, 9.0, 1 << 8));
+        let done = a.complete_ready();
+        assert_eq!(done.iter().map(|d| d.record.step).collect::<Vec<_>>(), vec![0, 1]);
+        let s0 = &done[0].record;
+        assert_eq!(s0.uavs, UAVS.to_vec());
+        assert_eq!(s0.headings_rad, vec![0.5, 0.6, 0.7], "the command's headings");
+        assert_eq!(s0.estimate, [24000.0, 15000.0]);
+        assert_eq!(s0.objective_value, Some(3.0));
+        assert_eq!(s0.plan_ms, Some(1.234));
+        assert_eq!(s0.active_constraints, vec!["heading_cone(UAV 0) binding".to_string()]);
+        assert!(s0.crlb_true_m > 1000.0 && s0.rmse_m.is_some());
+        // A failed estimate reports the previous usable one.
+        let s1 = &done[1].record;
+        assert_eq!((s1.estimate_status.as_str(), s1.estimate), ("failed", [24000.0, 15000.0]));
+        assert_eq!(s1.estimate_cov, [[4.0e4, 0.0], [0.0, 9.0e4]]);
+        assert_eq!(done[0].planner.as_ref().unwrap().instance, 99);
+        // The last step needs no command; its headings are the measurement's.
+        assert!(!a.add_command(command(2, 1.0, 0)), "the last step is never planned");
+        a.add_measurement(measurement(2));
+        a.add_truth(truth(2));
+        a.add_estimate(estimate(2, ok(25000.0)));
+        let last = a.complete_ready();
+        assert_eq!(last.len(), 1);
+        assert_eq!(last[0].record.headings_rad, vec![0.1, 0.2, 0.3]);
+        assert_eq!((last[0].record.objective_value, last[0].record.plan_ms), (None, None));
+        assert!(a.is_done());
+        let run = a.record();
+        assert_eq!((run.objective.as_str(), run.solver.as_str(), run.steps.len()), ("analytical", "pso", 3));
+        assert_eq!(run.emitter, [25000.0, 15000.0]);
+        // Late and out-of-range messages are ignored.
+        assert!(!a.add_measurement(measurement(1)));
+        assert!(!a.add_truth(truth(3)));
+        assert_eq!(a.ignored(), 3);
+    }
+
+    #[test]
+    fn a_negative_objective_means_no_value() {
+        let mut a = Assembler::new(scenario(1));
+        a.add_measurement(measurement(0));
+        a.add_truth(truth(0));
+        a.add_estimate(estimate(0, ok(25000.0)));
+        a.add_command(command(0, -1.0, 0));
+        assert_eq!(a.complete_ready()[0].record.objective_value, None);
+    }
+}

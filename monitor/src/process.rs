@@ -1,0 +1,514 @@
+//! The `monitor` process: subscribes to all four topics of a domain, rebuilds the run record
+//! ([`Assembler`]), shows one status line per step, logs every event as JSON lines, and writes the record
+//! (and CSVs and plots) when the last step is in.
+//!
+//! It waits in one iceoryx2 `WaitSet` on the four topics' listeners (event-driven, no polling) and drains
+//! every subscriber on each wake-up; every message is validated first ([`RejectionCounter`]), invalid ones
+//! are counted, logged and ignored.
+//!
+//! The JSON-lines log (`--log FILE`) has one object per line with `t_ns` (monotonic clock, the stamps'
+//! clock) and `event`:
+//! - `start` (domain, steps, seed); `message` (kind, step, seq, age_us: publish → received here);
+//! - `rejected` (kind, reason, detail); `planner` (a new planner instance: instance, solver, objective, step);
+//! - `step` (the step's record, its latencies in µs and planner); `end` (complete, steps, rejected, ignored).
+//!
+//! The status line of a step (stderr, unless `--quiet`): step, CRLB at the truth, RMSE, estimate error,
+//! the hops measurement→estimator and estimate→planner, the planning time, the whole cycle, the active
+//! planner and the rejected-message count.
+//!
+//! It exits 0 after the last step, or 130 on SIGINT/SIGTERM before it (writing the partial record).
+
+use std::fs::File;
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::Args;
+use iceoryx2::prelude::*;
+use iceoryx2::waitset::WaitSetRunResult;
+use planner::process::load_scenario;
+use protocol::services::{self, Domain};
+use protocol::{
+    Command, Estimate, Latencies, Measurement, Message, RejectionCounter, Topic, TopicSubscriber, TransportError,
+    Truth, now_ns,
+};
+use serde_json::json;
+
+use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
+use crate::record::RunRecord;
+
+/// The role name (node name suffix, `uavloc process monitor`).
+pub const ROLE: &str = "monitor";
+
+/// Exit code when SIGINT/SIGTERM stopped the monitor before the last step.
+pub const EXIT_INTERRUPTED: u8 = 130;
+
+/// How long one blocking wait lasts at most before the loop re-checks for a termination request that
+/// arrived between two waits (a signal during a wait interrupts it at once).
+pub const IDLE_WAKEUP: Duration = Duration::from_secs(1);
+
+/// What `monitor --help` shows after the flags.
+pub const AFTER_HELP: &str = "\
+The monitor subscribes to <domain>/measurement, /estimate, /command and /truth and needs the run's
+--scenario, --steps and --seed (for the RMSE resamples and the record). Start it before emitter-sim.
+It exits after the last step (or on Ctrl-C, writing what it has).
+
+Examples:
+  monitor --domain lab1 --log run.jsonl --record run.json
+  monitor --domain lab1 --steps 6 --seed 3 --out runs/lab1 --quiet";
+
+/// Flags of the monitor process (`monitor [FLAGS]` or `uavloc process monitor [FLAGS]`).
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct MonitorArgs {
+    /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
+    #[arg(long, value_name = "NAME")]
+    pub domain: Option<String>,
+    /// Scenario TOML file (default: the paper's nominal case): RMSE resamples and the record's scenario.
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Steps of the run (default: the scenario's); the monitor ends after step N.
+    #[arg(long, value_name = "N")]
+    pub steps: Option<usize>,
+    /// Run seed (default: the scenario's): the RMSE resamples of step k are drawn from (seed, k).
+    #[arg(long, value_name = "N")]
+    pub seed: Option<u64>,
+    /// Write every event as one JSON object per line to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// Write the run record (the JSON of `uavloc simulate --json`) to FILE at the end.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// Write trajectory.csv, steps.csv, run.json and the plots into DIR at the end.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Print the run record as JSON on stdout at the end.
+    #[arg(long)]
+    pub print_record: bool,
+    /// No status lines on stderr.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Under a launcher: print `ready` on stdout once subscribed, `record {json}` and `summary {json}` at
+    /// the end.
+    #[arg(long, hide = true)]
+    pub supervised: bool,
+}
+
+/// Why the monitor stopped with an error.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ProcessError {
+    /// Bad flags or scenario (exit code 2).
+    Input(String),
+    /// A runtime failure, e.g. iceoryx2 or a file that cannot be written (exit code 1).
+    Failed(String),
+}
+
+impl ProcessError {
+    /// The exit code: 2 for bad input, 1 for a runtime failure.
+    pub fn code(&self) -> u8 {
+        match self {
+            ProcessError::Input(_) => 2,
+            ProcessError::Failed(_) => 1,
+        }
+    }
+}
+
+impl std::fmt::Display for ProcessError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ProcessError::Input(m) | ProcessError::Failed(m) => f.write_str(m),
+        }
+    }
+}
+
+impl From<TransportError> for ProcessError {
+    fn from(e: TransportError) -> Self {
+        ProcessError::Failed(e.to_string())
+    }
+}
+
+/// Median and maximum of a latency, microseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct LatencyStat {
+    /// Median, µs.
+    pub p50_us: f64,
+    /// Maximum, µs.
+    pub max_us: f64,
+    /// Samples.
+    pub n: usize,
+}
+
+impl LatencyStat {
+    fn of(samples_ns: &[u64]) -> Option<Self> {
+        if samples_ns.is_empty() {
+            return None;
+        }
+        let mut v = samples_ns.to_vec();
+        v.sort_unstable();
+        Some(Self { p50_us: v[v.len() / 2] as f64 / 1e3, max_us: v[v.len() - 1] as f64 / 1e3, n: v.len() })
+    }
+}
+
+/// Latency statistics over the planned steps of a run.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct LatencySummary {
+    /// Command published → received by emitter-sim.
+    pub command_hop: Option<LatencyStat>,
+    /// Measurement published → received by the estimator.
+    pub measurement_hop: Option<LatencyStat>,
+    /// Estimate published → received by the planner.
+    pub estimate_hop: Option<LatencyStat>,
+    /// Measurement published → command published (estimator + planner, with both hops).
+    pub end_to_end: Option<LatencyStat>,
+    /// Command of step k−1 published → command of step k published (one whole lock-step cycle).
+    pub cycle: Option<LatencyStat>,
+}
+
+#[derive(Debug, Default)]
+struct LatencySamples {
+    command_hop: Vec<u64>,
+    measurement_hop: Vec<u64>,
+    estimate_hop: Vec<u64>,
+    end_to_end: Vec<u64>,
+    cycle: Vec<u64>,
+}
+
+impl LatencySamples {
+    fn add(&mut self, l: &Latencies) {
+        for (v, s) in [
+            (l.trigger_hop_ns, &mut self.command_hop),
+            (l.measurement_hop_ns, &mut self.measurement_hop),
+            (l.estimate_hop_ns, &mut self.estimate_hop),
+            (l.end_to_end_ns, &mut self.end_to_end),
+            (l.cycle_ns, &mut self.cycle),
+        ] {
+            s.extend(v);
+        }
+    }
+
+    fn summary(&self) -> LatencySummary {
+        LatencySummary {
+            command_hop: LatencyStat::of(&self.command_hop),
+            measurement_hop: LatencyStat::of(&self.measurement_hop),
+            estimate_hop: LatencyStat::of(&self.estimate_hop),
+            end_to_end: LatencyStat::of(&self.end_to_end),
+            cycle: LatencyStat::of(&self.cycle),
+        }
+    }
+}
+
+/// What the monitor saw, printed as its `summary` line.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct MonitorSummary {
+    /// `"monitor"`.
+    pub role: &'static str,
+    /// Whether every step up to the last one was recorded.
+    pub complete: bool,
+    /// Steps recorded.
+    pub steps: u64,
+    /// Valid messages received.
+    pub accepted: u64,
+    /// Invalid messages ignored.
+    pub rejected: u64,
+    /// Valid messages for steps already recorded or beyond the last one.
+    pub ignored: u64,
+    /// Distinct planner instances seen.
+    pub planners: u64,
+    /// Latencies of the planned steps.
+    pub latency: LatencySummary,
+}
+
+/// The JSON-lines run log (a no-op without `--log`).
+struct EventLog(Option<BufWriter<File>>);
+
+impl EventLog {
+    fn open(path: Option<&Path>) -> Result<Self, ProcessError> {
+        match path {
+            Some(p) => File::create(p)
+                .map(|f| EventLog(Some(BufWriter::new(f))))
+                .map_err(|e| ProcessError::Failed(format!("--log {}: {e}", p.display()))),
+            None => Ok(EventLog(None)),
+        }
+    }
+
+    fn write(&mut self, event: &str, mut fields: serde_json::Value) {
+        if let Some(out) = &mut self.0 {
+            if let Some(map) = fields.as_object_mut() {
+                map.insert("t_ns".into(), json!(now_ns()));
+                map.insert("event".into(), json!(event));
+            }
+            let _ = writeln!(out, "{fields}");
+        }
+    }
+
+    fn flush(&mut self) {
+        if let Some(out) = &mut self.0 {
+            let _ = out.flush();
+        }
+    }
+}
+
+fn us(ns: Option<u64>) -> Option<f64> {
+    ns.map(|v| v as f64 / 1e3)
+}
+
+fn fmt_us(ns: Option<u64>) -> String {
+    match ns {
+        Some(v) if v >= 10_000_000 => format!("{:.1} ms", v as f64 / 1e6),
+        Some(v) => format!("{} µs", v / 1000),
+        None => "-".into(),
+    }
+}
+
+fn fmt_m(v: Option<f64>) -> String {
+    v.map_or("-".into(), |x| format!("{x:.1}"))
+}
+
+/// One status line of a completed step.
+fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
+    let r = &done.record;
+    let l = &done.latencies;
+    let planner = done
+        .planner
+        .as_ref()
+        .map_or("-".to_string(), |p| format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
+    format!(
+        "step {:>3}/{last}  CRLB {:>8.1} m  RMSE {:>8} m  |ẑ−z| {:>8.1} m  meas→est {:>7}  est→plan {:>7}  plan {:>8}  \
+         cycle {:>8}  planner {planner}  rejected {rejected}",
+        r.step,
+        r.crlb_true_m,
+        fmt_m(r.rmse_m),
+        done.error_m,
+        fmt_us(l.measurement_hop_ns),
+        fmt_us(l.estimate_hop_ns),
+        r.plan_ms.map_or("-".into(), |ms| format!("{ms:.3} ms")),
+        fmt_us(l.cycle_ns),
+    )
+}
+
+fn announce(supervised: bool, line: &str) {
+    if supervised {
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{line}");
+        let _ = out.flush();
+    }
+}
+
+/// Everything the loop keeps between wake-ups.
+struct State {
+    assembler: Assembler,
+    counter: RejectionCounter,
+    last_seq: [Option<u64>; 4],
+    log: EventLog,
+    samples: LatencySamples,
+    planner: Option<PlannerInfo>,
+    planners: u64,
+    quiet: bool,
+}
+
+impl State {
+    fn drain<T: Message>(
+        &mut self,
+        sub: &TopicSubscriber<T>,
+        add: fn(&mut Assembler, T) -> bool,
+    ) -> Result<(), ProcessError> {
+        let batch = sub.receive_all()?;
+        let received_ns = now_ns();
+        for msg in batch {
+            let slot = &mut self.last_seq[T::KIND.index()];
+            if let Err(r) = self.counter.check(&msg, slot) {
+                self.log.write(
+                    "rejected",
+                    json!({"kind": T::KIND.name(), "reason": r.kind(), "detail": r.to_string(), "seq": msg.header().seq}),
+                );
+                if !self.quiet {
+                    eprintln!("monitor: rejected a {}: {r}", T::KIND);
+                }
+                continue;
+            }
+            let h = msg.header();
+            self.log.write(
+                "message",
+                json!({"kind": T::KIND.name(), "step": h.step, "seq": h.seq, "age_us": us(h.stamps.age_ns(received_ns))}),
+            );
+            add(&mut self.assembler, msg);
+        }
+        Ok(())
+    }
+
+    fn complete_steps(&mut self) {
+        for done in self.assembler.complete_ready() {
+            if let Some(p) = &done.planner
+                && self.planner.as_ref() != Some(p)
+            {
+                self.planners += 1;
+                self.log.write(
+                    "planner",
+                    json!({"instance": p.instance, "solver": p.solver, "objective": p.objective, "step": done.record.step}),
+                );
+                if !self.quiet && self.planner.is_some() {
+                    eprintln!("monitor: planner switched to {}/{} (instance {:#x})", p.solver, p.objective, p.instance);
+                }
+                self.planner = Some(p.clone());
+            }
+            if done.planner.is_some() {
+                self.samples.add(&done.latencies);
+            }
+            let l = &done.latencies;
+            self.log.write(
+                "step",
+                json!({
+                    "step": done.record.step,
+                    "record": done.record,
+                    "latency_us": {
+                        "command_hop": us(l.trigger_hop_ns), "emitter": us(l.emitter_ns),
+                        "measurement_hop": us(l.measurement_hop_ns), "estimator": us(l.estimator_ns),
+                        "estimate_hop": us(l.estimate_hop_ns), "planner": us(l.planner_ns),
+                        "end_to_end": us(l.end_to_end_ns), "cycle": us(l.cycle_ns),
+                    },
+                    "planner": done.planner.as_ref().map(|p| json!({"instance": p.instance, "solver": p.solver, "objective": p.objective})),
+                }),
+            );
+            self.log.flush();
+            if !self.quiet {
+                eprintln!("{}", status_line(&done, self.assembler.last_step(), self.counter.total()));
+            }
+        }
+    }
+}
+
+fn write_outputs(args: &MonitorArgs, run: &RunRecord) -> Result<(), ProcessError> {
+    if let Some(path) = &args.record {
+        let text = serde_json::to_string_pretty(run).map_err(|e| ProcessError::Failed(e.to_string()))?;
+        std::fs::write(path, text + "\n")
+            .map_err(|e| ProcessError::Failed(format!("--record {}: {e}", path.display())))?;
+    }
+    if let Some(dir) = &args.out {
+        crate::export::write_run(run, dir)
+            .map_err(|e| ProcessError::Failed(format!("--out {}: {e}", dir.display())))?;
+    }
+    Ok(())
+}
+
+/// Runs the monitor until the last step is recorded (or SIGINT/SIGTERM); returns the record and summary.
+pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessError> {
+    protocol::transport::quiet_logs();
+    let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
+    let scenario = load_scenario(args.scenario.as_deref(), args.steps, args.seed)
+        .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
+    let log = EventLog::open(args.log.as_deref())?;
+    let node = protocol::node(&services::node_name(&domain, ROLE))?;
+    let mut state = State {
+        assembler: Assembler::new(scenario.clone()),
+        counter: RejectionCounter::new(),
+        last_seq: [None; 4],
+        log,
+        samples: LatencySamples::default(),
+        planner: None,
+        planners: 0,
+        quiet: args.quiet,
+    };
+    // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
+    let mut interrupted = node.wait(Duration::ZERO).is_err();
+    let measurements = Topic::<Measurement>::subscriber(&node, &services::measurement(&domain))?;
+    let estimates = Topic::<Estimate>::subscriber(&node, &services::estimate(&domain))?;
+    let commands = Topic::<Command>::subscriber(&node, &services::command(&domain))?;
+    let truths = Topic::<Truth>::subscriber(&node, &services::truth(&domain))?;
+    let waitset = WaitSetBuilder::new()
+        .create::<ipc::Service>()
+        .map_err(|e| ProcessError::Failed(format!("creating the WaitSet: {e:?}")))?;
+    let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
+    let _guards = [
+        waitset.attach_notification(&measurements).map_err(attach_failed)?,
+        waitset.attach_notification(&estimates).map_err(attach_failed)?,
+        waitset.attach_notification(&commands).map_err(attach_failed)?,
+        waitset.attach_notification(&truths).map_err(attach_failed)?,
+    ];
+    state.log.write("start", json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed}));
+    announce(args.supervised, "ready");
+    if !args.quiet {
+        eprintln!("monitor: domain {domain}, waiting for {} steps (seed {})", scenario.steps, scenario.seed);
+    }
+
+    while !interrupted && !state.assembler.is_done() {
+        match waitset.wait_and_process_once_with_timeout(|_| CallbackProgression::Continue, IDLE_WAKEUP) {
+            Ok(WaitSetRunResult::TerminationRequest) => interrupted = true,
+            // Some signal interrupted the wait: stop if it was SIGINT/SIGTERM.
+            Ok(WaitSetRunResult::Interrupt) => interrupted = node.wait(Duration::ZERO).is_err(),
+            Ok(_) => {}
+            Err(e) => return Err(ProcessError::Failed(format!("waiting: {e:?}"))),
+        }
+        state.drain(&truths, Assembler::add_truth)?;
+        state.drain(&measurements, Assembler::add_measurement)?;
+        state.drain(&estimates, Assembler::add_estimate)?;
+        state.drain(&commands, Assembler::add_command)?;
+        state.complete_steps();
+        if !interrupted {
+            interrupted = node.wait(Duration::ZERO).is_err();
+        }
+    }
+
+    let run = state.assembler.record();
+    let summary = MonitorSummary {
+        role: ROLE,
+        complete: state.assembler.is_done(),
+        steps: run.steps.len() as u64,
+        accepted: accepted_total(&state.counter),
+        rejected: state.counter.total(),
+        ignored: state.assembler.ignored(),
+        planners: state.planners,
+        latency: state.samples.summary(),
+    };
+    state.log.write(
+        "end",
+        json!({"complete": summary.complete, "steps": summary.steps, "rejected": summary.rejected, "ignored": summary.ignored}),
+    );
+    state.log.flush();
+    write_outputs(args, &run)?;
+    if !args.quiet {
+        let l = &summary.latency;
+        let p50 = |s: &Option<LatencyStat>| s.map_or("-".into(), |s| format!("{:.0} µs", s.p50_us));
+        eprintln!(
+            "monitor: {} of {} steps recorded, {}; median hops: command {}, measurement {}, estimate {}; median \
+             cycle {}",
+            summary.steps,
+            scenario.steps + 1,
+            state.counter,
+            p50(&l.command_hop),
+            p50(&l.measurement_hop),
+            p50(&l.estimate_hop),
+            p50(&l.cycle)
+        );
+    }
+    Ok((run, summary))
+}
+
+/// Accepted messages of every kind.
+fn accepted_total(counter: &RejectionCounter) -> u64 {
+    protocol::MessageKind::ALL.iter().map(|k| counter.accepted(*k)).sum()
+}
+
+/// Runs the monitor and maps the outcome to an exit code (errors as one `error:` line on stderr); in
+/// supervised mode the record and the summary go to stdout as `record {json}` and `summary {json}`.
+pub fn main_with(args: &MonitorArgs) -> ExitCode {
+    match run(args) {
+        Ok((run, summary)) => {
+            let record = serde_json::to_string(&run).unwrap_or_default();
+            announce(args.supervised, &format!("record {record}"));
+            announce(args.supervised, &format!("summary {}", serde_json::to_string(&summary).unwrap_or_default()));
+            if args.print_record {
+                println!("{}", serde_json::to_string_pretty(&run).unwrap_or_default());
+            }
+            if summary.complete {
+                ExitCode::SUCCESS
+            } else {
+                eprintln!("monitor: interrupted before the last step; the record is partial");
+                ExitCode::from(EXIT_INTERRUPTED)
+            }
+        }
+        Err(e) => {
+            eprintln!("error: monitor: {e}");
+            ExitCode::from(e.code())
+        }
+    }
+}

@@ -1,0 +1,116 @@
+//! The iceoryx2 resources of a pipeline domain, as iceoryx2 itself lists them: the nodes named
+//! `<domain>/<role>` and the services named `<domain>/<topic>`.
+//!
+//! iceoryx2 names its files after hashes (`iox2_<hash>…` in the shared-memory filesystem and in its
+//! `iceoryx2/` temp folder), so a domain's resources cannot be found by file name; its own node and
+//! service lists can. A launcher uses [`remove_dead_nodes`] after its children have exited (a killed
+//! child leaves its node behind) and [`list`] to check that nothing of the domain is left.
+
+use core::time::Duration;
+
+use iceoryx2::node::NodeView;
+use iceoryx2::prelude::*;
+use protocol::services::Domain;
+
+/// A node of a domain.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
+pub struct DomainNode {
+    /// Its name, `<domain>/<role>`.
+    pub name: String,
+    /// `alive` or `dead` (dead: its process is gone without cleaning up).
+    pub state: String,
+}
+
+/// What is left of a domain.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct DomainResources {
+    /// Nodes of the domain.
+    pub nodes: Vec<DomainNode>,
+    /// Services of the domain (a topic is a pub/sub and an event service of the same name).
+    pub services: Vec<String>,
+}
+
+impl DomainResources {
+    /// Whether nothing of the domain is left.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty() && self.services.is_empty()
+    }
+
+    /// Nodes whose process is still running.
+    pub fn alive_nodes(&self) -> impl Iterator<Item = &str> {
+        self.nodes.iter().filter(|n| n.state == "alive").map(|n| n.name.as_str())
+    }
+}
+
+fn in_domain(name: &str, domain: &Domain) -> bool {
+    name.strip_prefix(domain.as_str()).is_some_and(|rest| rest.starts_with('/'))
+}
+
+/// The nodes and services of `domain` (nodes without readable details — another user's — are skipped).
+pub fn list(domain: &Domain) -> Result<DomainResources, String> {
+    let config = Config::global_config();
+    let mut out = DomainResources::default();
+    Node::<ipc::Service>::list(config, |state| {
+        let (details, label) = match &state {
+            NodeState::Alive(view) => (view.details().clone(), "alive"),
+            NodeState::Dead(view) => (view.details().clone(), "dead"),
+            NodeState::Inaccessible(_) | NodeState::Undefined(_) => (None, ""),
+        };
+        if let Some(d) = details {
+            let name = d.name().as_str().to_string();
+            if in_domain(&name, domain) {
+                out.nodes.push(DomainNode { name, state: label.to_string() });
+            }
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| format!("listing iceoryx2 nodes: {e:?}"))?;
+    ipc::Service::list(config, |service| {
+        let name = service.static_details.name().as_str();
+        if in_domain(name, domain) && !out.services.iter().any(|s| s == name) {
+            out.services.push(name.to_string());
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| format!("listing iceoryx2 services: {e:?}"))?;
+    out.nodes.sort();
+    out.services.sort();
+    Ok(out)
+}
+
+/// Removes the stale resources of every dead node of `domain` (processes that died without cleaning up,
+/// e.g. on SIGKILL), which also releases the services only they held. Returns how many were removed.
+pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {
+    let config = Config::global_config();
+    let mut dead = Vec::new();
+    Node::<ipc::Service>::list(config, |state| {
+        if let NodeState::Dead(view) = state
+            && view.details().as_ref().is_some_and(|d| in_domain(d.name().as_str(), domain))
+        {
+            dead.push(view);
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| format!("listing iceoryx2 nodes: {e:?}"))?;
+    let mut removed = 0;
+    for view in dead {
+        match view.blocking_remove_stale_resources(Duration::from_secs(1)) {
+            Ok(()) => removed += 1,
+            Err(e) => return Err(format!("removing a dead node's resources: {e:?}")),
+        }
+    }
+    Ok(removed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn domain_prefix_needs_the_separator() {
+        let d = Domain::new("run-1").unwrap();
+        assert!(in_domain("run-1/estimator", &d));
+        assert!(!in_domain("run-12/estimator", &d));
+        assert!(!in_domain("run-1", &d));
+    }
+}
