@@ -21,12 +21,14 @@
 //!
 //! Every child runs in its own process group (a terminal's Ctrl-C reaches only the launcher, which stops
 //! the children in order) with `PR_SET_PDEATHSIG = SIGTERM`, so none outlives a launcher that dies.
-//! SIGINT/SIGTERM on the launcher stop all children (exit code 1).
+//! SIGINT/SIGTERM on the launcher stop all children (exit code 1) and remove the iceoryx2 resources any of
+//! them left behind (`tests/shutdown.rs`).
 //!
 //! The output is the monitor's run record, i.e. the JSON of `uavloc simulate --json` (built only from what
-//! the monitor received), plus `restarts` (always 0 for now) and `rejected` (invalid messages counted by
-//! all four processes).
+//! the monitor received), plus `restarts` (always 0 for now), `rejected` (invalid messages counted by
+//! all four processes) and `rejected_by` (the same per process role; `tests/bad_messages.rs`).
 
+use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
 use std::os::unix::process::CommandExt as _;
 use std::path::PathBuf;
@@ -110,6 +112,10 @@ pub struct LaunchArgs {
     /// Busy-poll this many microseconds before blocking, in every process (0: block at once).
     #[arg(long, value_name = "US", default_value_t = 0)]
     pub spin_us: u64,
+    /// emitter-sim waits this many milliseconds before each step after step 0 (a slow run for a demo,
+    /// or to swap or kill a process mid-run; the results do not change). 0: full speed.
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub step_delay_ms: u64,
 }
 
 fn parse_objective(s: &str) -> Result<ObjectiveKind, String> {
@@ -474,6 +480,8 @@ pub struct LaunchReport {
     pub restarts: u64,
     /// Invalid messages counted and ignored by all four processes.
     pub rejected: u64,
+    /// The same count per process role.
+    pub rejected_by: BTreeMap<String, u64>,
     #[serde(skip)]
     pub domain: String,
     #[serde(skip)]
@@ -521,10 +529,11 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let mut sup = Supervisor::new();
     let result = start_and_run(&mut sup, args, &domain);
     sup.stop_all();
+    // A child that crashed or had to be killed leaves its iceoryx2 node behind: remove it — also when the
+    // launch failed or was interrupted — then check.
+    let cleaned = resources::remove_dead_nodes(&domain).map_err(CliError::Failed);
     result?;
-
-    // A child that had to be killed leaves its iceoryx2 node behind: remove it, then check.
-    resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
+    cleaned?;
     let leftovers = resources::list(&domain).map_err(CliError::Failed)?;
 
     let record = sup.record.as_deref().ok_or_else(|| CliError::Failed("the monitor sent no run record".into()))?;
@@ -544,10 +553,15 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         })
         .collect();
     let latency = sup.procs[sup.index("monitor")].summary.as_ref().map(|s| s["latency"].clone());
+    let mut rejected_by = BTreeMap::new();
+    for c in &children {
+        *rejected_by.entry(c.role.clone()).or_insert(0) += c.rejected;
+    }
     Ok(LaunchReport {
         run,
         restarts: 0,
         rejected: children.iter().map(|c| c.rejected).sum(),
+        rejected_by,
         domain: domain.to_string(),
         wall_s: start.elapsed().as_secs_f64(),
         children,
@@ -597,6 +611,8 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
                 flags.extend(run_flags.iter().cloned());
                 flags.extend(spin.iter().cloned());
                 flags.extend([
+                    "--step-delay-ms".to_string(),
+                    args.step_delay_ms.to_string(),
                     "--command-timeout-s".to_string(),
                     args.command_timeout_s.to_string(),
                     // The estimator and the monitor.

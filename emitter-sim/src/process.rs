@@ -86,6 +86,10 @@ pub struct EmitterSimArgs {
     /// Busy-poll this many microseconds for the command before blocking (0: block at once).
     #[arg(long, value_name = "US", default_value_t = 0)]
     pub spin_us: u64,
+    /// Wait this many milliseconds before each step after step 0 (slows a run down for a demo or a test;
+    /// the results do not change). 0: lock-step at full speed.
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub step_delay_ms: u64,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -267,7 +271,11 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     // Sequence numbers start at the monotonic clock: a restarted emitter-sim continues above its predecessor.
     let mut seq = now_ns();
     let mut trigger: Option<(Command, u64)> = None;
+    let step_delay = Duration::from_millis(args.step_delay_ms);
     for k in 0..=scenario.steps as u64 {
+        if k > 0 && !step_delay.is_zero() && node.wait(step_delay).is_err() {
+            return Err(ProcessError::Interrupted);
+        }
         let meas = world.measure().map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
         let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
         seq += 1;
@@ -295,6 +303,8 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             }
             let batch = next_batch(&node, &commands, spin, (deadline - now).min(IDLE_WAKEUP))?;
             let received_ns = now_ns();
+            // Every message of the batch is checked and counted, also after the one that is applied.
+            let mut applied = None;
             for cmd in batch {
                 if let Err(r) = counter.check(&cmd, &mut last_seq) {
                     summary.rejected += 1;
@@ -302,7 +312,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
                     continue;
                 }
                 summary.accepted += 1;
-                if cmd.header.step != k {
+                if cmd.header.step != k || applied.is_some() {
                     summary.ignored += 1;
                     continue;
                 }
@@ -311,7 +321,10 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
                     eprintln!("emitter-sim: step {k}: refused a command: {e}");
                     continue;
                 }
-                break 'wait (cmd, received_ns);
+                applied = Some((cmd, received_ns));
+            }
+            if let Some(applied) = applied {
+                break 'wait applied;
             }
         };
         trigger = Some(command);

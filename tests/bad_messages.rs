@@ -1,0 +1,179 @@
+//! A test publisher joins a running pipeline (a slow `uavloc launch`) on its domain and sends invalid
+//! messages on every topic: NaN fields, a UAV count of 200, a negative σ, a covariance that is not positive
+//! definite, an unknown version, and valid-looking messages with a stale sequence number. Every receiver of
+//! a topic counts and ignores each of them; the run completes with exactly `simulate`'s trajectory.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, scratch};
+use protocol::messages::{Fix, PlanInfo};
+use protocol::services::{self, Domain};
+use protocol::{Command, Estimate, Measurement, Message, Topic, Truth};
+
+const UAVS: [[f64; 2]; 3] = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
+/// Every bad message is numbered 1: below any sequence number a real process uses (they start at the
+/// monotonic clock), so a message that is otherwise valid is stale.
+const SEQ: u64 = 1;
+const STEP: u64 = 1;
+
+fn measurement() -> Measurement {
+    Measurement::new(STEP, SEQ, &UAVS, &[-2012.3, -4010.9], &[28.7712; 3], &[0.1, 0.2, 0.3]).unwrap()
+}
+
+fn estimate() -> Estimate {
+    let fix = Fix::Ok { position: [25000.0, 15000.0], covariance: [[4.0e4, 0.0], [0.0, 9.0e4]] };
+    Estimate::new(STEP, SEQ, 7, &UAVS, &[0.1, 0.2, 0.3], fix).unwrap()
+}
+
+fn command() -> Command {
+    let plan = PlanInfo {
+        headings: &[0.5, 0.6, 0.7],
+        waypoints: &UAVS,
+        objective: 1.0e6,
+        solver: "pso",
+        objective_name: "analytical",
+        plan_time_us: 100,
+        active_constraints: 0,
+    };
+    Command::new(STEP, SEQ, 7, &plan).unwrap()
+}
+
+fn truth() -> Truth {
+    Truth::new(STEP, SEQ, [25000.0, 15000.0])
+}
+
+fn with<T>(mut msg: T, f: impl FnOnce(&mut T)) -> T {
+    f(&mut msg);
+    msg
+}
+
+fn version<T: Message>(msg: T) -> T {
+    with(msg, |m| m.header_mut().version = 99)
+}
+
+/// The bad messages of each topic, with the rejection kind each must be counted as.
+struct Batch {
+    measurements: Vec<(Measurement, &'static str)>,
+    estimates: Vec<(Estimate, &'static str)>,
+    commands: Vec<(Command, &'static str)>,
+    truths: Vec<(Truth, &'static str)>,
+}
+
+fn batch() -> Batch {
+    Batch {
+        measurements: vec![
+            (with(measurement(), |m| m.diffs[1] = f64::NAN), "not_finite"),
+            (with(measurement(), |m| m.count = 200), "bad_count"),
+            (with(measurement(), |m| m.sigmas[2] = -28.0), "non_positive_sigma"),
+            (measurement(), "stale"),
+            (version(measurement()), "bad_version"),
+        ],
+        estimates: vec![
+            (with(estimate(), |e| e.position[0] = f64::NAN), "not_finite"),
+            (with(estimate(), |e| e.count = 200), "bad_count"),
+            (with(estimate(), |e| e.covariance = [[-4.0e4, 0.0], [0.0, 9.0e4]]), "not_positive_definite"),
+            (estimate(), "stale"),
+            (version(estimate()), "bad_version"),
+        ],
+        commands: vec![
+            (with(command(), |c| c.headings[0] = f64::INFINITY), "not_finite"),
+            (with(command(), |c| c.count = 200), "bad_count"),
+            (command(), "stale"),
+            (version(command()), "bad_version"),
+        ],
+        truths: vec![
+            (with(truth(), |t| t.position[1] = f64::NAN), "not_finite"),
+            (truth(), "stale"),
+            (version(truth()), "bad_version"),
+        ],
+    }
+}
+
+/// Publishes the batch on `domain` from this process, one message every few milliseconds (so no
+/// subscriber buffer overflows and pushes out a real message).
+fn send_batch(domain: &str, b: &Batch) {
+    protocol::transport::quiet_logs();
+    let d = Domain::new(domain).unwrap();
+    let node = protocol::node(&format!("{domain}-bad-publisher")).unwrap();
+    let pause = || std::thread::sleep(Duration::from_millis(4));
+    let m = Topic::<Measurement>::publisher(&node, &services::measurement(&d)).unwrap();
+    for (msg, _) in &b.measurements {
+        m.send(msg).unwrap();
+        pause();
+    }
+    let e = Topic::<Estimate>::publisher(&node, &services::estimate(&d)).unwrap();
+    for (msg, _) in &b.estimates {
+        e.send(msg).unwrap();
+        pause();
+    }
+    let c = Topic::<Command>::publisher(&node, &services::command(&d)).unwrap();
+    for (msg, _) in &b.commands {
+        c.send(msg).unwrap();
+        pause();
+    }
+    let t = Topic::<Truth>::publisher(&node, &services::truth(&d)).unwrap();
+    for (msg, _) in &b.truths {
+        t.send(msg).unwrap();
+        pause();
+    }
+    // Let the receivers drain before the publishers go away.
+    std::thread::sleep(Duration::from_millis(20));
+}
+
+#[test]
+fn invalid_messages_are_counted_ignored_and_change_nothing() {
+    let d = domain("bad-msg", "all");
+    let dir = scratch("bad-messages");
+    let steps = "30";
+    let mut launch = Launch::start(&d, &dir, &["--steps", steps, "--step-delay-ms", "30"]);
+    // The real publishers have sent (and every receiver accepted) a few messages: a message numbered 1 is
+    // stale from now on.
+    launch.wait_for_step(2, Duration::from_secs(30));
+    let b = batch();
+    send_batch(&d, &b);
+    // The batch went out while the run was still going.
+    let last_logged =
+        launch.events().iter().filter(|e| e["event"] == "step").filter_map(|e| e["step"].as_u64()).max().unwrap();
+    assert!(last_logged < 30, "the run ended before the batch was sent");
+    let run = launch.finish_json();
+
+    // The trajectory is exactly simulate's: nothing bad was acted on.
+    let sim = json_of(&["simulate", "--json", "--steps", steps]);
+    assert_same_run(&sim, &run, "bad messages");
+    assert_eq!(run["restarts"].as_u64(), Some(0), "nothing crashed");
+
+    // Each process counted exactly the bad messages of the topics it subscribes to.
+    let (nm, ne, nc, nt) = (b.measurements.len(), b.estimates.len(), b.commands.len(), b.truths.len());
+    let by = &run["rejected_by"];
+    assert_eq!(by["estimator"].as_u64(), Some(nm as u64), "{run}");
+    assert_eq!(by["planner"].as_u64(), Some(ne as u64), "{by}");
+    assert_eq!(by["emitter-sim"].as_u64(), Some(nc as u64), "{by}");
+    assert_eq!(by["monitor"].as_u64(), Some((nm + ne + nc + nt) as u64), "{by}");
+    assert_eq!(run["rejected"].as_u64(), Some((2 * (nm + ne + nc) + nt) as u64));
+
+    // The monitor's log names every rejection by message type and reason.
+    let mut expected: BTreeMap<(String, String), u64> = BTreeMap::new();
+    let mut add = |kind: &str, reason: &str| *expected.entry((kind.into(), reason.into())).or_default() += 1;
+    b.measurements.iter().for_each(|(_, r)| add("measurement", r));
+    b.estimates.iter().for_each(|(_, r)| add("estimate", r));
+    b.commands.iter().for_each(|(_, r)| add("command", r));
+    b.truths.iter().for_each(|(_, r)| add("truth", r));
+    let mut logged: BTreeMap<(String, String), u64> = BTreeMap::new();
+    for e in read_rejections(&dir.join("run.jsonl")) {
+        *logged.entry(e).or_default() += 1;
+    }
+    assert_eq!(logged, expected);
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+fn read_rejections(log: &std::path::Path) -> Vec<(String, String)> {
+    common::read_events(log)
+        .into_iter()
+        .filter(|e| e["event"] == "rejected")
+        .map(|e| (e["kind"].as_str().unwrap().to_string(), e["reason"].as_str().unwrap().to_string()))
+        .collect()
+}

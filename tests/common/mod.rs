@@ -1,0 +1,247 @@
+//! Helpers shared by the process-pipeline tests (`launch_default`, `bad_messages`, `shutdown`,
+//! `crash_restart`, `swap_planner`): run `uavloc`, start a launch in the background, follow its JSONL log,
+//! compare a run with `uavloc simulate`, find the processes of a domain, check that nothing is left.
+//!
+//! Every test runs its pipelines in its own domain (`<prefix>-<test pid>-<tag>`), so the tests run in
+//! parallel with each other and with anything else on the machine.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+pub const UAVLOC: &str = env!("CARGO_BIN_EXE_uavloc");
+
+pub fn uavloc(args: &[&str]) -> std::process::Output {
+    Command::new(UAVLOC).args(args).output().expect("run uavloc")
+}
+
+pub fn json_of(args: &[&str]) -> Value {
+    let out = uavloc(args);
+    assert!(out.status.success(), "uavloc {args:?} failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!("uavloc {args:?}: stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout))
+    })
+}
+
+/// A domain unique to this test process and `tag`.
+pub fn domain(prefix: &str, tag: &str) -> String {
+    format!("{prefix}-{}-{tag}", std::process::id())
+}
+
+/// A fresh scratch directory for one test.
+pub fn scratch(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("uavloc-test-{}-{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The f64 bits of every number in a JSON value (arrays flattened).
+fn bits(v: &Value, label: &str) -> Vec<u64> {
+    let mut out = Vec::new();
+    let mut stack = vec![v.clone()];
+    while let Some(x) = stack.pop() {
+        match x {
+            Value::Array(items) => stack.extend(items),
+            Value::Number(n) => out.push(n.as_f64().unwrap().to_bits()),
+            other => panic!("{label}: unexpected {other}"),
+        }
+    }
+    out
+}
+
+/// Every step field of `simulate` must be equal in the launch — compared as parsed f64 with `==` (the
+/// workspace's serde_json parses floats exactly), trajectory and estimates bit for bit — except the
+/// wall-clock planning time.
+pub fn assert_same_run(sim: &Value, launch: &Value, label: &str) {
+    for key in ["objective", "solver", "seed", "emitter", "scenario"] {
+        assert_eq!(sim[key], launch[key], "{label}: {key}");
+    }
+    assert_same_steps(sim, launch, label);
+}
+
+/// [`assert_same_run`] for the steps only (a run whose planner was swapped has another solver name).
+pub fn assert_same_steps(sim: &Value, launch: &Value, label: &str) {
+    let (a, b) = (sim["steps"].as_array().unwrap(), launch["steps"].as_array().unwrap());
+    assert_eq!(a.len(), b.len(), "{label}: number of steps");
+    for (s, l) in a.iter().zip(b) {
+        let k = &s["step"];
+        assert_eq!(k, &l["step"], "{label}");
+        for key in ["uavs", "headings_rad", "estimate"] {
+            assert_eq!(s[key], l[key], "{label}: step {k} {key}");
+            assert_eq!(bits(&s[key], label), bits(&l[key], label), "{label}: step {k} {key} bits");
+        }
+        for key in ["estimate_cov", "estimate_status", "crlb_true_m", "rmse_m", "objective_value", "active_constraints"]
+        {
+            assert_eq!(s[key], l[key], "{label}: step {k} {key}");
+        }
+        assert_eq!(s["plan_ms"].is_null(), l["plan_ms"].is_null(), "{label}: step {k} plan_ms presence");
+    }
+}
+
+/// Processes (pid, command line) whose command line mentions `needle` (children are started with
+/// `--domain <needle>`), other than this test process.
+pub fn processes_mentioning(needle: &str) -> Vec<(u32, String)> {
+    let me = std::process::id();
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir("/proc").expect("/proc") {
+        let Ok(entry) = entry else { continue };
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else { continue };
+        if pid == me {
+            continue;
+        }
+        let Ok(cmdline) = std::fs::read(entry.path().join("cmdline")) else { continue };
+        let cmdline = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+        if cmdline.contains(needle) {
+            found.push((pid, cmdline));
+        }
+    }
+    found
+}
+
+/// The pid of the running `uavloc process <role>` of `domain` (exactly one expected).
+pub fn pid_of(domain: &str, role: &str) -> Option<u32> {
+    let needle = format!("process {role} ");
+    let procs: Vec<_> =
+        processes_mentioning(domain).into_iter().filter(|(pid, c)| c.contains(&needle) && !is_zombie(*pid)).collect();
+    assert!(procs.len() <= 1, "more than one {role} of {domain}: {procs:?}");
+    procs.first().map(|(pid, _)| *pid)
+}
+
+/// Whether the process has exited but is not reaped yet.
+pub fn is_zombie(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| s.rsplit_once(") ").map(|(_, rest)| rest.starts_with('Z')))
+        .unwrap_or(false)
+}
+
+/// Sends `signal` to `pid`.
+pub fn kill(pid: u32, signal: i32) {
+    // SAFETY: kill(2) with a pid read from /proc or of our own child; a stale pid at worst gets ESRCH.
+    let rc = unsafe { libc::kill(pid as libc::pid_t, signal) };
+    assert_eq!(rc, 0, "kill({pid}, {signal}) failed");
+}
+
+/// Files under `dir` (recursively) whose name or content mentions `needle`.
+pub fn files_mentioning(dir: &Path, needle: &str, out: &mut Vec<String>) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let Ok(meta) = entry.metadata() else { continue };
+        if meta.is_dir() {
+            files_mentioning(&path, needle, out);
+        } else if path.to_string_lossy().contains(needle) {
+            out.push(path.display().to_string());
+        } else if meta.len() < 1 << 20
+            && let Ok(bytes) = std::fs::read(&path)
+            && bytes.windows(needle.len()).any(|w| w == needle.as_bytes())
+        {
+            out.push(path.display().to_string());
+        }
+    }
+}
+
+/// No process and no iceoryx2 resource of `domain` is left: no command line mentions it, no file of
+/// iceoryx2 (`/dev/shm`, `<temp>/iceoryx2/`, searched by name and content since iceoryx2 names its files
+/// after hashes) mentions it, and iceoryx2's own node and service lists (`uavloc process resources`) have
+/// nothing of it.
+pub fn assert_nothing_left(domain: &str) {
+    let deadline = Instant::now() + Duration::from_secs(3);
+    let mut procs = processes_mentioning(domain);
+    while !procs.is_empty() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+        procs = processes_mentioning(domain);
+    }
+    assert!(procs.is_empty(), "processes of {domain} are still running: {procs:#?}");
+
+    let mut files = Vec::new();
+    files_mentioning(&std::env::temp_dir().join("iceoryx2"), domain, &mut files);
+    files_mentioning(Path::new("/dev/shm"), domain, &mut files);
+    assert!(files.is_empty(), "iceoryx2 files of {domain} are left: {files:#?}");
+
+    let listed = json_of(&["process", "resources", "--domain", domain]);
+    assert_eq!(listed["nodes"], Value::Array(vec![]), "nodes of {domain}: {listed}");
+    assert_eq!(listed["services"], Value::Array(vec![]), "services of {domain}: {listed}");
+}
+
+/// A `uavloc launch --headless --json` running in the background, its stderr going to a file.
+pub struct Launch {
+    pub child: Child,
+    pub domain: String,
+    pub log: PathBuf,
+    pub stderr: PathBuf,
+}
+
+impl Launch {
+    /// Starts `uavloc launch --headless --json --domain D --log DIR/run.jsonl <extra>`.
+    pub fn start(domain: &str, dir: &Path, extra: &[&str]) -> Launch {
+        let log = dir.join("run.jsonl");
+        let stderr = dir.join("launch.stderr");
+        let mut args = vec!["launch", "--headless", "--json", "--domain", domain, "--log", log.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let child = Command::new(UAVLOC)
+            .args(&args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(&stderr).unwrap())
+            .spawn()
+            .expect("start uavloc launch");
+        Launch { child, domain: domain.to_string(), log, stderr }
+    }
+
+    /// The events of the JSONL log so far.
+    pub fn events(&self) -> Vec<Value> {
+        read_events(&self.log)
+    }
+
+    /// Waits until the monitor has logged step `step` (panics after `timeout` or if the launch exits).
+    pub fn wait_for_step(&mut self, step: u64, timeout: Duration) {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if self.events().iter().any(|e| e["event"] == "step" && e["step"].as_u64().is_some_and(|s| s >= step)) {
+                return;
+            }
+            if let Ok(Some(status)) = self.child.try_wait() {
+                panic!("the launch ended ({status}) before step {step}:\n{}", self.stderr_text());
+            }
+            assert!(Instant::now() < deadline, "step {step} not logged within {timeout:?}:\n{}", self.stderr_text());
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    pub fn stderr_text(&self) -> String {
+        std::fs::read_to_string(&self.stderr).unwrap_or_default()
+    }
+
+    /// Waits for the launch to end; its exit status and stdout.
+    pub fn finish(self) -> (std::process::ExitStatus, String, String) {
+        let stderr = self.stderr.clone();
+        let out = self.child.wait_with_output().expect("wait for the launch");
+        (
+            out.status,
+            String::from_utf8_lossy(&out.stdout).to_string(),
+            std::fs::read_to_string(stderr).unwrap_or_default(),
+        )
+    }
+
+    /// Waits for a successful end and returns its JSON.
+    pub fn finish_json(self) -> Value {
+        let (status, stdout, stderr) = self.finish();
+        assert!(status.success(), "the launch failed ({status}):\n{stderr}");
+        serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {stdout}\n{stderr}"))
+    }
+}
+
+/// The events of a JSONL log (incomplete last lines skipped).
+pub fn read_events(path: &Path) -> Vec<Value> {
+    std::fs::read_to_string(path)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .collect()
+}

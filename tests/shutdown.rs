@@ -1,0 +1,95 @@
+//! SIGTERM stops a pipeline cleanly: sent to `uavloc launch` mid-run, the launcher stops its four
+//! children and exits 1, leaving no process and no iceoryx2 resource of the domain; sent to processes
+//! started by hand, each exits on its own (estimator and planner 0, emitter-sim and monitor 130: the run
+//! was cut short) and takes its iceoryx2 resources with it.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{Launch, UAVLOC, assert_nothing_left, domain, kill, pid_of, read_events, scratch};
+
+/// Waits at most `timeout` for `child` to exit.
+fn wait_exit(child: &mut Child, timeout: Duration, what: &str) -> std::process::ExitStatus {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status;
+        }
+        assert!(Instant::now() < deadline, "{what} did not exit within {timeout:?} of SIGTERM");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn sigterm_to_the_launcher_mid_run_stops_everything() {
+    let d = domain("shutdown", "launch");
+    let dir = scratch("shutdown-launch");
+    let mut launch = Launch::start(&d, &dir, &["--steps", "500", "--step-delay-ms", "20"]);
+    launch.wait_for_step(3, Duration::from_secs(30));
+    for role in ["monitor", "planner", "estimator", "emitter-sim"] {
+        assert!(pid_of(&d, role).is_some(), "the {role} of {d} runs");
+    }
+    kill(launch.child.id(), libc::SIGTERM);
+    let status = wait_exit(&mut launch.child, Duration::from_secs(10), "the launcher");
+    assert_eq!(status.code(), Some(1), "{}", launch.stderr_text());
+    let stderr = launch.stderr_text();
+    assert!(stderr.contains("interrupted by SIGTERM"), "{stderr}");
+    // The monitor wrote its partial run and said it ended early.
+    let events = launch.events();
+    let end = events.iter().find(|e| e["event"] == "end").expect("an end event");
+    assert_eq!(end["complete"], false, "{end}");
+    assert!(end["steps"].as_u64().unwrap() < 500);
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `uavloc process <role> --domain D --supervised --quiet <extra>`, after it printed `ready`.
+fn start(role: &str, d: &str, extra: &[&str]) -> Child {
+    let mut child = Command::new(UAVLOC)
+        .args(["process", role, "--domain", d, "--supervised", "--quiet"])
+        .args(extra)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start a process");
+    let mut line = String::new();
+    BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
+    assert_eq!(line.trim(), "ready", "{role}");
+    child
+}
+
+#[test]
+fn sigterm_to_processes_started_by_hand() {
+    let d = domain("shutdown", "hand");
+    let dir = scratch("shutdown-hand");
+    let log = dir.join("run.jsonl");
+    let run = ["--steps", "500"];
+    let mut monitor = start("monitor", &d, &[&run[..], &["--log", log.to_str().unwrap()]].concat());
+    let mut planner = start("planner", &d, &run);
+    let mut estimator = start("estimator", &d, &[]);
+    let mut emitter =
+        start("emitter-sim", &d, &[&run[..], &["--min-subscribers", "2", "--step-delay-ms", "20"]].concat());
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !read_events(&log).iter().any(|e| e["event"] == "step" && e["step"].as_u64() >= Some(2)) {
+        assert!(Instant::now() < deadline, "the hand-started pipeline does not run");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // One at a time, mid-run: each exits by itself, with its own exit code.
+    for (child, role, code) in [
+        (&mut estimator, "estimator", 0),
+        (&mut planner, "planner", 0),
+        (&mut emitter, "emitter-sim", 130),
+        (&mut monitor, "monitor", 130),
+    ] {
+        kill(child.id(), libc::SIGTERM);
+        let status = wait_exit(child, Duration::from_secs(5), role);
+        assert_eq!(status.code(), Some(code), "{role}");
+        assert!(pid_of(&d, role).is_none(), "{role} is gone");
+    }
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
