@@ -14,10 +14,27 @@
 //!    before its subscribers are there (the topics keep no history). emitter-sim also checks the topics
 //!    itself (≥ 2 measurement subscribers, a planner) before step 0.
 //! 3. The run ends when emitter-sim (after the last step) and the monitor (after recording it) exit 0; the
-//!    estimator and planner are then stopped with SIGTERM (SIGKILL after a grace period). Any child
-//!    exiting early or with an error stops the others and fails the launch.
-//! 4. Stale iceoryx2 resources of the domain (a child killed) are removed, and the launcher checks that
+//!    estimator and planner are then stopped with SIGTERM (SIGKILL after a grace period).
+//! 4. A child that exits before that (a crash, a kill, an error) is restarted: the restart is written to
+//!    the `--log` (`{"event": "restart", "role", "pid", "exit", "attempt", "backoff_ms"}`) and counted in
+//!    `restarts`; the dead node's iceoryx2 resources are removed; after 50 ms · 2^(attempt − 1) the same
+//!    role starts again with the same flags (a monitor with `--resume`: it takes the steps of its log).
+//!    The new process announces itself on the control topic and emitter-sim replays the run to it (see
+//!    `emitter_sim::process`), so the run resumes exactly where it was; a restarted emitter-sim starts
+//!    from step 0 and fast-forwards through the answers the estimator and planner kept. A child that exits
+//!    with code 2 (bad input), or crashes more than `--max-restarts` times, stops the others and fails the
+//!    launch. (`tests/crash_restart.rs`.)
+//! 5. At the end (or on an error or a signal), once its children are stopped, the launcher publishes a
+//!    shutdown on the domain's control topic if processes of the domain are still alive — processes
+//!    swapped in by `uavloc swap` are not its children and stop on it — and waits for them. A planner or estimator that exits because a swapped-in one took over (`handed_over_at` in
+//!    its summary) is not restarted.
+//! 6. Stale iceoryx2 resources of the domain (a child killed) are removed, and the launcher checks that
 //!    none are left.
+//!
+//! Limits of restarts: a monitor that dies after emitter-sim finished the run cannot be replayed to (the
+//! launch then fails after the grace period); a process SIGKILLed inside iceoryx2's node creation (a window
+//! of microseconds between its details file and its monitoring token) leaves a node directory iceoryx2
+//! cannot list or clean.
 //!
 //! Every child runs in its own process group (a terminal's Ctrl-C reaches only the launcher, which stops
 //! the children in order) with `PR_SET_PDEATHSIG = SIGTERM`, so none outlives a launcher that dies.
@@ -25,8 +42,9 @@
 //! them left behind (`tests/shutdown.rs`).
 //!
 //! The output is the monitor's run record, i.e. the JSON of `uavloc simulate --json` (built only from what
-//! the monitor received), plus `restarts` (always 0 for now), `rejected` (invalid messages counted by
-//! all four processes) and `rejected_by` (the same per process role; `tests/bad_messages.rs`).
+//! the monitor received), plus `restarts`, `rejected` (invalid messages counted by all four processes),
+//! `rejected_by` (the same per process role; `tests/bad_messages.rs`) and `processes` (every instance
+//! started: role, pid, exit, whether it was restarted, its summary).
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
@@ -41,7 +59,7 @@ use clap::{Args, Subcommand};
 use monitor::RunRecord;
 use monitor::resources::{self, DomainResources};
 use planner::{ObjectiveKind, SolverKind, TargetMode};
-use protocol::services::{DOMAIN_ENV, Domain};
+use protocol::services::{self, DOMAIN_ENV, Domain};
 use serde::Serialize;
 
 use crate::error::CliError;
@@ -60,7 +78,12 @@ itself (`uavloc process <role>`), so no other binary is needed.
 
 The monitor shows one line per step on stderr (CRLB and RMSE at the truth, estimate error, hop latencies,
 active planner, rejected messages) unless --headless. At the end the run is printed as a table, or with
---json as the JSON of `uavloc simulate --json` plus \"restarts\" and \"rejected\".
+--json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\" and
+\"processes\".
+
+A child that crashes is restarted (at most --max-restarts times, after 50 ms, 100 ms, ...; written to the
+--log): emitter-sim replays the run to the new process, which picks up exactly where its predecessor was,
+so the result does not change.
 
 Only target = \"chan\" scenarios run in the pipeline (controlled mode needs the truth in the planner).
 Exit codes: 0 success, 1 a process failed or the launch was interrupted, 2 bad input.";
@@ -116,6 +139,12 @@ pub struct LaunchArgs {
     /// or to swap or kill a process mid-run; the results do not change). 0: full speed.
     #[arg(long, value_name = "MS", default_value_t = 0)]
     pub step_delay_ms: u64,
+    /// emitter-sim replays the run when a step's command is this many milliseconds late.
+    #[arg(long, value_name = "MS", default_value_t = 1000)]
+    pub retry_interval_ms: u64,
+    /// Restart a crashed process at most this many times (per process), after 50 ms, 100 ms, 200 ms, …
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub max_restarts: u32,
 }
 
 fn parse_objective(s: &str) -> Result<ObjectiveKind, String> {
@@ -235,6 +264,8 @@ const READY_TIMEOUT: Duration = Duration::from_secs(30);
 const STOP_GRACE: Duration = Duration::from_secs(5);
 /// How often the launcher looks at its children and signals when nothing else happens.
 const TICK: Duration = Duration::from_millis(50);
+/// The wait before the first restart of a crashed process; it doubles with each further restart.
+const RESTART_BACKOFF: Duration = Duration::from_millis(50);
 
 enum Event {
     Line(usize, String),
@@ -243,6 +274,10 @@ enum Event {
 
 struct Proc {
     role: &'static str,
+    /// Its flags (a restart uses them again).
+    flags: Vec<String>,
+    /// It crashed and was restarted (a newer entry of the same role took its place).
+    replaced: bool,
     child: Child,
     ready: bool,
     /// Its stdout reached end of file (every line it printed has been handled).
@@ -252,6 +287,11 @@ struct Proc {
 }
 
 impl Proc {
+    /// It exited because a newer instance took over (`uavloc swap`): no restart.
+    fn handed_over(&self) -> bool {
+        self.exit.is_some_and(|s| s.success()) && self.summary.as_ref().is_some_and(|s| !s["handed_over_at"].is_null())
+    }
+
     fn describe_exit(&self) -> String {
         match self.exit {
             Some(s) => match (s.code(), std::os::unix::process::ExitStatusExt::signal(&s)) {
@@ -270,16 +310,22 @@ struct Supervisor {
     tx: Sender<Event>,
     rx: Receiver<Event>,
     record: Option<String>,
+    domain: Domain,
+    /// The monitor's JSON-lines log, where restarts are written too.
+    log: Option<PathBuf>,
+    max_restarts: u32,
+    restarts: u64,
 }
 
 impl Supervisor {
-    fn new() -> Self {
+    fn new(domain: Domain, log: Option<PathBuf>, max_restarts: u32) -> Self {
         let (tx, rx) = mpsc::channel();
-        Self { procs: Vec::new(), tx, rx, record: None }
+        Self { procs: Vec::new(), tx, rx, record: None, domain, log, max_restarts, restarts: 0 }
     }
 
+    /// The current instance of `role`.
     fn index(&self, role: &str) -> usize {
-        self.procs.iter().position(|p| p.role == role).expect("a started role")
+        self.procs.iter().rposition(|p| p.role == role).expect("a started role")
     }
 
     /// Starts `uavloc process <role> <flags> --supervised` with stdout piped to a reader thread.
@@ -289,7 +335,7 @@ impl Supervisor {
         command
             .arg("process")
             .arg(role)
-            .args(&flags)
+            .args(flags.iter())
             .arg("--supervised")
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
@@ -321,7 +367,16 @@ impl Supervisor {
             }
             let _ = tx.send(Event::Closed(index));
         });
-        self.procs.push(Proc { role, child, ready: false, closed: false, exit: None, summary: None });
+        self.procs.push(Proc {
+            role,
+            flags,
+            replaced: false,
+            child,
+            ready: false,
+            closed: false,
+            exit: None,
+            summary: None,
+        });
         Ok(())
     }
 
@@ -374,7 +429,7 @@ impl Supervisor {
     /// Fails if a child has exited although it should still run (`expected` lists the roles allowed to
     /// have finished, with exit code 0).
     fn check_exits(&self, finished_ok: &[&str]) -> Result<(), CliError> {
-        for p in &self.procs {
+        for p in self.procs.iter().filter(|p| !p.replaced) {
             if let Some(status) = p.exit
                 && !(finished_ok.contains(&p.role) && status.success())
             {
@@ -401,15 +456,15 @@ impl Supervisor {
         Ok(())
     }
 
-    /// Runs until emitter-sim and the monitor have finished; the monitor gets `monitor_grace` after
-    /// emitter-sim's end to record the last step (it cannot, if one of the last messages never came).
+    /// Runs until emitter-sim and the monitor have finished, restarting the processes that crash; the
+    /// monitor gets `monitor_grace` after emitter-sim's end to record the last step (it cannot, if one of
+    /// the last messages never came).
     fn wait_for_the_end(&mut self, monitor_grace: Duration) -> Result<(), CliError> {
-        let finished = ["emitter-sim", "monitor"];
-        let (emitter, monitor) = (self.index("emitter-sim"), self.index("monitor"));
         let mut emitter_done_at = None;
         loop {
             self.pump()?;
-            self.check_exits(&finished)?;
+            self.restart_crashed()?;
+            let (emitter, monitor) = (self.index("emitter-sim"), self.index("monitor"));
             if self.procs[emitter].exit.is_some() {
                 let since = *emitter_done_at.get_or_insert_with(Instant::now);
                 if self.procs[monitor].exit.is_some() {
@@ -421,6 +476,85 @@ impl Supervisor {
                     )));
                 }
             }
+        }
+    }
+
+    /// Restarts every current process that exited although it should still run — all but emitter-sim and
+    /// the monitor after a successful end. A process that exits with code 2 (bad input) or has crashed
+    /// `max_restarts` times fails the launch.
+    fn restart_crashed(&mut self) -> Result<(), CliError> {
+        for i in 0..self.procs.len() {
+            let p = &self.procs[i];
+            let Some(status) = p.exit else { continue };
+            if status.success() && !p.closed {
+                continue; // judged once its last lines (its summary) are in
+            }
+            if p.replaced || p.handed_over() || (matches!(p.role, "emitter-sim" | "monitor") && status.success()) {
+                continue;
+            }
+            let role = p.role;
+            let attempt = self.procs.iter().filter(|q| q.role == role && q.replaced).count() as u32 + 1;
+            if status.code() == Some(2) || attempt > self.max_restarts {
+                let why =
+                    if status.code() == Some(2) { String::new() } else { format!(" after {} restart(s)", attempt - 1) };
+                return Err(CliError::Failed(format!(
+                    "the {role} process stopped unexpectedly ({}){why}",
+                    p.describe_exit()
+                )));
+            }
+            self.restart(i, attempt)?;
+        }
+        Ok(())
+    }
+
+    /// Restarts process `i` (attempt `attempt`): writes the restart to the log, removes the dead node's
+    /// iceoryx2 resources, waits 50 ms · 2^(attempt−1), starts the same role with the same flags (a
+    /// monitor with `--resume`) and waits until it is ready. If the new process fails to get ready, it is
+    /// left exited: the next round restarts it again (and counts the attempt).
+    fn restart(&mut self, i: usize, attempt: u32) -> Result<(), CliError> {
+        let backoff = RESTART_BACKOFF * 2u32.pow(attempt - 1);
+        let (role, exit, pid) = (self.procs[i].role, self.procs[i].describe_exit(), self.procs[i].child.id());
+        eprintln!(
+            "warning: the {role} process (pid {pid}) stopped unexpectedly ({exit}); restarting it in {backoff:?} \
+             (attempt {attempt} of {})",
+            self.max_restarts
+        );
+        self.write_log(serde_json::json!({
+            "event": "restart", "t_ns": protocol::now_ns(), "role": role, "pid": pid, "exit": exit,
+            "attempt": attempt, "backoff_ms": backoff.as_millis() as u64,
+        }));
+        self.procs[i].replaced = true;
+        self.restarts += 1;
+        resources::remove_dead_nodes(&self.domain).map_err(CliError::Failed)?;
+        let until = Instant::now() + backoff;
+        while Instant::now() < until {
+            self.pump()?;
+        }
+        let mut flags = self.procs[i].flags.clone();
+        if role == "monitor" && !flags.iter().any(|f| f == "--resume") {
+            flags.push("--resume".into());
+        }
+        self.spawn(role, flags)?;
+        let new = self.procs.len() - 1;
+        let deadline = Instant::now() + READY_TIMEOUT;
+        while !self.procs[new].ready && self.procs[new].exit.is_none() {
+            self.pump()?;
+            if Instant::now() > deadline {
+                return Err(CliError::Failed(format!(
+                    "the restarted {role} did not get ready within {READY_TIMEOUT:?}"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Appends one event to the monitor's JSON-lines log (one `write`, like the monitor's own lines).
+    fn write_log(&self, event: serde_json::Value) {
+        use std::io::Write as _;
+        if let Some(path) = &self.log
+            && let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(path)
+        {
+            let _ = f.write_all(format!("{event}\n").as_bytes());
         }
     }
 
@@ -461,13 +595,17 @@ impl Supervisor {
 // The launch
 // ---------------------------------------------------------------------------------------------------------
 
-/// One child's outcome, as reported in the table.
+/// One child's outcome (every instance, also the crashed ones).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ChildReport {
     pub role: String,
     pub pid: u32,
     pub exit: String,
     pub rejected: u64,
+    /// Whether it crashed and was replaced by a restarted instance.
+    pub restarted: bool,
+    /// Its `summary` line (none if it was killed).
+    pub summary: Option<serde_json::Value>,
 }
 
 /// What `uavloc launch` prints: the monitor's run record (the JSON shape of `uavloc simulate --json`)
@@ -476,18 +614,19 @@ pub struct ChildReport {
 pub struct LaunchReport {
     #[serde(flatten)]
     pub run: RunRecord,
-    /// Children restarted after a crash (restarts are not implemented yet: always 0).
+    /// Children restarted after a crash.
     pub restarts: u64,
     /// Invalid messages counted and ignored by all four processes.
     pub rejected: u64,
     /// The same count per process role.
     pub rejected_by: BTreeMap<String, u64>,
+    /// Every process instance the launch started, in start order.
+    #[serde(rename = "processes")]
+    pub children: Vec<ChildReport>,
     #[serde(skip)]
     pub domain: String,
     #[serde(skip)]
     pub wall_s: f64,
-    #[serde(skip)]
-    pub children: Vec<ChildReport>,
     #[serde(skip)]
     pub latency: Option<serde_json::Value>,
     #[serde(skip)]
@@ -526,9 +665,20 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     }
 
     catch_termination_signals();
-    let mut sup = Supervisor::new();
+    let mut sup = Supervisor::new(domain.clone(), args.log.clone(), args.max_restarts);
     let result = start_and_run(&mut sup, args, &domain);
     sup.stop_all();
+    // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown
+    // message.
+    if resources::list(&domain).is_ok_and(|r| r.alive_nodes().next().is_some()) {
+        match send_shutdown(&domain) {
+            Ok(control) => {
+                wait_until_no_process_left(&domain);
+                drop(control);
+            }
+            Err(e) => eprintln!("warning: cannot send the shutdown message to domain {domain}: {e}"),
+        }
+    }
     // A child that crashed or had to be killed leaves its iceoryx2 node behind: remove it — also when the
     // launch failed or was interrupted — then check.
     let cleaned = resources::remove_dead_nodes(&domain).map_err(CliError::Failed);
@@ -550,6 +700,8 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
             pid: p.child.id(),
             exit: p.describe_exit(),
             rejected: p.summary.as_ref().and_then(|s| s["rejected"].as_u64()).unwrap_or(0),
+            restarted: p.replaced,
+            summary: p.summary.clone(),
         })
         .collect();
     let latency = sup.procs[sup.index("monitor")].summary.as_ref().map(|s| s["latency"].clone());
@@ -559,7 +711,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     }
     Ok(LaunchReport {
         run,
-        restarts: 0,
+        restarts: sup.restarts,
         rejected: children.iter().map(|c| c.rejected).sum(),
         rejected_by,
         domain: domain.to_string(),
@@ -568,6 +720,39 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         latency,
         leftovers,
     })
+}
+
+/// The launcher's own node on the control topic, kept until the others have stopped.
+type ControlNode = (protocol::ControlChannel, protocol::transport::IpcNode);
+
+/// Publishes [`ControlKind::Shutdown`](protocol::ControlKind::Shutdown) on the domain's control topic.
+fn send_shutdown(domain: &Domain) -> Result<ControlNode, String> {
+    let node = protocol::transport::node_without_signal_handling(&services::node_name(domain, "launcher"))
+        .map_err(|e| e.to_string())?;
+    let started_ns = protocol::now_ns();
+    let control = protocol::ControlChannel::open(
+        &node,
+        domain,
+        "launcher",
+        protocol::control::instance_id_at(started_ns),
+        started_ns,
+    )
+    .map_err(|e| e.to_string())?;
+    control.send(protocol::ControlKind::Shutdown, 0, "").map_err(|e| e.to_string())?;
+    Ok((control, node))
+}
+
+/// Waits (at most [`STOP_GRACE`]) until no process of the domain is alive (swapped-in processes that got
+/// the shutdown message).
+fn wait_until_no_process_left(domain: &Domain) {
+    let deadline = Instant::now() + STOP_GRACE;
+    while Instant::now() < deadline {
+        match resources::list(domain) {
+            Ok(r) if r.alive_nodes().any(|n| !n.ends_with("/launcher")) => std::thread::sleep(TICK / 5),
+            _ => return,
+        }
+    }
+    eprintln!("warning: processes of domain {domain} are still running after the shutdown message");
 }
 
 /// Starts the children in order, each after the previous one is ready, and waits for the end of the run.
@@ -613,6 +798,8 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
                 flags.extend([
                     "--step-delay-ms".to_string(),
                     args.step_delay_ms.to_string(),
+                    "--retry-interval-ms".to_string(),
+                    args.retry_interval_ms.to_string(),
                     "--command-timeout-s".to_string(),
                     args.command_timeout_s.to_string(),
                     // The estimator and the monitor.
@@ -673,7 +860,9 @@ impl Report for LaunchReport {
             .row("restarts", self.restarts.to_string())
             .row("wall time", format!("{:.2} s", self.wall_s));
         for c in &self.children {
-            t = t.row(format!("  {}", c.role), format!("pid {}, {}, rejected {}", c.pid, c.exit, c.rejected));
+            let restarted = if c.restarted { " (crashed, restarted)" } else { "" };
+            t = t
+                .row(format!("  {}", c.role), format!("pid {}, {}, rejected {}{restarted}", c.pid, c.exit, c.rejected));
         }
         t
     }

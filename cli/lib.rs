@@ -18,6 +18,7 @@ pub mod locate;
 pub mod output;
 pub mod rmse;
 pub mod simulate;
+pub mod swap;
 
 pub use error::CliError;
 pub use output::{Diagnostic, Report, Table};
@@ -95,6 +96,12 @@ pub enum Command {
         after_help = launch::AFTER_HELP
     )]
     Launch(launch::LaunchArgs),
+    /// Replace the running planner or estimator of a pipeline by a new instance (e.g. another solver).
+    #[command(
+        long_about = swap::LONG_ABOUT,
+        after_help = swap::AFTER_HELP
+    )]
+    Swap(swap::SwapArgs),
     /// Run one pipeline process in this binary (what `uavloc launch` starts): emitter-sim, estimator,
     /// planner, monitor.
     #[command(hide = true)]

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::Parser;
 use clap::error::ErrorKind;
 use uavloc::{
-    Cli, CliError, Command, Diagnostic, Report, crlb, global, launch, locate, one_line_clap_error, rmse, simulate,
+    Cli, CliError, Command, Diagnostic, Report, crlb, global, launch, locate, one_line_clap_error, rmse, simulate, swap,
 };
 
 fn main() -> ExitCode {
@@ -35,6 +35,7 @@ fn main() -> ExitCode {
         Command::Rmse(a) => emit(rmse::run(a), json),
         Command::Simulate(a) => emit(simulate::run(a), json),
         Command::Launch(a) => emit(launch::run(a), json),
+        Command::Swap(a) => emit(swap::run(a), json),
         Command::Process(a) => launch::run_process(a),
     }
 }

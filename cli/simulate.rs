@@ -131,6 +131,7 @@ pub fn run_closed_loop(
             objective_value: None,
             plan_ms: None,
             active_constraints: Vec::new(),
+            planner: None,
         };
         if k < scenario.steps as u64 {
             let plan = plan_step(&PlanRequest {

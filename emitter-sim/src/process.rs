@@ -7,18 +7,38 @@
 //!    `uavloc simulate`), range σ and current headings; from step 1 on it carries the stamps of the
 //!    command that triggered it;
 //! 2. wait for a valid [`Command`] with `step == k` (invalid ones are counted and ignored, commands for
-//!    other steps are ignored), at most `--command-timeout-s`: without one the process exits with an
-//!    error (code 1) naming the step;
+//!    other steps are ignored);
 //! 3. [`World::apply`] its headings (a command the world refuses, e.g. with the wrong UAV count, counts
 //!    as rejected and the wait goes on).
 //!
 //! After the last planned step it publishes the truth and measurement of step `steps` (recorded by the
 //! monitor, not planned) and exits 0.
 //!
+//! # Replays: how the pipeline survives a restarted process
+//!
+//! emitter-sim keeps the truth and measurement of every step it published. It *replays* steps `from..=k`
+//! — publishes them again, same step, same data, new sequence numbers, one step at a time, each after the
+//! command of the previous one came back (that command is not applied: the world is already past it) —
+//! when
+//! - a process announces itself on the control topic ([`ControlKind::Hello`]: an estimator or planner
+//!   restarted after a crash asks for step 0, since their state is rebuilt from the whole run; a
+//!   restarted monitor asks for the first step missing from its log), or
+//! - the command of step k has not come `--retry-interval-ms` after the step was (re)published: a
+//!   process died or lost the message; everything is replayed from step 0.
+//!
+//! The estimator and the planner answer a message they have seen before with the answer they gave
+//! before, so a replay costs a hop per step and changes nothing; a process that lost its state rebuilds
+//! exactly the state it had. It gives up (exit 1) when the command of a step has not come after
+//! `--command-timeout-s` in all.
+//!
+//! A restarted emitter-sim starts from step 0: the world is deterministic, so it publishes exactly the
+//! measurements of its predecessor, the estimator and planner answer them from what they kept, and the run
+//! fast-forwards to where it was.
+//!
 //! Before step 0 it waits until the pipeline is connected — at least `--min-subscribers` subscribers on
 //! the measurement topic and a publisher (the planner) on the command topic — because a message
-//! published before its subscriber exists is lost (the topics keep no history). SIGINT/SIGTERM stop it
-//! cleanly (exit code 130).
+//! published before its subscriber exists is lost (the topics keep no history). SIGINT/SIGTERM, or a
+//! [`ControlKind::Shutdown`], stop it cleanly (exit code 130).
 
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -28,9 +48,12 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use iceoryx2::prelude::*;
 use planner::process::load_scenario;
+use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
+use protocol::transport::{TopicPublisher, wait_any};
 use protocol::{
-    Command, Measurement, Message, RejectionCounter, Topic, TopicSubscriber, TransportError, Truth, now_ns,
+    Command, ControlChannel, ControlKind, Measurement, Message, RejectionCounter, Stamps, Topic, TopicSubscriber,
+    TransportError, Truth, now_ns,
 };
 
 use crate::World;
@@ -77,6 +100,10 @@ pub struct EmitterSimArgs {
     /// Give up (exit 1) when the command for a step has not arrived after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     pub command_timeout_s: f64,
+    /// Replay the run from step 0 when the command for a step has not arrived this many milliseconds
+    /// after the step was published (a process died or lost it).
+    #[arg(long, value_name = "MS", default_value_t = 1000)]
+    pub retry_interval_ms: u64,
     /// Give up (exit 1) when the pipeline is not connected after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 60.0)]
     pub connect_timeout_s: f64,
@@ -151,8 +178,12 @@ pub struct EmitterSummary {
     pub accepted: u64,
     /// Invalid commands ignored (failed validation, or refused by the world).
     pub rejected: u64,
-    /// Valid commands for another step than the one waited for.
+    /// Valid commands for another step than the one waited for (also the answers to replayed steps).
     pub ignored: u64,
+    /// Replays (see the module docs).
+    pub replays: u64,
+    /// Replays because a step's command was late.
+    pub retries: u64,
 }
 
 fn announce(supervised: bool, line: &str) {
@@ -165,30 +196,6 @@ fn announce(supervised: bool, line: &str) {
 
 fn interrupted(node: &Node<ipc::Service>) -> bool {
     node.wait(Duration::ZERO).is_err()
-}
-
-/// Blocks (after busy-polling `spin`) for at most `timeout`; `Interrupted` on SIGINT/SIGTERM.
-fn next_batch<T: protocol::Message>(
-    node: &Node<ipc::Service>,
-    sub: &TopicSubscriber<T>,
-    spin: Duration,
-    timeout: Duration,
-) -> Result<Vec<T>, ProcessError> {
-    if interrupted(node) {
-        return Err(ProcessError::Interrupted);
-    }
-    match sub.wait(spin, timeout) {
-        Ok(batch) => Ok(batch),
-        // A signal interrupted the wait: stop if it was SIGINT/SIGTERM, else carry on.
-        Err(TransportError::Interrupted) => {
-            if interrupted(node) {
-                Err(ProcessError::Interrupted)
-            } else {
-                Ok(Vec::new())
-            }
-        }
-        Err(e) => Err(e.into()),
-    }
 }
 
 fn open_pubsub<T: Message>(
@@ -227,6 +234,177 @@ fn wait_for_pipeline(node: &Node<ipc::Service>, domain: &Domain, args: &EmitterS
     }
 }
 
+/// The ports and the state of the lock-step loop.
+struct Sim<'a> {
+    args: &'a EmitterSimArgs,
+    node: &'a Node<ipc::Service>,
+    waitset: &'a WaitSet<ipc::Service>,
+    truths: &'a TopicPublisher<Truth>,
+    measurements: &'a TopicPublisher<Measurement>,
+    commands: &'a TopicSubscriber<Command>,
+    control: &'a ControlChannel,
+    world: World,
+    summary: EmitterSummary,
+    counter: RejectionCounter,
+    last_seq: Option<u64>,
+    seq: u64,
+    /// The truth and measurement of every step published so far, as first published.
+    sent: Vec<(Truth, Measurement)>,
+    /// The command applied for the step being waited for, with its receive time.
+    applied: Option<(Command, u64)>,
+    /// The first step a process that joined asked to see again.
+    replay_from: Option<u64>,
+}
+
+impl Sim<'_> {
+    fn send(&mut self, mut truth: Truth, mut measurement: Measurement) -> Result<(), ProcessError> {
+        self.seq += 1;
+        truth.header.seq = self.seq;
+        measurement.header.seq = self.seq;
+        self.truths.send(&truth)?;
+        self.measurements.send(&measurement)?;
+        self.summary.measurements += 1;
+        Ok(())
+    }
+
+    /// Publishes step `j` again (new sequence number, no stamps: its latencies mean nothing).
+    fn send_again(&mut self, j: u64) -> Result<(), ProcessError> {
+        let (mut truth, mut measurement) = self.sent[j as usize];
+        truth.header.stamps = Stamps::default();
+        measurement.header.stamps = Stamps::default();
+        self.send(truth, measurement)
+    }
+
+    /// Waits at most `timeout` for a command or a control message.
+    fn wait(&self, timeout: Duration) -> Result<(), ProcessError> {
+        let ready = || Ok(self.commands.has_samples()? || self.control.subscriber().has_samples()?);
+        wait_any(self.waitset, Duration::from_micros(self.args.spin_us), timeout, ready)?;
+        if interrupted(self.node) {
+            return Err(ProcessError::Interrupted);
+        }
+        Ok(())
+    }
+
+    /// Handles the control messages: a (re)started estimator, planner or monitor asks for a replay; a
+    /// shutdown stops the run.
+    fn drain_control(&mut self) -> Result<(), ProcessError> {
+        for msg in self.control.receive(&mut self.counter)? {
+            let c = match msg {
+                Ok(c) => c,
+                Err(r) => {
+                    self.summary.rejected += 1;
+                    eprintln!("emitter-sim: rejected a control message: {r}");
+                    continue;
+                }
+            };
+            match c.kind() {
+                Some(ControlKind::Shutdown) => return Err(ProcessError::Interrupted),
+                Some(ControlKind::Hello) if matches!(c.role(), Some("estimator" | "planner" | "monitor")) => {
+                    let from = c.header.step;
+                    if !self.args.quiet {
+                        eprintln!(
+                            "emitter-sim: a {} joined (instance {:#x}); replaying from step {from}",
+                            c.role().unwrap_or("?"),
+                            c.instance
+                        );
+                    }
+                    self.replay_from = Some(self.replay_from.map_or(from, |f| f.min(from)));
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// Handles the commands received: applies the first valid one for step `k` (once); returns whether
+    /// one for step `answered` (a replayed step) came.
+    fn drain_commands(&mut self, k: u64, answered: Option<u64>) -> Result<bool, ProcessError> {
+        let batch = self.commands.receive_all()?;
+        let received_ns = now_ns();
+        let mut answer = false;
+        // Every message of the batch is checked and counted, also after the one that is applied.
+        for cmd in batch {
+            if let Err(r) = self.counter.check(&cmd, &mut self.last_seq) {
+                self.summary.rejected += 1;
+                eprintln!("emitter-sim: rejected a command: {r}");
+                continue;
+            }
+            self.summary.accepted += 1;
+            let step = cmd.header.step;
+            if step == k && self.applied.is_none() {
+                if let Err(e) = self.world.apply(cmd.headings()) {
+                    self.summary.rejected += 1;
+                    eprintln!("emitter-sim: step {k}: refused a command: {e}");
+                    continue;
+                }
+                self.applied = Some((cmd, received_ns));
+                continue;
+            }
+            answer |= Some(step) == answered;
+            self.summary.ignored += 1;
+        }
+        Ok(answer)
+    }
+
+    /// Replays steps `from..=k` (see the module docs); a step whose command does not come back within the
+    /// retry interval ends the replay early (the next retry starts over).
+    fn replay(&mut self, from: u64, k: u64) -> Result<(), ProcessError> {
+        self.summary.replays += 1;
+        let retry = Duration::from_millis(self.args.retry_interval_ms);
+        for j in from..k {
+            self.send_again(j)?;
+            let deadline = Instant::now() + retry;
+            loop {
+                let now = Instant::now();
+                if now >= deadline {
+                    eprintln!("emitter-sim: replay: no command for step {j} within {retry:?}; retrying later");
+                    return Ok(());
+                }
+                self.wait((deadline - now).min(IDLE_WAKEUP))?;
+                self.drain_control()?;
+                if self.drain_commands(k, Some(j))? {
+                    break;
+                }
+            }
+        }
+        self.send_again(k)
+    }
+
+    /// Waits for (and applies) the command of step `k`, replaying when a process joins or the command is
+    /// late; fails after the command timeout.
+    fn wait_for_command(&mut self, k: u64, domain: &Domain) -> Result<(Command, u64), ProcessError> {
+        let start = Instant::now();
+        let timeout = Duration::from_secs_f64(self.args.command_timeout_s);
+        let retry = Duration::from_millis(self.args.retry_interval_ms);
+        let mut published = start;
+        loop {
+            if let Some(applied) = self.applied.take() {
+                return Ok(applied);
+            }
+            let now = Instant::now();
+            if now - start >= timeout {
+                return Err(ProcessError::Failed(format!(
+                    "step {k}: no command within {} s (is a planner running with --domain {domain}?)",
+                    self.args.command_timeout_s
+                )));
+            }
+            if now - published >= retry {
+                eprintln!("emitter-sim: step {k}: no command after {retry:?}; replaying the run from step 0");
+                self.summary.retries += 1;
+                self.replay_from = Some(0);
+            }
+            if let Some(from) = self.replay_from.take() {
+                self.replay(from.min(k), k)?;
+                published = Instant::now();
+                continue;
+            }
+            self.wait((timeout - (now - start)).min(retry - (now - published)).min(IDLE_WAKEUP))?;
+            self.drain_control()?;
+            self.drain_commands(k, None)?;
+        }
+    }
+}
+
 /// Runs the lock-step loop to its end.
 pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     protocol::transport::quiet_logs();
@@ -239,16 +417,29 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     if !(args.connect_timeout_s >= 0.0 && args.connect_timeout_s.is_finite()) {
         return Err(ProcessError::Input(format!("--connect-timeout-s must be ≥ 0, got {}", args.connect_timeout_s)));
     }
-    let mut world = World::from_scenario(&scenario).map_err(|e| ProcessError::Input(format!("scenario: {e}")))?;
+    if args.retry_interval_ms == 0 {
+        return Err(ProcessError::Input("--retry-interval-ms must be > 0".into()));
+    }
+    let world = World::from_scenario(&scenario).map_err(|e| ProcessError::Input(format!("scenario: {e}")))?;
     let node = protocol::node(&services::node_name(&domain, ROLE))?;
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the run cleanly.
     if interrupted(&node) {
         return Err(ProcessError::Interrupted);
     }
+    let started_ns = now_ns();
+    let instance = instance_id_at(started_ns);
     let truths = Topic::<Truth>::publisher(&node, &services::truth(&domain))?;
     let measurements = Topic::<Measurement>::publisher(&node, &services::measurement(&domain))?;
     let commands = Topic::<Command>::subscriber(&node, &services::command(&domain))?;
+    let control = ControlChannel::open(&node, &domain, ROLE, instance, started_ns)?;
+    let waitset = protocol::transport::waitset()?;
+    let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
+    let _guards = [
+        waitset.attach_notification(&commands).map_err(attach_failed)?,
+        waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
+    ];
     wait_for_pipeline(&node, &domain, args)?;
+    control.send(ControlKind::Hello, 0, "")?;
     announce(args.supervised, "ready");
     if !args.quiet {
         eprintln!(
@@ -261,79 +452,57 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         );
     }
 
-    let mut summary = EmitterSummary { role: ROLE, ..EmitterSummary::default() };
+    let mut sim = Sim {
+        args,
+        node: &node,
+        waitset: &waitset,
+        truths: &truths,
+        measurements: &measurements,
+        commands: &commands,
+        control: &control,
+        world,
+        summary: EmitterSummary { role: ROLE, ..EmitterSummary::default() },
+        counter: RejectionCounter::new(),
+        last_seq: None,
+        // Sequence numbers start at the monotonic clock: a restarted emitter-sim continues above its
+        // predecessor.
+        seq: now_ns(),
+        sent: Vec::new(),
+        applied: None,
+        replay_from: None,
+    };
+    // The processes that were there before us need no replay.
+    sim.drain_control()?;
+    sim.replay_from = None;
     let sigmas = scenario.range_sigmas();
-    let truth = world.truth();
-    let spin = Duration::from_micros(args.spin_us);
-    let timeout = Duration::from_secs_f64(args.command_timeout_s);
-    let mut counter = RejectionCounter::new();
-    let mut last_seq = None;
-    // Sequence numbers start at the monotonic clock: a restarted emitter-sim continues above its predecessor.
-    let mut seq = now_ns();
+    let truth = sim.world.truth();
     let mut trigger: Option<(Command, u64)> = None;
     let step_delay = Duration::from_millis(args.step_delay_ms);
     for k in 0..=scenario.steps as u64 {
         if k > 0 && !step_delay.is_zero() && node.wait(step_delay).is_err() {
             return Err(ProcessError::Interrupted);
         }
-        let meas = world.measure().map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
+        let meas = sim.world.measure().map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
         let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
-        seq += 1;
-        let mut message = Measurement::new(k, seq, &uavs, meas.range_diffs.as_slice(), &sigmas, world.headings())
+        let mut message = Measurement::new(k, 0, &uavs, meas.range_diffs.as_slice(), &sigmas, sim.world.headings())
             .map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
         if let Some((cmd, received_ns)) = &trigger {
             message = message.carrying(cmd, *received_ns);
         }
-        truths.send(&Truth::new(k, seq, [truth.x, truth.y]))?;
-        measurements.send(&message)?;
-        summary.measurements += 1;
+        let truth = Truth::new(k, 0, [truth.x, truth.y]);
+        sim.sent.push((truth, message));
+        sim.send(truth, message)?;
         if k == scenario.steps as u64 {
             break; // the final measurement is recorded, not planned
         }
-
-        // Wait for the command of step k.
-        let deadline = Instant::now() + timeout;
-        let command = 'wait: loop {
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(ProcessError::Failed(format!(
-                    "step {k}: no command within {} s (is a planner running with --domain {domain}?)",
-                    args.command_timeout_s
-                )));
-            }
-            let batch = next_batch(&node, &commands, spin, (deadline - now).min(IDLE_WAKEUP))?;
-            let received_ns = now_ns();
-            // Every message of the batch is checked and counted, also after the one that is applied.
-            let mut applied = None;
-            for cmd in batch {
-                if let Err(r) = counter.check(&cmd, &mut last_seq) {
-                    summary.rejected += 1;
-                    eprintln!("emitter-sim: rejected a command: {r}");
-                    continue;
-                }
-                summary.accepted += 1;
-                if cmd.header.step != k || applied.is_some() {
-                    summary.ignored += 1;
-                    continue;
-                }
-                if let Err(e) = world.apply(cmd.headings()) {
-                    summary.rejected += 1;
-                    eprintln!("emitter-sim: step {k}: refused a command: {e}");
-                    continue;
-                }
-                applied = Some((cmd, received_ns));
-            }
-            if let Some(applied) = applied {
-                break 'wait applied;
-            }
-        };
-        trigger = Some(command);
-        summary.steps += 1;
+        trigger = Some(sim.wait_for_command(k, &domain)?);
+        sim.summary.steps += 1;
     }
+    let summary = sim.summary;
     if !args.quiet {
         eprintln!(
-            "emitter-sim: done: {} steps, {} measurements, {counter}, {} ignored",
-            summary.steps, summary.measurements, summary.ignored
+            "emitter-sim: done: {} steps, {} measurements, {}, {} ignored, {} replays ({} retries)",
+            summary.steps, summary.measurements, sim.counter, summary.ignored, summary.replays, summary.retries
         );
     }
     Ok(summary)

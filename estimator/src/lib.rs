@@ -69,6 +69,12 @@ impl Estimator {
         Self { prior: prior.iter().all(|v| v.is_finite()).then_some(prior), previous: None }
     }
 
+    /// An estimator that continues after an estimate `position` with covariance `covariance` (e.g. one
+    /// taking over from another process): the same state as the estimator that produced it.
+    pub fn resume(position: Vector2<f64>, covariance: Matrix2<f64>) -> Self {
+        Self { prior: None, previous: Some((position, covariance)) }
+    }
+
     /// The prior of the next solve: the previous estimate, else the initial prior.
     pub fn prior(&self) -> Option<Vector2<f64>> {
         self.previous.map(|(p, _)| p).or(self.prior)

@@ -1,27 +1,50 @@
 //! The `estimator` process: receive a [`Measurement`] → [`Estimator::estimate`] → publish an [`Estimate`].
 //!
-//! One loop over the pipeline's measurement topic (blocking, event-driven; optionally busy-polling for
-//! `--spin-us` first). It needs no scenario: the UAV positions, range differences and their σ all come
-//! with the measurement (σ gives the noise model of eq. 19, exactly the one the world drew the noise
-//! with). The estimate carries the measurement's UAV geometry and stamps forward
-//! ([`Estimate::from_measurement`]).
+//! One loop over the pipeline's measurement and control topics (blocking in a `WaitSet`, event-driven;
+//! optionally busy-polling for `--spin-us` first). It needs no scenario: the UAV positions, range
+//! differences and their σ all come with the measurement (σ gives the noise model of eq. 19, exactly the
+//! one the world drew the noise with). The estimate carries the measurement's UAV geometry and stamps
+//! forward ([`Estimate::from_measurement`]).
 //!
 //! - A step-0 measurement starts a new run: the estimator forgets its prior (as `uavloc simulate` starts
 //!   with a fresh [`Estimator`]).
+//! - The estimate of step k depends on the estimates before it (the previous one is the prior that
+//!   resolves Chan's two-root ambiguity). So the estimator computes step k only right after step k − 1
+//!   (or at step 0); a measurement out of that chain — e.g. the current step, seen by an estimator
+//!   restarted mid-run — is counted (`out_of_chain`) and dropped. At start-up the estimator announces
+//!   itself on the control topic ([`ControlKind::Hello`], from step 0), and emitter-sim replays the run
+//!   from step 0, which rebuilds exactly the state of the estimator it replaces.
+//! - Each step's answer is kept: a measurement seen again (a replay, or a restarted emitter-sim running
+//!   the same scenario from step 0) gets the same estimate again, without touching the state
+//!   (`resent`). A measurement of a known step with other content is a new run (at step 0) or out of
+//!   chain.
 //! - When Chan fails the library keeps its previous estimate; on the wire that is a `failed` estimate
 //!   (no position), and the receivers fall back to the last usable one they saw — the same numbers.
 //! - Invalid measurements are counted (per rejection kind) and ignored.
-//! - SIGINT/SIGTERM end the loop cleanly (exit 0).
+//! - SIGINT/SIGTERM, or a [`ControlKind::Shutdown`] on the control topic, end the loop cleanly (exit 0).
+//!
+//! # Swapping estimators (`--takeover`, what `uavloc swap estimator` starts)
+//!
+//! An estimator started with `--takeover` joins a running pipeline without a replay: it listens to the
+//! running estimator's estimates too, and the first usable one (ok or ambiguous, step k) *is* that
+//! estimator's state after step k ([`Estimator::resume`]). It then announces [`ControlKind::TakeOver`]
+//! from step k + 1 (and prints `takeover {"from_step": k + 1}` when supervised); the running estimator
+//! estimates every step before k + 1 and exits (exit 0, `handed_over_at` in its summary); the new one
+//! estimates from k + 1 on — exactly what the old one would have.
 
+use std::collections::{BTreeMap, HashMap};
 use std::io::Write as _;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Args;
-use iceoryx2::prelude::*;
 use nalgebra::Vector2;
+use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
-use protocol::{Estimate, Fix, Measurement, RejectionCounter, Topic, TopicSubscriber, TransportError, now_ns};
+use protocol::{
+    ControlChannel, ControlKind, Estimate, EstimateStatus as WireStatus, Fix, Measurement, RejectionCounter, Topic,
+    TopicSubscriber, TransportError, now_ns,
+};
 use tdoa::{NoiseModel, RangeDiffs};
 
 use crate::{EstimateStatus, Estimator};
@@ -51,6 +74,9 @@ pub struct EstimatorArgs {
     /// Busy-poll this many microseconds for the next measurement before blocking (0: block at once).
     #[arg(long, value_name = "US", default_value_t = 0)]
     pub spin_us: u64,
+    /// Take over from the running estimator at the next step (see `uavloc swap estimator`).
+    #[arg(long)]
+    pub takeover: bool,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -107,30 +133,91 @@ pub struct EstimatorSummary {
     pub published: u64,
     /// Estimates published as `failed` (Chan failed; the previous estimate stands).
     pub failed: u64,
+    /// Estimates sent again for a measurement seen before (a replay).
+    pub resent: u64,
+    /// Measurements dropped because the step before them was not estimated (see the module docs).
+    pub out_of_chain: u64,
+    /// With `--takeover`: the first step this estimator estimated (it took over there).
+    pub took_over_at: Option<u64>,
+    /// The step from which a newer estimator took over (this one exited then).
+    pub handed_over_at: Option<u64>,
 }
 
-/// A process instance id: the pid in the high 32 bits, the start time's low bits below.
-pub fn instance_id() -> u64 {
-    (u64::from(std::process::id()) << 32) | (now_ns() & 0xffff_ffff)
+/// Steps whose answers are kept (the oldest is forgotten beyond).
+pub const MAX_CACHED_STEPS: usize = 1 << 16;
+
+/// The content of a measurement (everything but header and stamps), bit for bit.
+fn content_key(m: &Measurement) -> Vec<u64> {
+    let mut key = vec![u64::from(m.count)];
+    key.extend(m.uavs().iter().flatten().chain(m.diffs()).chain(m.sigmas()).chain(m.headings()).map(|v| v.to_bits()));
+    key
 }
 
-/// Blocks (after busy-polling `spin`) until messages arrive; `None` when SIGINT/SIGTERM asks to stop.
-fn next_batch<T: protocol::Message>(
-    node: &Node<ipc::Service>,
-    sub: &TopicSubscriber<T>,
-    spin: Duration,
-    timeout: Duration,
-) -> Result<Option<Vec<T>>, ProcessError> {
-    if node.wait(Duration::ZERO).is_err() {
-        return Ok(None);
+/// The estimator's per-run state: the library estimator, the last step estimated and each step's answer.
+#[derive(Debug, Default)]
+pub struct StepEstimator {
+    estimator: Estimator,
+    last_step: Option<u64>,
+    answers: BTreeMap<u64, (Vec<u64>, Fix)>,
+}
+
+/// What [`StepEstimator::handle`] did with a measurement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Answer {
+    /// Estimated now.
+    New(Fix),
+    /// The answer given before to the same measurement.
+    Again(Fix),
+    /// Not estimated: the step before it was not (see the module docs).
+    OutOfChain,
+}
+
+impl StepEstimator {
+    /// A fresh state.
+    pub fn new() -> Self {
+        Self::default()
     }
-    match sub.wait(spin, timeout) {
-        Ok(batch) => Ok(Some(batch)),
-        // A signal interrupted the wait: stop if it was SIGINT/SIGTERM, else carry on.
-        Err(TransportError::Interrupted) => {
-            Ok(if node.wait(Duration::ZERO).is_err() { None } else { Some(Vec::new()) })
+
+    /// The state of an estimator whose estimate of `step` was `position` with `covariance` (taking over
+    /// from it): the next step it estimates is `step + 1`.
+    pub fn resume(step: u64, position: [f64; 2], covariance: [[f64; 2]; 2]) -> Self {
+        let c = covariance;
+        Self {
+            estimator: Estimator::resume(
+                Vector2::new(position[0], position[1]),
+                nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]),
+            ),
+            last_step: Some(step),
+            answers: BTreeMap::new(),
         }
-        Err(e) => Err(e.into()),
+    }
+
+    /// The last step estimated.
+    pub fn last_step(&self) -> Option<u64> {
+        self.last_step
+    }
+
+    /// The answer to a (validated) measurement; see the module docs.
+    pub fn handle(&mut self, m: &Measurement) -> Answer {
+        let step = m.header.step;
+        let key = content_key(m);
+        if let Some((known, fix)) = self.answers.get(&step)
+            && *known == key
+        {
+            return Answer::Again(*fix);
+        }
+        if step == 0 {
+            *self = Self::new(); // a new run
+        } else if self.last_step.is_none_or(|last| step != last + 1) {
+            return Answer::OutOfChain;
+        }
+        let fix = estimate_measurement(&mut self.estimator, m);
+        self.last_step = Some(step);
+        self.answers.insert(step, (key, fix));
+        if self.answers.len() > MAX_CACHED_STEPS {
+            self.answers.pop_first();
+        }
+        Answer::New(fix)
     }
 }
 
@@ -164,7 +251,7 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Fix {
     }
 }
 
-/// Runs the estimator until SIGINT/SIGTERM.
+/// Runs the estimator until SIGINT/SIGTERM or a shutdown request.
 pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     protocol::transport::quiet_logs();
     let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
@@ -173,9 +260,27 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     if node.wait(Duration::ZERO).is_err() {
         return Ok(EstimatorSummary { role: ROLE, ..EstimatorSummary::default() });
     }
+    let started_ns = now_ns();
+    let instance = instance_id_at(started_ns);
     let measurements = Topic::<Measurement>::subscriber(&node, &services::measurement(&domain))?;
     let estimates = Topic::<Estimate>::publisher(&node, &services::estimate(&domain))?;
-    let instance = instance_id();
+    let control = ControlChannel::open(&node, &domain, ROLE, instance, started_ns)?;
+    // With --takeover: the running estimator's estimates (its state to take over).
+    let predecessor: Option<TopicSubscriber<Estimate>> =
+        if args.takeover { Some(Topic::<Estimate>::subscriber(&node, &services::estimate(&domain))?) } else { None };
+    let waitset = protocol::transport::waitset()?;
+    let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
+    let mut guards = vec![
+        waitset.attach_notification(&measurements).map_err(attach_failed)?,
+        waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
+    ];
+    if let Some(p) = &predecessor {
+        guards.push(waitset.attach_notification(p).map_err(attach_failed)?);
+    }
+    if !args.takeover {
+        // "Replay the run from step 0 for me" (a no-op at the start of a launch: emitter-sim is not there).
+        control.send(ControlKind::Hello, 0, "")?;
+    }
     let mut summary = EstimatorSummary { role: ROLE, instance, ..EstimatorSummary::default() };
     announce(args.supervised, "ready");
     if !args.quiet {
@@ -186,33 +291,132 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     let mut counter = RejectionCounter::new();
     let mut last_seq = None;
     let mut seq = now_ns();
-    let mut estimator = Estimator::new();
-    while let Some(batch) = next_batch(&node, &measurements, spin, IDLE_WAKEUP)? {
+    let mut state = StepEstimator::new();
+    // The swap: the step a newer estimator takes over from (this one stops before it), and with
+    // --takeover the step this one takes over from.
+    let mut handover: Option<u64> = None;
+    let mut from_step: Option<u64> = None;
+    let mut predecessor_seq: HashMap<u64, Option<u64>> = HashMap::new();
+    'run: loop {
+        let ready = || {
+            Ok(measurements.has_samples()?
+                || control.subscriber().has_samples()?
+                || predecessor.as_ref().map_or(Ok(false), |p| p.has_samples())?)
+        };
+        match protocol::transport::wait_any(&waitset, spin, IDLE_WAKEUP, ready) {
+            Ok(()) => {}
+            Err(TransportError::Interrupted) => break,
+            Err(e) => return Err(e.into()),
+        }
+        if node.wait(Duration::ZERO).is_err() {
+            break;
+        }
+        for msg in control.receive(&mut counter)? {
+            match msg {
+                Err(r) => {
+                    summary.rejected += 1;
+                    eprintln!("estimator: rejected a control message: {r}");
+                }
+                Ok(c) if c.kind() == Some(ControlKind::Shutdown) => break 'run,
+                Ok(c) if protocol::control::is_newer(&c, ControlKind::TakeOver, ROLE, started_ns) => {
+                    let f = c.header.step;
+                    if !args.quiet {
+                        eprintln!("estimator: a newer estimator takes over from step {f}");
+                    }
+                    handover = Some(handover.map_or(f, |h| h.min(f)));
+                }
+                Ok(_) => {}
+            }
+        }
+        if let Some(p) = &predecessor {
+            for e in p.receive_all()? {
+                if e.instance == instance || from_step.is_some() {
+                    continue;
+                }
+                let last = predecessor_seq.entry(e.instance).or_default();
+                if let Err(r) = counter.check(&e, last) {
+                    summary.rejected += 1;
+                    eprintln!("estimator: rejected an estimate of the running estimator: {r}");
+                    continue;
+                }
+                if matches!(e.status(), Some(WireStatus::Ok | WireStatus::Ambiguous)) {
+                    // Its state after this step; take over from the next one.
+                    let f = e.header.step + 1;
+                    state = StepEstimator::resume(e.header.step, e.position, e.covariance);
+                    from_step = Some(f);
+                    summary.took_over_at = Some(f);
+                    control.send(ControlKind::TakeOver, f, "")?;
+                    announce(args.supervised, &format!("takeover {}", serde_json::json!({"from_step": f})));
+                    if !args.quiet {
+                        eprintln!("estimator: taking over from step {f}");
+                    }
+                }
+            }
+        }
+        if let Some(f) = handover
+            && state.last_step().is_some_and(|l| l + 1 >= f)
+        {
+            summary.handed_over_at = Some(f);
+            break 'run;
+        }
         let received_ns = now_ns();
-        for m in batch {
+        for m in measurements.receive_all()? {
             if let Err(r) = counter.check(&m, &mut last_seq) {
                 summary.rejected += 1;
                 eprintln!("estimator: rejected a measurement: {r}");
                 continue;
             }
             summary.accepted += 1;
-            if m.header.step == 0 {
-                estimator = Estimator::new(); // a new run
+            let step = m.header.step;
+            if let Some(f) = handover
+                && step >= f
+            {
+                summary.handed_over_at = Some(f);
+                break 'run;
             }
-            let fix = estimate_measurement(&mut estimator, &m);
+            if args.takeover && from_step.is_none() {
+                continue; // the running estimator's step
+            }
+            let fix = match state.handle(&m) {
+                Answer::New(fix) => fix,
+                Answer::Again(fix) => {
+                    summary.resent += 1;
+                    fix
+                }
+                Answer::OutOfChain => {
+                    summary.out_of_chain += 1;
+                    if !args.quiet {
+                        eprintln!(
+                            "estimator: step {step}: the step before was not estimated here; waiting for a replay"
+                        );
+                    }
+                    continue;
+                }
+            };
             if fix == Fix::Failed {
                 summary.failed += 1;
-                eprintln!("estimator: step {}: no fix (the previous estimate stands)", m.header.step);
+                eprintln!("estimator: step {step}: no fix (the previous estimate stands)");
             }
             seq += 1;
             let estimate = Estimate::from_measurement(&m, received_ns, seq, instance, fix)
-                .map_err(|e| ProcessError::Failed(format!("step {}: estimate: {e}", m.header.step)))?;
+                .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;
             estimates.send(&estimate)?;
             summary.published += 1;
         }
+        // A newer estimator took over and this one has estimated every step before it: hand over.
+        if let Some(f) = handover
+            && state.last_step().is_some_and(|l| l + 1 >= f)
+        {
+            summary.handed_over_at = Some(f);
+            break 'run;
+        }
     }
+    drop(guards);
     if !args.quiet {
-        eprintln!("estimator: stopped after {} estimates ({counter})", summary.published);
+        eprintln!(
+            "estimator: stopped after {} estimates ({} sent again, {} out of chain; {counter})",
+            summary.published, summary.resent, summary.out_of_chain
+        );
     }
     Ok(summary)
 }

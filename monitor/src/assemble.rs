@@ -29,7 +29,7 @@ use protocol::{Command, Estimate, EstimateStatus, Latencies, Measurement, Truth}
 use tdoa::{NoiseModel, Sensors};
 
 use crate::metrics::step_metrics;
-use crate::record::{RunRecord, StepRecord};
+use crate::record::{PlannerRef, RunRecord, StepRecord};
 
 /// The planner that produced a step's command.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -53,6 +53,8 @@ pub struct CompletedStep {
     pub planner: Option<PlannerInfo>,
     /// Distance of the estimate from the truth, metres.
     pub error_m: f64,
+    /// The true emitter position of the step, metres.
+    pub truth: [f64; 2],
 }
 
 #[derive(Debug, Clone, Default)]
@@ -89,6 +91,31 @@ impl Assembler {
             names: None,
             ignored: 0,
         }
+    }
+
+    /// An assembler that continues a run whose steps `0..steps.len()` are already recorded (e.g. read back
+    /// from a monitor's log after a restart): `emitter` is the truth, `names` the run's (objective,
+    /// solver). The last usable estimate is the last step's (a failed step records the previous usable
+    /// one). `None` if the steps are not numbered 0, 1, 2, ….
+    pub fn resume(
+        scenario: Scenario,
+        steps: Vec<StepRecord>,
+        emitter: Option<[f64; 2]>,
+        names: Option<(String, String)>,
+    ) -> Option<Self> {
+        if steps.iter().enumerate().any(|(i, s)| s.step != i as u64) || steps.len() as u64 > scenario.steps as u64 + 1 {
+            return None;
+        }
+        let mut a = Self::new(scenario);
+        a.next = steps.len() as u64;
+        a.usable = steps
+            .last()
+            .filter(|s| s.estimate.iter().chain(s.estimate_cov.iter().flatten()).all(|v| v.is_finite()))
+            .map(|s| (s.estimate, s.estimate_cov));
+        a.emitter = emitter;
+        a.names = names;
+        a.steps = steps;
+        Some(a)
     }
 
     /// The last step of the run (`scenario.steps`).
@@ -135,13 +162,24 @@ impl Assembler {
     }
 
     /// Adds a (validated) command; `false` if it is ignored (also a command for the last step, which is
-    /// never planned). A second command for the same step replaces the first (the newer planner wins).
+    /// never planned, and a second command for a step: emitter-sim flies the first one it gets, so that is
+    /// the one recorded).
     pub fn add_command(&mut self, c: Command) -> bool {
         if c.header.step >= self.last_step() {
             self.ignored += 1;
             return false;
         }
-        self.slot(c.header.step).map(|p| p.command = Some(c)).is_some()
+        match self.slot(c.header.step) {
+            Some(p) if p.command.is_none() => {
+                p.command = Some(c);
+                true
+            }
+            Some(_) => {
+                self.ignored += 1;
+                false
+            }
+            None => false,
+        }
     }
 
     /// Completes every step whose messages are all in, in order.
@@ -202,6 +240,7 @@ impl Assembler {
             objective_value: None,
             plan_ms: None,
             active_constraints: Vec::new(),
+            planner: None,
         };
         let mut planner = None;
         let latencies = match c {
@@ -216,6 +255,11 @@ impl Assembler {
                     objective: c.objective_name().unwrap_or("?").to_string(),
                 };
                 self.names.get_or_insert_with(|| (info.objective.clone(), info.solver.clone()));
+                record.planner = Some(PlannerRef {
+                    solver: info.solver.clone(),
+                    objective: info.objective.clone(),
+                    instance: info.instance,
+                });
                 planner = Some(info);
                 c.header.stamps.latencies()
             }
@@ -223,7 +267,7 @@ impl Assembler {
         };
         let error_m = (position[0] - truth.x).hypot(position[1] - truth.y);
         self.steps.push(record.clone());
-        CompletedStep { record, latencies, planner, error_m }
+        CompletedStep { record, latencies, planner, error_m, truth: t.position }
     }
 
     /// The record of the steps completed so far (the whole run once [`is_done`](Self::is_done)).
@@ -326,6 +370,35 @@ mod tests {
         assert!(!a.add_measurement(measurement(1)));
         assert!(!a.add_truth(truth(3)));
         assert_eq!(a.ignored(), 3);
+    }
+
+    #[test]
+    fn resumes_from_recorded_steps() {
+        let mut a = Assembler::new(scenario(2));
+        for k in 0..2 {
+            a.add_measurement(measurement(k));
+            a.add_truth(truth(k));
+            a.add_estimate(estimate(k, if k == 0 { ok(24000.0) } else { Fix::Failed }));
+            a.add_command(command(k, 4.0, 0));
+        }
+        let first = a.complete_ready();
+        assert_eq!(first.len(), 2);
+        let names = Some(("analytical".to_string(), "pso".to_string()));
+        let records: Vec<StepRecord> = first.iter().map(|d| d.record.clone()).collect();
+        let mut b = Assembler::resume(scenario(2), records.clone(), Some([25000.0, 15000.0]), names.clone()).unwrap();
+        assert_eq!(b.next_step(), 2);
+        assert!(!b.add_measurement(measurement(1)), "recorded steps are ignored");
+        for x in [&mut a, &mut b] {
+            x.add_measurement(measurement(2));
+            x.add_truth(truth(2));
+            // A failed last estimate: both fall back on step 0's.
+            x.add_estimate(estimate(2, Fix::Failed));
+        }
+        assert_eq!(a.complete_ready(), b.complete_ready());
+        assert_eq!(a.record(), b.record());
+        let mut gap = records;
+        gap.remove(0);
+        assert!(Assembler::resume(scenario(2), gap, None, names).is_none(), "steps must start at 0");
     }
 
     #[test]

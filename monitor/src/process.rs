@@ -1,25 +1,40 @@
-//! The `monitor` process: subscribes to all four topics of a domain, rebuilds the run record
-//! ([`Assembler`]), shows one status line per step, logs every event as JSON lines, and writes the record
-//! (and CSVs and plots) when the last step is in.
+//! The `monitor` process: subscribes to all four topics of a domain and its control topic, rebuilds the
+//! run record ([`Assembler`]), shows one status line per step, logs every event as JSON lines, and writes
+//! the record (and CSVs and plots) when the last step is in.
 //!
-//! It waits in one iceoryx2 `WaitSet` on the four topics' listeners (event-driven, no polling) and drains
+//! It waits in one iceoryx2 `WaitSet` on the topics' listeners (event-driven, no polling) and drains
 //! every subscriber on each wake-up; every message is validated first ([`RejectionCounter`]), invalid ones
 //! are counted, logged and ignored.
 //!
 //! The JSON-lines log (`--log FILE`) has one object per line with `t_ns` (monotonic clock, the stamps'
 //! clock) and `event`:
-//! - `start` (domain, steps, seed); `message` (kind, step, seq, age_us: publish → received here);
+//! - `start` (domain, steps, seed) or `resume` (domain, steps recorded in the log);
+//!   `message` (kind, step, seq, age_us: publish → received here);
 //! - `rejected` (kind, reason, detail); `planner` (a new planner instance: instance, solver, objective, step);
-//! - `step` (the step's record, its latencies in µs and planner); `end` (complete, steps, rejected, ignored).
+//! - `hello` / `take_over` (a process joined or took over: role, instance, detail, step);
+//! - `step` (the step's record, its truth, its latencies in µs and planner); `end` (complete, steps,
+//!   rejected, ignored).
+//!
+//! `uavloc launch` appends `restart` events (role, attempt, exit, backoff_ms) to the same file: every line
+//! is written with one `write` on a file opened for appending.
 //!
 //! The status line of a step (stderr, unless `--quiet`): step, CRLB at the truth, RMSE, estimate error,
 //! the hops measurement→estimator and estimate→planner, the planning time, the whole cycle, the active
 //! planner and the rejected-message count.
 //!
-//! It exits 0 after the last step, or 130 on SIGINT/SIGTERM before it (writing the partial record).
+//! # Restarts
+//!
+//! With `--resume` (what `uavloc launch` passes to a restarted monitor) it appends to its `--log` instead
+//! of truncating it, reads back the steps recorded there, and announces itself on the control topic
+//! ([`ControlKind::Hello`]) with the first step it lacks: emitter-sim replays the run from there (the
+//! estimator and planner answer from what they kept), so the record is complete again. The latency
+//! statistics of the summary cover the steps this instance saw.
+//!
+//! It exits 0 after the last step, or 130 on SIGINT/SIGTERM or a [`ControlKind::Shutdown`] before it
+//! (writing the partial record).
 
 use std::fs::File;
-use std::io::{BufWriter, Write as _};
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
@@ -28,15 +43,16 @@ use clap::Args;
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
 use planner::process::load_scenario;
+use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
-    Command, Estimate, Latencies, Measurement, Message, RejectionCounter, Topic, TopicSubscriber, TransportError,
-    Truth, now_ns,
+    Command, ControlChannel, ControlKind, Estimate, Latencies, Measurement, Message, MessageKind, RejectionCounter,
+    Topic, TopicSubscriber, TransportError, Truth, now_ns,
 };
 use serde_json::json;
 
 use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
-use crate::record::RunRecord;
+use crate::record::{RunRecord, StepRecord};
 
 /// The role name (node name suffix, `uavloc process monitor`).
 pub const ROLE: &str = "monitor";
@@ -85,6 +101,10 @@ pub struct MonitorArgs {
     /// Print the run record as JSON on stdout at the end.
     #[arg(long)]
     pub print_record: bool,
+    /// A restart: append to --log instead of truncating it, take the steps recorded there, and have
+    /// emitter-sim replay the rest of the run.
+    #[arg(long)]
+    pub resume: bool,
     /// No status lines on stderr.
     #[arg(long)]
     pub quiet: bool,
@@ -218,17 +238,19 @@ pub struct MonitorSummary {
     pub latency: LatencySummary,
 }
 
-/// The JSON-lines run log (a no-op without `--log`).
-struct EventLog(Option<BufWriter<File>>);
+/// The JSON-lines run log (a no-op without `--log`), opened for appending: each line goes out in one
+/// `write`, so lines of other writers (the launcher's `restart` events) never land inside one.
+struct EventLog(Option<File>);
 
 impl EventLog {
-    fn open(path: Option<&Path>) -> Result<Self, ProcessError> {
-        match path {
-            Some(p) => File::create(p)
-                .map(|f| EventLog(Some(BufWriter::new(f))))
-                .map_err(|e| ProcessError::Failed(format!("--log {}: {e}", p.display()))),
-            None => Ok(EventLog(None)),
+    /// Opens `path` for appending; truncates it first unless `append`.
+    fn open(path: Option<&Path>, append: bool) -> Result<Self, ProcessError> {
+        let Some(p) = path else { return Ok(EventLog(None)) };
+        let failed = |e: std::io::Error| ProcessError::Failed(format!("--log {}: {e}", p.display()));
+        if !append {
+            File::create(p).map_err(failed)?;
         }
+        std::fs::OpenOptions::new().create(true).append(true).open(p).map(|f| EventLog(Some(f))).map_err(failed)
     }
 
     fn write(&mut self, event: &str, mut fields: serde_json::Value) {
@@ -237,15 +259,49 @@ impl EventLog {
                 map.insert("t_ns".into(), json!(now_ns()));
                 map.insert("event".into(), json!(event));
             }
-            let _ = writeln!(out, "{fields}");
+            let _ = out.write_all(format!("{fields}\n").as_bytes());
         }
     }
+}
 
-    fn flush(&mut self) {
-        if let Some(out) = &mut self.0 {
-            let _ = out.flush();
+/// What a monitor's log says about a run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LoggedRun {
+    /// The step records, in order from step 0 (up to the first gap).
+    pub steps: Vec<StepRecord>,
+    /// The true emitter.
+    pub truth: Option<[f64; 2]>,
+    /// The run's (objective, solver).
+    pub names: Option<(String, String)>,
+}
+
+/// Reads a monitor's log back; lines that do not parse are skipped (e.g. the last one of a killed
+/// monitor).
+pub fn read_log(path: &Path) -> LoggedRun {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let mut steps: Vec<StepRecord> = Vec::new();
+    let (mut truth, mut names) = (None, None);
+    for line in text.lines() {
+        let Ok(e) = serde_json::from_str::<serde_json::Value>(line) else { continue };
+        if e["event"] != "step" {
+            continue;
         }
+        let Ok(record) = serde_json::from_value::<StepRecord>(e["record"].clone()) else { continue };
+        if record.step != steps.len() as u64 {
+            continue; // a duplicate, or a gap: keep the steps from 0 without gaps
+        }
+        if truth.is_none() {
+            truth = serde_json::from_value::<[f64; 2]>(e["truth"].clone()).ok();
+        }
+        if names.is_none()
+            && let (Some(objective), Some(solver)) =
+                (e["planner"]["objective"].as_str(), e["planner"]["solver"].as_str())
+        {
+            names = Some((objective.to_string(), solver.to_string()));
+        }
+        steps.push(record);
     }
+    LoggedRun { steps, truth, names }
 }
 
 fn us(ns: Option<u64>) -> Option<f64> {
@@ -298,7 +354,7 @@ fn announce(supervised: bool, line: &str) {
 struct State {
     assembler: Assembler,
     counter: RejectionCounter,
-    last_seq: [Option<u64>; 4],
+    last_seq: [Option<u64>; MessageKind::ALL.len()],
     log: EventLog,
     samples: LatencySamples,
     planner: Option<PlannerInfo>,
@@ -336,6 +392,45 @@ impl State {
         Ok(())
     }
 
+    /// Logs and shows who joined or took over; `true` on a shutdown request.
+    fn drain_control(&mut self, control: &ControlChannel) -> Result<bool, ProcessError> {
+        let mut shutdown = false;
+        for msg in control.receive(&mut self.counter)? {
+            let c = match msg {
+                Ok(c) => c,
+                Err(r) => {
+                    self.log.write("rejected", json!({"kind": "control", "reason": r.kind(), "detail": r.to_string()}));
+                    if !self.quiet {
+                        eprintln!("monitor: rejected a control message: {r}");
+                    }
+                    continue;
+                }
+            };
+            let Some(kind) = c.kind() else { continue };
+            let role = c.role().unwrap_or("?");
+            match kind {
+                ControlKind::Shutdown => shutdown = true,
+                ControlKind::Hello | ControlKind::TakeOver => {
+                    self.log.write(
+                        kind.name(),
+                        json!({"role": role, "instance": c.instance, "detail": c.detail(), "step": c.header.step}),
+                    );
+                    if !self.quiet {
+                        let what = if kind == ControlKind::Hello { "joined" } else { "takes over" };
+                        eprintln!(
+                            "monitor: a {role} {what} (instance {:#x}{}{}), step {}",
+                            c.instance,
+                            if c.detail().is_empty() { "" } else { ", " },
+                            c.detail(),
+                            c.header.step
+                        );
+                    }
+                }
+            }
+        }
+        Ok(shutdown)
+    }
+
     fn complete_steps(&mut self) {
         for done in self.assembler.complete_ready() {
             if let Some(p) = &done.planner
@@ -367,9 +462,9 @@ impl State {
                         "end_to_end": us(l.end_to_end_ns), "cycle": us(l.cycle_ns),
                     },
                     "planner": done.planner.as_ref().map(|p| json!({"instance": p.instance, "solver": p.solver, "objective": p.objective})),
+                    "truth": done.truth,
                 }),
             );
-            self.log.flush();
             if !self.quiet {
                 eprintln!("{}", status_line(&done, self.assembler.last_step(), self.counter.total()));
             }
@@ -396,12 +491,24 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
     let scenario = load_scenario(args.scenario.as_deref(), args.steps, args.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
-    let log = EventLog::open(args.log.as_deref())?;
+    let log = EventLog::open(args.log.as_deref(), args.resume)?;
+    // A restart takes the steps its predecessor logged.
+    let (assembler, resumed) = match (&args.log, args.resume) {
+        (Some(path), true) => {
+            let LoggedRun { steps, truth, names } = read_log(path);
+            let n = steps.len();
+            match Assembler::resume(scenario.clone(), steps, truth, names) {
+                Some(a) => (a, Some(n)),
+                None => (Assembler::new(scenario.clone()), Some(0)),
+            }
+        }
+        _ => (Assembler::new(scenario.clone()), None),
+    };
     let node = protocol::node(&services::node_name(&domain, ROLE))?;
     let mut state = State {
-        assembler: Assembler::new(scenario.clone()),
+        assembler,
         counter: RejectionCounter::new(),
-        last_seq: [None; 4],
+        last_seq: [None; MessageKind::ALL.len()],
         log,
         samples: LatencySamples::default(),
         planner: None,
@@ -410,24 +517,37 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     };
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
     let mut interrupted = node.wait(Duration::ZERO).is_err();
+    let started_ns = now_ns();
     let measurements = Topic::<Measurement>::subscriber(&node, &services::measurement(&domain))?;
     let estimates = Topic::<Estimate>::subscriber(&node, &services::estimate(&domain))?;
     let commands = Topic::<Command>::subscriber(&node, &services::command(&domain))?;
     let truths = Topic::<Truth>::subscriber(&node, &services::truth(&domain))?;
-    let waitset = WaitSetBuilder::new()
-        .create::<ipc::Service>()
-        .map_err(|e| ProcessError::Failed(format!("creating the WaitSet: {e:?}")))?;
+    let control = ControlChannel::open(&node, &domain, ROLE, instance_id_at(started_ns), started_ns)?;
+    let waitset = protocol::transport::waitset()?;
     let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
     let _guards = [
         waitset.attach_notification(&measurements).map_err(attach_failed)?,
         waitset.attach_notification(&estimates).map_err(attach_failed)?,
         waitset.attach_notification(&commands).map_err(attach_failed)?,
         waitset.attach_notification(&truths).map_err(attach_failed)?,
+        waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
     ];
-    state.log.write("start", json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed}));
+    match resumed {
+        None => {
+            state.log.write("start", json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed}))
+        }
+        Some(n) => state.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
+    }
+    // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
+    control.send(ControlKind::Hello, state.assembler.next_step(), "")?;
     announce(args.supervised, "ready");
     if !args.quiet {
-        eprintln!("monitor: domain {domain}, waiting for {} steps (seed {})", scenario.steps, scenario.seed);
+        match resumed {
+            None => {
+                eprintln!("monitor: domain {domain}, waiting for {} steps (seed {})", scenario.steps, scenario.seed)
+            }
+            Some(n) => eprintln!("monitor: domain {domain}, resumed with {n} steps from the log"),
+        }
     }
 
     while !interrupted && !state.assembler.is_done() {
@@ -438,6 +558,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             Ok(_) => {}
             Err(e) => return Err(ProcessError::Failed(format!("waiting: {e:?}"))),
         }
+        interrupted |= state.drain_control(&control)?;
         state.drain(&truths, Assembler::add_truth)?;
         state.drain(&measurements, Assembler::add_measurement)?;
         state.drain(&estimates, Assembler::add_estimate)?;
@@ -463,7 +584,6 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         "end",
         json!({"complete": summary.complete, "steps": summary.steps, "rejected": summary.rejected, "ignored": summary.ignored}),
     );
-    state.log.flush();
     write_outputs(args, &run)?;
     if !args.quiet {
         let l = &summary.latency;

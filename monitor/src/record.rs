@@ -32,6 +32,21 @@ pub struct StepRecord {
     pub plan_ms: Option<f64>,
     /// Constraints active (violated or within 0.1 % of their bound) at the chosen headings.
     pub active_constraints: Vec<String>,
+    /// The planner process that chose the headings (pipeline runs only; absent from `simulate` and on
+    /// the last step).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub planner: Option<PlannerRef>,
+}
+
+/// A planner process instance, as recorded per step by the monitor.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PlannerRef {
+    /// Solver name.
+    pub solver: String,
+    /// Objective name.
+    pub objective: String,
+    /// Its instance id (pid in the high 32 bits).
+    pub instance: u64,
 }
 
 /// A whole run.

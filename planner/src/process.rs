@@ -1,30 +1,49 @@
 //! The `planner` process: receive an [`Estimate`] → [`plan_step`] → publish a [`Command`].
 //!
-//! One loop over the pipeline's estimate topic (blocking, event-driven; optionally busy-polling for
-//! `--spin-us` first). For every valid estimate of a step below the scenario's `steps` it builds the
-//! [`PlanRequest`] exactly as `uavloc simulate` does (UAV positions and headings from the estimate, ẑ and
-//! M from the estimate, run seed and step) and publishes the command. The final step (`step == steps`) is
-//! measured and estimated but not planned, as in the in-process loop.
+//! One loop over the pipeline's estimate and control topics (blocking in a `WaitSet`, event-driven;
+//! optionally busy-polling for `--spin-us` first). For every valid estimate of a step below the
+//! scenario's `steps` it builds the [`PlanRequest`] exactly as `uavloc simulate` does (UAV positions and
+//! headings from the estimate, ẑ and M from the estimate, run seed and step) and publishes the command.
+//! The final step (`step == steps`) is measured and estimated but not planned, as in the in-process loop.
 //!
 //! - A *failed* estimate carries no position (NaN on the wire); the planner then plans with the last
 //!   usable estimate it received, which is exactly the fallback of the estimator library (it keeps its
 //!   previous estimate on failure). A step-0 estimate starts a new run and forgets the previous one.
+//! - Each step's command is kept: an estimate seen again (a replay by emitter-sim, or a restarted
+//!   emitter-sim running the same scenario from step 0) gets the same command again (`resent`), without
+//!   planning. Plans depend only on the estimate, the last usable one, the scenario, the seed and the
+//!   step, so a restarted planner — which announces itself on the control topic
+//!   ([`ControlKind::Hello`], from step 0) and gets the run replayed — plans exactly what its
+//!   predecessor would have.
 //! - Only `target = "chan"` is supported: `controlled` mode needs the true emitter, which the pipeline
 //!   never shows the planner (use `uavloc simulate` for it).
 //! - Invalid estimates are counted (per rejection kind) and ignored.
-//! - SIGINT/SIGTERM end the loop cleanly (exit 0); the iceoryx2 resources are released on the way out.
+//! - SIGINT/SIGTERM, or a [`ControlKind::Shutdown`] on the control topic, end the loop cleanly (exit 0);
+//!   the iceoryx2 resources are released on the way out.
+//!
+//! # Swapping planners (`--takeover`, what `uavloc swap planner` starts)
+//!
+//! A planner started with `--takeover` joins a running pipeline without a replay: it follows the
+//! estimates (keeping the last usable one), and on the first one (step k) it announces
+//! [`ControlKind::TakeOver`] from step k + 1 and prints `takeover {"from_step": k + 1}` (supervised). The
+//! running planner plans every step before k + 1 — step k included — and then exits (exit 0, its summary
+//! says `handed_over`); the new one plans from k + 1 on. No step is planned twice and none is missed;
+//! should the old planner die before its last command, the emitter-sim's retry replays step k and the
+//! new planner plans it. A planner that sees a take-over by a newer planner behaves as the old one.
 
+use std::collections::BTreeMap;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Args;
-use iceoryx2::prelude::*;
 use nalgebra::{Matrix2, Vector2};
+use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
-    Command, Estimate, EstimateStatus, PlanInfo, RejectionCounter, Topic, TopicSubscriber, TransportError, now_ns,
+    Command, ControlChannel, ControlKind, Estimate, EstimateStatus, Message, PlanInfo, RejectionCounter, Topic,
+    TransportError, now_ns,
 };
 
 use crate::active_mask;
@@ -76,6 +95,9 @@ pub struct PlannerArgs {
     /// Busy-poll this many microseconds for the next estimate before blocking (0: block at once).
     #[arg(long, value_name = "US", default_value_t = 0)]
     pub spin_us: u64,
+    /// Take over from the running planner at the next step (see `uavloc swap planner`).
+    #[arg(long)]
+    pub takeover: bool,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -157,32 +179,34 @@ pub struct PlannerSummary {
     pub published: u64,
     /// Estimates that could not be planned (no usable estimate yet, or `plan_step` refused).
     pub errors: u64,
+    /// Commands sent again for an estimate seen before (a replay).
+    pub resent: u64,
+    /// With `--takeover`: the first step this planner planned (it took over there).
+    pub took_over_at: Option<u64>,
+    /// The step from which a newer planner took over (this one exited then).
+    pub handed_over_at: Option<u64>,
 }
 
-/// A process instance id: the pid in the high 32 bits, the start time's low bits below (tells restarts
-/// apart even when a pid is reused).
-pub fn instance_id() -> u64 {
-    (u64::from(std::process::id()) << 32) | (now_ns() & 0xffff_ffff)
-}
+/// Steps whose commands are kept (the oldest is forgotten beyond).
+pub const MAX_CACHED_STEPS: usize = 1 << 16;
 
-/// Blocks (after busy-polling `spin`) until estimates arrive; `None` when SIGINT/SIGTERM asks to stop.
-fn next_batch<T: protocol::Message>(
-    node: &Node<ipc::Service>,
-    sub: &TopicSubscriber<T>,
-    spin: Duration,
-    timeout: Duration,
-) -> Result<Option<Vec<T>>, ProcessError> {
-    if node.wait(Duration::ZERO).is_err() {
-        return Ok(None);
+/// Everything a plan depends on besides the step (the estimate's geometry, status, ẑ and M, and the usable
+/// estimate it plans from), bit for bit.
+fn content_key(e: &Estimate, usable: Option<&(Vector2<f64>, Matrix2<f64>)>) -> Vec<u64> {
+    let mut key = vec![u64::from(e.count), u64::from(e.status)];
+    if let Some((z, m)) = usable {
+        key.extend(z.iter().chain(m.iter()).map(|v| v.to_bits()));
     }
-    match sub.wait(spin, timeout) {
-        Ok(batch) => Ok(Some(batch)),
-        // A signal interrupted the wait: stop if it was SIGINT/SIGTERM, else carry on.
-        Err(TransportError::Interrupted) => {
-            Ok(if node.wait(Duration::ZERO).is_err() { None } else { Some(Vec::new()) })
-        }
-        Err(e) => Err(e.into()),
-    }
+    key.extend(
+        e.uavs()
+            .iter()
+            .flatten()
+            .chain(e.headings())
+            .chain(&e.position)
+            .chain(e.covariance.iter().flatten())
+            .map(|v| v.to_bits()),
+    );
+    key
 }
 
 /// Prints one line on stdout for a supervising launcher.
@@ -212,9 +236,22 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     if node.wait(Duration::ZERO).is_err() {
         return Ok(PlannerSummary { role: ROLE, ..PlannerSummary::default() });
     }
+    let started_ns = now_ns();
+    let instance = instance_id_at(started_ns);
     let estimates = Topic::<Estimate>::subscriber(&node, &services::estimate(&domain))?;
     let commands = Topic::<Command>::publisher(&node, &services::command(&domain))?;
-    let instance = instance_id();
+    let control = ControlChannel::open(&node, &domain, ROLE, instance, started_ns)?;
+    let waitset = protocol::transport::waitset()?;
+    let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
+    let _guards = [
+        waitset.attach_notification(&estimates).map_err(attach_failed)?,
+        waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
+    ];
+    let detail = format!("{}/{}", args.solver.name(), args.objective.name());
+    if !args.takeover {
+        // "Replay the run from step 0 for me" (a no-op at the start of a launch: emitter-sim is not there).
+        control.send(ControlKind::Hello, 0, &detail)?;
+    }
     let mut summary = PlannerSummary { role: ROLE, instance, ..PlannerSummary::default() };
     announce(args.supervised, "ready");
     if !args.quiet {
@@ -233,9 +270,48 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     // Sequence numbers start at the monotonic clock: a restarted planner continues above its predecessor.
     let mut seq = now_ns();
     let mut usable: Option<(Vector2<f64>, Matrix2<f64>)> = None;
-    while let Some(batch) = next_batch(&node, &estimates, spin, IDLE_WAKEUP)? {
+    let mut answers: BTreeMap<u64, (Vec<u64>, Command)> = BTreeMap::new();
+    // The swap: the step a newer planner takes over from (this one stops before it), and with
+    // --takeover the step this one takes over from (and how often the step before it was seen).
+    let mut handover: Option<u64> = None;
+    let mut from_step: Option<u64> = None;
+    let mut seen_before_takeover = 0u32;
+    let mut last_planned: Option<u64> = None;
+    'run: loop {
+        let ready = || Ok(estimates.has_samples()? || control.subscriber().has_samples()?);
+        match protocol::transport::wait_any(&waitset, spin, IDLE_WAKEUP, ready) {
+            Ok(()) => {}
+            Err(TransportError::Interrupted) => break,
+            Err(e) => return Err(e.into()),
+        }
+        if node.wait(Duration::ZERO).is_err() {
+            break;
+        }
+        for msg in control.receive(&mut counter)? {
+            match msg {
+                Err(r) => {
+                    summary.rejected += 1;
+                    eprintln!("planner: rejected a control message: {r}");
+                }
+                Ok(c) if c.kind() == Some(ControlKind::Shutdown) => break 'run,
+                Ok(c) if protocol::control::is_newer(&c, ControlKind::TakeOver, ROLE, started_ns) => {
+                    let f = c.header.step;
+                    if !args.quiet {
+                        eprintln!("planner: a newer planner ({}) takes over from step {f}", c.detail());
+                    }
+                    handover = Some(handover.map_or(f, |h| h.min(f)));
+                }
+                Ok(_) => {}
+            }
+        }
+        if let Some(f) = handover
+            && last_planned.is_some_and(|l| l + 1 >= f)
+        {
+            summary.handed_over_at = Some(f);
+            break 'run;
+        }
         let received_ns = now_ns();
-        for est in batch {
+        for est in estimates.receive_all()? {
             if let Err(r) = counter.check(&est, &mut last_seq) {
                 summary.rejected += 1;
                 eprintln!("planner: rejected an estimate: {r}");
@@ -253,8 +329,53 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                     Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]),
                 ));
             }
+            if let Some(f) = handover
+                && step >= f
+            {
+                summary.handed_over_at = Some(f);
+                break 'run;
+            }
+            if args.takeover {
+                match from_step {
+                    None => {
+                        // The running planner plans this step; this one takes over from the next.
+                        let f = step + 1;
+                        from_step = Some(f);
+                        summary.took_over_at = Some(f);
+                        control.send(ControlKind::TakeOver, f, &detail)?;
+                        announce(args.supervised, &format!("takeover {}", serde_json::json!({"from_step": f})));
+                        if !args.quiet {
+                            eprintln!("planner: taking over from step {f}");
+                        }
+                        seen_before_takeover = 1;
+                        continue;
+                    }
+                    Some(f) if step + 1 == f => {
+                        // Seen again: the old planner did not answer it (a retry); plan it here.
+                        seen_before_takeover += 1;
+                        if seen_before_takeover < 2 {
+                            continue;
+                        }
+                    }
+                    Some(f) if step < f => continue, // planned by the old planner
+                    Some(_) => {}
+                }
+            }
             if step >= scenario.steps as u64 {
                 continue; // the final step is recorded, not planned
+            }
+            let key = content_key(&est, usable.as_ref());
+            if let Some((known, cached)) = answers.get(&step)
+                && *known == key
+            {
+                seq += 1;
+                let mut again = cached.carrying(&est, received_ns);
+                again.header.seq = seq;
+                commands.send(&again)?;
+                summary.resent += 1;
+                summary.published += 1;
+                last_planned = last_planned.max(Some(step));
+                continue;
             }
             let Some((z_hat, m)) = usable else {
                 summary.errors += 1;
@@ -302,9 +423,24 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
             .map_err(|e| ProcessError::Failed(format!("step {step}: command: {e}")))?;
             commands.send(&command)?;
             summary.published += 1;
+            last_planned = last_planned.max(Some(step));
+            answers.insert(step, (key, command));
+            if answers.len() > MAX_CACHED_STEPS {
+                answers.pop_first();
+            }
+        }
+        // A newer planner took over and this one has planned every step before it: hand over.
+        if let Some(f) = handover
+            && last_planned.is_some_and(|l| l + 1 >= f)
+        {
+            summary.handed_over_at = Some(f);
+            break 'run;
         }
     }
     if !args.quiet {
+        if let Some(f) = summary.handed_over_at {
+            eprintln!("planner: handed over to the newer planner at step {f}");
+        }
         eprintln!("planner: stopped after {} commands ({} estimates, {counter})", summary.published, summary.accepted);
     }
     Ok(summary)

@@ -4,10 +4,12 @@
 //! over iceoryx2 publish/subscribe (zero-copy shared memory). This crate is the single place that defines:
 //!
 //! - [`messages`]: the `#[repr(C)]` plain-old-data message types ([`Measurement`], [`Estimate`],
-//!   [`Command`], [`Truth`]) with a common [`Header`] (version, step, sequence number and the monotonic
+//!   [`Command`], [`Truth`], and [`Control`] for process management) with a common [`Header`] (version, step, sequence number and the monotonic
 //!   [`Stamps`] of every hop, so any receiver can compute per-hop and end-to-end latency);
 //! - [`validate`](mod@validate): what a receiver must check before trusting a message ([`Rejection`]) and a
 //!   [`RejectionCounter`] for the monitor;
+//! - [`control`]: the control topic as one process sees it ([`ControlChannel`]: announce, take over,
+//!   shut down; per-instance sequence numbers);
 //! - [`services`]: every service name, under a [`Domain`] prefix (`--domain NAME` or `UAVLOC_DOMAIN`);
 //! - [`transport`]: a typed wrapper of one "topic" = a pub/sub service plus a companion event service of the
 //!   same name, so subscribers can block in a `WaitSet` ([`Topic`], [`TopicPublisher`], [`TopicSubscriber`]).
@@ -15,6 +17,7 @@
 //! Conventions follow `uavloc-tdoa`: 2-D positions in metres, angles in radians, `uavs[0]` is the reference
 //! UAV, range differences `d_i = r_i − r_0` for i = 1..N−1, 3 ≤ N ≤ [`MAX_UAVS`].
 
+pub mod control;
 pub mod messages;
 pub mod services;
 pub mod transport;
@@ -25,9 +28,10 @@ mod proptests;
 
 use thiserror::Error;
 
+pub use control::{ControlChannel, instance_id};
 pub use messages::{
-    Command, Estimate, EstimateStatus, Fix, Header, Latencies, Measurement, Message, MessageKind, Name16, PlanInfo,
-    Stamps, Truth, now_ns,
+    Command, Control, ControlKind, Estimate, EstimateStatus, Fix, Header, Latencies, Measurement, Message, MessageKind,
+    Name16, PlanInfo, Stamps, Truth, now_ns,
 };
 pub use services::Domain;
 pub use transport::{Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, node};

@@ -41,12 +41,19 @@ pub enum MessageKind {
     Command,
     /// [`Truth`].
     Truth,
+    /// [`Control`].
+    Control,
 }
 
 impl MessageKind {
     /// All kinds, in index order.
-    pub const ALL: [MessageKind; 4] =
-        [MessageKind::Measurement, MessageKind::Estimate, MessageKind::Command, MessageKind::Truth];
+    pub const ALL: [MessageKind; 5] = [
+        MessageKind::Measurement,
+        MessageKind::Estimate,
+        MessageKind::Command,
+        MessageKind::Truth,
+        MessageKind::Control,
+    ];
 
     /// Stable lower-case name (`"measurement"`, …).
     pub fn name(self) -> &'static str {
@@ -55,6 +62,7 @@ impl MessageKind {
             MessageKind::Estimate => "estimate",
             MessageKind::Command => "command",
             MessageKind::Truth => "truth",
+            MessageKind::Control => "control",
         }
     }
 
@@ -107,7 +115,7 @@ impl Stamps {
             MessageKind::Measurement => self.measurement_published_ns = t,
             MessageKind::Estimate => self.estimate_published_ns = t,
             MessageKind::Command => self.command_published_ns = t,
-            MessageKind::Truth => {}
+            MessageKind::Truth | MessageKind::Control => {}
         }
     }
 
@@ -133,7 +141,7 @@ impl Stamps {
                 trigger_command_received_ns: received_ns,
                 ..Stamps::default()
             },
-            MessageKind::Truth => Stamps { published_ns: 0, ..*upstream },
+            MessageKind::Truth | MessageKind::Control => Stamps { published_ns: 0, ..*upstream },
         }
     }
 
@@ -747,6 +755,110 @@ impl Truth {
     }
 }
 
+// ---------------------------------------------------------------------------------------------------------
+// Control
+// ---------------------------------------------------------------------------------------------------------
+
+/// What a [`Control`] message says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u32)]
+pub enum ControlKind {
+    /// A process instance (re)joined the pipeline, e.g. restarted after a crash. `header.step` is the
+    /// first step it needs to see again (0 for the estimator and the planner, whose state is rebuilt from
+    /// the whole run; the monitor's first step not in its log): emitter-sim replays the run from there.
+    Hello = 0,
+    /// A new instance of `role` takes over from step `header.step` (a swap): the running one handles the
+    /// steps before it and then exits.
+    TakeOver = 1,
+    /// Every process of the domain stops (the run is over or was interrupted).
+    Shutdown = 2,
+}
+
+impl ControlKind {
+    /// Decodes the wire value.
+    pub fn from_u32(v: u32) -> Option<Self> {
+        match v {
+            0 => Some(ControlKind::Hello),
+            1 => Some(ControlKind::TakeOver),
+            2 => Some(ControlKind::Shutdown),
+            _ => None,
+        }
+    }
+
+    /// Stable lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ControlKind::Hello => "hello",
+            ControlKind::TakeOver => "take_over",
+            ControlKind::Shutdown => "shutdown",
+        }
+    }
+}
+
+/// Any process → every process of the domain (the `control` topic): who joins, who takes over, stop.
+///
+/// Many processes publish on this topic, each with its own sequence numbers: a receiver tracks the last
+/// accepted sequence number per `instance`.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("uavloc::Control/v1")]
+#[repr(C)]
+pub struct Control {
+    /// Common header; `step` depends on the kind (see [`ControlKind`]).
+    pub header: Header,
+    /// Instance id of the sender (as in [`Estimate::instance`] / [`Command::planner_instance`]).
+    pub instance: u64,
+    /// When the sender started ([`now_ns`]): orders two instances of one role (the later one is newer).
+    pub started_ns: u64,
+    /// [`ControlKind`] as `u32`.
+    pub kind: u32,
+    /// Explicit padding; 0 when sent.
+    pub reserved: u32,
+    /// The sender's role: `emitter-sim`, `estimator`, `planner`, `monitor`, `launcher`, `swap`.
+    pub role: Name16,
+    /// Free detail for humans and the monitor, e.g. `ga/analytical` for a planner (may be empty).
+    pub detail: Name16,
+}
+
+impl_message!(Control, MessageKind::Control, 1, "uavloc::Control/v1");
+
+impl Control {
+    /// A control message of `kind` from `role` (`detail` may be empty).
+    pub fn new(
+        kind: ControlKind,
+        step: u64,
+        seq: u64,
+        instance: u64,
+        started_ns: u64,
+        role: &str,
+        detail: &str,
+    ) -> Result<Self, ProtocolError> {
+        Ok(Control {
+            header: Header::new(Self::VERSION, step, seq),
+            instance,
+            started_ns,
+            kind: kind as u32,
+            reserved: 0,
+            role: Name16::new("role", role)?,
+            detail: if detail.is_empty() { Name16::default() } else { Name16::new("detail", detail)? },
+        })
+    }
+
+    /// The decoded kind (`None` for an unknown wire value).
+    pub fn kind(&self) -> Option<ControlKind> {
+        ControlKind::from_u32(self.kind)
+    }
+
+    /// The sender's role (`None` if the bytes are not a valid name).
+    pub fn role(&self) -> Option<&str> {
+        self.role.as_str()
+    }
+
+    /// The detail (empty when none or invalid).
+    pub fn detail(&self) -> &str {
+        self.detail.as_str().unwrap_or("")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -762,6 +874,7 @@ mod tests {
         assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (344, 8));
         assert_eq!((size_of::<Command>(), align_of::<Command>()), (352, 8));
         assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (104, 8));
+        assert_eq!((size_of::<Control>(), align_of::<Control>()), (144, 8));
     }
 
     #[test]
@@ -777,6 +890,8 @@ mod tests {
         assert_eq!(offset_of!(Command, objective), 88 + 32);
         assert_eq!(offset_of!(Command, objective_name) + 16, size_of::<Command>());
         assert_eq!(offset_of!(Truth, position) + 16, size_of::<Truth>());
+        assert_eq!(offset_of!(Control, role), 88 + 24);
+        assert_eq!(offset_of!(Control, detail) + 16, size_of::<Control>());
     }
 
     #[test]
@@ -793,6 +908,7 @@ mod tests {
         check::<Estimate>();
         check::<Command>();
         check::<Truth>();
+        check::<Control>();
     }
 
     #[test]

@@ -4,7 +4,7 @@ use core::mem::size_of;
 
 use proptest::prelude::*;
 
-use crate::messages::{Command, Estimate, EstimateStatus, Fix, Measurement, Message, PlanInfo, Truth};
+use crate::messages::{Command, Control, Estimate, EstimateStatus, Fix, Measurement, Message, PlanInfo, Truth};
 use crate::validate::{Rejection, is_symmetric_positive_definite};
 use crate::{MAX_UAVS, MIN_UAVS};
 
@@ -30,6 +30,8 @@ unsafe impl AnyBitPattern for Estimate {}
 unsafe impl AnyBitPattern for Command {}
 // SAFETY: as above.
 unsafe impl AnyBitPattern for Truth {}
+// SAFETY: as above (`kind` is a raw u32, the names are byte arrays).
+unsafe impl AnyBitPattern for Control {}
 
 fn bytes_of<T: AnyBitPattern>() -> impl Strategy<Value = Vec<u8>> {
     proptest::collection::vec(any::<u8>(), size_of::<T>())
@@ -71,6 +73,8 @@ fn used_floats<T: Message>(msg: &T) -> Option<Vec<f64>> {
         Some(v)
     } else if let Some(t) = any.downcast_ref::<Truth>() {
         Some(t.position.to_vec())
+    } else if any.downcast_ref::<Control>().is_some() {
+        Some(Vec::new())
     } else {
         unreachable!()
     }
@@ -107,6 +111,9 @@ fn check_arbitrary<T: AnyBitPattern>(msg: &T, last: Option<u64>) -> Result<(), T
         }
         if let Some(c) = any.downcast_ref::<Command>() {
             prop_assert!(c.solver().is_some() && c.objective_name().is_some());
+        }
+        if let Some(c) = any.downcast_ref::<Control>() {
+            prop_assert!(c.kind().is_some() && c.role().is_some());
         }
     }
     Ok(())
@@ -205,6 +212,11 @@ proptest! {
     #[test]
     fn arbitrary_command(bytes in bytes_of::<Command>(), last in any::<Option<u64>>()) {
         check_arbitrary(&Command::from_bytes(&bytes), last)?;
+    }
+
+    #[test]
+    fn arbitrary_control(bytes in bytes_of::<Control>(), last in any::<Option<u64>>()) {
+        check_arbitrary(&Control::from_bytes(&bytes), last)?;
     }
 
     #[test]

@@ -138,7 +138,8 @@ pub fn truth(domain: &Domain) -> String {
     format!("{domain}/truth")
 }
 
-/// Topic of process-control messages (e.g. a planner takeover announcement; no message type yet).
+/// Topic of [`Control`](crate::Control) messages: every process → every process (a process joining or
+/// restarted, a swap's takeover, the end of the run).
 pub fn control(domain: &Domain) -> String {
     format!("{domain}/control")
 }

@@ -32,10 +32,14 @@ use thiserror::Error;
 
 use crate::messages::{Message, now_ns};
 
-/// Most publishers per topic.
-pub const MAX_PUBLISHERS: usize = 4;
+/// The node type of every uavloc process (inter-process iceoryx2 services).
+pub type IpcNode = Node<ipc::Service>;
+
+/// Most publishers per topic (the control topic has one per process, plus swapped-in instances and the
+/// launcher).
+pub const MAX_PUBLISHERS: usize = 8;
 /// Most subscribers per topic.
-pub const MAX_SUBSCRIBERS: usize = 8;
+pub const MAX_SUBSCRIBERS: usize = 16;
 /// Samples a subscriber buffers before the oldest is overwritten.
 pub const SUBSCRIBER_BUFFER: usize = 16;
 /// Samples a late subscriber receives from before it connected.
@@ -98,6 +102,23 @@ pub fn node(name: &str) -> Result<Node<ipc::Service>, TransportError> {
     })?;
     let node =
         NodeBuilder::new().name(&node_name).create::<ipc::Service>().map_err(|e| failed("creating node", name, e))?;
+    cleanup_dead_nodes(&node);
+    Ok(node)
+}
+
+/// [`node`] for a process that handles SIGINT/SIGTERM itself (e.g. a launcher): iceoryx2 registers no
+/// signal handler for it.
+pub fn node_without_signal_handling(name: &str) -> Result<Node<ipc::Service>, TransportError> {
+    let node_name = NodeName::new(name).map_err(|e| TransportError::BadName {
+        what: "node",
+        name: name.to_owned(),
+        detail: format!("{e:?}"),
+    })?;
+    let node = NodeBuilder::new()
+        .name(&node_name)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| failed("creating node", name, e))?;
     cleanup_dead_nodes(&node);
     Ok(node)
 }
@@ -324,6 +345,41 @@ impl<T: Message> TopicSubscriber<T> {
     pub fn subscriber(&self) -> &Subscriber<ipc::Service, T, ()> {
         &self.subscriber
     }
+}
+
+/// Waits on a `WaitSet` (to which several topics' subscribers are attached): busy-polls `ready` for `spin`
+/// first, then blocks for at most `timeout`. Returns `Ok(())` on any wake-up, a timeout or a signal other
+/// than SIGINT/SIGTERM (the caller drains its subscribers either way), [`TransportError::Interrupted`] on
+/// SIGINT/SIGTERM.
+pub fn wait_any(
+    waitset: &WaitSet<ipc::Service>,
+    spin: Duration,
+    timeout: Duration,
+    mut ready: impl FnMut() -> Result<bool, TransportError>,
+) -> Result<(), TransportError> {
+    let start = Instant::now();
+    loop {
+        if ready()? {
+            return Ok(());
+        }
+        if start.elapsed() >= spin {
+            break;
+        }
+        core::hint::spin_loop();
+    }
+    if timeout.is_zero() {
+        return Ok(());
+    }
+    match waitset.wait_and_process_once_with_timeout(|_| CallbackProgression::Continue, timeout) {
+        Ok(iceoryx2::waitset::WaitSetRunResult::TerminationRequest) => Err(TransportError::Interrupted),
+        Ok(_) => Ok(()),
+        Err(e) => Err(failed("waiting", "waitset", e)),
+    }
+}
+
+/// A `WaitSet` for the subscribers of one process.
+pub fn waitset() -> Result<WaitSet<ipc::Service>, TransportError> {
+    WaitSetBuilder::new().create::<ipc::Service>().map_err(|e| failed("creating", "waitset", e))
 }
 
 fn wait_error(e: ListenerWaitError, name: &str) -> TransportError {

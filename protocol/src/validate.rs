@@ -27,7 +27,9 @@ use core::fmt;
 
 use thiserror::Error;
 
-use crate::messages::{Command, Estimate, EstimateStatus, Measurement, Message, MessageKind, Truth};
+use crate::messages::{
+    Command, Control, ControlKind, Estimate, EstimateStatus, Measurement, Message, MessageKind, Truth,
+};
 use crate::{MAX_UAVS, MIN_UAVS};
 
 /// Why a received message was rejected.
@@ -82,11 +84,17 @@ pub enum Rejection {
         /// Which name.
         field: &'static str,
     },
+    /// The control kind is not one of [`ControlKind`].
+    #[error("unknown control kind {kind}")]
+    UnknownKind {
+        /// The wire value.
+        kind: u32,
+    },
 }
 
 impl Rejection {
     /// All kind strings, in [`kind_index`](Self::kind_index) order.
-    pub const KINDS: [&'static str; 8] = [
+    pub const KINDS: [&'static str; 9] = [
         "bad_version",
         "bad_count",
         "not_finite",
@@ -95,6 +103,7 @@ impl Rejection {
         "unknown_status",
         "stale",
         "bad_name",
+        "unknown_kind",
     ];
 
     /// Stable snake_case name of the reason (for logs and counters).
@@ -113,6 +122,7 @@ impl Rejection {
             Rejection::UnknownStatus { .. } => 5,
             Rejection::Stale { .. } => 6,
             Rejection::BadName { .. } => 7,
+            Rejection::UnknownKind { .. } => 8,
         }
     }
 }
@@ -209,6 +219,21 @@ impl Truth {
     pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
         check_version(Self::VERSION, self.header.version)?;
         check_finite("position", &self.position)?;
+        check_seq(self.header.seq, last_seq)
+    }
+}
+
+impl Control {
+    /// Checks the control message; see the [module docs](crate::validate). The detail may be empty.
+    pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
+        check_version(Self::VERSION, self.header.version)?;
+        ControlKind::from_u32(self.kind).ok_or(Rejection::UnknownKind { kind: self.kind })?;
+        if !self.role.is_valid() {
+            return Err(Rejection::BadName { field: "role" });
+        }
+        if self.detail.bytes != [0; 16] && !self.detail.is_valid() {
+            return Err(Rejection::BadName { field: "detail" });
+        }
         check_seq(self.header.seq, last_seq)
     }
 }
@@ -484,6 +509,20 @@ mod tests {
     }
 
     #[test]
+    fn checks_control_messages() {
+        let c = Control::new(ControlKind::Hello, 0, 5, 9, 100, "planner", "ga/analytical").unwrap();
+        assert_eq!(c.validate(Some(4)), Ok(()));
+        assert_eq!((c.kind(), c.role(), c.detail()), (Some(ControlKind::Hello), Some("planner"), "ga/analytical"));
+        let plain = Control::new(ControlKind::Shutdown, 0, 5, 9, 100, "launcher", "").unwrap();
+        assert_eq!((plain.validate(None), plain.detail()), (Ok(()), ""));
+        assert_eq!(c.validate(Some(5)).unwrap_err().kind(), "stale");
+        assert_eq!(with(c, |c| c.kind = 3).validate(None), Err(Rejection::UnknownKind { kind: 3 }));
+        assert_eq!(with(c, |c| c.role.bytes = [0; 16]).validate(None), Err(Rejection::BadName { field: "role" }));
+        assert_eq!(with(c, |c| c.detail.bytes[0] = 0x80).validate(None).unwrap_err().kind(), "bad_name");
+        assert_eq!(with(c, |c| c.header.version = 2).validate(None).unwrap_err().kind(), "bad_version");
+    }
+
+    #[test]
     fn rejects_bad_name() {
         let c = with(command(), |c| c.solver.bytes = [0; 16]);
         assert_eq!(c.validate(None), Err(Rejection::BadName { field: "solver" }));
@@ -504,6 +543,7 @@ mod tests {
             Rejection::UnknownStatus { status: 9 },
             Rejection::Stale { seq: 1, last: 2 },
             Rejection::BadName { field: "solver" },
+            Rejection::UnknownKind { kind: 7 },
         ];
         for (i, r) in all.iter().enumerate() {
             assert_eq!(r.kind_index(), i);

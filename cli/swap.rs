@@ -1,0 +1,209 @@
+//! `uavloc swap <planner|estimator>`: replaces the running planner (or estimator) of a pipeline by a new
+//! instance while the other processes keep running.
+//!
+//! The new instance is `uavloc process <role> --takeover` with the given flags, started *detached* (its own
+//! session: it outlives the `swap` command, and a Ctrl-C in the terminal of the swap does not reach it;
+//! its error messages still go to the swap's stderr). It follows the running pipeline, announces on the
+//! domain's control topic that it takes over from the next step, the running instance handles the steps
+//! before that and exits, and the new one goes on (see `planner::process` / `estimator::process`). The swap
+//! command returns once the old instance is gone, with the step the new one took over from.
+//!
+//! The new instance is not a child of `uavloc launch`: the launcher does not restart it if it crashes,
+//! but stops it at the end of the run (or on Ctrl-C) with the shutdown message on the control topic; a
+//! pipeline started by hand stops it with SIGTERM.
+
+use std::io::{BufRead, BufReader};
+use std::os::unix::process::CommandExt as _;
+use std::process::Stdio;
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use clap::{Args, Subcommand};
+use monitor::resources;
+use protocol::services::Domain;
+use serde::Serialize;
+
+use crate::error::CliError;
+use crate::output::{Diagnostic, Report, Table};
+
+pub const LONG_ABOUT: &str = "\
+Replace the running planner (or estimator) of a pipeline by a new instance, e.g. with another solver,
+while the other processes keep running. The new process takes over at the next planning step, the old
+one plans the step in progress and exits: no step is missed or planned twice. The monitor shows the
+switch, and its record names the planner of every step.
+
+The new process is started detached (it outlives this command) and stops with the pipeline: `uavloc
+launch` stops it at the end of the run. Give it the flags of the run it joins (--domain, and for the
+planner --scenario, --steps and --seed as given to the launch).";
+
+pub const AFTER_HELP: &str = "\
+Examples:
+  uavloc launch --domain lab1 --steps 60 --step-delay-ms 200 &
+  uavloc swap planner --domain lab1 --steps 60 --solver ga
+  uavloc swap estimator --domain lab1";
+
+/// Flags of `uavloc swap`.
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct SwapArgs {
+    #[command(subcommand)]
+    pub role: SwapRole,
+    /// Give up (and stop the new process) when the swap is not done after this many seconds.
+    #[arg(long, value_name = "S", default_value_t = 30.0, global = true)]
+    pub timeout_s: f64,
+}
+
+/// The processes that can be swapped.
+#[derive(Subcommand, Debug, Clone, PartialEq)]
+pub enum SwapRole {
+    /// A new planner (e.g. another --solver or --objective) takes over from the running one.
+    Planner(planner::process::PlannerArgs),
+    /// A new estimator takes over from the running one (its state is handed over exactly).
+    Estimator(estimator::process::EstimatorArgs),
+}
+
+/// What `uavloc swap` prints.
+#[derive(Debug, Clone, Serialize)]
+pub struct SwapReport {
+    pub role: String,
+    pub domain: String,
+    /// The new process.
+    pub pid: u32,
+    /// The first step it handles.
+    pub from_step: u64,
+    /// Its solver/objective (planner only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub planner: Option<String>,
+}
+
+fn opt_flag(flags: &mut Vec<String>, name: &str, value: Option<String>) {
+    if let Some(v) = value {
+        flags.extend([name.to_string(), v]);
+    }
+}
+
+/// Runs `uavloc swap`.
+pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
+    if !(args.timeout_s > 0.0 && args.timeout_s.is_finite()) {
+        return Err(CliError::Input(format!("--timeout-s must be > 0, got {}", args.timeout_s)));
+    }
+    let timeout = Duration::from_secs_f64(args.timeout_s);
+    let (role, domain_flag, mut flags, planner) = match &args.role {
+        SwapRole::Planner(a) => {
+            let mut f = Vec::new();
+            opt_flag(&mut f, "--scenario", a.scenario.as_ref().map(|p| p.display().to_string()));
+            opt_flag(&mut f, "--steps", a.steps.map(|n| n.to_string()));
+            opt_flag(&mut f, "--seed", a.seed.map(|n| n.to_string()));
+            f.extend([
+                "--objective".into(),
+                a.objective.name().into(),
+                "--solver".into(),
+                a.solver.name().into(),
+                "--spin-us".into(),
+                a.spin_us.to_string(),
+            ]);
+            if a.quiet {
+                f.push("--quiet".into());
+            }
+            ("planner", a.domain.as_deref(), f, Some(format!("{}/{}", a.solver.name(), a.objective.name())))
+        }
+        SwapRole::Estimator(a) => {
+            let mut f = vec!["--spin-us".to_string(), a.spin_us.to_string()];
+            if a.quiet {
+                f.push("--quiet".into());
+            }
+            ("estimator", a.domain.as_deref(), f, None)
+        }
+    };
+    protocol::transport::quiet_logs();
+    let domain = Domain::resolve(domain_flag).map_err(|e| CliError::Input(format!("--domain: {e}")))?;
+    let node_name = protocol::services::node_name(&domain, role);
+    let running = |domain: &Domain| -> Result<usize, CliError> {
+        Ok(resources::list(domain).map_err(CliError::Failed)?.alive_nodes().filter(|n| *n == node_name).count())
+    };
+    if running(&domain)? == 0 {
+        return Err(CliError::Input(format!(
+            "no {role} is running in domain {domain}; start a pipeline first (e.g. uavloc launch --domain {domain})"
+        )));
+    }
+    flags.extend(["--domain".into(), domain.to_string(), "--takeover".into(), "--supervised".into()]);
+
+    let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("cannot find this executable: {e}")))?;
+    let mut command = std::process::Command::new(exe);
+    command.arg("process").arg(role).args(&flags).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::inherit());
+    // SAFETY: the closure runs in the forked child before exec and only calls setsid(2), which is
+    // async-signal-safe; it allocates nothing and touches no lock.
+    unsafe {
+        command.pre_exec(|| {
+            libc::setsid();
+            Ok(())
+        });
+    }
+    let mut child = command.spawn().map_err(|e| CliError::Failed(format!("cannot start the new {role}: {e}")))?;
+    let pid = child.id();
+    let stdout = child.stdout.take().expect("piped stdout");
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    let give_up = |child: &mut std::process::Child, why: String| {
+        let _ = child.kill();
+        let _ = child.wait();
+        let _ = resources::remove_dead_nodes(&domain);
+        CliError::Failed(why)
+    };
+    // The new instance takes over at the next step …
+    let deadline = Instant::now() + timeout;
+    let from_step = loop {
+        match rx.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
+            Ok(line) => {
+                if let Some(json) = line.strip_prefix("takeover ") {
+                    let v: serde_json::Value = serde_json::from_str(json).unwrap_or_default();
+                    if let Some(f) = v["from_step"].as_u64() {
+                        break f;
+                    }
+                }
+            }
+            Err(_) => {
+                let why = match child.try_wait() {
+                    Ok(Some(status)) => format!("the new {role} stopped ({status}) before taking over"),
+                    _ => format!("the new {role} did not take over within {timeout:?} (is the pipeline running?)"),
+                };
+                return Err(give_up(&mut child, why));
+            }
+        }
+    };
+    // … and the old one exits once it has handled the steps before.
+    while running(&domain)? > 1 {
+        if Instant::now() > deadline {
+            return Err(CliError::Failed(format!(
+                "the new {role} (pid {pid}) took over from step {from_step}, but the old one is still running after \
+                 {timeout:?}"
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // The new process runs on by itself (its later `summary` line goes nowhere).
+    drop(child);
+    Ok(SwapReport { role: role.into(), domain: domain.to_string(), pid, from_step, planner })
+}
+
+impl Report for SwapReport {
+    fn table(&self) -> Table {
+        let mut t = Table::new()
+            .row("domain", self.domain.clone())
+            .row(format!("new {}", self.role), format!("pid {}", self.pid))
+            .row("takes over from step", self.from_step.to_string());
+        if let Some(p) = &self.planner {
+            t = t.row("solver / objective", p.clone());
+        }
+        t.row(format!("old {}", self.role), "exited".to_string())
+    }
+
+    fn diagnostics(&self) -> Vec<Diagnostic> {
+        Vec::new()
+    }
+}

@@ -1,0 +1,146 @@
+//! `uavloc swap` during a slow `uavloc launch`: a new planner (ga instead of pso) takes over at the next
+//! step, the old one plans the steps before and exits, no step is missed or planned twice, the monitor
+//! shows and records which planner produced each step, and the swapped-in process stops with the launch.
+//! Swapping the estimator hands its state over exactly: the run still equals `simulate`.
+
+mod common;
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use common::{Launch, UAVLOC, assert_nothing_left, assert_same_run, domain, is_zombie, json_of, pid_of, scratch};
+use serde_json::Value;
+
+const STEPS: u64 = 30;
+
+/// Runs `uavloc swap <args> --json` (stderr to a file: the detached new process keeps writing there).
+fn swap(dir: &std::path::Path, args: &[&str]) -> Value {
+    let err = dir.join("swap.stderr");
+    let out = Command::new(UAVLOC)
+        .arg("swap")
+        .args(args)
+        .arg("--json")
+        .stdin(Stdio::null())
+        .stderr(std::fs::File::create(&err).unwrap())
+        .output()
+        .expect("run uavloc swap");
+    let stderr = std::fs::read_to_string(&err).unwrap_or_default();
+    assert!(out.status.success(), "uavloc swap {args:?} failed ({}): {stderr}", out.status);
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {stderr}"))
+}
+
+fn gone(pid: u32) -> bool {
+    !std::path::Path::new(&format!("/proc/{pid}")).exists() || is_zombie(pid)
+}
+
+#[test]
+fn the_planner_is_swapped_from_pso_to_ga_mid_run() {
+    let d = domain("swap", "planner");
+    let dir = scratch("swap-planner");
+    let steps = STEPS.to_string();
+    let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "40"]);
+    launch.wait_for_step(5, Duration::from_secs(30));
+    let old = pid_of(&d, "planner").expect("the launch's planner");
+
+    let report = swap(&dir, &["planner", "--domain", &d, "--steps", &steps, "--solver", "ga"]);
+    let from = report["from_step"].as_u64().unwrap();
+    let new = report["pid"].as_u64().unwrap() as u32;
+    assert!((6..STEPS).contains(&from), "{report}");
+    assert_eq!(report["planner"], "ga/analytical");
+    // When the swap returns, the old planner is gone and the new one is the planner of the domain.
+    assert!(gone(old), "the old planner {old} still runs");
+    assert_eq!(pid_of(&d, "planner"), Some(new));
+
+    let run = launch.finish_json();
+    assert_eq!(run["restarts"].as_u64(), Some(0), "a swap is no restart");
+    assert_eq!(run["rejected"].as_u64(), Some(0));
+    let records = run["steps"].as_array().unwrap();
+    assert_eq!(records.len() as u64, STEPS + 1);
+    // Every planned step has exactly one command: pso's before the swap, ga's from it on.
+    for s in &records[..STEPS as usize] {
+        let k = s["step"].as_u64().unwrap();
+        let solver = s["planner"]["solver"].as_str().unwrap_or_else(|| panic!("step {k} has no planner: {s}"));
+        assert_eq!(solver, if k < from { "pso" } else { "ga" }, "step {k}");
+        let pid = s["planner"]["instance"].as_u64().unwrap() >> 32;
+        assert_eq!(pid, u64::from(if k < from { old } else { new }), "step {k}");
+    }
+    assert!(records[STEPS as usize]["planner"].is_null(), "the last step is not planned");
+    // No step was missed: emitter-sim never had to ask again, and flew one command per step.
+    let processes = run["processes"].as_array().unwrap();
+    let emitter = processes.iter().find(|p| p["role"] == "emitter-sim").unwrap();
+    assert_eq!(emitter["summary"]["steps"].as_u64(), Some(STEPS), "{emitter}");
+    assert_eq!(emitter["summary"]["retries"].as_u64(), Some(0), "{emitter}");
+    // The old planner exited cleanly, handing over at the swap step.
+    let planner = processes.iter().find(|p| p["role"] == "planner").unwrap();
+    assert_eq!(
+        (planner["exit"].as_str(), planner["summary"]["handed_over_at"].as_u64()),
+        (Some("exit code 0"), Some(from))
+    );
+
+    // Up to the swap the run is pso's, i.e. simulate's; from there on the ga planner flew it.
+    let sim = json_of(&["simulate", "--json", "--steps", &steps]);
+    let prefix = |v: &Value, n: u64| {
+        let mut v = v.clone();
+        v["steps"] = Value::Array(v["steps"].as_array().unwrap()[..n as usize].to_vec());
+        v
+    };
+    assert_same_run(&prefix(&sim, from), &prefix(&run, from), "before the swap");
+    assert_eq!(sim["steps"][from as usize]["uavs"], run["steps"][from as usize]["uavs"], "pso's last command flown");
+    assert_ne!(sim["steps"][STEPS as usize]["uavs"], run["steps"][STEPS as usize]["uavs"], "ga flew the rest");
+
+    // The monitor showed the switch: a take-over event and two planner instances.
+    let events = launch_events(&dir);
+    let takeover: Vec<&Value> = events.iter().filter(|e| e["event"] == "take_over").collect();
+    assert_eq!(takeover.len(), 1, "{takeover:?}");
+    assert_eq!((takeover[0]["role"].as_str(), takeover[0]["step"].as_u64()), (Some("planner"), Some(from)));
+    assert_eq!(takeover[0]["detail"], "ga/analytical");
+    let planners: Vec<&Value> = events.iter().filter(|e| e["event"] == "planner").collect();
+    assert_eq!(planners.iter().map(|e| e["solver"].as_str().unwrap()).collect::<Vec<_>>(), ["pso", "ga"]);
+    assert_eq!(planners[1]["step"].as_u64(), Some(from));
+
+    // The launch stopped the swapped-in planner too.
+    assert_nothing_left(&d);
+    assert!(gone(new));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_estimator_is_swapped_and_the_run_is_unchanged() {
+    let d = domain("swap", "estimator");
+    let dir = scratch("swap-estimator");
+    let steps = STEPS.to_string();
+    let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "40"]);
+    launch.wait_for_step(5, Duration::from_secs(30));
+    let old = pid_of(&d, "estimator").expect("the launch's estimator");
+    let report = swap(&dir, &["estimator", "--domain", &d]);
+    let from = report["from_step"].as_u64().unwrap();
+    assert!((6..STEPS).contains(&from), "{report}");
+    assert!(gone(old));
+    assert_eq!(pid_of(&d, "estimator"), Some(report["pid"].as_u64().unwrap() as u32));
+    let run = launch.finish_json();
+    // The new estimator continued from exactly the old one's state: the run is simulate's, bit for bit.
+    let sim = json_of(&["simulate", "--json", "--steps", &steps]);
+    assert_same_run(&sim, &run, "estimator swap");
+    assert_eq!((run["restarts"].as_u64(), run["rejected"].as_u64()), (Some(0), Some(0)));
+    let processes = run["processes"].as_array().unwrap();
+    let estimator = processes.iter().find(|p| p["role"] == "estimator").unwrap();
+    assert_eq!(estimator["summary"]["handed_over_at"].as_u64(), Some(from), "{estimator}");
+    let emitter = processes.iter().find(|p| p["role"] == "emitter-sim").unwrap();
+    assert_eq!(emitter["summary"]["retries"].as_u64(), Some(0), "{emitter}");
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_swap_without_a_pipeline_is_refused() {
+    let d = domain("swap", "nothing");
+    let out = common::uavloc(&["swap", "planner", "--domain", &d]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no planner is running") && err.contains(&d), "{err}");
+    assert_nothing_left(&d);
+}
+
+fn launch_events(dir: &std::path::Path) -> Vec<Value> {
+    common::read_events(&dir.join("run.jsonl"))
+}
