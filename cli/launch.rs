@@ -1,5 +1,6 @@
 //! `uavloc launch`: the process pipeline — monitor, planner, estimator and emitter-sim as child processes
-//! talking over iceoryx2 — run to the end of a scenario, in lock-step; and the hidden
+//! talking over iceoryx2 — run to the end of a scenario, in lock-step or in real time (`--mode`,
+//! `--time-scale`, passed to emitter-sim; see `emitter_sim::process`); and the hidden
 //! `uavloc process <role>` that makes `uavloc` a multi-call binary (each child is `uavloc` itself, running
 //! the same library entry point as the standalone `monitor`, `planner`, `estimator`, `emitter-sim`
 //! binaries).
@@ -56,6 +57,7 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant};
 
 use clap::{Args, Subcommand};
+use emitter_sim::process::Mode;
 use monitor::RunRecord;
 use monitor::resources::{self, DomainResources};
 use planner::{ObjectiveKind, SolverKind, TargetMode};
@@ -70,16 +72,24 @@ pub const LONG_ABOUT: &str = "\
 Run the closed loop as the four processes of the uavloc pipeline, exchanging zero-copy messages over
 iceoryx2: emitter-sim (the world: true emitter, UAV motion, noisy TDOA) → estimator (Chan) → planner
 (objective × solver under the motion constraints) → back to emitter-sim, with the monitor listening to
-everything. Lock-step: the world advances as soon as the planner's command for a step arrives.
+everything. The children are `uavloc` itself (`uavloc process <role>`), so no other binary is needed.
 
-For the same scenario, objective, solver, steps and seed the trajectory, the estimates and the metrics
-equal those of `uavloc simulate` exactly (only the planning times differ). The children are `uavloc`
-itself (`uavloc process <role>`), so no other binary is needed.
+Two modes (--mode):
+  lockstep (default)  the world advances as soon as the planner's command for a step arrives. For
+                      benchmarks and tests, and the exact reproduction of `uavloc simulate`: for the same
+                      scenario, objective, solver, steps and seed the trajectory, the estimates and the
+                      metrics equal simulate's (only the planning times differ).
+  realtime            the world flies at a rate: step k at t0 + k*dt/X, X = --time-scale (simulated
+                      seconds per real second; the paper's 10 s step takes 0.1 s at --time-scale 100).
+                      A command that is not there when the next step is due is missed: the UAVs fly
+                      straight on at their headings, the step is recorded with objective_value null and
+                      active_constraints [\"command_missed\"], and \"missed_commands\" counts it. With
+                      every command in time the run still equals simulate.
 
 The monitor shows one line per step on stderr (CRLB and RMSE at the truth, estimate error, hop latencies,
 active planner, rejected messages) unless --headless. At the end the run is printed as a table, or with
---json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\" and
-\"processes\".
+--json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\",
+\"missed_commands\" and \"processes\".
 
 A child that crashes is restarted (at most --max-restarts times, after 50 ms, 100 ms, ...; written to the
 --log): emitter-sim replays the run to the new process, which picks up exactly where its predecessor was,
@@ -92,6 +102,7 @@ pub const AFTER_HELP: &str = "\
 Examples:
   uavloc launch
   uavloc launch --headless --json --steps 6 --objective mc
+  uavloc launch --mode realtime --time-scale 100
   uavloc launch --scenario scenarios/nominal.toml --solver ga --domain lab1 --log run.jsonl --out runs/lab1
 
 Each process also runs on its own, e.g. in four terminals (or systemd units) with one --domain:
@@ -117,7 +128,7 @@ pub struct LaunchArgs {
     #[arg(long, value_name = "N")]
     pub seed: Option<u64>,
     /// Pipeline domain, the prefix of every iceoryx2 service name (default: $UAVLOC_DOMAIN, else
-    /// "uavloc-<pid>", unique per launch).
+    /// `uavloc-<pid>`, unique per launch).
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
     /// No live view: the monitor and the other processes print only errors.
@@ -135,10 +146,28 @@ pub struct LaunchArgs {
     /// Busy-poll this many microseconds before blocking, in every process (0: block at once).
     #[arg(long, value_name = "US", default_value_t = 0)]
     pub spin_us: u64,
-    /// emitter-sim waits this many milliseconds before each step after step 0 (a slow run for a demo,
-    /// or to swap or kill a process mid-run; the results do not change). 0: full speed.
+    /// Pacing of emitter-sim: lockstep (the next step as soon as the command arrives; for benchmarks and
+    /// tests, and the exact reproduction of `uavloc simulate`) or realtime (fly at a rate set by
+    /// --time-scale; a command that comes after the next step is due is missed and the UAVs keep their
+    /// headings).
+    #[arg(long, value_enum, value_name = "MODE", default_value_t = Mode::Lockstep)]
+    pub mode: Mode,
+    /// Realtime mode: simulated seconds per real second, > 0; a step lasts dt/X real seconds
+    /// (--time-scale 100 runs the paper's 10 s step in 0.1 s, 1 is true real time). Ignored in lockstep.
+    #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
+    pub time_scale: f64,
+    /// emitter-sim waits this many milliseconds before each step after step 0 (a slow lock-step run for
+    /// a demo, or to swap or kill a process mid-run; the results do not change). 0: full speed. Lockstep
+    /// mode only (realtime: --time-scale).
     #[arg(long, value_name = "MS", default_value_t = 0)]
     pub step_delay_ms: u64,
+    /// Test / fault-injection aid: the planner sleeps this many milliseconds before planning a step
+    /// (those of --plan-delay-steps), like a slow planner; in realtime mode its commands then miss steps.
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub plan_delay_ms: u64,
+    /// Test / fault-injection aid: the steps --plan-delay-ms applies to, comma-separated (default: all).
+    #[arg(long, value_name = "K,..", value_delimiter = ',')]
+    pub plan_delay_steps: Vec<u64>,
     /// emitter-sim replays the run when a step's command is this many milliseconds late.
     #[arg(long, value_name = "MS", default_value_t = 1000)]
     pub retry_interval_ms: u64,
@@ -165,7 +194,7 @@ pub struct ProcessArgs {
 /// The processes `uavloc` can be.
 #[derive(Subcommand, Debug, Clone, PartialEq)]
 pub enum Role {
-    /// The world: truth and a noisy measurement per step, flies each command (lock-step).
+    /// The world: truth and a noisy measurement per step, flies each command (lock-step or real time).
     #[command(after_help = emitter_sim::process::AFTER_HELP)]
     EmitterSim(emitter_sim::process::EmitterSimArgs),
     /// Chan's estimator: an estimate per measurement.
@@ -620,11 +649,16 @@ pub struct LaunchReport {
     pub rejected: u64,
     /// The same count per process role.
     pub rejected_by: BTreeMap<String, u64>,
+    /// Realtime mode: steps whose command had not reached emitter-sim when the next step was due (the UAVs
+    /// flew straight on); 0 in lock-step mode.
+    pub missed_commands: u64,
     /// Every process instance the launch started, in start order.
     #[serde(rename = "processes")]
     pub children: Vec<ChildReport>,
     #[serde(skip)]
     pub domain: String,
+    #[serde(skip)]
+    pub mode: String,
     #[serde(skip)]
     pub wall_s: f64,
     #[serde(skip)]
@@ -653,6 +687,15 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     }
     if !(args.command_timeout_s > 0.0 && args.command_timeout_s.is_finite()) {
         return Err(CliError::Input(format!("--command-timeout-s must be > 0, got {}", args.command_timeout_s)));
+    }
+    emitter_sim::process::check_time_scale(args.time_scale).map_err(CliError::Input)?;
+    if args.mode == Mode::Realtime {
+        if args.step_delay_ms > 0 {
+            return Err(CliError::Input(
+                "--step-delay-ms applies to lockstep mode only; in realtime mode --time-scale sets the pace".into(),
+            ));
+        }
+        emitter_sim::process::step_interval(sc.dt, args.time_scale, sc.steps).map_err(CliError::Input)?;
     }
     let domain = launch_domain(args.domain.as_deref())?;
     protocol::transport::quiet_logs();
@@ -692,6 +735,12 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // The scenario as loaded here, like `simulate` (the record's copy went through TOML-style degree
     // conversions on the way).
     run.scenario = sc;
+    // The monitor names the run after the commands it recorded; if none was flown (every one missed, in
+    // realtime mode), the names are the launch's.
+    if run.objective == "-" && run.solver == "-" {
+        run.objective = args.objective.name().to_string();
+        run.solver = args.solver.name().to_string();
+    }
     let children: Vec<ChildReport> = sup
         .procs
         .iter()
@@ -709,12 +758,22 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     for c in &children {
         *rejected_by.entry(c.role.clone()).or_insert(0) += c.rejected;
     }
+    let missed_commands = children
+        .iter()
+        .filter(|c| c.role == "emitter-sim")
+        .filter_map(|c| c.summary.as_ref().and_then(|s| s["missed_commands"].as_u64()))
+        .sum();
     Ok(LaunchReport {
         run,
         restarts: sup.restarts,
         rejected: children.iter().map(|c| c.rejected).sum(),
         rejected_by,
+        missed_commands,
         domain: domain.to_string(),
+        mode: match args.mode {
+            Mode::Lockstep => "lockstep".to_string(),
+            Mode::Realtime => format!("realtime ×{}", args.time_scale),
+        },
         wall_s: start.elapsed().as_secs_f64(),
         children,
         latency,
@@ -790,6 +849,13 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
                     args.solver.name().into(),
                 ]);
                 flags.extend(spin.iter().cloned());
+                if args.plan_delay_ms > 0 {
+                    flags.extend(["--plan-delay-ms".to_string(), args.plan_delay_ms.to_string()]);
+                    if !args.plan_delay_steps.is_empty() {
+                        let steps: Vec<String> = args.plan_delay_steps.iter().map(u64::to_string).collect();
+                        flags.extend(["--plan-delay-steps".to_string(), steps.join(",")]);
+                    }
+                }
             }
             "estimator" => flags.extend(spin.iter().cloned()),
             _ => {
@@ -802,6 +868,11 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
                     args.retry_interval_ms.to_string(),
                     "--command-timeout-s".to_string(),
                     args.command_timeout_s.to_string(),
+                    "--mode".to_string(),
+                    args.mode.name().to_string(),
+                    // `{:?}` keeps every digit (and the value parses back exactly).
+                    "--time-scale".to_string(),
+                    format!("{:?}", args.time_scale),
                     // The estimator and the monitor.
                     "--min-subscribers".to_string(),
                     "2".to_string(),
@@ -834,6 +905,7 @@ impl Report for LaunchReport {
         let mut t = Table::new()
             .row("domain", self.domain.clone())
             .row("objective / solver", format!("{} / {}", r.objective, r.solver))
+            .row("mode", self.mode.clone())
             .row("seed", r.seed.to_string())
             .row("steps recorded", format!("{} (0..{})", r.steps.len(), r.steps.len().saturating_sub(1)))
             .row("emitter (truth)", format!("({:.1}, {:.1}) m", r.emitter[0], r.emitter[1]))
@@ -857,6 +929,7 @@ impl Report for LaunchReport {
             )
             .row("median cycle", p50("cycle"))
             .row("rejected messages", self.rejected.to_string())
+            .row("missed commands", self.missed_commands.to_string())
             .row("restarts", self.restarts.to_string())
             .row("wall time", format!("{:.2} s", self.wall_s));
         for c in &self.children {
@@ -875,6 +948,13 @@ impl Report for LaunchReport {
                 self.domain,
                 self.leftovers.nodes.iter().map(|n| format!("{} ({})", n.name, n.state)).collect::<Vec<_>>(),
                 self.leftovers.services
+            )));
+        }
+        if self.missed_commands > 0 {
+            out.push(Diagnostic::Warning(format!(
+                "{} step(s) missed their command (it reached emitter-sim after the next step was due; the UAVs \
+                 flew straight on): see active_constraints \"command_missed\"",
+                self.missed_commands
             )));
         }
         let n = self.run.steps.iter().filter(|s| s.estimate_status != "ok").count();

@@ -90,7 +90,7 @@ pub enum Command {
         after_help = simulate::AFTER_HELP
     )]
     Simulate(simulate::SimulateArgs),
-    /// Run the closed loop as the four iceoryx2 processes of the pipeline (lock-step).
+    /// Run the closed loop as the four iceoryx2 processes of the pipeline (lock-step or real time).
     #[command(
         long_about = launch::LONG_ABOUT,
         after_help = launch::AFTER_HELP

@@ -7,7 +7,8 @@
 //! ([`World::apply`], the planner's circular-arc kinematics, eq. 54). The world enforces physics only:
 //! it flies whatever finite heading it is given; the planner's constraints are the planner's business.
 //!
-//! [`process`] is the emitter-sim process: the world in lock-step with the pipeline over iceoryx2.
+//! [`process`] is the emitter-sim process: the world in lock-step (or in real time) with the pipeline over
+//! iceoryx2.
 //!
 //! Units: metres, seconds, radians.
 

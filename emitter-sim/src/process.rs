@@ -1,15 +1,29 @@
-//! The `emitter-sim` process in lock-step mode: the world publishes the truth and a noisy measurement of
-//! step k, waits for the planner's command for step k, flies it, and goes on with k + 1.
+//! The `emitter-sim` process: the world publishes the truth and a noisy measurement of step k, takes the
+//! planner's command for step k, flies it, and goes on with k + 1 — in lock-step or in real time.
+//!
+//! # Modes (`--mode`)
+//!
+//! - **lockstep** (default): the next step starts as soon as the command for the current one arrives.
+//!   Fast and deterministic: for benchmarks and tests, and the exact reproduction of `uavloc simulate`.
+//! - **realtime**: the world keeps its own clock. Step k is published at `t0 + k·dt/X` (`dt` the
+//!   scenario's interval, `X` = `--time-scale`; `t0` the publication of step 0 on the monotonic clock;
+//!   each step is scheduled from t0, so delays do not accumulate). The command for step k is applied if
+//!   it arrives before step k + 1 is due; otherwise the step is *missed*: the UAVs keep their headings
+//!   (fly straight on, the arc kinematics with zero turn), the miss is counted (`missed_commands`) and
+//!   logged, and the truth of step k + 1 tells the monitor ([`CommandOutcome::Missed`]). A command for a
+//!   step whose time is over is ignored and counted (`late_commands`). Waiting is event-driven with the
+//!   step's deadline as the timeout (iceoryx2 WaitSet; no busy loop). If every command arrives in time
+//!   the run equals the lock-step one.
 //!
 //! Per step k = 0, 1, …, `steps − 1`:
-//! 1. publish the [`Truth`] of step k (monitor only), then the [`Measurement`] of step k: UAV positions,
-//!    noisy range differences ([`World::measure`], drawn from the stream (seed, k) — the numbers of
-//!    `uavloc simulate`), range σ and current headings; from step 1 on it carries the stamps of the
-//!    command that triggered it;
+//! 1. publish the [`Truth`] of step k (monitor only; with the outcome of step k − 1's command), then the
+//!    [`Measurement`] of step k: UAV positions, noisy range differences ([`World::measure`], drawn from
+//!    the stream (seed, k) — the numbers of `uavloc simulate`), range σ and current headings; it carries
+//!    the stamps of the command flown in the interval before it;
 //! 2. wait for a valid [`Command`] with `step == k` (invalid ones are counted and ignored, commands for
-//!    other steps are ignored);
+//!    other steps are ignored) — in real-time mode at most until step k + 1 is due;
 //! 3. [`World::apply`] its headings (a command the world refuses, e.g. with the wrong UAV count, counts
-//!    as rejected and the wait goes on).
+//!    as rejected and the wait goes on) — in real-time mode, without a command, the current headings.
 //!
 //! After the last planned step it publishes the truth and measurement of step `steps` (recorded by the
 //! monitor, not planned) and exits 0.
@@ -23,37 +37,41 @@
 //! - a process announces itself on the control topic ([`ControlKind::Hello`]: an estimator or planner
 //!   restarted after a crash asks for step 0, since their state is rebuilt from the whole run; a
 //!   restarted monitor asks for the first step missing from its log), or
-//! - the command of step k has not come `--retry-interval-ms` after the step was (re)published: a
-//!   process died or lost the message; everything is replayed from step 0.
+//! - (lock-step only) the command of step k has not come `--retry-interval-ms` after the step was
+//!   (re)published: a process died or lost the message; everything is replayed from step 0.
 //!
 //! The estimator and the planner answer a message they have seen before with the answer they gave
 //! before, so a replay costs a hop per step and changes nothing; a process that lost its state rebuilds
-//! exactly the state it had. It gives up (exit 1) when the command of a step has not come after
-//! `--command-timeout-s` in all.
+//! exactly the state it had. In lock-step mode it gives up (exit 1) when the command of a step has not
+//! come after `--command-timeout-s` in all. In real-time mode a replay runs between the scheduled steps:
+//! it pauses when the next step is due and goes on after it (up to the step current by then), and a
+//! replayed step that gets no answer within `--retry-interval-ms` is sent again.
 //!
 //! A restarted emitter-sim starts from step 0: the world is deterministic, so it publishes exactly the
 //! measurements of its predecessor, the estimator and planner answer them from what they kept, and the run
-//! fast-forwards to where it was.
+//! fast-forwards to where it was. (In real-time mode it starts the schedule again, at step 0: the steps
+//! are flown again at the real-time rate, and a run that had missed steps is flown anew from there.)
 //!
 //! Before step 0 it waits until the pipeline is connected — at least `--min-subscribers` subscribers on
 //! the measurement topic and a publisher (the planner) on the command topic — because a message
 //! published before its subscriber exists is lost (the topics keep no history). SIGINT/SIGTERM, or a
 //! [`ControlKind::Shutdown`], stop it cleanly (exit code 130).
 
+use std::collections::BTreeSet;
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 use iceoryx2::prelude::*;
 use planner::process::load_scenario;
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::transport::{TopicPublisher, wait_any};
 use protocol::{
-    Command, ControlChannel, ControlKind, Measurement, Message, RejectionCounter, Stamps, Topic, TopicSubscriber,
-    TransportError, Truth, now_ns,
+    Command, CommandOutcome, ControlChannel, ControlKind, Measurement, Message, RejectionCounter, Stamps, Topic,
+    TopicSubscriber, TransportError, Truth, now_ns,
 };
 
 use crate::World;
@@ -73,14 +91,72 @@ pub const CONNECT_POLL: Duration = Duration::from_millis(2);
 
 /// What `emitter-sim --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
-emitter-sim publishes <domain>/truth and <domain>/measurement and subscribes to <domain>/command, in
-lock-step: the next step starts as soon as the command for the current one arrives. Start estimator,
-planner (and monitor) first, with the same --domain, --scenario, --steps and --seed; emitter-sim waits
-until they are connected, runs steps 0..N (the last one is measured, not planned) and exits 0.
+emitter-sim publishes <domain>/truth and <domain>/measurement and subscribes to <domain>/command. Start
+estimator, planner (and monitor) first, with the same --domain, --scenario, --steps and --seed;
+emitter-sim waits until they are connected, runs steps 0..N (the last one is measured, not planned) and
+exits 0.
+
+Modes:
+  --mode lockstep   the next step as soon as the command for the current one arrives (default): for
+                    benchmarks and tests, and the exact reproduction of `uavloc simulate`.
+  --mode realtime   step k is published at t0 + k*dt/X with X = --time-scale (dt = the scenario's
+                    interval, 10 s in the paper; --time-scale 100 runs it in 0.1 s). A command that has
+                    not arrived when the next step is due is missed: the UAVs fly straight on at their
+                    headings, the step is counted in missed_commands and logged, a later command for it
+                    is ignored (late_commands). With every command in time the run equals lock-step.
 
 Examples:
   emitter-sim --domain lab1
-  emitter-sim --domain lab1 --scenario scenarios/nominal.toml --steps 6 --seed 3 --min-subscribers 2";
+  emitter-sim --domain lab1 --scenario scenarios/nominal.toml --steps 6 --seed 3 --min-subscribers 2
+  emitter-sim --domain lab1 --mode realtime --time-scale 100";
+
+/// How emitter-sim paces the run (`--mode`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
+pub enum Mode {
+    /// The next step as soon as the command for the current one arrives (benchmarks, tests, exact
+    /// reproduction of `uavloc simulate`).
+    #[default]
+    Lockstep,
+    /// Step k at t0 + k·dt/X (X = --time-scale); a command that is not there when the next step is due is
+    /// missed (the UAVs keep their headings).
+    Realtime,
+}
+
+impl Mode {
+    /// `"lockstep"` or `"realtime"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Lockstep => "lockstep",
+            Mode::Realtime => "realtime",
+        }
+    }
+}
+
+/// Checks a `--time-scale` value: finite and > 0.
+pub fn check_time_scale(x: f64) -> Result<(), String> {
+    if x.is_finite() && x > 0.0 {
+        Ok(())
+    } else {
+        Err(format!("--time-scale must be a finite number > 0 (simulated seconds per real second, e.g. 100), got {x}"))
+    }
+}
+
+/// The real time between two steps in real-time mode, `dt / time_scale`; an error (for `--time-scale`)
+/// if that, or the whole run of `steps` steps, is not a valid duration (a time scale so small that the run
+/// would last for ages).
+pub fn step_interval(dt: f64, time_scale: f64, steps: usize) -> Result<Duration, String> {
+    let seconds = dt / time_scale;
+    Duration::try_from_secs_f64(seconds * steps as f64)
+        .ok()
+        .filter(|total| Instant::now().checked_add(*total).is_some())
+        .and_then(|_| Duration::try_from_secs_f64(seconds).ok())
+        .ok_or_else(|| {
+            format!(
+                "--time-scale {time_scale:e}: a step of {dt} s would last {seconds:e} s in real time; choose a larger \
+                 time scale"
+            )
+        })
+}
 
 /// Flags of the emitter-sim process (`emitter-sim [FLAGS]` or `uavloc process emitter-sim [FLAGS]`).
 #[derive(Args, Debug, Clone, PartialEq)]
@@ -113,10 +189,19 @@ pub struct EmitterSimArgs {
     /// Busy-poll this many microseconds for the command before blocking (0: block at once).
     #[arg(long, value_name = "US", default_value_t = 0)]
     pub spin_us: u64,
-    /// Wait this many milliseconds before each step after step 0 (slows a run down for a demo or a test;
-    /// the results do not change). 0: lock-step at full speed.
+    /// Wait this many milliseconds before each step after step 0 (slows a lock-step run down for a demo or
+    /// a test; the results do not change). 0: lock-step at full speed. Lock-step mode only.
     #[arg(long, value_name = "MS", default_value_t = 0)]
     pub step_delay_ms: u64,
+    /// Pacing: lockstep (the next step as soon as the command arrives; benchmarks, tests, exact
+    /// reproduction of `uavloc simulate`) or realtime (step k at t0 + k·dt/X; a late command is missed and
+    /// the UAVs keep their headings).
+    #[arg(long, value_enum, value_name = "MODE", default_value_t = Mode::Lockstep)]
+    pub mode: Mode,
+    /// Real-time mode: simulated seconds per real second, > 0. A step lasts dt/X real seconds (the paper's
+    /// 10 s interval takes 0.1 s at --time-scale 100). Ignored in lock-step mode.
+    #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
+    pub time_scale: f64,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -170,7 +255,9 @@ impl From<TransportError> for ProcessError {
 pub struct EmitterSummary {
     /// `"emitter-sim"`.
     pub role: &'static str,
-    /// Steps flown (commands applied).
+    /// `"lockstep"` or `"realtime"`.
+    pub mode: &'static str,
+    /// Steps flown (intervals the UAVs flew: commands applied, plus missed steps in real-time mode).
     pub steps: u64,
     /// Measurements published.
     pub measurements: u64,
@@ -178,8 +265,16 @@ pub struct EmitterSummary {
     pub accepted: u64,
     /// Invalid commands ignored (failed validation, or refused by the world).
     pub rejected: u64,
-    /// Valid commands for another step than the one waited for (also the answers to replayed steps).
+    /// Valid commands for another step than the one waited for (also the answers to replayed steps), but
+    /// for missed steps (those are `late_commands`).
     pub ignored: u64,
+    /// Real-time mode: steps whose command had not arrived when the next step was due (the UAVs kept their
+    /// headings).
+    pub missed_commands: u64,
+    /// Real-time mode: commands that arrived for a missed step, after its time (ignored, not applied).
+    pub late_commands: u64,
+    /// Real-time mode: the largest delay of a step's publication behind its schedule, microseconds.
+    pub max_lag_us: u64,
     /// Replays (see the module docs).
     pub replays: u64,
     /// Replays because a step's command was late.
@@ -254,6 +349,10 @@ struct Sim<'a> {
     applied: Option<(Command, u64)>,
     /// The first step a process that joined asked to see again.
     replay_from: Option<u64>,
+    /// Real-time mode: the next step of a replay in progress (paused when a step came due).
+    replay_next: Option<u64>,
+    /// Real-time mode: the steps whose command was missed.
+    missed: BTreeSet<u64>,
 }
 
 impl Sim<'_> {
@@ -277,12 +376,29 @@ impl Sim<'_> {
 
     /// Waits at most `timeout` for a command or a control message.
     fn wait(&self, timeout: Duration) -> Result<(), ProcessError> {
+        self.wait_spin(Duration::from_micros(self.args.spin_us), timeout)
+    }
+
+    /// Waits for a command or a control message: busy-polls for `spin`, then blocks for at most `timeout`.
+    fn wait_spin(&self, spin: Duration, timeout: Duration) -> Result<(), ProcessError> {
         let ready = || Ok(self.commands.has_samples()? || self.control.subscriber().has_samples()?);
-        wait_any(self.waitset, Duration::from_micros(self.args.spin_us), timeout, ready)?;
+        wait_any(self.waitset, spin, timeout, ready)?;
         if interrupted(self.node) {
             return Err(ProcessError::Interrupted);
         }
         Ok(())
+    }
+
+    /// Real-time mode: waits for a command or a control message until `deadline` at most (spinning no
+    /// longer than `--spin-us`, and not past the deadline), or [`IDLE_WAKEUP`].
+    fn wait_until(&self, deadline: Instant) -> Result<(), ProcessError> {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let spin = Duration::from_micros(self.args.spin_us).min(left);
+        // A zero timeout would return at once; iceoryx2 rounds a blocking wait up to whole milliseconds, so
+        // a step goes out up to a millisecond (plus the wake-up latency) late — a command that arrives
+        // meanwhile wakes the wait at once and is judged by its arrival — and the schedule does not drift:
+        // every step is due at t0 + k·dt/X.
+        self.wait_spin(spin, (left - spin).clamp(Duration::from_micros(1), IDLE_WAKEUP))
     }
 
     /// Handles the control messages: a (re)started estimator, planner or monitor asks for a replay; a
@@ -340,34 +456,84 @@ impl Sim<'_> {
                 self.applied = Some((cmd, received_ns));
                 continue;
             }
-            answer |= Some(step) == answered;
-            self.summary.ignored += 1;
+            if Some(step) == answered {
+                answer = true;
+                self.summary.ignored += 1;
+            } else if self.missed.contains(&step) {
+                self.summary.late_commands += 1;
+                if !self.args.quiet {
+                    eprintln!("emitter-sim: step {k}: ignored a late command for step {step} (missed)");
+                }
+            } else {
+                self.summary.ignored += 1;
+            }
         }
         Ok(answer)
     }
 
-    /// Replays steps `from..=k` (see the module docs); a step whose command does not come back within the
-    /// retry interval ends the replay early (the next retry starts over).
-    fn replay(&mut self, from: u64, k: u64) -> Result<(), ProcessError> {
-        self.summary.replays += 1;
+    /// Replays steps `from..=k` (see the module docs). A step whose command does not come back within the
+    /// retry interval ends the replay early, and so does `deadline` (real-time mode: the next step is due);
+    /// returns the step to go on from then (`None`: the replay is complete). A lock-step caller drops it
+    /// (its next retry starts over from step 0); a real-time caller goes on from there.
+    fn replay(&mut self, from: u64, k: u64, deadline: Option<Instant>) -> Result<Option<u64>, ProcessError> {
         let retry = Duration::from_millis(self.args.retry_interval_ms);
+        let due = |now: Instant| deadline.is_some_and(|d| now >= d);
         for j in from..k {
+            if due(Instant::now()) {
+                return Ok(Some(j));
+            }
             self.send_again(j)?;
-            let deadline = Instant::now() + retry;
+            let until = Instant::now() + retry;
             loop {
                 let now = Instant::now();
-                if now >= deadline {
-                    eprintln!("emitter-sim: replay: no command for step {j} within {retry:?}; retrying later");
-                    return Ok(());
+                if due(now) {
+                    return Ok(Some(j));
                 }
-                self.wait((deadline - now).min(IDLE_WAKEUP))?;
+                if now >= until {
+                    eprintln!("emitter-sim: replay: no command for step {j} within {retry:?}; retrying later");
+                    return Ok(Some(j));
+                }
+                let limit = deadline.map_or(until, |d| d.min(until));
+                self.wait((limit - now).min(IDLE_WAKEUP))?;
+                if due(Instant::now()) {
+                    return Ok(Some(j)); // what arrived now belongs to the next step's interval
+                }
                 self.drain_control()?;
                 if self.drain_commands(k, Some(j))? {
                     break;
                 }
             }
         }
-        self.send_again(k)
+        self.send_again(k)?;
+        Ok(None)
+    }
+
+    /// Real-time mode: the interval of step `k`, until step k + 1 is due at `deadline`. Applies the first
+    /// valid command for step `k` that arrives before the deadline (and keeps handling what comes until
+    /// then: duplicates, late commands of missed steps, processes that join and get a replay). Returns
+    /// the applied command with its receive time, or `None` (missed).
+    fn run_interval(&mut self, k: u64, deadline: Instant) -> Result<Option<(Command, u64)>, ProcessError> {
+        loop {
+            if let Some(from) = self.replay_from.take() {
+                self.summary.replays += 1;
+                let from = from.min(k);
+                self.replay_next = Some(self.replay_next.map_or(from, |j| j.min(from)));
+            }
+            if Instant::now() >= deadline {
+                break;
+            }
+            if let Some(j) = self.replay_next.take() {
+                self.replay_next = self.replay(j.min(k), k, Some(deadline))?;
+                continue;
+            }
+            self.wait_until(deadline)?;
+            if Instant::now() >= deadline {
+                break; // what arrived now belongs to the next step's interval
+            }
+            self.drain_control()?;
+            self.drain_commands(k, None)?;
+        }
+        Ok(self.applied.take())
     }
 
     /// Waits for (and applies) the command of step `k`, replaying when a process joins or the command is
@@ -394,7 +560,9 @@ impl Sim<'_> {
                 self.replay_from = Some(0);
             }
             if let Some(from) = self.replay_from.take() {
-                self.replay(from.min(k), k)?;
+                self.summary.replays += 1;
+                // A replay that stops early is taken up by the next retry (from step 0).
+                let _ = self.replay(from.min(k), k, None)?;
                 published = Instant::now();
                 continue;
             }
@@ -408,9 +576,21 @@ impl Sim<'_> {
 /// Runs the lock-step loop to its end.
 pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     protocol::transport::quiet_logs();
+    check_time_scale(args.time_scale).map_err(ProcessError::Input)?;
+    if args.mode == Mode::Realtime && args.step_delay_ms > 0 {
+        return Err(ProcessError::Input(
+            "--step-delay-ms applies to lock-step mode only; in realtime mode --time-scale sets the pace".into(),
+        ));
+    }
     let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
     let scenario = load_scenario(args.scenario.as_deref(), args.steps, args.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
+    let interval = match args.mode {
+        Mode::Lockstep => None,
+        Mode::Realtime => {
+            Some(step_interval(scenario.dt, args.time_scale, scenario.steps).map_err(ProcessError::Input)?)
+        }
+    };
     if !(args.command_timeout_s > 0.0 && args.command_timeout_s.is_finite()) {
         return Err(ProcessError::Input(format!("--command-timeout-s must be > 0, got {}", args.command_timeout_s)));
     }
@@ -442,8 +622,12 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     control.send(ControlKind::Hello, 0, "")?;
     announce(args.supervised, "ready");
     if !args.quiet {
+        let pace = match interval {
+            None => "lock-step".to_string(),
+            Some(i) => format!("realtime ×{} ({:.3} s per step)", args.time_scale, i.as_secs_f64()),
+        };
         eprintln!(
-            "emitter-sim: domain {domain}, {} steps, seed {}, {} UAVs, emitter at ({}, {}) m",
+            "emitter-sim: domain {domain}, {} steps, seed {}, {} UAVs, emitter at ({}, {}) m, {pace}",
             scenario.steps,
             scenario.seed,
             scenario.uav_count(),
@@ -461,7 +645,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         commands: &commands,
         control: &control,
         world,
-        summary: EmitterSummary { role: ROLE, ..EmitterSummary::default() },
+        summary: EmitterSummary { role: ROLE, mode: args.mode.name(), ..EmitterSummary::default() },
         counter: RejectionCounter::new(),
         last_seq: None,
         // Sequence numbers start at the monotonic clock: a restarted emitter-sim continues above its
@@ -470,6 +654,8 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         sent: Vec::new(),
         applied: None,
         replay_from: None,
+        replay_next: None,
+        missed: BTreeSet::new(),
     };
     // The processes that were there before us need no replay.
     sim.drain_control()?;
@@ -477,9 +663,13 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let sigmas = scenario.range_sigmas();
     let truth = sim.world.truth();
     let mut trigger: Option<(Command, u64)> = None;
+    let mut previous = CommandOutcome::None;
     let step_delay = Duration::from_millis(args.step_delay_ms);
+    // Real-time mode: step k is due at t0 + k·interval, t0 the publication of step 0.
+    let mut t0: Option<Instant> = None;
+    let due = |t0: Instant, k: u64| t0 + interval.unwrap_or_default().mul_f64(k as f64);
     for k in 0..=scenario.steps as u64 {
-        if k > 0 && !step_delay.is_zero() && node.wait(step_delay).is_err() {
+        if interval.is_none() && k > 0 && !step_delay.is_zero() && node.wait(step_delay).is_err() {
             return Err(ProcessError::Interrupted);
         }
         let meas = sim.world.measure().map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
@@ -489,13 +679,45 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         if let Some((cmd, received_ns)) = &trigger {
             message = message.carrying(cmd, *received_ns);
         }
-        let truth = Truth::new(k, 0, [truth.x, truth.y]);
+        let truth = Truth::new(k, 0, [truth.x, truth.y]).with_previous_command(previous);
         sim.sent.push((truth, message));
+        if interval.is_some() {
+            let now = Instant::now();
+            let start = *t0.get_or_insert(now);
+            let lag = now.saturating_duration_since(due(start, k));
+            sim.summary.max_lag_us = sim.summary.max_lag_us.max(lag.as_micros() as u64);
+        }
         sim.send(truth, message)?;
         if k == scenario.steps as u64 {
             break; // the final measurement is recorded, not planned
         }
-        trigger = Some(sim.wait_for_command(k, &domain)?);
+        match t0 {
+            None => {
+                trigger = Some(sim.wait_for_command(k, &domain)?);
+                previous = CommandOutcome::Flown;
+            }
+            Some(start) => match sim.run_interval(k, due(start, k + 1))? {
+                Some(applied) => {
+                    trigger = Some(applied);
+                    previous = CommandOutcome::Flown;
+                }
+                None => {
+                    // No command in time: fly straight on at the current headings (zero turn).
+                    let keep = sim.world.headings().to_vec();
+                    sim.world.apply(&keep).map_err(|e| ProcessError::Failed(format!("step {k}: {e}")))?;
+                    sim.missed.insert(k);
+                    sim.summary.missed_commands += 1;
+                    if !args.quiet {
+                        eprintln!(
+                            "emitter-sim: step {k}: no command before step {} was due; the UAVs fly straight on",
+                            k + 1
+                        );
+                    }
+                    trigger = None;
+                    previous = CommandOutcome::Missed;
+                }
+            },
+        }
         sim.summary.steps += 1;
     }
     let summary = sim.summary;
@@ -504,6 +726,13 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             "emitter-sim: done: {} steps, {} measurements, {}, {} ignored, {} replays ({} retries)",
             summary.steps, summary.measurements, sim.counter, summary.ignored, summary.replays, summary.retries
         );
+        if interval.is_some() {
+            eprintln!(
+                "emitter-sim: realtime: {} missed commands, {} late commands ignored, largest lag behind the \
+                 schedule {} µs",
+                summary.missed_commands, summary.late_commands, summary.max_lag_us
+            );
+        }
     }
     Ok(summary)
 }

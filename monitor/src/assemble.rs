@@ -4,7 +4,9 @@
 //! Messages of the four topics arrive in any interleaving; the [`Assembler`] keeps them per step and
 //! completes steps strictly in order. Step k is complete when its [`Measurement`], [`Estimate`] and
 //! [`Truth`] have arrived, and — for every step but the last (`scenario.steps`, measured but not planned) —
-//! its [`Command`]. The [`StepRecord`] then takes:
+//! the truth of step k + 1, which says what the world did with step k's command
+//! ([`CommandOutcome`]: only emitter-sim knows whether a command came in time), and unless that says
+//! *missed*, the [`Command`] of step k. The [`StepRecord`] then takes:
 //!
 //! - `uavs` from the measurement, `headings_rad` from the command (the headings chosen at step k), or on
 //!   the last step the measurement's current headings;
@@ -18,6 +20,11 @@
 //! - `active_constraints` decoded from the command's bitmask ([`planner::active_mask::decode`]: the same
 //!   strings as `simulate`, except that a violated constraint has no magnitude).
 //!
+//! A step whose command was *missed* (emitter-sim's real-time mode: no command before the next step was
+//! due) records what the world flew: `headings_rad` = the measurement's current headings (the UAVs kept
+//! them), `objective_value` and `plan_ms` null, `active_constraints` = `["command_missed"]`
+//! ([`COMMAND_MISSED`]), no planner; a command for it that arrives anyway is ignored.
+//!
 //! Messages for steps already completed or beyond the last step are ignored (and counted).
 
 use std::collections::BTreeMap;
@@ -25,11 +32,14 @@ use std::collections::BTreeMap;
 use nalgebra::Vector2;
 use planner::Scenario;
 use planner::active_mask;
-use protocol::{Command, Estimate, EstimateStatus, Latencies, Measurement, Truth};
+use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Measurement, Truth};
 use tdoa::{NoiseModel, Sensors};
 
 use crate::metrics::step_metrics;
 use crate::record::{PlannerRef, RunRecord, StepRecord};
+
+/// The `active_constraints` entry of a step whose command was missed (see the module docs).
+pub const COMMAND_MISSED: &str = "command_missed";
 
 /// The planner that produced a step's command.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -55,6 +65,8 @@ pub struct CompletedStep {
     pub error_m: f64,
     /// The true emitter position of the step, metres.
     pub truth: [f64; 2],
+    /// The step's command was missed (real-time mode): the UAVs kept their headings.
+    pub missed: bool,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -188,24 +200,39 @@ impl Assembler {
         while !self.is_done() {
             let k = self.next;
             let planned = k < self.last_step();
+            // What became of step k's command, from the truth of step k + 1.
+            let outcome = self.pending.get(&(k + 1)).and_then(|p| p.truth.as_ref()).map(Truth::previous_command);
+            let missed = outcome == Some(Some(CommandOutcome::Missed));
             let ready = self.pending.get(&k).is_some_and(|p| {
                 p.measurement.is_some()
                     && p.estimate.is_some()
                     && p.truth.is_some()
-                    && (!planned || p.command.is_some())
+                    && (!planned || (outcome.is_some() && (missed || p.command.is_some())))
             });
             if !ready {
                 break;
             }
             let p = self.pending.remove(&k).unwrap_or_default();
             let (Some(m), Some(e), Some(t)) = (p.measurement, p.estimate, p.truth) else { break };
-            done.push(self.complete(k, &m, &e, &t, p.command.as_ref()));
+            if missed && p.command.is_some() {
+                self.ignored += 1; // it came, but too late for the world
+            }
+            let command = if missed { None } else { p.command.as_ref() };
+            done.push(self.complete(k, &m, &e, &t, command, planned && missed));
             self.next += 1;
         }
         done
     }
 
-    fn complete(&mut self, k: u64, m: &Measurement, e: &Estimate, t: &Truth, c: Option<&Command>) -> CompletedStep {
+    fn complete(
+        &mut self,
+        k: u64,
+        m: &Measurement,
+        e: &Estimate,
+        t: &Truth,
+        c: Option<&Command>,
+        missed: bool,
+    ) -> CompletedStep {
         let status = e.status().unwrap_or(EstimateStatus::Failed);
         if status != EstimateStatus::Failed {
             self.usable = Some((e.position, e.covariance));
@@ -239,7 +266,7 @@ impl Assembler {
             rmse_m,
             objective_value: None,
             plan_ms: None,
-            active_constraints: Vec::new(),
+            active_constraints: if missed { vec![COMMAND_MISSED.to_string()] } else { Vec::new() },
             planner: None,
         };
         let mut planner = None;
@@ -267,7 +294,7 @@ impl Assembler {
         };
         let error_m = (position[0] - truth.x).hypot(position[1] - truth.y);
         self.steps.push(record.clone());
-        CompletedStep { record, latencies, planner, error_m, truth: t.position }
+        CompletedStep { record, latencies, planner, error_m, truth: t.position, missed }
     }
 
     /// The record of the steps completed so far (the whole run once [`is_done`](Self::is_done)).
@@ -324,6 +351,25 @@ mod tests {
         Truth::new(k, k + 1, [25000.0, 15000.0])
     }
 
+    /// The truth of step k, saying that the command of step k − 1 was flown.
+    fn flown(k: u64) -> Truth {
+        truth(k).with_previous_command(CommandOutcome::Flown)
+    }
+
+    /// Every message of step `k` (with `truth`), its command unless `command` is false.
+    fn add_step(a: &mut Assembler, k: u64, truth: Truth, command: bool) {
+        a.add_measurement(measurement(k));
+        a.add_truth(truth);
+        a.add_estimate(estimate(k, ok(25000.0)));
+        if command {
+            a.add_command(command_of(k));
+        }
+    }
+
+    fn command_of(k: u64) -> Command {
+        command(k, 4.0, 0)
+    }
+
     #[test]
     fn completes_steps_in_order_whatever_the_arrival_order() {
         let mut a = Assembler::new(scenario(2));
@@ -338,7 +384,11 @@ mod tests {
         a.add_estimate(estimate(0, ok(24000.0)));
         assert!(a.complete_ready().is_empty(), "step 0 still lacks its command");
         a.add_command(command(0, 9.0, 1 << 8));
-        let done = a.complete_ready();
+        let mut done = a.complete_ready();
+        assert_eq!(done.iter().map(|d| d.record.step).collect::<Vec<_>>(), vec![0], "step 1 awaits the truth of 2");
+        // The truth of step 2 says that step 1's command was flown: step 1 is complete.
+        assert!(a.add_truth(flown(2)));
+        done.extend(a.complete_ready());
         assert_eq!(done.iter().map(|d| d.record.step).collect::<Vec<_>>(), vec![0, 1]);
         let s0 = &done[0].record;
         assert_eq!(s0.uavs, UAVS.to_vec());
@@ -356,7 +406,6 @@ mod tests {
         // The last step needs no command; its headings are the measurement's.
         assert!(!a.add_command(command(2, 1.0, 0)), "the last step is never planned");
         a.add_measurement(measurement(2));
-        a.add_truth(truth(2));
         a.add_estimate(estimate(2, ok(25000.0)));
         let last = a.complete_ready();
         assert_eq!(last.len(), 1);
@@ -381,6 +430,7 @@ mod tests {
             a.add_estimate(estimate(k, if k == 0 { ok(24000.0) } else { Fix::Failed }));
             a.add_command(command(k, 4.0, 0));
         }
+        assert!(a.add_truth(flown(2)));
         let first = a.complete_ready();
         assert_eq!(first.len(), 2);
         let names = Some(("analytical".to_string(), "pso".to_string()));
@@ -390,7 +440,7 @@ mod tests {
         assert!(!b.add_measurement(measurement(1)), "recorded steps are ignored");
         for x in [&mut a, &mut b] {
             x.add_measurement(measurement(2));
-            x.add_truth(truth(2));
+            x.add_truth(flown(2));
             // A failed last estimate: both fall back on step 0's.
             x.add_estimate(estimate(2, Fix::Failed));
         }
@@ -408,6 +458,32 @@ mod tests {
         a.add_truth(truth(0));
         a.add_estimate(estimate(0, ok(25000.0)));
         a.add_command(command(0, -1.0, 0));
+        assert!(a.complete_ready().is_empty(), "step 0 awaits the truth of step 1");
+        a.add_truth(flown(1));
         assert_eq!(a.complete_ready()[0].record.objective_value, None);
+    }
+
+    #[test]
+    fn a_missed_command_records_what_the_world_flew() {
+        let mut a = Assembler::new(scenario(3));
+        add_step(&mut a, 0, truth(0), true);
+        // Step 1's command comes, but the truth of step 2 says the world missed it.
+        add_step(&mut a, 1, flown(1), true);
+        add_step(&mut a, 2, truth(2).with_previous_command(CommandOutcome::Missed), false);
+        let done = a.complete_ready();
+        assert_eq!(done.iter().map(|d| (d.record.step, d.missed)).collect::<Vec<_>>(), [(0, false), (1, true)]);
+        let s1 = &done[1].record;
+        assert_eq!(s1.headings_rad, vec![0.1, 0.2, 0.3], "the headings kept (the measurement's), not the command's");
+        assert_eq!((s1.objective_value, s1.plan_ms, s1.planner.as_ref()), (None, None, None));
+        assert_eq!(s1.active_constraints, vec![COMMAND_MISSED.to_string()]);
+        assert!(done[1].planner.is_none());
+        assert_eq!(a.ignored(), 1, "the command that came too late");
+        // A missed step needs no command at all, and a late one afterwards is ignored.
+        add_step(&mut a, 3, truth(3).with_previous_command(CommandOutcome::Missed), false);
+        let done = a.complete_ready();
+        assert_eq!(done.iter().map(|d| (d.record.step, d.missed)).collect::<Vec<_>>(), [(2, true), (3, false)]);
+        assert!(done[1].record.active_constraints.is_empty(), "the last step is not planned, so not missed");
+        assert!(!a.add_command(command_of(2)));
+        assert!(a.is_done());
     }
 }

@@ -12,15 +12,21 @@
 //!   `message` (kind, step, seq, age_us: publish → received here);
 //! - `rejected` (kind, reason, detail); `planner` (a new planner instance: instance, solver, objective, step);
 //! - `hello` / `take_over` (a process joined or took over: role, instance, detail, step);
-//! - `step` (the step's record, its truth, its latencies in µs and planner); `end` (complete, steps,
-//!   rejected, ignored).
+//! - `step` (the step's record, its truth, its latencies in µs and planner; `command_missed: true` when
+//!   the step's command did not reach emitter-sim in time — real-time mode — and the UAVs kept their
+//!   headings: the record then has `active_constraints: ["command_missed"]`, `objective_value` null);
+//!   `command_missed` (step) for such a step; `end` (complete, steps, rejected, ignored,
+//!   missed_commands).
 //!
 //! `uavloc launch` appends `restart` events (role, attempt, exit, backoff_ms) to the same file: every line
 //! is written with one `write` on a file opened for appending.
 //!
 //! The status line of a step (stderr, unless `--quiet`): step, CRLB at the truth, RMSE, estimate error,
 //! the hops measurement→estimator and estimate→planner, the planning time, the whole cycle, the active
-//! planner and the rejected-message count.
+//! planner and the rejected-message count; `COMMAND MISSED` for a step flown without its command.
+//!
+//! A step is recorded when the truth of the next one is in: only emitter-sim knows whether a command
+//! reached the world in time (see [`crate::assemble`]).
 //!
 //! # Restarts
 //!
@@ -180,7 +186,8 @@ pub struct LatencySummary {
     pub estimate_hop: Option<LatencyStat>,
     /// Measurement published → command published (estimator + planner, with both hops).
     pub end_to_end: Option<LatencyStat>,
-    /// Command of step k−1 published → command of step k published (one whole lock-step cycle).
+    /// Command of step k−1 published → command of step k published (one whole cycle: in lock-step mode the
+    /// pipeline's round trip, in real-time mode about one step interval).
     pub cycle: Option<LatencyStat>,
 }
 
@@ -234,6 +241,8 @@ pub struct MonitorSummary {
     pub ignored: u64,
     /// Distinct planner instances seen.
     pub planners: u64,
+    /// Steps recorded whose command was missed (real-time mode).
+    pub missed_commands: u64,
     /// Latencies of the planned steps.
     pub latency: LatencySummary,
 }
@@ -330,7 +339,7 @@ fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
         .map_or("-".to_string(), |p| format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
     format!(
         "step {:>3}/{last}  CRLB {:>8.1} m  RMSE {:>8} m  |ẑ−z| {:>8.1} m  meas→est {:>7}  est→plan {:>7}  plan {:>8}  \
-         cycle {:>8}  planner {planner}  rejected {rejected}",
+         cycle {:>8}  planner {planner}  rejected {rejected}{}",
         r.step,
         r.crlb_true_m,
         fmt_m(r.rmse_m),
@@ -339,6 +348,7 @@ fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
         fmt_us(l.estimate_hop_ns),
         r.plan_ms.map_or("-".into(), |ms| format!("{ms:.3} ms")),
         fmt_us(l.cycle_ns),
+        if done.missed { "  COMMAND MISSED (flew straight on)" } else { "" },
     )
 }
 
@@ -359,6 +369,7 @@ struct State {
     samples: LatencySamples,
     planner: Option<PlannerInfo>,
     planners: u64,
+    missed: u64,
     quiet: bool,
 }
 
@@ -463,8 +474,13 @@ impl State {
                     },
                     "planner": done.planner.as_ref().map(|p| json!({"instance": p.instance, "solver": p.solver, "objective": p.objective})),
                     "truth": done.truth,
+                    "command_missed": done.missed,
                 }),
             );
+            if done.missed {
+                self.missed += 1;
+                self.log.write("command_missed", json!({"step": done.record.step}));
+            }
             if !self.quiet {
                 eprintln!("{}", status_line(&done, self.assembler.last_step(), self.counter.total()));
             }
@@ -513,6 +529,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         samples: LatencySamples::default(),
         planner: None,
         planners: 0,
+        missed: 0,
         quiet: args.quiet,
     };
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
@@ -578,11 +595,15 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         rejected: state.counter.total(),
         ignored: state.assembler.ignored(),
         planners: state.planners,
+        missed_commands: state.missed,
         latency: state.samples.summary(),
     };
     state.log.write(
         "end",
-        json!({"complete": summary.complete, "steps": summary.steps, "rejected": summary.rejected, "ignored": summary.ignored}),
+        json!({
+            "complete": summary.complete, "steps": summary.steps, "rejected": summary.rejected,
+            "ignored": summary.ignored, "missed_commands": summary.missed_commands,
+        }),
     );
     write_outputs(args, &run)?;
     if !args.quiet {

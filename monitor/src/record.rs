@@ -13,7 +13,8 @@ pub struct StepRecord {
     pub step: u64,
     /// UAV positions at this step, metres (`[x, y]` per UAV, UAV0 first).
     pub uavs: Vec<[f64; 2]>,
-    /// Headings chosen at this step for the next interval, radians (current headings on the last step).
+    /// Headings chosen at this step for the next interval, radians (current headings on the last step,
+    /// and on a step whose command was missed: the UAVs kept them).
     pub headings_rad: Vec<f64>,
     /// The estimator's ẑ at this step, metres.
     pub estimate: [f64; 2],
@@ -26,11 +27,14 @@ pub struct StepRecord {
     /// RMSE of Chan over R noise resamples at this geometry (paper Section 5.3), metres.
     pub rmse_m: Option<f64>,
     /// Objective value of the chosen headings (the planner's criterion, as `sqrt` of its trace, m);
-    /// `None` on the last step (nothing is planned) or when infinite.
+    /// `None` on the last step (nothing is planned), when infinite, or when the command was missed.
     pub objective_value: Option<f64>,
-    /// Wall-clock time of the planning step, milliseconds (`None` on the last step).
+    /// Wall-clock time of the planning step, milliseconds (`None` on the last step and when the command
+    /// was missed).
     pub plan_ms: Option<f64>,
-    /// Constraints active (violated or within 0.1 % of their bound) at the chosen headings.
+    /// Constraints active (violated or within 0.1 % of their bound) at the chosen headings; in a pipeline
+    /// run in real-time mode, `["command_missed"]` when no command arrived before the next step was due
+    /// (the UAVs flew straight on; `objective_value`, `plan_ms` and `planner` are then null).
     pub active_constraints: Vec<String>,
     /// The planner process that chose the headings (pipeline runs only; absent from `simulate` and on
     /// the last step).

@@ -18,6 +18,9 @@
 //! - Only `target = "chan"` is supported: `controlled` mode needs the true emitter, which the pipeline
 //!   never shows the planner (use `uavloc simulate` for it).
 //! - Invalid estimates are counted (per rejection kind) and ignored.
+//! - `--plan-delay-ms` (with `--plan-delay-steps`) is a test / fault-injection aid: the planner sleeps
+//!   before planning those steps, like a slow one, e.g. to make its commands miss their step in
+//!   emitter-sim's real-time mode (`tests/realtime.rs`).
 //! - SIGINT/SIGTERM, or a [`ControlKind::Shutdown`] on the control topic, end the loop cleanly (exit 0);
 //!   the iceoryx2 resources are released on the way out.
 //!
@@ -98,6 +101,15 @@ pub struct PlannerArgs {
     /// Take over from the running planner at the next step (see `uavloc swap planner`).
     #[arg(long)]
     pub takeover: bool,
+    /// Test / fault-injection aid: sleep this many milliseconds before planning a step (see
+    /// --plan-delay-steps), as a slow planner would; e.g. to make commands miss their step in emitter-sim's
+    /// realtime mode. 0: no delay. The plan itself does not change.
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub plan_delay_ms: u64,
+    /// Test / fault-injection aid: the steps --plan-delay-ms applies to, comma-separated (default: every
+    /// step).
+    #[arg(long, value_name = "K,..", value_delimiter = ',')]
+    pub plan_delay_steps: Vec<u64>,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -382,6 +394,15 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 eprintln!("planner: step {step}: the estimator has no fix yet, nothing to plan from");
                 continue;
             };
+            if args.plan_delay_ms > 0 && (args.plan_delay_steps.is_empty() || args.plan_delay_steps.contains(&step)) {
+                // Fault injection: a slow planner (a signal ends the sleep and the loop).
+                if !args.quiet {
+                    eprintln!("planner: step {step}: delaying the plan by {} ms (--plan-delay-ms)", args.plan_delay_ms);
+                }
+                if node.wait(Duration::from_millis(args.plan_delay_ms)).is_err() {
+                    break 'run;
+                }
+            }
             let positions: Vec<Vector2<f64>> = est.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
             let plan = match plan_step(&PlanRequest {
                 positions: &positions,

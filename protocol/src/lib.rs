@@ -30,8 +30,8 @@ use thiserror::Error;
 
 pub use control::{ControlChannel, instance_id};
 pub use messages::{
-    Command, Control, ControlKind, Estimate, EstimateStatus, Fix, Header, Latencies, Measurement, Message, MessageKind,
-    Name16, PlanInfo, Stamps, Truth, now_ns,
+    Command, CommandOutcome, Control, ControlKind, Estimate, EstimateStatus, Fix, Header, Latencies, Measurement,
+    Message, MessageKind, Name16, PlanInfo, Stamps, Truth, now_ns,
 };
 pub use services::Domain;
 pub use transport::{Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, node};

@@ -735,23 +735,80 @@ impl Command {
 // Truth
 // ---------------------------------------------------------------------------------------------------------
 
-/// emitter-sim → monitor only: the true emitter position of a step (never seen by estimator or planner).
+/// What the world did with the command of the step before (carried by [`Truth::previous_command`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u32)]
+pub enum CommandOutcome {
+    /// No step before (step 0), or not stated.
+    None = 0,
+    /// The command of step k − 1 was flown.
+    Flown = 1,
+    /// No command for step k − 1 arrived before step k was due (emitter-sim's real-time mode): the UAVs
+    /// flew straight on at their headings, and a command that came later was not applied.
+    Missed = 2,
+}
+
+impl CommandOutcome {
+    /// Decodes the wire value.
+    pub fn from_u32(v: u32) -> Option<Self> {
+        match v {
+            0 => Some(CommandOutcome::None),
+            1 => Some(CommandOutcome::Flown),
+            2 => Some(CommandOutcome::Missed),
+            _ => None,
+        }
+    }
+
+    /// Stable lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            CommandOutcome::None => "none",
+            CommandOutcome::Flown => "flown",
+            CommandOutcome::Missed => "missed",
+        }
+    }
+}
+
+/// emitter-sim → monitor only: the true emitter position of a step (never seen by estimator or planner),
+/// and what the world did in the interval before it — whether the command of the step before was flown or
+/// missed ([`CommandOutcome`]). Only emitter-sim knows the latter for sure: in real-time mode a command
+/// may reach the monitor and still be too late for the world.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Truth/v1")]
+#[type_name("uavloc::Truth/v2")]
 #[repr(C)]
 pub struct Truth {
     /// Common header (step of the measurement it belongs to).
     pub header: Header,
     /// True emitter position, metres.
     pub position: [f64; 2],
+    /// [`CommandOutcome`] of the command of step `header.step − 1`, as `u32`.
+    pub previous_command: u32,
+    /// Explicit padding; 0 when sent.
+    pub reserved: u32,
 }
 
-impl_message!(Truth, MessageKind::Truth, 1, "uavloc::Truth/v1");
+impl_message!(Truth, MessageKind::Truth, 2, "uavloc::Truth/v2");
 
 impl Truth {
-    /// The truth of `step`.
+    /// The truth of `step` (previous command: [`CommandOutcome::None`]).
     pub fn new(step: u64, seq: u64, position: [f64; 2]) -> Self {
-        Truth { header: Header::new(Self::VERSION, step, seq), position }
+        Truth {
+            header: Header::new(Self::VERSION, step, seq),
+            position,
+            previous_command: CommandOutcome::None as u32,
+            reserved: 0,
+        }
+    }
+
+    /// The same truth, saying what became of the command of the step before.
+    pub fn with_previous_command(mut self, outcome: CommandOutcome) -> Self {
+        self.previous_command = outcome as u32;
+        self
+    }
+
+    /// The decoded outcome of the previous step's command (`None` for an unknown wire value).
+    pub fn previous_command(&self) -> Option<CommandOutcome> {
+        CommandOutcome::from_u32(self.previous_command)
     }
 }
 
@@ -873,7 +930,7 @@ mod tests {
         assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (408, 8));
         assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (344, 8));
         assert_eq!((size_of::<Command>(), align_of::<Command>()), (352, 8));
-        assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (104, 8));
+        assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
         assert_eq!((size_of::<Control>(), align_of::<Control>()), (144, 8));
     }
 
@@ -889,7 +946,8 @@ mod tests {
         assert_eq!(offset_of!(Estimate, headings) + 8 * MAX_UAVS, size_of::<Estimate>());
         assert_eq!(offset_of!(Command, objective), 88 + 32);
         assert_eq!(offset_of!(Command, objective_name) + 16, size_of::<Command>());
-        assert_eq!(offset_of!(Truth, position) + 16, size_of::<Truth>());
+        assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));
+        assert_eq!(offset_of!(Truth, reserved) + 4, size_of::<Truth>());
         assert_eq!(offset_of!(Control, role), 88 + 24);
         assert_eq!(offset_of!(Control, detail) + 16, size_of::<Control>());
     }

@@ -115,6 +115,9 @@ fn check_arbitrary<T: AnyBitPattern>(msg: &T, last: Option<u64>) -> Result<(), T
         if let Some(c) = any.downcast_ref::<Control>() {
             prop_assert!(c.kind().is_some() && c.role().is_some());
         }
+        if let Some(t) = any.downcast_ref::<Truth>() {
+            prop_assert!(t.previous_command().is_some());
+        }
     }
     Ok(())
 }
@@ -132,6 +135,9 @@ fn patch<T: Message>(msg: &mut T, count: u32, status: u8) {
         c.count = count;
         c.solver = crate::Name16::new("s", "pso").unwrap();
         c.objective_name = crate::Name16::new("o", "trace").unwrap();
+    } else if let Some(t) = any.downcast_mut::<Truth>() {
+        // 0, 1 and 2 are the known outcomes; 3 is not.
+        t.previous_command = u32::from(status);
     }
 }
 
@@ -184,9 +190,11 @@ fn check_poisoned<T: AnyBitPattern>(
     poison(&mut msg, index, bad);
     check_arbitrary(&msg, last)?;
     let is_estimate = (&msg as &dyn core::any::Any).is::<Estimate>();
+    let is_truth = (&msg as &dyn core::any::Any).is::<Truth>();
     match msg.validate(last) {
         Err(Rejection::NotFinite { .. }) => {}
         Err(Rejection::UnknownStatus { .. }) if is_estimate && status > 2 => {}
+        Err(Rejection::UnknownKind { field: "previous_command", .. }) if is_truth && status > 2 => {}
         other => prop_assert!(false, "poisoned message gave {other:?}: {msg:?}"),
     }
     Ok(())

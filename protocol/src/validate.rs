@@ -5,7 +5,8 @@
 //!
 //! 1. the header version equals the type's `VERSION` ([`Rejection::BadVersion`]);
 //! 2. the UAV count is in `3..=8` ([`Rejection::BadCount`]; not for [`Truth`]);
-//! 3. the estimate status is known ([`Rejection::UnknownStatus`]) and the names are valid ASCII
+//! 3. the estimate status is known ([`Rejection::UnknownStatus`]), so are a control message's kind and a
+//!    truth's previous-command outcome ([`Rejection::UnknownKind`]), and the names are valid ASCII
 //!    ([`Rejection::BadName`]);
 //! 4. every *used* float is finite ([`Rejection::NotFinite`]): the first `count` entries of per-UAV arrays,
 //!    the first `count − 1` range differences, and the scalars; a failed estimate's position and covariance
@@ -84,9 +85,12 @@ pub enum Rejection {
         /// Which name.
         field: &'static str,
     },
-    /// The control kind is not one of [`ControlKind`].
-    #[error("unknown control kind {kind}")]
+    /// An enumerated field has an unknown value: a control message's kind (not one of [`ControlKind`]),
+    /// a truth's `previous_command` (not one of [`CommandOutcome`](crate::CommandOutcome)).
+    #[error("unknown {field} {kind}")]
     UnknownKind {
+        /// Which field (`"control kind"`, `"previous_command"`).
+        field: &'static str,
         /// The wire value.
         kind: u32,
     },
@@ -218,6 +222,9 @@ impl Truth {
     /// Checks the truth; see the [module docs](crate::validate).
     pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
         check_version(Self::VERSION, self.header.version)?;
+        if self.previous_command().is_none() {
+            return Err(Rejection::UnknownKind { field: "previous_command", kind: self.previous_command });
+        }
         check_finite("position", &self.position)?;
         check_seq(self.header.seq, last_seq)
     }
@@ -227,7 +234,7 @@ impl Control {
     /// Checks the control message; see the [module docs](crate::validate). The detail may be empty.
     pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
         check_version(Self::VERSION, self.header.version)?;
-        ControlKind::from_u32(self.kind).ok_or(Rejection::UnknownKind { kind: self.kind })?;
+        ControlKind::from_u32(self.kind).ok_or(Rejection::UnknownKind { field: "control kind", kind: self.kind })?;
         if !self.role.is_valid() {
             return Err(Rejection::BadName { field: "role" });
         }
@@ -501,6 +508,24 @@ mod tests {
     }
 
     #[test]
+    fn checks_the_previous_command_of_a_truth() {
+        use crate::messages::CommandOutcome;
+        assert_eq!(truth().previous_command(), Some(CommandOutcome::None));
+        for outcome in [CommandOutcome::None, CommandOutcome::Flown, CommandOutcome::Missed] {
+            let t = truth().with_previous_command(outcome);
+            assert_eq!((t.validate(None), t.previous_command()), (Ok(()), Some(outcome)));
+            assert_eq!(CommandOutcome::from_u32(outcome as u32), Some(outcome));
+        }
+        assert_eq!(CommandOutcome::Missed.name(), "missed");
+        for bad in [3u32, 17, u32::MAX] {
+            let t = with(truth(), |t| t.previous_command = bad);
+            assert_eq!(t.validate(None), Err(Rejection::UnknownKind { field: "previous_command", kind: bad }));
+            assert_eq!(t.previous_command(), None);
+        }
+        assert_eq!(with(truth(), |t| t.reserved = 9).validate(None), Ok(()), "padding is ignored");
+    }
+
+    #[test]
     fn rejects_stale() {
         assert_eq!(measurement().validate(Some(10)), Err(Rejection::Stale { seq: 10, last: 10 }));
         assert_eq!(estimate().validate(Some(11)), Err(Rejection::Stale { seq: 10, last: 11 }));
@@ -516,7 +541,10 @@ mod tests {
         let plain = Control::new(ControlKind::Shutdown, 0, 5, 9, 100, "launcher", "").unwrap();
         assert_eq!((plain.validate(None), plain.detail()), (Ok(()), ""));
         assert_eq!(c.validate(Some(5)).unwrap_err().kind(), "stale");
-        assert_eq!(with(c, |c| c.kind = 3).validate(None), Err(Rejection::UnknownKind { kind: 3 }));
+        assert_eq!(
+            with(c, |c| c.kind = 3).validate(None),
+            Err(Rejection::UnknownKind { field: "control kind", kind: 3 })
+        );
         assert_eq!(with(c, |c| c.role.bytes = [0; 16]).validate(None), Err(Rejection::BadName { field: "role" }));
         assert_eq!(with(c, |c| c.detail.bytes[0] = 0x80).validate(None).unwrap_err().kind(), "bad_name");
         assert_eq!(with(c, |c| c.header.version = 2).validate(None).unwrap_err().kind(), "bad_version");
@@ -543,7 +571,7 @@ mod tests {
             Rejection::UnknownStatus { status: 9 },
             Rejection::Stale { seq: 1, last: 2 },
             Rejection::BadName { field: "solver" },
-            Rejection::UnknownKind { kind: 7 },
+            Rejection::UnknownKind { field: "control kind", kind: 7 },
         ];
         for (i, r) in all.iter().enumerate() {
             assert_eq!(r.kind_index(), i);
