@@ -71,7 +71,7 @@ use protocol::services::{self, Domain};
 use protocol::transport::{TopicPublisher, wait_any};
 use protocol::{
     Command, CommandOutcome, ControlChannel, ControlKind, Measurement, Message, RejectionCounter, Stamps, Topic,
-    TopicSubscriber, TransportError, Truth, now_ns,
+    TopicSubscriber, Truth, now_ns,
 };
 
 use crate::World;
@@ -80,7 +80,7 @@ use crate::World;
 pub const ROLE: &str = "emitter-sim";
 
 /// Exit code when SIGINT/SIGTERM stopped the run before its end.
-pub const EXIT_INTERRUPTED: u8 = 130;
+pub use protocol::process::EXIT_INTERRUPTED;
 
 /// How long one blocking wait lasts at most before the loop re-checks for a termination request that
 /// arrived between two waits (a signal during a wait interrupts it at once).
@@ -210,45 +210,7 @@ pub struct EmitterSimArgs {
     pub supervised: bool,
 }
 
-/// Why the process stopped before the end of the run.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum ProcessError {
-    /// Bad flags or scenario (exit code 2).
-    Input(String),
-    /// A runtime failure: iceoryx2, a missing command, a geometry the world cannot measure (exit code 1).
-    Failed(String),
-    /// SIGINT/SIGTERM (exit code 130).
-    Interrupted,
-}
-
-impl ProcessError {
-    /// The exit code: 2 bad input, 1 runtime failure, 130 interrupted.
-    pub fn code(&self) -> u8 {
-        match self {
-            ProcessError::Input(_) => 2,
-            ProcessError::Failed(_) => 1,
-            ProcessError::Interrupted => EXIT_INTERRUPTED,
-        }
-    }
-}
-
-impl std::fmt::Display for ProcessError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ProcessError::Input(m) | ProcessError::Failed(m) => f.write_str(m),
-            ProcessError::Interrupted => f.write_str("interrupted by a signal"),
-        }
-    }
-}
-
-impl From<TransportError> for ProcessError {
-    fn from(e: TransportError) -> Self {
-        match e {
-            TransportError::Interrupted => ProcessError::Interrupted,
-            e => ProcessError::Failed(e.to_string()),
-        }
-    }
-}
+pub use protocol::process::ProcessError;
 
 /// What emitter-sim did, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]

@@ -53,7 +53,7 @@ use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
     Command, ControlChannel, ControlKind, Estimate, Latencies, Measurement, Message, MessageKind, RejectionCounter,
-    Topic, TopicSubscriber, TransportError, Truth, now_ns,
+    Topic, TopicSubscriber, Truth, now_ns,
 };
 use serde_json::json;
 
@@ -120,38 +120,7 @@ pub struct MonitorArgs {
     pub supervised: bool,
 }
 
-/// Why the monitor stopped with an error.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum ProcessError {
-    /// Bad flags or scenario (exit code 2).
-    Input(String),
-    /// A runtime failure, e.g. iceoryx2 or a file that cannot be written (exit code 1).
-    Failed(String),
-}
-
-impl ProcessError {
-    /// The exit code: 2 for bad input, 1 for a runtime failure.
-    pub fn code(&self) -> u8 {
-        match self {
-            ProcessError::Input(_) => 2,
-            ProcessError::Failed(_) => 1,
-        }
-    }
-}
-
-impl std::fmt::Display for ProcessError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ProcessError::Input(m) | ProcessError::Failed(m) => f.write_str(m),
-        }
-    }
-}
-
-impl From<TransportError> for ProcessError {
-    fn from(e: TransportError) -> Self {
-        ProcessError::Failed(e.to_string())
-    }
-}
+pub use protocol::process::ProcessError;
 
 /// Median and maximum of a latency, microseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]

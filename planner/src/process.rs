@@ -126,38 +126,7 @@ fn parse_solver(s: &str) -> Result<SolverKind, String> {
     s.parse::<SolverKind>()
 }
 
-/// Why a process stopped with an error.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum ProcessError {
-    /// Bad flags or scenario (exit code 2).
-    Input(String),
-    /// A runtime failure, e.g. iceoryx2 (exit code 1).
-    Failed(String),
-}
-
-impl ProcessError {
-    /// The exit code: 2 for bad input, 1 for a runtime failure.
-    pub fn code(&self) -> u8 {
-        match self {
-            ProcessError::Input(_) => 2,
-            ProcessError::Failed(_) => 1,
-        }
-    }
-}
-
-impl std::fmt::Display for ProcessError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ProcessError::Input(m) | ProcessError::Failed(m) => f.write_str(m),
-        }
-    }
-}
-
-impl From<TransportError> for ProcessError {
-    fn from(e: TransportError) -> Self {
-        ProcessError::Failed(e.to_string())
-    }
-}
+pub use protocol::process::ProcessError;
 
 /// The scenario of a process: `path` (or the default) with `--steps` / `--seed` applied, validated —
 /// the same rule as `uavloc simulate`, so every process of a run agrees on it.

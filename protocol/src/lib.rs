@@ -19,6 +19,7 @@
 
 pub mod control;
 pub mod messages;
+pub mod process;
 pub mod services;
 pub mod transport;
 pub mod validate;
@@ -33,6 +34,7 @@ pub use messages::{
     Command, CommandOutcome, Control, ControlKind, Estimate, EstimateStatus, Fix, Header, Latencies, Measurement,
     Message, MessageKind, Name16, PlanInfo, Stamps, Truth, now_ns,
 };
+pub use process::{EXIT_INTERRUPTED, ProcessError};
 pub use services::Domain;
 pub use transport::{Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, node};
 pub use validate::{Rejection, RejectionCounter};

@@ -1,0 +1,48 @@
+//! How a uavloc process (emitter-sim, estimator, planner, monitor) ends with an error, and its exit code.
+
+use crate::transport::TransportError;
+
+/// Exit code of a process stopped by SIGINT/SIGTERM before the end of its run.
+pub const EXIT_INTERRUPTED: u8 = 130;
+
+/// Why a process stopped with an error.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ProcessError {
+    /// Bad flags or scenario (exit code 2).
+    Input(String),
+    /// A runtime failure: iceoryx2, a missing command, a geometry the world cannot measure (exit code 1).
+    Failed(String),
+    /// SIGINT/SIGTERM (exit code 130).
+    Interrupted,
+}
+
+impl ProcessError {
+    /// The exit code: 2 bad input, 1 runtime failure, 130 interrupted.
+    pub fn code(&self) -> u8 {
+        match self {
+            ProcessError::Input(_) => 2,
+            ProcessError::Failed(_) => 1,
+            ProcessError::Interrupted => EXIT_INTERRUPTED,
+        }
+    }
+}
+
+impl std::fmt::Display for ProcessError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ProcessError::Input(m) | ProcessError::Failed(m) => f.write_str(m),
+            ProcessError::Interrupted => f.write_str("interrupted by a signal"),
+        }
+    }
+}
+
+impl std::error::Error for ProcessError {}
+
+impl From<TransportError> for ProcessError {
+    fn from(e: TransportError) -> Self {
+        match e {
+            TransportError::Interrupted => ProcessError::Interrupted,
+            e => ProcessError::Failed(e.to_string()),
+        }
+    }
+}
