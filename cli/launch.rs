@@ -116,10 +116,10 @@ pub struct LaunchArgs {
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
     /// Planning objective: single | mc | analytical | cubature | formation.
-    #[arg(long, default_value = "analytical", value_parser = parse_objective)]
+    #[arg(long, default_value = "analytical")]
     pub objective: ObjectiveKind,
     /// Solver: pso | ga | aco (ignored by formation).
-    #[arg(long, default_value = "pso", value_parser = parse_solver)]
+    #[arg(long, default_value = "pso")]
     pub solver: SolverKind,
     /// Number of planning steps (default: the scenario's, 24 for the paper).
     #[arg(long, value_name = "N")]
@@ -174,14 +174,6 @@ pub struct LaunchArgs {
     /// Restart a crashed process at most this many times (per process), after 50 ms, 100 ms, 200 ms, …
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub max_restarts: u32,
-}
-
-fn parse_objective(s: &str) -> Result<ObjectiveKind, String> {
-    s.parse::<ObjectiveKind>()
-}
-
-fn parse_solver(s: &str) -> Result<SolverKind, String> {
-    s.parse::<SolverKind>()
 }
 
 /// `uavloc process <role>`: runs one pipeline process in this binary (what `uavloc launch` spawns).

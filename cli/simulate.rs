@@ -42,10 +42,10 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
     /// Planning objective: single | mc | analytical | cubature | formation (the fixed-formation baseline).
-    #[arg(long, default_value = "analytical", value_parser = parse_objective)]
+    #[arg(long, default_value = "analytical")]
     pub objective: ObjectiveKind,
     /// Solver: pso | ga | aco (ignored by the formation baseline).
-    #[arg(long, default_value = "pso", value_parser = parse_solver)]
+    #[arg(long, default_value = "pso")]
     pub solver: SolverKind,
     /// Number of planning steps (default: the scenario's, 24 for the paper).
     #[arg(long, value_name = "N")]
@@ -59,28 +59,13 @@ pub struct SimulateArgs {
     pub out: Option<PathBuf>,
 }
 
-fn parse_objective(s: &str) -> Result<ObjectiveKind, String> {
-    s.parse::<ObjectiveKind>().map_err(|e| e.to_string())
-}
-
-fn parse_solver(s: &str) -> Result<SolverKind, String> {
-    s.parse::<SolverKind>().map_err(|e| e.to_string())
-}
-
 /// Loads the scenario of the flags (file or default) with `--steps`/`--seed` applied, validated.
 pub fn scenario_from(path: Option<&PathBuf>, steps: Option<usize>, seed: Option<u64>) -> Result<Scenario, CliError> {
-    let mut sc = match path {
-        Some(p) => Scenario::from_file(p).map_err(|e| CliError::Input(format!("--scenario {}: {e}", p.display())))?,
-        None => Scenario::default(),
-    };
-    if let Some(n) = steps {
-        sc.steps = n;
-    }
-    if let Some(s) = seed {
-        sc.seed = s;
-    }
-    sc.validate().map_err(|e| CliError::Input(format!("scenario: {e}")))?;
-    Ok(sc)
+    // The same rule every process applies (planner::process::load_scenario), so a run agrees on it.
+    planner::process::load_scenario(path.map(PathBuf::as_path), steps, seed).map_err(|e| match path {
+        Some(p) => CliError::Input(format!("--scenario {}: {e}", p.display())),
+        None => CliError::Input(format!("scenario: {e}")),
+    })
 }
 
 fn pair(v: &Vector2<f64>) -> [f64; 2] {

@@ -84,10 +84,10 @@ pub struct PlannerArgs {
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
     /// Planning objective: single | mc | analytical | cubature | formation.
-    #[arg(long, default_value = "analytical", value_parser = parse_objective)]
+    #[arg(long, default_value = "analytical")]
     pub objective: ObjectiveKind,
     /// Solver: pso | ga | aco (ignored by formation).
-    #[arg(long, default_value = "pso", value_parser = parse_solver)]
+    #[arg(long, default_value = "pso")]
     pub solver: SolverKind,
     /// Steps of the run (default: the scenario's); the estimate of the last step is not planned.
     #[arg(long, value_name = "N")]
@@ -116,14 +116,6 @@ pub struct PlannerArgs {
     /// Under a launcher: print `ready` on stdout once subscribed, and `summary {json}` at exit.
     #[arg(long, hide = true)]
     pub supervised: bool,
-}
-
-fn parse_objective(s: &str) -> Result<ObjectiveKind, String> {
-    s.parse::<ObjectiveKind>()
-}
-
-fn parse_solver(s: &str) -> Result<SolverKind, String> {
-    s.parse::<SolverKind>()
 }
 
 pub use protocol::process::ProcessError;
