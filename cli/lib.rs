@@ -16,6 +16,7 @@ pub mod global;
 pub mod launch;
 pub mod locate;
 pub mod output;
+pub mod paper;
 pub mod rmse;
 pub mod simulate;
 pub mod swap;
@@ -102,6 +103,12 @@ pub enum Command {
         after_help = swap::AFTER_HELP
     )]
     Swap(swap::SwapArgs),
+    /// Reproduce the paper's experiments (Tables 2–10, Figures 4–17) with the paper's numbers beside ours.
+    #[command(
+        long_about = paper::LONG_ABOUT,
+        after_help = paper::AFTER_HELP
+    )]
+    Paper(paper::PaperArgs),
     /// Run one pipeline process in this binary (what `uavloc launch` starts): emitter-sim, estimator,
     /// planner, monitor.
     #[command(hide = true)]

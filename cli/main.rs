@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use clap::Parser;
 use clap::error::ErrorKind;
 use uavloc::{
-    Cli, CliError, Command, Diagnostic, Report, crlb, global, launch, locate, one_line_clap_error, rmse, simulate, swap,
+    Cli, CliError, Command, Diagnostic, Report, crlb, global, launch, locate, one_line_clap_error, paper, rmse,
+    simulate, swap,
 };
 
 fn main() -> ExitCode {
@@ -36,6 +37,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => emit(simulate::run(a), json),
         Command::Launch(a) => emit(launch::run(a), json),
         Command::Swap(a) => emit(swap::run(a), json),
+        Command::Paper(a) => emit(paper::run(a), json),
         Command::Process(a) => launch::run_process(a),
     }
 }
@@ -58,7 +60,7 @@ fn emit<R: Report>(result: Result<R, CliError>, json: bool) -> ExitCode {
             }
         }
     } else {
-        report.table().render()
+        report.text()
     };
     // A closed pipe (e.g. `| head`) is not an error worth a panic.
     let _ = std::io::stdout().lock().write_all(text.as_bytes());

@@ -19,6 +19,11 @@ pub trait Report: Serialize {
     /// The human-readable form.
     fn table(&self) -> Table;
 
+    /// The whole human-readable output (the rendered [`Report::table`] unless a report lays itself out).
+    fn text(&self) -> String {
+        self.table().render()
+    }
+
     /// Warnings or failures to print on stderr after the result.
     fn diagnostics(&self) -> Vec<Diagnostic> {
         Vec::new()

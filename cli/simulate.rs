@@ -5,9 +5,8 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use monitor::{RunRecord, StepRecord, step_metrics};
-use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
+use monitor::RunRecord;
+use planner::{ObjectiveKind, Scenario, SolverKind};
 
 use crate::error::CliError;
 use crate::output::{Diagnostic, Report, Table};
@@ -68,88 +67,6 @@ pub fn scenario_from(path: Option<&PathBuf>, steps: Option<usize>, seed: Option<
     })
 }
 
-fn pair(v: &Vector2<f64>) -> [f64; 2] {
-    [v.x, v.y]
-}
-
-fn rows(m: &Matrix2<f64>) -> [[f64; 2]; 2] {
-    [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]]
-}
-
-/// The closed loop for `scenario` (its `steps` and `seed`), planning with `objective` × `solver`.
-/// `on_step` is called after every recorded step (for progress).
-pub fn run_closed_loop(
-    scenario: &Scenario,
-    objective: ObjectiveKind,
-    solver: SolverKind,
-    mut on_step: impl FnMut(&StepRecord),
-) -> Result<RunRecord, CliError> {
-    let failed = |what: &str, e: &dyn std::fmt::Display| CliError::Failed(format!("{what}: {e}"));
-    let mut world = emitter_sim::World::from_scenario(scenario).map_err(|e| failed("world", &e))?;
-    let mut estimator = estimator::Estimator::new();
-    let truth = world.truth();
-    let mut steps = Vec::with_capacity(scenario.steps + 1);
-    for k in 0..=scenario.steps as u64 {
-        let meas = world.measure().map_err(|e| failed(&format!("step {k}: measurement"), &e))?;
-        let est = estimator
-            .estimate(&meas.uavs, &meas.range_diffs, world.noise())
-            .map_err(|e| failed(&format!("step {k}: estimate"), &e))?;
-        let status = match &est.status {
-            estimator::EstimateStatus::Ok => "ok",
-            estimator::EstimateStatus::Ambiguous => "ambiguous",
-            estimator::EstimateStatus::Failed { .. } => "failed",
-        };
-        let sensors = world.sensors().map_err(|e| failed(&format!("step {k}: geometry"), &e))?;
-        let metrics = step_metrics(&sensors, &truth, scenario.rmse_resamples, scenario.seed, k, Some(est.position));
-        // The planner sees the live estimate, or in controlled mode the truth plus a fixed error.
-        let target = scenario.controlled_target(truth);
-        let (z_hat, m) = target.map_or((est.position, est.covariance), |t| (t.estimate, t.covariance));
-        let mut record = StepRecord {
-            step: k,
-            uavs: meas.uavs.iter().map(pair).collect(),
-            headings_rad: world.headings().to_vec(),
-            estimate: pair(&est.position),
-            estimate_cov: rows(&est.covariance),
-            estimate_status: status.to_string(),
-            crlb_true_m: metrics.crlb_true_m,
-            rmse_m: metrics.rmse_m,
-            objective_value: None,
-            plan_ms: None,
-            active_constraints: Vec::new(),
-            planner: None,
-        };
-        if k < scenario.steps as u64 {
-            let plan = plan_step(&PlanRequest {
-                positions: world.positions(),
-                headings: world.headings(),
-                estimate: z_hat,
-                covariance: m,
-                scenario,
-                objective,
-                solver,
-                run_seed: scenario.seed,
-                step: k,
-            })
-            .map_err(|e| failed(&format!("step {k}: plan"), &e))?;
-            world.apply(&plan.headings).map_err(|e| failed(&format!("step {k}: move"), &e))?;
-            record.headings_rad = plan.headings.clone();
-            record.objective_value = plan.objective_value.is_finite().then(|| plan.objective_value.sqrt());
-            record.plan_ms = Some(plan.plan_time_ms);
-            record.active_constraints = plan.active_constraints.iter().map(|a| a.to_string()).collect();
-        }
-        on_step(&record);
-        steps.push(record);
-    }
-    Ok(RunRecord {
-        scenario: scenario.clone(),
-        objective: objective.name().to_string(),
-        solver: solver.name().to_string(),
-        seed: scenario.seed,
-        emitter: pair(&truth),
-        steps,
-    })
-}
-
 /// What `uavloc simulate` prints.
 #[derive(Debug, Clone, serde::Serialize)]
 #[serde(transparent)]
@@ -162,7 +79,8 @@ pub struct SimulateReport {
 /// Runs `uavloc simulate`.
 pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     let sc = scenario_from(args.scenario.as_ref(), args.steps, args.seed)?;
-    let run = run_closed_loop(&sc, args.objective, args.solver, |_| {})?;
+    let run = experiments::closed_loop::run_closed_loop(&sc, args.objective, args.solver, |_| {})
+        .map_err(|e| CliError::Failed(e.to_string()))?;
     let written = match &args.out {
         Some(dir) => monitor::export::write_run(&run, dir)
             .map_err(|e| CliError::Failed(format!("--out {}: {e}", dir.display())))?,

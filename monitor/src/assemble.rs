@@ -268,6 +268,7 @@ impl Assembler {
             plan_ms: None,
             active_constraints: if missed { vec![COMMAND_MISSED.to_string()] } else { Vec::new() },
             planner: None,
+            criterion_ess: None,
         };
         let mut planner = None;
         let latencies = match c {

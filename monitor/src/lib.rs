@@ -1,11 +1,13 @@
 //! # uavloc-monitor
 //!
 //! The monitor's logic: per-step metrics against the truth, the run record (the JSON shape shared by
-//! `uavloc simulate` and the process pipeline), plots of a run; and the monitor process of the pipeline:
-//! [`assemble`] rebuilds the record from the pipeline's messages (no IPC), [`process`] is the iceoryx2
-//! loop around it, [`resources`] lists (and cleans up) a domain's iceoryx2 nodes and services.
+//! `uavloc simulate` and the process pipeline), plots of a run, generic report charts ([`chart`]: curves
+//! with confidence bands, grouped bars); and the monitor process of the pipeline: [`assemble`] rebuilds
+//! the record from the pipeline's messages (no IPC), [`process`] is the iceoryx2 loop around it,
+//! [`resources`] lists (and cleans up) a domain's iceoryx2 nodes and services.
 
 pub mod assemble;
+pub mod chart;
 pub mod export;
 pub mod metrics;
 pub mod plot;
@@ -14,6 +16,7 @@ pub mod record;
 pub mod resources;
 
 pub use assemble::{Assembler, CompletedStep};
+pub use chart::{BarGroup, Series, plot_bars, plot_curves};
 pub use export::{ExportError, write_run, write_steps_csv, write_trajectory_csv};
 pub use metrics::{StepMetrics, step_metrics};
 pub use plot::{Metric, PlotError, PlotFormat, plot_comparison, plot_metrics, plot_trajectories};

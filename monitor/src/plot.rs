@@ -35,19 +35,19 @@ static DEJAVU_SANS: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 /// The font family every text of the figures uses; the embedded font is registered under it.
 const FAMILY: &str = "sans-serif";
 
-const TITLE_PX: f64 = 22.0;
-const LABEL_PX: f64 = 15.0;
-const DESC_PX: f64 = 17.0;
+pub(crate) const TITLE_PX: f64 = 22.0;
+pub(crate) const LABEL_PX: f64 = 15.0;
+pub(crate) const DESC_PX: f64 = 17.0;
 const LEGEND_PX: f64 = 15.0;
 
 /// Width of the legend panel right of the chart, pixels.
-const LEGEND_WIDTH: u32 = 200;
+pub(crate) const LEGEND_WIDTH: u32 = 200;
 /// Margin around the chart inside its area, pixels.
-const CHART_MARGIN: u32 = 12;
+pub(crate) const CHART_MARGIN: u32 = 12;
 /// Height of the x-axis label area (tick labels + "x (m)"), pixels.
-const X_LABEL_AREA: u32 = 55;
+pub(crate) const X_LABEL_AREA: u32 = 55;
 /// Width of the y-axis label area (tick labels + rotated "y (m)"), pixels.
-const Y_LABEL_AREA: u32 = 85;
+pub(crate) const Y_LABEL_AREA: u32 = 85;
 
 /// UAV / series colours: the Tableau 10 palette without its red (the emitter) and grey (estimates).
 const PALETTE: [RGBColor; 8] = [
@@ -62,10 +62,10 @@ const PALETTE: [RGBColor; 8] = [
 ];
 const EMITTER_RED: RGBColor = RGBColor(0xd6, 0x27, 0x28);
 const ESTIMATE_GREY: RGBColor = RGBColor(0x80, 0x80, 0x80);
-const MARKER_EDGE: RGBColor = RGBColor(0x20, 0x20, 0x20);
+pub(crate) const MARKER_EDGE: RGBColor = RGBColor(0x20, 0x20, 0x20);
 
 /// The colour of UAV / series `i` (the palette cycles).
-fn palette(i: usize) -> RGBColor {
+pub(crate) fn palette(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }
 
@@ -81,6 +81,9 @@ pub enum PlotError {
     /// Drawing or writing the file failed.
     #[error("cannot draw {}: {message}", path.display())]
     Draw { path: PathBuf, message: String },
+    /// The data given to a chart is inconsistent (e.g. lengths that do not match); nothing was written.
+    #[error("{}: invalid chart data: {message}", path.display())]
+    InvalidData { path: PathBuf, message: String },
 }
 
 /// Output format of a figure, from the file extension.
@@ -138,19 +141,19 @@ fn ensure_font() -> Result<(), PlotError> {
     if ok { Ok(()) } else { Err(PlotError::Font) }
 }
 
-fn font(px: f64) -> TextStyle<'static> {
+pub(crate) fn font(px: f64) -> TextStyle<'static> {
     (FAMILY, px).into_font().color(&BLACK)
 }
 
-type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+pub(crate) type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
 
 /// A figure that can be drawn on any plotters backend.
-trait Figure {
+pub(crate) trait Figure {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB>;
 }
 
 /// Draws `figure` into `path` in the format of its extension.
-fn render(path: &Path, figure: &impl Figure) -> Result<(), PlotError> {
+pub(crate) fn render(path: &Path, figure: &impl Figure) -> Result<(), PlotError> {
     let format =
         PlotFormat::from_path(path).ok_or_else(|| PlotError::UnsupportedFormat { path: path.to_path_buf() })?;
     ensure_font()?;
@@ -262,7 +265,7 @@ fn star_points(r: f64) -> Vec<(i32, i32)> {
 
 /// Formats an axis value in metres compactly: integers where they are exact enough, otherwise up to
 /// three significant digits, scientific notation for very large or small magnitudes.
-fn fmt_axis(v: f64) -> String {
+pub(crate) fn fmt_axis(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
         "0".to_owned()
@@ -288,7 +291,7 @@ fn fmt_axis(v: f64) -> String {
 // ---------------------------------------------------------------------------------------------------
 
 #[derive(Debug, Clone, Copy)]
-enum Glyph {
+pub(crate) enum Glyph {
     /// A line sample.
     Line(RGBColor),
     /// A line sample with a dot in the middle.
@@ -303,16 +306,19 @@ enum Glyph {
     SmallDot(RGBColor),
 }
 
-struct LegendEntry {
-    glyph: Glyph,
-    label: String,
+pub(crate) struct LegendEntry {
+    pub(crate) glyph: Glyph,
+    pub(crate) label: String,
 }
 
 const LEGEND_ROW: i32 = 24;
 
 /// Draws the legend entries top-down in `area` (a panel of its own), with a frame around them.
 /// Entries that do not fit are summarised in a last "… n more" row.
-fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, entries: &[LegendEntry]) -> DrawResult<DB> {
+pub(crate) fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[LegendEntry],
+) -> DrawResult<DB> {
     if entries.is_empty() {
         return Ok(());
     }
@@ -599,7 +605,7 @@ impl Figure for MetricChart {
 
 /// Tick values of a log axis over `lo..hi` (`0 < lo < hi`): labelled ones (1-2-5, 1-3 or powers of 10
 /// per decade, depending on the number of decades) and the light grid (1…9 per decade).
-fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn log_ticks(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
     let decades = (hi / lo).log10();
     let mantissas: &[f64] = if decades <= 2.5 {
         &[1.0, 2.0, 5.0]

@@ -40,6 +40,10 @@ pub struct StepRecord {
     /// the last step).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub planner: Option<PlannerRef>,
+    /// Kish's effective sample size of the `mc` criterion's weighted points at this step (`mc` runs of
+    /// `simulate` only; absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub criterion_ess: Option<f64>,
 }
 
 /// A planner process instance, as recorded per step by the monitor.

@@ -64,6 +64,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
                     _ => vec!["d_min".to_owned(), "l_min".to_owned()],
                 },
                 planner: None,
+                criterion_ess: None,
             };
             for (p, h) in uavs.iter_mut().zip(&headings) {
                 p[0] += 500.0 * h.cos();

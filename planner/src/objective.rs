@@ -17,7 +17,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use nalgebra::Vector2;
-use tdoa::global::{GlobalCrlb, Method, PreparedObjective};
+use tdoa::global::{GlobalCrlb, McScheme, Method, MonteCarlo, PreparedObjective};
 use tdoa::rng::{Purpose, derive_seed};
 use tdoa::{MAX_UAVS, NoiseModel, Sensors, TdoaError, Uncertainty};
 
@@ -102,6 +102,7 @@ pub struct CrlbObjective {
     method: Method,
     prepared: Box<dyn PreparedObjective>,
     noise: NoiseModel,
+    effective_samples: Option<f64>,
 }
 
 impl fmt::Debug for CrlbObjective {
@@ -112,19 +113,33 @@ impl fmt::Debug for CrlbObjective {
 
 impl CrlbObjective {
     /// Prepares `method` for the uncertainty `unc` of planning step `step` of run `run_seed`; the UAVs
-    /// have range noise `noise`. `mc_samples` (K ≥ 2) is used by `mc` only, whose points are drawn from
-    /// `derive_seed(run_seed, step, Purpose::ObjectiveSamples)`.
+    /// have range noise `noise`. `mc_samples` (K ≥ 2) and `mc_scheme` are used by `mc` only, whose points
+    /// are drawn from `derive_seed(run_seed, step, Purpose::ObjectiveSamples)`.
     pub fn prepare(
         method: Method,
         unc: &Uncertainty,
         noise: NoiseModel,
         mc_samples: usize,
+        mc_scheme: McScheme,
         run_seed: u64,
         step: u64,
     ) -> Result<Self, TdoaError> {
-        let built: Box<dyn GlobalCrlb> =
-            method.build(mc_samples, derive_seed(run_seed, step, Purpose::ObjectiveSamples))?;
-        Ok(Self { method, prepared: built.prepare(unc), noise })
+        let seed = derive_seed(run_seed, step, Purpose::ObjectiveSamples);
+        if method == Method::Mc {
+            let mc = MonteCarlo::new(mc_samples, seed, mc_scheme)?;
+            // The weights depend only on the uncertainty, so the ESS is one number per step.
+            let effective_samples = Some(mc.rule(unc).effective_sample_size());
+            return Ok(Self { method, prepared: mc.prepare(unc), noise, effective_samples });
+        }
+        let built: Box<dyn GlobalCrlb> = method.build(mc_samples, seed)?;
+        Ok(Self { method, prepared: built.prepare(unc), noise, effective_samples: None })
+    }
+
+    /// Kish's effective sample size `1/Σω²` of the `mc` criterion's K weighted points (`None` for the
+    /// other methods). Small values (a handful) mean the criterion is dominated by a few points and is
+    /// noisy from one step's draw to the next.
+    pub fn effective_samples(&self) -> Option<f64> {
+        self.effective_samples
     }
 
     /// Which method this is.
@@ -168,7 +183,9 @@ mod tests {
         let pts: Vec<[f64; 2]> = uavs.iter().map(|p| [p.x, p.y]).collect();
         let sensors = Sensors::new(&pts, noise.clone()).unwrap();
         for kind in [ObjectiveKind::Single, ObjectiveKind::Mc, ObjectiveKind::Analytical, ObjectiveKind::Cubature] {
-            let obj = CrlbObjective::prepare(kind.criterion(), &unc, noise.clone(), 200, 5, 2).unwrap();
+            let obj =
+                CrlbObjective::prepare(kind.criterion(), &unc, noise.clone(), 200, McScheme::UniformWeighted, 5, 2)
+                    .unwrap();
             let seed = derive_seed(5, 2, Purpose::ObjectiveSamples);
             let direct = kind.criterion().build(200, seed).unwrap().prepare(&unc).evaluate(&sensors).trace_m2;
             assert_eq!(obj.evaluate(&uavs).to_bits(), direct.to_bits(), "{kind}");
@@ -179,9 +196,9 @@ mod tests {
     #[test]
     fn mc_samples_are_common_within_a_step_and_differ_between_steps() {
         let (unc, noise, uavs) = setup();
-        let a = CrlbObjective::prepare(Method::Mc, &unc, noise.clone(), 200, 5, 2).unwrap();
-        let b = CrlbObjective::prepare(Method::Mc, &unc, noise.clone(), 200, 5, 2).unwrap();
-        let c = CrlbObjective::prepare(Method::Mc, &unc, noise, 200, 5, 3).unwrap();
+        let a = CrlbObjective::prepare(Method::Mc, &unc, noise.clone(), 200, McScheme::UniformWeighted, 5, 2).unwrap();
+        let b = CrlbObjective::prepare(Method::Mc, &unc, noise.clone(), 200, McScheme::UniformWeighted, 5, 2).unwrap();
+        let c = CrlbObjective::prepare(Method::Mc, &unc, noise, 200, McScheme::UniformWeighted, 5, 3).unwrap();
         assert_eq!(a.evaluate(&uavs), b.evaluate(&uavs));
         assert_ne!(a.evaluate(&uavs), c.evaluate(&uavs));
     }
@@ -190,7 +207,8 @@ mod tests {
     fn invalid_geometry_is_infinite() {
         let (unc, noise, mut uavs) = setup();
         uavs[2] = uavs[1];
-        let obj = CrlbObjective::prepare(Method::Analytical, &unc, noise, 200, 0, 0).unwrap();
+        let obj =
+            CrlbObjective::prepare(Method::Analytical, &unc, noise, 200, McScheme::UniformWeighted, 0, 0).unwrap();
         assert_eq!(obj.evaluate(&uavs), f64::INFINITY);
         assert_eq!(obj.evaluate(&uavs[..2]), f64::INFINITY);
     }

@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix2, Vector2};
 use tdoa::geometry::COINCIDENCE_TOLERANCE_M;
+use tdoa::global::McScheme;
 use tdoa::{DEFAULT_KAPPA, MAX_UAVS, NoiseModel};
 use thiserror::Error;
 
@@ -152,6 +153,10 @@ pub struct Scenario {
     pub kappa: f64,
     /// Target-position samples K of the `mc` criterion (eq. 60). Paper: 200.
     pub mc_samples: usize,
+    /// How the `mc` criterion draws its K points: `uniform_weighted` = the paper's eq. 60 (uniform in the
+    /// square, Gaussian weights; default) or `truncated_gaussian` (points from the truncated Gaussian,
+    /// equal weights; beyond the paper, a sensitivity setting).
+    pub mc_scheme: McScheme,
     /// Inner TDOA-noise resamples R per RMSE point (eq. 79). Paper: 30.
     pub rmse_resamples: usize,
     /// Run seed of the seeded streams (`tdoa::rng`) — our choice 1.
@@ -189,6 +194,7 @@ impl Default for Scenario {
             sigma_t: 500.0,
             kappa: DEFAULT_KAPPA,
             mc_samples: 200,
+            mc_scheme: McScheme::UniformWeighted,
             rmse_resamples: 30,
             seed: 1,
             target: TargetMode::Chan,

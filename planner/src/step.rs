@@ -107,6 +107,9 @@ pub struct PlanOutput {
     pub evaluations: usize,
     /// Wall-clock time of the whole step, milliseconds.
     pub plan_time_ms: f64,
+    /// Kish's effective sample size of the `mc` criterion's weighted points this step (`None` for the
+    /// other criteria); see [`CrlbObjective::effective_samples`].
+    pub criterion_ess: Option<f64>,
 }
 
 fn check_finite(what: impl Fn() -> String, value: f64) -> Result<(), PlanError> {
@@ -152,6 +155,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         &unc,
         sc.noise_model()?,
         sc.mc_samples,
+        sc.mc_scheme,
         req.run_seed,
         req.step,
     )?;
@@ -192,6 +196,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         iterations,
         evaluations,
         plan_time_ms: start.elapsed().as_secs_f64() * 1e3,
+        criterion_ess: objective.effective_samples(),
     })
 }
 
@@ -297,8 +302,16 @@ mod tests {
                     assert!((w - out.waypoints[i]).norm() < 1e-6);
                 }
                 if objective.is_optimised() {
-                    let obj = CrlbObjective::prepare(objective.criterion(), &unc, noise.clone(), sc.mc_samples, 42, 3)
-                        .unwrap();
+                    let obj = CrlbObjective::prepare(
+                        objective.criterion(),
+                        &unc,
+                        noise.clone(),
+                        sc.mc_samples,
+                        sc.mc_scheme,
+                        42,
+                        3,
+                    )
+                    .unwrap();
                     let keep = obj.evaluate(&straight);
                     assert!(out.objective_value < keep, "{label}: planned {} vs straight {keep}", out.objective_value);
                     assert!(out.iterations >= 1 && out.evaluations > 0);

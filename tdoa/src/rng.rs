@@ -18,6 +18,10 @@ pub enum Purpose {
     Solver = 4,
     /// Planner-side target error of controlled experiments.
     PlannerError = 5,
+    /// The seed of one outer Monte Carlo run of an experiment (`uavloc paper`; the run index is the step).
+    OuterRun = 6,
+    /// Timing and fixed-geometry draws of an experiment that are not tied to a run's step.
+    Experiment = 7,
 }
 
 /// SplitMix64 finaliser: a bijective 64-bit mix.
