@@ -55,6 +55,19 @@ pub fn cases() -> Vec<(&'static str, String, Scenario)> {
     v
 }
 
+/// A short axis label for a case (`Δα 15°`, `s 4`, `σt 250`, `T 48`).
+fn short_label(setting: &str, value: &str) -> String {
+    let first = value.split_whitespace().next().unwrap_or(value);
+    match setting {
+        "delta_alpha_deg" => format!("Δα {first}°"),
+        "controlled_scale" => format!("s {first}"),
+        "controlled_sigma_t_m" => format!("σt {first}"),
+        "steps" => format!("T {first}"),
+        "mc_scheme" => "TG MC".to_string(),
+        other => other.to_string(),
+    }
+}
+
 /// Runs the sensitivity study.
 pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
     let mut grid = Grid::new(
@@ -115,7 +128,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             }
         }
         groups.push(BarGroup {
-            label: format!("{setting}={value}"),
+            label: short_label(setting, &value),
             values: vec![Some(d(1, 1).mean), Some(d(2, 1).mean)],
             errors: vec![
                 Some((d(1, 1).mean - d(1, 1).ci95, d(1, 1).mean + d(1, 1).ci95)),
