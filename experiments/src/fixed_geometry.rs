@@ -13,8 +13,6 @@
 //! system's prior; the paper does not say). The 4- and 5-node geometries are our choice (the paper's
 //! Figure 14 gives no coordinates): the nominal three plus [20000, 2000] m, plus [32000, 8000] m.
 
-use std::time::Instant;
-
 use planner::Scenario;
 use serde_json::{Value, json};
 use tdoa::global::MonteCarlo;
@@ -25,7 +23,7 @@ use tdoa::{GlobalCrlb, Method, NoiseModel, Sensors, Uncertainty, crlb};
 use crate::batch::Engine;
 use crate::figures::{Figure, line_series, value_group};
 use crate::grid::{Grid, cell};
-use crate::stats::median;
+use crate::stats::median_seconds_per_call;
 use crate::{ExperimentError, ExperimentReport, paper, settings_json};
 
 /// The node positions of the 3-, 4- and 5-node cases, metres (3 = the paper's nominal UAVs).
@@ -49,19 +47,6 @@ fn input(e: impl std::fmt::Display) -> ExperimentError {
 fn sensors(nodes: usize, sigma: f64) -> Result<Sensors, ExperimentError> {
     let noise = NoiseModel::uniform(nodes, sigma).map_err(input)?;
     Sensors::new(&geometry(nodes), noise).map_err(input)
-}
-
-/// Median seconds per call of `f` (5 samples of `reps` calls).
-fn time_per_call(reps: usize, mut f: impl FnMut()) -> f64 {
-    let mut v = Vec::new();
-    for _ in 0..5 {
-        let t = Instant::now();
-        for _ in 0..reps {
-            f();
-        }
-        v.push(t.elapsed().as_secs_f64() / reps as f64);
-    }
-    median(&v)
 }
 
 /// One (nodes, noise scale) case: CRLB, and the RMSE of Chan over M outer runs of R draws each.
@@ -127,13 +112,13 @@ pub fn run_table8(engine: &Engine) -> Result<ExperimentReport, ExperimentError> 
                 .map_err(input)?
                 .prepare(&unc);
         let an = Method::Analytical.build(2, 0).map_err(input)?.prepare(&unc);
-        let t_crlb = time_per_call(2000, || {
+        let t_crlb = median_seconds_per_call(2000, || {
             std::hint::black_box(crlb(std::hint::black_box(&s), &z).ok());
         });
-        let t_mc = time_per_call(20, || {
+        let t_mc = median_seconds_per_call(20, || {
             std::hint::black_box(mc.evaluate(std::hint::black_box(&s)));
         });
-        let t_an = time_per_call(2000, || {
+        let t_an = median_seconds_per_call(2000, || {
             std::hint::black_box(an.evaluate(std::hint::black_box(&s)));
         });
         let cs = case(engine, *nodes, 1.0, *nodes as u64)?;

@@ -89,6 +89,22 @@ pub fn quantile(values: &[f64], q: f64) -> f64 {
     if i + 1 < v.len() { v[i] + frac * (v[i + 1] - v[i]) } else { v[i] }
 }
 
+/// Median wall-clock seconds per call of `f`, over 5 samples of `reps` calls each (the median damps a
+/// sample that the scheduler interrupted on a noisy machine).
+pub fn median_seconds_per_call(reps: usize, mut f: impl FnMut()) -> f64 {
+    let reps = reps.max(1);
+    let samples: Vec<f64> = (0..5)
+        .map(|_| {
+            let t = std::time::Instant::now();
+            for _ in 0..reps {
+                f();
+            }
+            t.elapsed().as_secs_f64() / reps as f64
+        })
+        .collect();
+    median(&samples)
+}
+
 /// Relative difference `(a − b)/b` in percent.
 pub fn rel_pct(a: f64, b: f64) -> f64 {
     (a - b) / b * 100.0

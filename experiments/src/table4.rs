@@ -36,12 +36,13 @@ pub fn abs_stats(d: &[f64]) -> [f64; 3] {
 }
 
 /// The uncertainty the planner used at `step` of `run` (chan mode): ẑ and M of the step's estimate,
-/// the eq. 36 side from the mean distance of the step's UAVs to ẑ.
-pub fn planner_uncertainty(sc: &Scenario, run: &monitor::RunRecord, step: usize) -> Option<Uncertainty> {
+/// the eq. 36 side from the mean distance of the step's UAVs to ẑ — with M scaled by `scale²` (and
+/// the side following σ_t = scale·sqrt(λ_max M)); `scale` = 1 is exactly the planner's.
+pub fn planner_uncertainty(sc: &Scenario, run: &monitor::RunRecord, step: usize, scale: f64) -> Option<Uncertainty> {
     let s = &run.steps[step];
     let z = Vector2::new(s.estimate[0], s.estimate[1]);
     let c = s.estimate_cov;
-    let m = Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
+    let m = Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]) * (scale * scale);
     let r_avg = s.uavs.iter().map(|u| (Vector2::new(u[0], u[1]) - z).norm()).sum::<f64>() / s.uavs.len() as f64;
     Uncertainty::with_eq36_side(z, m, r_avg, sc.kappa).ok()
 }
@@ -57,7 +58,7 @@ fn objective_values(batch: &Batch, runs: usize) -> Vec<Vec<[f64; 3]>> {
     let Ok(noise) = sc.noise_model() else { return by_step };
     for run in batch.runs.iter().take(runs) {
         for (k, slot) in by_step.iter_mut().enumerate() {
-            let Some(unc) = planner_uncertainty(sc, run, k) else { continue };
+            let Some(unc) = planner_uncertainty(sc, run, k, 1.0) else { continue };
             let Ok(sensors) = Sensors::new(&run.steps[k + 1].uavs, noise.clone()) else { continue };
             let seed = derive_seed(run.seed, k as u64, Purpose::ObjectiveSamples);
             let Ok(mc) = MonteCarlo::new(sc.mc_samples, seed, sc.mc_scheme) else { continue };

@@ -6,8 +6,6 @@
 //! time ratio is the median MC evaluation time over the median analytical one (one prepared criterion
 //! per geometry, evaluations timed in a loop).
 
-use std::time::Instant;
-
 use planner::{ObjectiveKind, Scenario, SolverKind};
 use serde_json::{Value, json};
 use tdoa::global::{MonteCarlo, global_crlb};
@@ -17,7 +15,7 @@ use tdoa::{GlobalCrlb, Method, Sensors};
 use crate::batch::Engine;
 use crate::figures::{Figure, value_group};
 use crate::grid::{Grid, cell};
-use crate::stats::{median, rel_pct};
+use crate::stats::{median, median_seconds_per_call, rel_pct};
 use crate::table4::{abs_stats, planner_uncertainty};
 use crate::{ExperimentError, ExperimentReport, paper, settings_json};
 
@@ -31,15 +29,9 @@ const TIMING_LOOP: usize = 20;
 /// Median seconds per evaluation of `method`'s criterion prepared for `unc`, for `sensors`.
 fn eval_time(method: &dyn GlobalCrlb, unc: &tdoa::Uncertainty, sensors: &Sensors) -> f64 {
     let prepared = method.prepare(unc);
-    let mut times = Vec::with_capacity(5);
-    for _ in 0..5 {
-        let t = Instant::now();
-        for _ in 0..TIMING_LOOP {
-            std::hint::black_box(prepared.evaluate(std::hint::black_box(sensors)));
-        }
-        times.push(t.elapsed().as_secs_f64() / TIMING_LOOP as f64);
-    }
-    median(&times)
+    median_seconds_per_call(TIMING_LOOP, || {
+        std::hint::black_box(prepared.evaluate(std::hint::black_box(sensors)));
+    })
 }
 
 /// Runs Table 5.
@@ -73,17 +65,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
         for &(r, k) in &geometries {
             bar.inc(1);
             let run = &an.runs[r];
-            let Some(unc0) = planner_uncertainty(bsc, run, k) else { continue };
-            let Ok(unc1) = tdoa::Uncertainty::new(unc0.estimate(), unc0.cov() * (s * s), 1.0) else { continue };
-            let r_avg = run.steps[k]
-                .uavs
-                .iter()
-                .map(|u| (nalgebra::Vector2::new(u[0], u[1]) - unc0.estimate()).norm())
-                .sum::<f64>()
-                / run.steps[k].uavs.len() as f64;
-            let Ok(unc) = tdoa::Uncertainty::with_eq36_side(unc1.estimate(), unc1.cov(), r_avg, bsc.kappa) else {
-                continue;
-            };
+            let Some(unc) = planner_uncertainty(bsc, run, k, s) else { continue };
             let Ok(sensors) = Sensors::new(&run.steps[k].uavs, noise.clone()) else { continue };
             let seed = derive_seed(run.seed, k as u64, Purpose::ObjectiveSamples);
             let Ok(mc) = MonteCarlo::new(bsc.mc_samples, seed, bsc.mc_scheme) else { continue };

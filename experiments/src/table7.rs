@@ -4,9 +4,6 @@
 //! CRLB (`tr F⁻¹` at the truth), the PSO optimisation (the whole `plan_step`), and their total (mean and
 //! max over steps), in seconds.
 
-use std::time::Instant;
-
-use nalgebra::Vector2;
 use planner::{ObjectiveKind, Scenario, SolverKind};
 use serde_json::{Value, json};
 use tdoa::rng::{Purpose, derive_seed};
@@ -16,7 +13,7 @@ use crate::batch::Engine;
 use crate::closed_loop::run_closed_loop;
 use crate::figures::{Figure, value_group};
 use crate::grid::{Grid, cell};
-use crate::stats::median;
+use crate::stats::{median, median_seconds_per_call};
 use crate::{ExperimentError, ExperimentReport, paper, settings_json};
 
 /// Runs timed per method.
@@ -40,12 +37,9 @@ fn timings(engine: &Engine, sc: &Scenario, method: ObjectiveKind) -> Result<Vec<
         })?;
         for s in run.steps.iter().filter(|s| s.plan_ms.is_some()) {
             let Ok(sensors) = Sensors::new(&s.uavs, noise.clone()) else { continue };
-            let t = Instant::now();
-            const LOOP: usize = 100;
-            for _ in 0..LOOP {
-                std::hint::black_box(crlb(std::hint::black_box(&sensors), &Vector2::new(truth.x, truth.y)).ok());
-            }
-            let crlb_s = t.elapsed().as_secs_f64() / LOOP as f64;
+            let crlb_s = median_seconds_per_call(100, || {
+                std::hint::black_box(crlb(std::hint::black_box(&sensors), &truth).ok());
+            });
             out.push((crlb_s, s.plan_ms.unwrap_or(f64::NAN) / 1e3));
         }
     }
