@@ -10,6 +10,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod args;
+pub mod bench;
 pub mod crlb;
 pub mod error;
 pub mod global;
