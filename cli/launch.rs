@@ -143,9 +143,16 @@ pub struct LaunchArgs {
     /// emitter-sim gives up when a step's command has not arrived after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     pub command_timeout_s: f64,
-    /// Busy-poll this many microseconds before blocking, in every process (0: block at once).
-    #[arg(long, value_name = "US", default_value_t = 0)]
-    pub spin_us: u64,
+    /// Transport and waiting of every process.
+    #[command(flatten)]
+    pub link: protocol::LinkArgs,
+    /// Write the raw stamps of every step as CSV (the monitor's --stamps; what `uavloc bench` reads).
+    #[arg(long, value_name = "FILE")]
+    pub stamps: Option<PathBuf>,
+    /// For `uavloc bench`: before starting emitter-sim, measure the CPU use of the waiting monitor,
+    /// planner and estimator over this many milliseconds (0: no probe).
+    #[arg(skip)]
+    pub idle_probe_ms: u64,
     /// Pacing of emitter-sim: lockstep (the next step as soon as the command arrives; for benchmarks and
     /// tests, and the exact reproduction of `uavloc simulate`) or realtime (fly at a rate set by
     /// --time-scale; a command that comes after the next step is due is missed and the UAVs keep their
@@ -336,12 +343,24 @@ struct Supervisor {
     log: Option<PathBuf>,
     max_restarts: u32,
     restarts: u64,
+    /// CPU use of the idle children before the run (see [`LaunchArgs::idle_probe_ms`]).
+    idle_cpu: BTreeMap<String, f64>,
 }
 
 impl Supervisor {
     fn new(domain: Domain, log: Option<PathBuf>, max_restarts: u32) -> Self {
         let (tx, rx) = mpsc::channel();
-        Self { procs: Vec::new(), tx, rx, record: None, domain, log, max_restarts, restarts: 0 }
+        Self {
+            procs: Vec::new(),
+            tx,
+            rx,
+            record: None,
+            domain,
+            log,
+            max_restarts,
+            restarts: 0,
+            idle_cpu: BTreeMap::new(),
+        }
     }
 
     /// The current instance of `role`.
@@ -657,6 +676,25 @@ pub struct LaunchReport {
     pub latency: Option<serde_json::Value>,
     #[serde(skip)]
     pub leftovers: DomainResources,
+    /// CPU use of the waiting monitor, planner and estimator before the run, % of one core (only with
+    /// an idle probe, see [`LaunchArgs::idle_probe_ms`]).
+    #[serde(skip)]
+    pub idle_cpu: BTreeMap<String, f64>,
+}
+
+/// CPU use (% of one core) of each running child over `window`, from /proc (the children are idle: they
+/// wait for messages that do not come yet).
+fn probe_idle_cpu(sup: &Supervisor, window: Duration) -> BTreeMap<String, f64> {
+    use crate::bench::sys::process_cpu_seconds;
+    let before: Vec<(String, u32, Option<f64>)> =
+        sup.procs.iter().map(|p| (p.role.to_string(), p.child.id(), process_cpu_seconds(p.child.id()).ok())).collect();
+    let start = Instant::now();
+    std::thread::sleep(window);
+    let elapsed = start.elapsed().as_secs_f64();
+    before
+        .into_iter()
+        .filter_map(|(role, pid, t0)| Some((role, 100.0 * (process_cpu_seconds(pid).ok()? - t0?) / elapsed)))
+        .collect()
 }
 
 /// The domain of a launch: the flag, else `$UAVLOC_DOMAIN`, else `uavloc-<pid>`.
@@ -706,7 +744,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown
     // message.
     if resources::list(&domain).is_ok_and(|r| r.alive_nodes().next().is_some()) {
-        match send_shutdown(&domain) {
+        match send_shutdown(&domain, args.link.transport) {
             Ok(control) => {
                 wait_until_no_process_left(&domain);
                 drop(control);
@@ -717,6 +755,9 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // A child that crashed or had to be killed leaves its iceoryx2 node behind: remove it — also when the
     // launch failed or was interrupted — then check.
     let cleaned = resources::remove_dead_nodes(&domain).map_err(CliError::Failed);
+    if args.link.transport == protocol::TransportKind::Uds {
+        protocol::transport::uds::cleanup_stale();
+    }
     result?;
     cleaned?;
     let leftovers = resources::list(&domain).map_err(CliError::Failed)?;
@@ -770,15 +811,16 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         children,
         latency,
         leftovers,
+        idle_cpu: std::mem::take(&mut sup.idle_cpu),
     })
 }
 
 /// The launcher's own node on the control topic, kept until the others have stopped.
-type ControlNode = (protocol::ControlChannel, protocol::transport::IpcNode);
+type ControlNode = (protocol::ControlChannel, protocol::Link);
 
 /// Publishes [`ControlKind::Shutdown`](protocol::ControlKind::Shutdown) on the domain's control topic.
-fn send_shutdown(domain: &Domain) -> Result<ControlNode, String> {
-    let node = protocol::transport::node_without_signal_handling(&services::node_name(domain, "launcher"))
+fn send_shutdown(domain: &Domain, kind: protocol::TransportKind) -> Result<ControlNode, String> {
+    let node = protocol::Link::open_without_signal_handling(kind, &services::node_name(domain, "launcher"))
         .map_err(|e| e.to_string())?;
     let started_ns = protocol::now_ns();
     let control = protocol::ControlChannel::open(
@@ -819,9 +861,13 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
     if let Some(s) = args.seed {
         run_flags.extend(["--seed".to_string(), s.to_string()]);
     }
-    let spin = ["--spin-us".to_string(), args.spin_us.to_string()];
+    let link = args.link.to_flags();
     for role in START_ORDER {
         let mut flags = common.to_vec();
+        flags.extend(link.iter().cloned());
+        if role == "emitter-sim" && args.idle_probe_ms > 0 {
+            sup.idle_cpu = probe_idle_cpu(sup, Duration::from_millis(args.idle_probe_ms));
+        }
         match role {
             "monitor" => {
                 flags.extend(run_flags.iter().cloned());
@@ -830,6 +876,9 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
                 }
                 if let Some(p) = &args.out {
                     flags.extend(["--out".to_string(), p.display().to_string()]);
+                }
+                if let Some(p) = &args.stamps {
+                    flags.extend(["--stamps".to_string(), p.display().to_string()]);
                 }
             }
             "planner" => {
@@ -840,7 +889,6 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
                     "--solver".into(),
                     args.solver.name().into(),
                 ]);
-                flags.extend(spin.iter().cloned());
                 if args.plan_delay_ms > 0 {
                     flags.extend(["--plan-delay-ms".to_string(), args.plan_delay_ms.to_string()]);
                     if !args.plan_delay_steps.is_empty() {
@@ -849,10 +897,9 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
                     }
                 }
             }
-            "estimator" => flags.extend(spin.iter().cloned()),
+            "estimator" => {}
             _ => {
                 flags.extend(run_flags.iter().cloned());
-                flags.extend(spin.iter().cloned());
                 flags.extend([
                     "--step-delay-ms".to_string(),
                     args.step_delay_ms.to_string(),

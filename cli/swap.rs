@@ -93,21 +93,15 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
             opt_flag(&mut f, "--scenario", a.scenario.as_ref().map(|p| p.display().to_string()));
             opt_flag(&mut f, "--steps", a.steps.map(|n| n.to_string()));
             opt_flag(&mut f, "--seed", a.seed.map(|n| n.to_string()));
-            f.extend([
-                "--objective".into(),
-                a.objective.name().into(),
-                "--solver".into(),
-                a.solver.name().into(),
-                "--spin-us".into(),
-                a.spin_us.to_string(),
-            ]);
+            f.extend(["--objective".into(), a.objective.name().into(), "--solver".into(), a.solver.name().into()]);
+            f.extend(a.link.to_flags());
             if a.quiet {
                 f.push("--quiet".into());
             }
             ("planner", a.domain.as_deref(), f, Some(format!("{}/{}", a.solver.name(), a.objective.name())))
         }
         SwapRole::Estimator(a) => {
-            let mut f = vec!["--spin-us".to_string(), a.spin_us.to_string()];
+            let mut f = a.link.to_flags();
             if a.quiet {
                 f.push("--quiet".into());
             }

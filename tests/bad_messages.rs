@@ -97,7 +97,7 @@ fn batch() -> Batch {
 fn send_batch(domain: &str, b: &Batch) {
     protocol::transport::quiet_logs();
     let d = Domain::new(domain).unwrap();
-    let node = protocol::node(&format!("{domain}-bad-publisher")).unwrap();
+    let node = protocol::Link::open(protocol::TransportKind::Iceoryx2, &format!("{domain}-bad-publisher")).unwrap();
     let pause = || std::thread::sleep(Duration::from_millis(4));
     let m = Topic::<Measurement>::publisher(&node, &services::measurement(&d)).unwrap();
     for (msg, _) in &b.measurements {

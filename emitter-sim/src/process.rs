@@ -68,7 +68,7 @@ use iceoryx2::prelude::*;
 use planner::process::load_scenario;
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
-use protocol::transport::{TopicPublisher, wait_any};
+use protocol::transport::{Link, TopicPublisher, WaitMode, wait_any};
 use protocol::{
     Command, CommandOutcome, ControlChannel, ControlKind, Measurement, Message, RejectionCounter, Stamps, Topic,
     TopicSubscriber, Truth, now_ns,
@@ -186,9 +186,9 @@ pub struct EmitterSimArgs {
     /// Subscribers the measurement topic needs before step 0 (estimator, plus 1 for a monitor).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub min_subscribers: usize,
-    /// Busy-poll this many microseconds for the command before blocking (0: block at once).
-    #[arg(long, value_name = "US", default_value_t = 0)]
-    pub spin_us: u64,
+    /// Transport and waiting.
+    #[command(flatten)]
+    pub link: protocol::LinkArgs,
     /// Wait this many milliseconds before each step after step 0 (slows a lock-step run down for a demo or
     /// a test; the results do not change). 0: lock-step at full speed. Lock-step mode only.
     #[arg(long, value_name = "MS", default_value_t = 0)]
@@ -241,6 +241,8 @@ pub struct EmitterSummary {
     pub replays: u64,
     /// Replays because a step's command was late.
     pub retries: u64,
+    /// CPU time this process used, seconds.
+    pub cpu_s: f64,
 }
 
 fn announce(supervised: bool, line: &str) {
@@ -251,50 +253,39 @@ fn announce(supervised: bool, line: &str) {
     }
 }
 
-fn interrupted(node: &Node<ipc::Service>) -> bool {
-    node.wait(Duration::ZERO).is_err()
-}
-
-fn open_pubsub<T: Message>(
-    node: &Node<ipc::Service>,
-    name: &str,
-) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>, ProcessError> {
-    let service = ServiceName::new(name).map_err(|e| ProcessError::Failed(format!("service {name:?}: {e:?}")))?;
-    node.service_builder(&service)
-        .publish_subscribe::<T>()
-        .open()
-        .map_err(|e| ProcessError::Failed(format!("opening {name:?}: {e:?}")))
-}
-
 /// Waits until the measurement topic has `min_subscribers` subscribers and the command topic a
-/// publisher, re-checking the services' participant counts every [`CONNECT_POLL`].
-fn wait_for_pipeline(node: &Node<ipc::Service>, domain: &Domain, args: &EmitterSimArgs) -> Result<(), ProcessError> {
+/// publisher, re-checking the topics' participant counts every [`CONNECT_POLL`].
+fn wait_for_pipeline(
+    link: &Link,
+    measurements: &TopicPublisher<Measurement>,
+    commands: &TopicSubscriber<Command>,
+    domain: &Domain,
+    args: &EmitterSimArgs,
+) -> Result<(), ProcessError> {
     let start = Instant::now();
-    let measurement = open_pubsub::<Measurement>(node, &services::measurement(domain))?;
-    let command = open_pubsub::<Command>(node, &services::command(domain))?;
     loop {
-        let subscribers = measurement.dynamic_config().number_of_subscribers();
-        let planners = command.dynamic_config().number_of_publishers();
+        let subscribers = measurements.subscriber_count()?;
+        let planners = commands.publisher_count()?;
         if subscribers >= args.min_subscribers && planners >= 1 {
             return Ok(());
         }
         if start.elapsed().as_secs_f64() > args.connect_timeout_s {
             return Err(ProcessError::Failed(format!(
                 "the pipeline did not connect within {} s ({subscribers} of {} measurement subscribers, {planners} \
-                 planner(s)); start estimator and planner with --domain {domain}",
-                args.connect_timeout_s, args.min_subscribers
+                 planner(s)); start estimator and planner with --domain {domain} --transport {}",
+                args.connect_timeout_s,
+                args.min_subscribers,
+                link.kind()
             )));
         }
-        if node.wait(CONNECT_POLL).is_err() {
-            return Err(ProcessError::Interrupted);
-        }
+        link.sleep(CONNECT_POLL)?;
     }
 }
 
 /// The ports and the state of the lock-step loop.
 struct Sim<'a> {
     args: &'a EmitterSimArgs,
-    node: &'a Node<ipc::Service>,
+    link: &'a Link,
     waitset: &'a WaitSet<ipc::Service>,
     truths: &'a TopicPublisher<Truth>,
     measurements: &'a TopicPublisher<Measurement>,
@@ -338,14 +329,15 @@ impl Sim<'_> {
 
     /// Waits at most `timeout` for a command or a control message.
     fn wait(&self, timeout: Duration) -> Result<(), ProcessError> {
-        self.wait_spin(Duration::from_micros(self.args.spin_us), timeout)
+        let (spin, block) = self.args.link.policy().split(timeout);
+        self.wait_spin(spin, block)
     }
 
     /// Waits for a command or a control message: busy-polls for `spin`, then blocks for at most `timeout`.
     fn wait_spin(&self, spin: Duration, timeout: Duration) -> Result<(), ProcessError> {
         let ready = || Ok(self.commands.has_samples()? || self.control.subscriber().has_samples()?);
         wait_any(self.waitset, spin, timeout, ready)?;
-        if interrupted(self.node) {
+        if self.link.interrupted() {
             return Err(ProcessError::Interrupted);
         }
         Ok(())
@@ -355,7 +347,11 @@ impl Sim<'_> {
     /// longer than `--spin-us`, and not past the deadline), or [`IDLE_WAKEUP`].
     fn wait_until(&self, deadline: Instant) -> Result<(), ProcessError> {
         let left = deadline.saturating_duration_since(Instant::now());
-        let spin = Duration::from_micros(self.args.spin_us).min(left);
+        let policy = self.args.link.policy();
+        if policy.mode == WaitMode::Spin {
+            return self.wait_spin(left.min(IDLE_WAKEUP), Duration::ZERO);
+        }
+        let (spin, _) = policy.split(left);
         // A zero timeout would return at once; iceoryx2 rounds a blocking wait up to whole milliseconds, so
         // a step goes out up to a millisecond (plus the wake-up latency) late — a command that arrives
         // meanwhile wakes the wait at once and is judged by its arrival — and the schedule does not drift:
@@ -563,24 +559,24 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         return Err(ProcessError::Input("--retry-interval-ms must be > 0".into()));
     }
     let world = World::from_scenario(&scenario).map_err(|e| ProcessError::Input(format!("scenario: {e}")))?;
-    let node = protocol::node(&services::node_name(&domain, ROLE))?;
+    let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the run cleanly.
-    if interrupted(&node) {
+    if link.interrupted() {
         return Err(ProcessError::Interrupted);
     }
     let started_ns = now_ns();
     let instance = instance_id_at(started_ns);
-    let truths = Topic::<Truth>::publisher(&node, &services::truth(&domain))?;
-    let measurements = Topic::<Measurement>::publisher(&node, &services::measurement(&domain))?;
-    let commands = Topic::<Command>::subscriber(&node, &services::command(&domain))?;
-    let control = ControlChannel::open(&node, &domain, ROLE, instance, started_ns)?;
+    let truths = Topic::<Truth>::publisher(&link, &services::truth(&domain))?;
+    let measurements = Topic::<Measurement>::publisher(&link, &services::measurement(&domain))?;
+    let commands = Topic::<Command>::subscriber(&link, &services::command(&domain))?;
+    let control = ControlChannel::open(&link, &domain, ROLE, instance, started_ns)?;
     let waitset = protocol::transport::waitset()?;
     let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
     let _guards = [
         waitset.attach_notification(&commands).map_err(attach_failed)?,
         waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
     ];
-    wait_for_pipeline(&node, &domain, args)?;
+    wait_for_pipeline(&link, &measurements, &commands, &domain, args)?;
     control.send(ControlKind::Hello, 0, "")?;
     announce(args.supervised, "ready");
     if !args.quiet {
@@ -600,7 +596,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
 
     let mut sim = Sim {
         args,
-        node: &node,
+        link: &link,
         waitset: &waitset,
         truths: &truths,
         measurements: &measurements,
@@ -631,17 +627,19 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let mut t0: Option<Instant> = None;
     let due = |t0: Instant, k: u64| t0 + interval.unwrap_or_default().mul_f64(k as f64);
     for k in 0..=scenario.steps as u64 {
-        if interval.is_none() && k > 0 && !step_delay.is_zero() && node.wait(step_delay).is_err() {
+        if interval.is_none() && k > 0 && !step_delay.is_zero() && link.sleep(step_delay).is_err() {
             return Err(ProcessError::Interrupted);
         }
         let meas = sim.world.measure().map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
         let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
         let mut message = Measurement::new(k, 0, &uavs, meas.range_diffs.as_slice(), &sigmas, sim.world.headings())
             .map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
+        let mut truth = Truth::new(k, 0, [truth.x, truth.y]).with_previous_command(previous);
         if let Some((cmd, received_ns)) = &trigger {
             message = message.carrying(cmd, *received_ns);
+            // The monitor learns from the truth when the previous step's command reached the world.
+            truth = truth.carrying(cmd, *received_ns);
         }
-        let truth = Truth::new(k, 0, [truth.x, truth.y]).with_previous_command(previous);
         sim.sent.push((truth, message));
         if interval.is_some() {
             let now = Instant::now();
@@ -682,7 +680,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         }
         sim.summary.steps += 1;
     }
-    let summary = sim.summary;
+    let mut summary = sim.summary;
     if !args.quiet {
         eprintln!(
             "emitter-sim: done: {} steps, {} measurements, {}, {} ignored, {} replays ({} retries)",
@@ -696,6 +694,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             );
         }
     }
+    summary.cpu_s = protocol::process::cpu_seconds();
     Ok(summary)
 }
 

@@ -71,9 +71,9 @@ pub struct EstimatorArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
-    /// Busy-poll this many microseconds for the next measurement before blocking (0: block at once).
-    #[arg(long, value_name = "US", default_value_t = 0)]
-    pub spin_us: u64,
+    /// Transport and waiting.
+    #[command(flatten)]
+    pub link: protocol::LinkArgs,
     /// Take over from the running estimator at the next step (see `uavloc swap estimator`).
     #[arg(long)]
     pub takeover: bool,
@@ -110,6 +110,8 @@ pub struct EstimatorSummary {
     pub took_over_at: Option<u64>,
     /// The step from which a newer estimator took over (this one exited then).
     pub handed_over_at: Option<u64>,
+    /// CPU time this process used, seconds.
+    pub cpu_s: f64,
 }
 
 /// Steps whose answers are kept (the oldest is forgotten beyond).
@@ -224,19 +226,19 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Fix {
 pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     protocol::transport::quiet_logs();
     let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
-    let node = protocol::node(&services::node_name(&domain, ROLE))?;
+    let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
-    if node.wait(Duration::ZERO).is_err() {
+    if link.interrupted() {
         return Ok(EstimatorSummary { role: ROLE, ..EstimatorSummary::default() });
     }
     let started_ns = now_ns();
     let instance = instance_id_at(started_ns);
-    let measurements = Topic::<Measurement>::subscriber(&node, &services::measurement(&domain))?;
-    let estimates = Topic::<Estimate>::publisher(&node, &services::estimate(&domain))?;
-    let control = ControlChannel::open(&node, &domain, ROLE, instance, started_ns)?;
+    let measurements = Topic::<Measurement>::subscriber(&link, &services::measurement(&domain))?;
+    let estimates = Topic::<Estimate>::publisher(&link, &services::estimate(&domain))?;
+    let control = ControlChannel::open(&link, &domain, ROLE, instance, started_ns)?;
     // With --takeover: the running estimator's estimates (its state to take over).
     let predecessor: Option<TopicSubscriber<Estimate>> =
-        if args.takeover { Some(Topic::<Estimate>::subscriber(&node, &services::estimate(&domain))?) } else { None };
+        if args.takeover { Some(Topic::<Estimate>::subscriber(&link, &services::estimate(&domain))?) } else { None };
     let waitset = protocol::transport::waitset()?;
     let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
     let mut guards = vec![
@@ -256,7 +258,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         eprintln!("estimator: domain {domain}, instance {instance:#x}");
     }
 
-    let spin = Duration::from_micros(args.spin_us);
+    let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
     let mut counter = RejectionCounter::new();
     let mut last_seq = None;
     let mut seq = now_ns();
@@ -272,12 +274,12 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
                 || control.subscriber().has_samples()?
                 || predecessor.as_ref().map_or(Ok(false), |p| p.has_samples())?)
         };
-        match protocol::transport::wait_any(&waitset, spin, IDLE_WAKEUP, ready) {
+        match protocol::transport::wait_any(&waitset, spin, block, ready) {
             Ok(()) => {}
             Err(TransportError::Interrupted) => break,
             Err(e) => return Err(e.into()),
         }
-        if node.wait(Duration::ZERO).is_err() {
+        if link.interrupted() {
             break;
         }
         for msg in control.receive(&mut counter)? {
@@ -387,6 +389,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
             summary.published, summary.resent, summary.out_of_chain
         );
     }
+    summary.cpu_s = protocol::process::cpu_seconds();
     Ok(summary)
 }
 

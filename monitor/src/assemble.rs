@@ -32,7 +32,7 @@ use std::collections::BTreeMap;
 use nalgebra::Vector2;
 use planner::Scenario;
 use planner::active_mask;
-use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Measurement, Truth};
+use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Measurement, Stamps, Truth};
 use tdoa::{NoiseModel, Sensors};
 
 use crate::metrics::step_metrics;
@@ -67,6 +67,10 @@ pub struct CompletedStep {
     pub truth: [f64; 2],
     /// The step's command was missed (real-time mode): the UAVs kept their headings.
     pub missed: bool,
+    /// The stamps of the step's chain (the command's; on the last step, or a missed one, the estimate's).
+    pub chain: Stamps,
+    /// When emitter-sim received the step's command (from the next step's truth; 0 if unknown).
+    pub command_received_ns: u64,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -201,7 +205,9 @@ impl Assembler {
             let k = self.next;
             let planned = k < self.last_step();
             // What became of step k's command, from the truth of step k + 1.
-            let outcome = self.pending.get(&(k + 1)).and_then(|p| p.truth.as_ref()).map(Truth::previous_command);
+            let next_truth = self.pending.get(&(k + 1)).and_then(|p| p.truth.as_ref());
+            let outcome = next_truth.map(Truth::previous_command);
+            let command_received_ns = next_truth.map_or(0, |t| t.header.stamps.trigger_command_received_ns);
             let missed = outcome == Some(Some(CommandOutcome::Missed));
             let ready = self.pending.get(&k).is_some_and(|p| {
                 p.measurement.is_some()
@@ -218,7 +224,11 @@ impl Assembler {
                 self.ignored += 1; // it came, but too late for the world
             }
             let command = if missed { None } else { p.command.as_ref() };
-            done.push(self.complete(k, &m, &e, &t, command, planned && missed));
+            let mut step = self.complete(k, &m, &e, &t, command, planned && missed);
+            if command.is_some() {
+                step.command_received_ns = command_received_ns;
+            }
+            done.push(step);
             self.next += 1;
         }
         done
@@ -271,6 +281,7 @@ impl Assembler {
             criterion_ess: None,
         };
         let mut planner = None;
+        let chain = c.map_or(e.header.stamps, |c| c.header.stamps);
         let latencies = match c {
             Some(c) => {
                 record.headings_rad = c.headings().to_vec();
@@ -295,7 +306,7 @@ impl Assembler {
         };
         let error_m = (position[0] - truth.x).hypot(position[1] - truth.y);
         self.steps.push(record.clone());
-        CompletedStep { record, latencies, planner, error_m, truth: t.position, missed }
+        CompletedStep { record, latencies, planner, error_m, truth: t.position, missed, chain, command_received_ns: 0 }
     }
 
     /// The record of the steps completed so far (the whole run once [`is_done`](Self::is_done)).

@@ -39,6 +39,7 @@
 //! It exits 0 after the last step, or 130 on SIGINT/SIGTERM or a [`ControlKind::Shutdown`] before it
 //! (writing the partial record).
 
+use std::collections::HashMap;
 use std::fs::File;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -46,14 +47,13 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Args;
-use iceoryx2::prelude::*;
-use iceoryx2::waitset::WaitSetRunResult;
 use planner::process::load_scenario;
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
+use protocol::transport::wait_any;
 use protocol::{
     Command, ControlChannel, ControlKind, Estimate, Latencies, Measurement, Message, MessageKind, RejectionCounter,
-    Topic, TopicSubscriber, Truth, now_ns,
+    Stamps, Topic, TopicSubscriber, TransportError, Truth, now_ns,
 };
 use serde_json::json;
 
@@ -86,6 +86,15 @@ pub struct MonitorArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
+    /// Transport and waiting.
+    #[command(flatten)]
+    pub link: protocol::LinkArgs,
+    /// Write the raw stamps of every recorded step to FILE as CSV (one row per step, CLOCK_MONOTONIC
+    /// nanoseconds; 0 = missing): the chain's publish/receive stamps, when emitter-sim received the step's
+    /// command (from the next step's messages) and when the monitor received each of the step's messages.
+    /// What `uavloc bench latency` reads.
+    #[arg(long, value_name = "FILE")]
+    pub stamps: Option<PathBuf>,
     /// Scenario TOML file (default: the paper's nominal case): RMSE resamples and the record's scenario.
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
@@ -214,6 +223,11 @@ pub struct MonitorSummary {
     pub missed_commands: u64,
     /// Latencies of the planned steps.
     pub latency: LatencySummary,
+    /// Messages of the recorded steps that never reached the monitor (measurement, estimate, command and
+    /// truth of each step; the last step has no command). 0 when nothing was lost.
+    pub missing_messages: u64,
+    /// CPU time this process used, seconds.
+    pub cpu_s: f64,
 }
 
 /// The JSON-lines run log (a no-op without `--log`), opened for appending: each line goes out in one
@@ -340,6 +354,11 @@ struct State {
     planners: u64,
     missed: u64,
     quiet: bool,
+    /// When the monitor first received each (kind, step) of the steps not yet recorded.
+    received: HashMap<(MessageKind, u64), u64>,
+    /// The last command received per step (its stamps), and the next step's trigger stamps.
+    missing: u64,
+    stamps: Option<StampsCsv>,
 }
 
 impl State {
@@ -351,6 +370,9 @@ impl State {
         let batch = sub.receive_all()?;
         let received_ns = now_ns();
         for msg in batch {
+            if msg.header().stamps.published_ns != 0 {
+                self.received.entry((T::KIND, msg.header().step)).or_insert(received_ns);
+            }
             let slot = &mut self.last_seq[T::KIND.index()];
             if let Err(r) = self.counter.check(&msg, slot) {
                 self.log.write(
@@ -413,6 +435,7 @@ impl State {
 
     fn complete_steps(&mut self) {
         for done in self.assembler.complete_ready() {
+            self.account(&done);
             if let Some(p) = &done.planner
                 && self.planner.as_ref() != Some(p)
             {
@@ -457,6 +480,79 @@ impl State {
     }
 }
 
+impl State {
+    /// Counts the step's messages that never arrived and writes its stamps row; forgets its receive times.
+    fn account(&mut self, done: &CompletedStep) {
+        let k = done.record.step;
+        let last = k == self.assembler.last_step();
+        let mut rx = [0u64; 4];
+        for (i, kind) in [MessageKind::Measurement, MessageKind::Estimate, MessageKind::Command, MessageKind::Truth]
+            .into_iter()
+            .enumerate()
+        {
+            match self.received.remove(&(kind, k)) {
+                Some(t) => rx[i] = t,
+                None if kind == MessageKind::Command && (last || done.missed) => {}
+                None => self.missing += 1,
+            }
+        }
+        if let Some(csv) = &mut self.stamps {
+            csv.row(k, &done.chain, done.command_received_ns, rx);
+        }
+    }
+}
+
+/// The `--stamps` CSV file.
+struct StampsCsv {
+    out: std::io::BufWriter<File>,
+    path: PathBuf,
+    failed: bool,
+}
+
+/// Header of the `--stamps` CSV (see [`MonitorArgs::stamps`]).
+pub const STAMPS_HEADER: &str = "step,trigger_command_published_ns,trigger_command_received_ns,\
+measurement_published_ns,measurement_received_ns,estimate_published_ns,estimate_received_ns,command_published_ns,\
+command_received_ns,monitor_measurement_ns,monitor_estimate_ns,monitor_command_ns,monitor_truth_ns";
+
+impl StampsCsv {
+    fn create(path: &Path) -> Result<Self, ProcessError> {
+        let mut out = std::io::BufWriter::new(
+            File::create(path).map_err(|e| ProcessError::Failed(format!("--stamps {}: {e}", path.display())))?,
+        );
+        writeln!(out, "{STAMPS_HEADER}")
+            .map_err(|e| ProcessError::Failed(format!("--stamps {}: {e}", path.display())))?;
+        Ok(StampsCsv { out, path: path.to_owned(), failed: false })
+    }
+
+    fn row(&mut self, step: u64, s: &Stamps, command_received_ns: u64, rx: [u64; 4]) {
+        let r = writeln!(
+            self.out,
+            "{step},{},{},{},{},{},{},{},{command_received_ns},{},{},{},{}",
+            s.trigger_command_published_ns,
+            s.trigger_command_received_ns,
+            s.measurement_published_ns,
+            s.measurement_received_ns,
+            s.estimate_published_ns,
+            s.estimate_received_ns,
+            s.command_published_ns,
+            rx[0],
+            rx[1],
+            rx[2],
+            rx[3]
+        );
+        if let Err(e) = r
+            && !self.failed
+        {
+            self.failed = true;
+            eprintln!("monitor: --stamps {}: {e}", self.path.display());
+        }
+    }
+
+    fn finish(mut self) -> Result<(), ProcessError> {
+        self.out.flush().map_err(|e| ProcessError::Failed(format!("--stamps {}: {e}", self.path.display())))
+    }
+}
+
 fn write_outputs(args: &MonitorArgs, run: &RunRecord) -> Result<(), ProcessError> {
     if let Some(path) = &args.record {
         let text = serde_json::to_string_pretty(run).map_err(|e| ProcessError::Failed(e.to_string()))?;
@@ -489,7 +585,8 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         }
         _ => (Assembler::new(scenario.clone()), None),
     };
-    let node = protocol::node(&services::node_name(&domain, ROLE))?;
+    let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
+    let stamps = args.stamps.as_deref().map(StampsCsv::create).transpose()?;
     let mut state = State {
         assembler,
         counter: RejectionCounter::new(),
@@ -500,15 +597,18 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         planners: 0,
         missed: 0,
         quiet: args.quiet,
+        received: HashMap::new(),
+        missing: 0,
+        stamps,
     };
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
-    let mut interrupted = node.wait(Duration::ZERO).is_err();
+    let mut interrupted = link.interrupted();
     let started_ns = now_ns();
-    let measurements = Topic::<Measurement>::subscriber(&node, &services::measurement(&domain))?;
-    let estimates = Topic::<Estimate>::subscriber(&node, &services::estimate(&domain))?;
-    let commands = Topic::<Command>::subscriber(&node, &services::command(&domain))?;
-    let truths = Topic::<Truth>::subscriber(&node, &services::truth(&domain))?;
-    let control = ControlChannel::open(&node, &domain, ROLE, instance_id_at(started_ns), started_ns)?;
+    let measurements = Topic::<Measurement>::subscriber(&link, &services::measurement(&domain))?;
+    let estimates = Topic::<Estimate>::subscriber(&link, &services::estimate(&domain))?;
+    let commands = Topic::<Command>::subscriber(&link, &services::command(&domain))?;
+    let truths = Topic::<Truth>::subscriber(&link, &services::truth(&domain))?;
+    let control = ControlChannel::open(&link, &domain, ROLE, instance_id_at(started_ns), started_ns)?;
     let waitset = protocol::transport::waitset()?;
     let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
     let _guards = [
@@ -536,13 +636,19 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         }
     }
 
+    let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
     while !interrupted && !state.assembler.is_done() {
-        match waitset.wait_and_process_once_with_timeout(|_| CallbackProgression::Continue, IDLE_WAKEUP) {
-            Ok(WaitSetRunResult::TerminationRequest) => interrupted = true,
-            // Some signal interrupted the wait: stop if it was SIGINT/SIGTERM.
-            Ok(WaitSetRunResult::Interrupt) => interrupted = node.wait(Duration::ZERO).is_err(),
-            Ok(_) => {}
-            Err(e) => return Err(ProcessError::Failed(format!("waiting: {e:?}"))),
+        let ready = || {
+            Ok(truths.has_samples()?
+                || measurements.has_samples()?
+                || estimates.has_samples()?
+                || commands.has_samples()?
+                || control.subscriber().has_samples()?)
+        };
+        match wait_any(&waitset, spin, block, ready) {
+            Ok(()) => {}
+            Err(TransportError::Interrupted) => interrupted = true,
+            Err(e) => return Err(e.into()),
         }
         interrupted |= state.drain_control(&control)?;
         state.drain(&truths, Assembler::add_truth)?;
@@ -551,7 +657,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         state.drain(&commands, Assembler::add_command)?;
         state.complete_steps();
         if !interrupted {
-            interrupted = node.wait(Duration::ZERO).is_err();
+            interrupted = link.interrupted();
         }
     }
 
@@ -566,7 +672,12 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         planners: state.planners,
         missed_commands: state.missed,
         latency: state.samples.summary(),
+        missing_messages: state.missing,
+        cpu_s: protocol::process::cpu_seconds(),
     };
+    if let Some(csv) = state.stamps.take() {
+        csv.finish()?;
+    }
     state.log.write(
         "end",
         json!({

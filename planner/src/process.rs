@@ -95,9 +95,9 @@ pub struct PlannerArgs {
     /// Run seed (default: the scenario's): MC objective samples and the solver derive from it.
     #[arg(long, value_name = "N")]
     pub seed: Option<u64>,
-    /// Busy-poll this many microseconds for the next estimate before blocking (0: block at once).
-    #[arg(long, value_name = "US", default_value_t = 0)]
-    pub spin_us: u64,
+    /// Transport and waiting.
+    #[command(flatten)]
+    pub link: protocol::LinkArgs,
     /// Take over from the running planner at the next step (see `uavloc swap planner`).
     #[arg(long)]
     pub takeover: bool,
@@ -158,6 +158,8 @@ pub struct PlannerSummary {
     pub took_over_at: Option<u64>,
     /// The step from which a newer planner took over (this one exited then).
     pub handed_over_at: Option<u64>,
+    /// CPU time this process used, seconds.
+    pub cpu_s: f64,
 }
 
 /// Steps whose commands are kept (the oldest is forgotten beyond).
@@ -204,16 +206,16 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 .into(),
         ));
     }
-    let node = protocol::node(&services::node_name(&domain, ROLE))?;
+    let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
-    if node.wait(Duration::ZERO).is_err() {
+    if link.interrupted() {
         return Ok(PlannerSummary { role: ROLE, ..PlannerSummary::default() });
     }
     let started_ns = now_ns();
     let instance = instance_id_at(started_ns);
-    let estimates = Topic::<Estimate>::subscriber(&node, &services::estimate(&domain))?;
-    let commands = Topic::<Command>::publisher(&node, &services::command(&domain))?;
-    let control = ControlChannel::open(&node, &domain, ROLE, instance, started_ns)?;
+    let estimates = Topic::<Estimate>::subscriber(&link, &services::estimate(&domain))?;
+    let commands = Topic::<Command>::publisher(&link, &services::command(&domain))?;
+    let control = ControlChannel::open(&link, &domain, ROLE, instance, started_ns)?;
     let waitset = protocol::transport::waitset()?;
     let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
     let _guards = [
@@ -237,7 +239,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         );
     }
 
-    let spin = Duration::from_micros(args.spin_us);
+    let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
     let mut counter = RejectionCounter::new();
     let mut last_seq = None;
     // Sequence numbers start at the monotonic clock: a restarted planner continues above its predecessor.
@@ -252,12 +254,12 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let mut last_planned: Option<u64> = None;
     'run: loop {
         let ready = || Ok(estimates.has_samples()? || control.subscriber().has_samples()?);
-        match protocol::transport::wait_any(&waitset, spin, IDLE_WAKEUP, ready) {
+        match protocol::transport::wait_any(&waitset, spin, block, ready) {
             Ok(()) => {}
             Err(TransportError::Interrupted) => break,
             Err(e) => return Err(e.into()),
         }
-        if node.wait(Duration::ZERO).is_err() {
+        if link.interrupted() {
             break;
         }
         for msg in control.receive(&mut counter)? {
@@ -360,7 +362,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 if !args.quiet {
                     eprintln!("planner: step {step}: delaying the plan by {} ms (--plan-delay-ms)", args.plan_delay_ms);
                 }
-                if node.wait(Duration::from_millis(args.plan_delay_ms)).is_err() {
+                if link.sleep(Duration::from_millis(args.plan_delay_ms)).is_err() {
                     break 'run;
                 }
             }
@@ -425,6 +427,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         }
         eprintln!("planner: stopped after {} commands ({} estimates, {counter})", summary.published, summary.accepted);
     }
+    summary.cpu_s = protocol::process::cpu_seconds();
     Ok(summary)
 }
 

@@ -13,11 +13,9 @@
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
 
-use iceoryx2::prelude::*;
-
 use crate::messages::{Control, ControlKind, now_ns};
 use crate::services::{self, Domain};
-use crate::transport::{Topic, TopicPublisher, TopicSubscriber, TransportError};
+use crate::transport::{Link, Topic, TopicPublisher, TopicSubscriber, TransportError};
 use crate::validate::{Rejection, RejectionCounter};
 
 /// A process instance id: the pid in the high 32 bits, the low 32 bits of `started_ns` below.
@@ -45,7 +43,7 @@ pub struct ControlChannel {
 impl ControlChannel {
     /// Opens the control topic of `domain` for a process of `role` (its instance id and start time).
     pub fn open(
-        node: &Node<ipc::Service>,
+        link: &Link,
         domain: &Domain,
         role: &str,
         instance: u64,
@@ -58,8 +56,8 @@ impl ControlChannel {
             started_ns,
             // Sequence numbers start at the clock: a later instance numbers above an earlier one.
             seq: Cell::new(now_ns()),
-            subscriber: Topic::<Control>::subscriber(node, &name)?,
-            publisher: Topic::<Control>::publisher(node, &name)?,
+            subscriber: Topic::<Control>::subscriber(link, &name)?,
+            publisher: Topic::<Control>::publisher(link, &name)?,
             last_seq: RefCell::new(HashMap::new()),
         })
     }

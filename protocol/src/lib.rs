@@ -11,8 +11,10 @@
 //! - [`control`]: the control topic as one process sees it ([`ControlChannel`]: announce, take over,
 //!   shut down; per-instance sequence numbers);
 //! - [`services`]: every service name, under a [`Domain`] prefix (`--domain NAME` or `UAVLOC_DOMAIN`);
-//! - [`transport`]: a typed wrapper of one "topic" = a pub/sub service plus a companion event service of the
-//!   same name, so subscribers can block in a `WaitSet` ([`Topic`], [`TopicPublisher`], [`TopicSubscriber`]).
+//! - [`transport`]: typed topics ([`Topic`], [`TopicPublisher`], [`TopicSubscriber`]) over iceoryx2 (a
+//!   pub/sub service plus a companion event service of the same name, so subscribers can block in a
+//!   `WaitSet`) or, as the benchmark baseline, Unix-domain datagram sockets ([`TransportKind`]), behind
+//!   the same port traits; a process's [`Link`] (its node and transport) and [`WaitMode`]s.
 //!
 //! Conventions follow `uavloc-tdoa`: 2-D positions in metres, angles in radians, `uavs[0]` is the reference
 //! UAV, range differences `d_i = r_i − r_0` for i = 1..N−1, 3 ≤ N ≤ [`MAX_UAVS`].
@@ -36,7 +38,10 @@ pub use messages::{
 };
 pub use process::{EXIT_INTERRUPTED, ProcessError};
 pub use services::Domain;
-pub use transport::{Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, node};
+pub use transport::{
+    Link, LinkArgs, Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, TransportKind, WaitMode,
+    WaitPolicy, node,
+};
 pub use validate::{Rejection, RejectionCounter};
 
 /// Largest number of UAVs a message can carry (equals `tdoa::MAX_UAVS`; the two crates do not depend on

@@ -13,6 +13,7 @@
 //! the first `count − 1`). The accessors return slices of exactly the used length.
 
 use core::fmt;
+use core::mem::size_of;
 
 use iceoryx2::prelude::ZeroCopySend;
 
@@ -215,8 +216,34 @@ impl Header {
     }
 }
 
+/// Types for which every bit pattern of `size_of::<Self>()` bytes is a valid value, so a message can be read
+/// from raw bytes (a datagram of the socket transport, random bytes in a property test) without undefined
+/// behaviour. Reading is sound; trusting the content still needs `validate`.
+///
+/// # Safety
+/// Implement only for `#[repr(C)]` types made of integers, floats and arrays of them (no `bool`, enum,
+/// reference or pointer), whose padding is explicit fields (checked by `layout_has_no_implicit_padding`).
+pub unsafe trait AnyBitPattern: Copy + 'static {
+    /// The value whose bytes are `bytes`; `None` unless `bytes.len() == size_of::<Self>()`.
+    fn from_bytes(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != size_of::<Self>() {
+            return None;
+        }
+        // SAFETY: the length is checked above; `read_unaligned` has no alignment requirement; by the
+        // trait's contract every bit pattern is a valid `Self`.
+        Some(unsafe { core::ptr::read_unaligned(bytes.as_ptr().cast::<Self>()) })
+    }
+
+    /// The bytes of the value (its in-memory representation, no serialisation).
+    fn as_bytes(&self) -> &[u8] {
+        // SAFETY: `self` is a valid, initialised `Self` of `size_of::<Self>()` bytes with no implicit padding
+        // (trait contract), so all its bytes are initialised; the slice borrows `self`.
+        unsafe { core::slice::from_raw_parts((self as *const Self).cast::<u8>(), size_of::<Self>()) }
+    }
+}
+
 /// What every message type offers, so that transport and validation can be generic.
-pub trait Message: ZeroCopySend + fmt::Debug + Copy + Send + 'static {
+pub trait Message: AnyBitPattern + ZeroCopySend + fmt::Debug + Copy + Send + 'static {
     /// Which type this is.
     const KIND: MessageKind;
     /// Layout version (also in the pinned type name).
@@ -247,6 +274,10 @@ macro_rules! impl_message {
             /// Layout version; bump together with the type name.
             pub const VERSION: u32 = $version;
         }
+
+        // SAFETY: every message type is repr(C) of u8/u32/u64/f64 (arrays) and byte-array names, with its
+        // padding spelled out as `reserved` fields (see the module docs and `layout_has_no_implicit_padding`).
+        unsafe impl AnyBitPattern for $ty {}
 
         impl Message for $ty {
             const KIND: MessageKind = $kind;

@@ -4,34 +4,11 @@ use core::mem::size_of;
 
 use proptest::prelude::*;
 
-use crate::messages::{Command, Control, Estimate, EstimateStatus, Fix, Measurement, Message, PlanInfo, Truth};
+use crate::messages::{
+    AnyBitPattern, Command, Control, Estimate, EstimateStatus, Fix, Measurement, Message, PlanInfo, Truth,
+};
 use crate::validate::{Rejection, is_symmetric_positive_definite};
 use crate::{MAX_UAVS, MIN_UAVS};
-
-/// Message types for which every bit pattern of `size_of::<Self>()` bytes is a valid value.
-///
-/// # Safety
-/// Implement only for `#[repr(C)]` types made of integers, floats and arrays of them (no `bool`, enum,
-/// reference or pointer), whose padding is explicit fields (checked by `layout_has_no_implicit_padding`).
-unsafe trait AnyBitPattern: Message {
-    fn from_bytes(bytes: &[u8]) -> Self {
-        assert_eq!(bytes.len(), size_of::<Self>());
-        // SAFETY: the length is checked above; `read_unaligned` has no alignment requirement; by the trait's
-        // contract every bit pattern is a valid `Self`.
-        unsafe { core::ptr::read_unaligned(bytes.as_ptr().cast::<Self>()) }
-    }
-}
-
-// SAFETY: all four are repr(C) of u8/u32/u64/f64 (arrays), explicit padding; see the module `messages`.
-unsafe impl AnyBitPattern for Measurement {}
-// SAFETY: as above (`status` is a raw u8, not the enum).
-unsafe impl AnyBitPattern for Estimate {}
-// SAFETY: as above (`Name16` is a byte array).
-unsafe impl AnyBitPattern for Command {}
-// SAFETY: as above.
-unsafe impl AnyBitPattern for Truth {}
-// SAFETY: as above (`kind` is a raw u32, the names are byte arrays).
-unsafe impl AnyBitPattern for Control {}
 
 fn bytes_of<T: AnyBitPattern>() -> impl Strategy<Value = Vec<u8>> {
     proptest::collection::vec(any::<u8>(), size_of::<T>())
@@ -82,7 +59,7 @@ fn used_floats<T: Message>(msg: &T) -> Option<Vec<f64>> {
 
 /// Validation of arbitrary content: never panics; an accepted message has every used float finite, the
 /// right version, a sequence number above `last`, and passes the type's own invariants.
-fn check_arbitrary<T: AnyBitPattern>(msg: &T, last: Option<u64>) -> Result<(), TestCaseError> {
+fn check_arbitrary<T: Message>(msg: &T, last: Option<u64>) -> Result<(), TestCaseError> {
     let verdict = msg.validate(last);
     if let Err(r) = &verdict {
         let _ = (r.kind(), r.to_string());
@@ -177,7 +154,7 @@ fn poison<T: Message>(msg: &mut T, index: usize, bad: f64) {
 }
 
 /// Poisoned, otherwise plausible messages are rejected, as NotFinite (or an earlier structural reason).
-fn check_poisoned<T: AnyBitPattern>(
+fn check_poisoned<T: Message>(
     bytes: &[u8],
     count: u32,
     status: u8,
@@ -185,7 +162,7 @@ fn check_poisoned<T: AnyBitPattern>(
     bad: f64,
     last: Option<u64>,
 ) -> Result<(), TestCaseError> {
-    let mut msg = T::from_bytes(bytes);
+    let mut msg = T::from_bytes(bytes).expect("the strategy gives size_of::<T>() bytes");
     patch(&mut msg, count, status);
     poison(&mut msg, index, bad);
     check_arbitrary(&msg, last)?;
@@ -209,27 +186,27 @@ proptest! {
 
     #[test]
     fn arbitrary_measurement(bytes in bytes_of::<Measurement>(), last in any::<Option<u64>>()) {
-        check_arbitrary(&Measurement::from_bytes(&bytes), last)?;
+        check_arbitrary(&Measurement::from_bytes(&bytes).unwrap(), last)?;
     }
 
     #[test]
     fn arbitrary_estimate(bytes in bytes_of::<Estimate>(), last in any::<Option<u64>>()) {
-        check_arbitrary(&Estimate::from_bytes(&bytes), last)?;
+        check_arbitrary(&Estimate::from_bytes(&bytes).unwrap(), last)?;
     }
 
     #[test]
     fn arbitrary_command(bytes in bytes_of::<Command>(), last in any::<Option<u64>>()) {
-        check_arbitrary(&Command::from_bytes(&bytes), last)?;
+        check_arbitrary(&Command::from_bytes(&bytes).unwrap(), last)?;
     }
 
     #[test]
     fn arbitrary_control(bytes in bytes_of::<Control>(), last in any::<Option<u64>>()) {
-        check_arbitrary(&Control::from_bytes(&bytes), last)?;
+        check_arbitrary(&Control::from_bytes(&bytes).unwrap(), last)?;
     }
 
     #[test]
     fn arbitrary_truth(bytes in bytes_of::<Truth>(), last in any::<Option<u64>>()) {
-        check_arbitrary(&Truth::from_bytes(&bytes), last)?;
+        check_arbitrary(&Truth::from_bytes(&bytes).unwrap(), last)?;
     }
 
     #[test]
@@ -242,16 +219,16 @@ proptest! {
         status in 0u8..4,
         last in any::<Option<u64>>(),
     ) {
-        let mut m = Measurement::from_bytes(&m);
+        let mut m = Measurement::from_bytes(&m).unwrap();
         patch(&mut m, count, status);
         check_arbitrary(&m, last)?;
-        let mut e = Estimate::from_bytes(&e);
+        let mut e = Estimate::from_bytes(&e).unwrap();
         patch(&mut e, count, status);
         check_arbitrary(&e, last)?;
-        let mut c = Command::from_bytes(&c);
+        let mut c = Command::from_bytes(&c).unwrap();
         patch(&mut c, count, status);
         check_arbitrary(&c, last)?;
-        let mut t = Truth::from_bytes(&t);
+        let mut t = Truth::from_bytes(&t).unwrap();
         patch(&mut t, count, status);
         check_arbitrary(&t, last)?;
     }

@@ -10,7 +10,12 @@ use iceoryx2::prelude::*;
 use protocol::messages::{Fix, PlanInfo};
 use protocol::services::{self, Domain};
 use protocol::transport::{MAX_PUBLISHERS, SUBSCRIBER_BUFFER, TopicEvents};
-use protocol::{Command, Estimate, Measurement, Message, Topic, TransportError, Truth, node, now_ns};
+use protocol::{Command, Estimate, Link, Measurement, Message, Topic, TransportError, TransportKind, Truth, now_ns};
+
+/// A process link over iceoryx2 (these tests cover the iceoryx2 transport; `uds_transport.rs` the sockets).
+fn iox_link(name: &str) -> Result<Link, TransportError> {
+    Link::open(TransportKind::Iceoryx2, name)
+}
 
 fn unique_domain() -> Domain {
     protocol::transport::quiet_logs();
@@ -63,7 +68,7 @@ fn command(seq: u64) -> Command {
 /// Sends `msg` and receives it in the same thread; checks that every byte except the publish stamps
 /// survived and that the stamps are the ones `send` reported.
 fn round_trip<T: Message>(name: &str, msg: T) {
-    let node = node(&format!("{name}-node").replace('/', "-")).unwrap();
+    let node = iox_link(&format!("{name}-node").replace('/', "-")).unwrap();
     let subscriber = Topic::<T>::subscriber(&node, name).unwrap();
     let publisher = Topic::<T>::publisher(&node, name).unwrap();
     let sent = publisher.send(&msg).unwrap();
@@ -102,7 +107,7 @@ fn subscriber_in_a_waitset_wakes_on_notify() {
     let (ready_tx, ready_rx) = mpsc::channel();
     let sub_name = name.clone();
     let receiver = thread::spawn(move || {
-        let node = node("waitset-subscriber").unwrap();
+        let node = iox_link("waitset-subscriber").unwrap();
         let subscriber = Topic::<Measurement>::subscriber(&node, &sub_name).unwrap();
         let waitset = WaitSetBuilder::new().create::<ipc::Service>().unwrap();
         let guard = waitset.attach_notification(&subscriber).unwrap();
@@ -125,7 +130,7 @@ fn subscriber_in_a_waitset_wakes_on_notify() {
         got
     });
     ready_rx.recv_timeout(Duration::from_secs(10)).unwrap();
-    let node = node("waitset-publisher").unwrap();
+    let node = iox_link("waitset-publisher").unwrap();
     let publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
     let sent = publisher.send(&measurement(5)).unwrap();
     let got = receiver.join().unwrap();
@@ -141,7 +146,7 @@ fn subscriber_in_a_waitset_wakes_on_notify() {
 fn spin_then_block_wait_times_out_then_receives() {
     let d = unique_domain();
     let name = services::estimate(&d);
-    let node = node("wait-test").unwrap();
+    let node = iox_link("wait-test").unwrap();
     let subscriber = Topic::<Estimate>::subscriber(&node, &name).unwrap();
     let start = Instant::now();
     assert!(subscriber.wait(Duration::from_micros(200), Duration::from_millis(50)).unwrap().is_empty());
@@ -150,7 +155,7 @@ fn spin_then_block_wait_times_out_then_receives() {
     let (tx, rx) = mpsc::channel::<()>();
     let pub_name = name.clone();
     let sender = thread::spawn(move || {
-        let node = protocol::node("wait-test-publisher").unwrap();
+        let node = iox_link("wait-test-publisher").unwrap();
         let publisher = Topic::<Estimate>::publisher(&node, &pub_name).unwrap();
         rx.recv().unwrap();
         thread::sleep(Duration::from_millis(20));
@@ -176,7 +181,7 @@ fn spin_then_block_wait_times_out_then_receives() {
 fn lifecycle_events_and_several_publishers() {
     let d = unique_domain();
     let name = services::command(&d);
-    let node = node("lifecycle").unwrap();
+    let node = iox_link("lifecycle").unwrap();
     let subscriber = Topic::<Command>::subscriber(&node, &name).unwrap();
     let mut events = TopicEvents::default();
     let mut out = Vec::new();
@@ -207,7 +212,7 @@ fn lifecycle_events_and_several_publishers() {
 fn subscriber_buffer_keeps_the_newest_samples() {
     let d = unique_domain();
     let name = services::truth(&d);
-    let node = node("buffer").unwrap();
+    let node = iox_link("buffer").unwrap();
     let subscriber = Topic::<Truth>::subscriber(&node, &name).unwrap();
     let publisher = Topic::<Truth>::publisher(&node, &name).unwrap();
     let total = SUBSCRIBER_BUFFER as u64 + 5;
@@ -222,7 +227,7 @@ fn subscriber_buffer_keeps_the_newest_samples() {
 fn a_late_subscriber_gets_no_history() {
     let d = unique_domain();
     let name = services::measurement(&d);
-    let node = node("history").unwrap();
+    let node = iox_link("history").unwrap();
     let publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
     assert_eq!(publisher.send(&measurement(1)).unwrap().subscribers, 0);
     let subscriber = Topic::<Measurement>::subscriber(&node, &name).unwrap();
@@ -235,7 +240,7 @@ fn a_late_subscriber_gets_no_history() {
 fn a_different_message_type_cannot_open_a_topic() {
     let d = unique_domain();
     let name = services::measurement(&d);
-    let node = node("types").unwrap();
+    let node = iox_link("types").unwrap();
     let _publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
     let err = Topic::<Estimate>::subscriber(&node, &name).unwrap_err();
     assert!(err.to_string().contains("IncompatibleTypes"), "{err}");
@@ -243,7 +248,7 @@ fn a_different_message_type_cannot_open_a_topic() {
 
 #[test]
 fn bad_names_are_reported() {
-    let node = node("names").unwrap();
+    let node = iox_link("names").unwrap();
     let err = Topic::<Truth>::publisher(&node, "").unwrap_err();
     assert!(matches!(err, TransportError::BadName { what: "service", .. }), "{err}");
 }
@@ -256,7 +261,7 @@ const CHILD_ENV: &str = "UAVLOC_PROTOCOL_TEST_CHILD_TOPIC";
 fn helper_publisher_process_to_be_killed() {
     let Ok(name) = std::env::var(CHILD_ENV) else { return };
     protocol::transport::quiet_logs();
-    let node = node("doomed-publisher").unwrap();
+    let node = iox_link("doomed-publisher").unwrap();
     let publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
     publisher.send(&measurement(1)).unwrap();
     println!("READY"); // libtest may have printed "test <name> ... " on the same line
@@ -271,7 +276,7 @@ fn a_killed_publisher_is_cleaned_up() {
 
     let d = unique_domain();
     let name = services::measurement(&d);
-    let node = node("survivor").unwrap();
+    let node = iox_link("survivor").unwrap();
     let subscriber = Topic::<Measurement>::subscriber(&node, &name).unwrap();
 
     let mut child = Process::new(std::env::current_exe().unwrap())
@@ -292,11 +297,11 @@ fn a_killed_publisher_is_cleaned_up() {
     child.wait().unwrap();
 
     // A new node cleans the dead one up (or another test's node did already); the subscriber hears of it.
-    let _cleaner = protocol::node("cleaner").unwrap();
+    let _cleaner = iox_link("cleaner").unwrap();
     let mut events = TopicEvents::default();
     let deadline = Instant::now() + Duration::from_secs(5);
     while events.publishers_dead == 0 && Instant::now() < deadline {
-        protocol::transport::cleanup_dead_nodes(&node);
+        protocol::transport::cleanup_dead_nodes(node.node());
         let e = subscriber.receive_into(&mut Vec::new()).unwrap();
         events.publishers_dead += e.publishers_dead;
         thread::sleep(Duration::from_millis(10));

@@ -1,0 +1,168 @@
+//! The iceoryx2 transport: a topic is a publish/subscribe service (zero-copy shared memory) plus a
+//! companion event service of the same name whose notifications wake the subscribers up.
+
+use core::time::Duration;
+
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::{event, publish_subscribe};
+
+use super::{
+    HISTORY, IpcNode, MAX_PUBLISHERS, MAX_SUBSCRIBERS, PublishPort, SUBSCRIBER_BUFFER, SubscribePort, TopicEvents,
+    TransportError, event_id, failed,
+};
+use crate::messages::Message;
+
+fn service_name(name: &str) -> Result<ServiceName, TransportError> {
+    ServiceName::new(name).map_err(|e| TransportError::BadName {
+        what: "service",
+        name: name.to_owned(),
+        detail: format!("{e:?}"),
+    })
+}
+
+/// The two services of a topic.
+struct Services<T: Message> {
+    pubsub: publish_subscribe::PortFactory<ipc::Service, T, ()>,
+    event: event::PortFactory<ipc::Service>,
+}
+
+fn open<T: Message>(node: &IpcNode, name: &str) -> Result<Services<T>, TransportError> {
+    let service = service_name(name)?;
+    let pubsub = node
+        .service_builder(&service)
+        .publish_subscribe::<T>()
+        .max_publishers(MAX_PUBLISHERS)
+        .max_subscribers(MAX_SUBSCRIBERS)
+        .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+        .history_size(HISTORY)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(|e| failed("opening pub/sub service", name, e))?;
+    let event = node
+        .service_builder(&service)
+        .event()
+        .max_notifiers(MAX_PUBLISHERS)
+        .max_listeners(MAX_SUBSCRIBERS)
+        .notifier_created_event(EventId::new(event_id::PUBLISHER_CREATED))
+        .notifier_dropped_event(EventId::new(event_id::PUBLISHER_DROPPED))
+        .notifier_dead_event(EventId::new(event_id::PUBLISHER_DEAD))
+        .open_or_create()
+        .map_err(|e| failed("opening event service", name, e))?;
+    Ok(Services { pubsub, event })
+}
+
+/// A publisher and the notifier that wakes its subscribers.
+pub struct IoxPublisher<T: Message> {
+    name: String,
+    pubsub: publish_subscribe::PortFactory<ipc::Service, T, ()>,
+    publisher: Publisher<ipc::Service, T, ()>,
+    notifier: Notifier<ipc::Service>,
+}
+
+impl<T: Message> core::fmt::Debug for IoxPublisher<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("IoxPublisher").field("name", &self.name).finish_non_exhaustive()
+    }
+}
+
+impl<T: Message> IoxPublisher<T> {
+    /// Opens (or creates) the topic `name` and adds a publisher to it.
+    pub fn create(node: &IpcNode, name: &str) -> Result<Self, TransportError> {
+        let services = open::<T>(node, name)?;
+        let publisher =
+            services.pubsub.publisher_builder().create().map_err(|e| failed("creating publisher", name, e))?;
+        let notifier = services.event.notifier_builder().create().map_err(|e| failed("creating notifier", name, e))?;
+        Ok(IoxPublisher { name: name.to_owned(), pubsub: services.pubsub, publisher, notifier })
+    }
+}
+
+impl<T: Message> PublishPort<T> for IoxPublisher<T> {
+    fn deliver(&self, msg: &T) -> Result<usize, TransportError> {
+        let sample = self.publisher.loan_uninit().map_err(|e| failed("loaning sample", &self.name, e))?;
+        let sample = sample.write_payload(*msg);
+        let subscribers = sample.send().map_err(|e| failed("sending sample", &self.name, e))?;
+        self.notifier
+            .notify_with_custom_event_id(EventId::new(event_id::SAMPLE))
+            .map_err(|e| failed("notifying", &self.name, e))?;
+        Ok(subscribers)
+    }
+
+    fn subscriber_count(&self) -> Result<usize, TransportError> {
+        Ok(self.pubsub.dynamic_config().number_of_subscribers())
+    }
+
+    fn publisher_count(&self) -> Result<usize, TransportError> {
+        Ok(self.pubsub.dynamic_config().number_of_publishers())
+    }
+}
+
+/// A subscriber and the listener that wakes it.
+pub struct IoxSubscriber<T: Message> {
+    name: String,
+    pubsub: publish_subscribe::PortFactory<ipc::Service, T, ()>,
+    subscriber: Subscriber<ipc::Service, T, ()>,
+    listener: Listener<ipc::Service>,
+}
+
+impl<T: Message> core::fmt::Debug for IoxSubscriber<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("IoxSubscriber").field("name", &self.name).finish_non_exhaustive()
+    }
+}
+
+impl<T: Message> IoxSubscriber<T> {
+    /// Opens (or creates) the topic `name` and adds a subscriber to it.
+    pub fn create(node: &IpcNode, name: &str) -> Result<Self, TransportError> {
+        let services = open::<T>(node, name)?;
+        let subscriber = services
+            .pubsub
+            .subscriber_builder()
+            .buffer_size(SUBSCRIBER_BUFFER)
+            .create()
+            .map_err(|e| failed("creating subscriber", name, e))?;
+        let listener = services.event.listener_builder().create().map_err(|e| failed("creating listener", name, e))?;
+        Ok(IoxSubscriber { name: name.to_owned(), pubsub: services.pubsub, subscriber, listener })
+    }
+}
+
+impl<T: Message> SubscribePort<T> for IoxSubscriber<T> {
+    fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError> {
+        // Wake-ups first, samples second: a notification that arrives meanwhile then leads to one spurious
+        // wake-up at worst, never to a sample left behind without a wake-up.
+        let mut events = TopicEvents::default();
+        self.listener
+            .try_wait(|activation| events.add(activation.id, activation.count))
+            .map_err(|e| wait_error(e, &self.name))?;
+        while let Some(sample) = self.subscriber.receive().map_err(|e| failed("receiving", &self.name, e))? {
+            out.push(*sample.payload());
+        }
+        Ok(events)
+    }
+
+    fn has_samples(&self) -> Result<bool, TransportError> {
+        self.subscriber.has_samples().map_err(|e| failed("polling", &self.name, e))
+    }
+
+    fn block(&self, timeout: Duration) -> Result<(), TransportError> {
+        self.listener.timed_wait(|_| {}, timeout).map(|_| ()).map_err(|e| wait_error(e, &self.name))
+    }
+
+    fn file_descriptor(&self) -> &FileDescriptor {
+        self.listener.file_descriptor()
+    }
+
+    fn publisher_count(&self) -> Result<usize, TransportError> {
+        Ok(self.pubsub.dynamic_config().number_of_publishers())
+    }
+}
+
+fn wait_error(e: ListenerWaitError, name: &str) -> TransportError {
+    match e {
+        ListenerWaitError::InterruptSignal => TransportError::Interrupted,
+        e => failed("waiting", name, e),
+    }
+}

@@ -1,0 +1,613 @@
+//! Typed *topics* — one [`Message`] type per topic, publish/subscribe — over one of two transports behind
+//! the same two traits ([`PublishPort`], [`SubscribePort`]):
+//!
+//! - [`TransportKind::Iceoryx2`] (the default, [`iox`]): zero-copy shared memory. A topic is a pub/sub
+//!   service plus a companion event service of the same name that wakes subscribers up: `send` does
+//!   `loan_uninit → write_payload → send` and then notifies; a subscriber owns a listener on the event
+//!   service.
+//! - [`TransportKind::Uds`] ([`uds`]): Unix-domain datagram sockets carrying the bytes of the same
+//!   `#[repr(C)]` structs (no serialisation) — the baseline a user would otherwise write, for
+//!   `uavloc bench compare`. The socket itself is the wake-up.
+//!
+//! Everything else is shared and identical for both: the publish stamp ([`TopicPublisher::send`]), the
+//! spin-then-block waiting ([`TopicSubscriber::wait`], [`wait_any`] on one iceoryx2 `WaitSet` — both
+//! kinds of subscriber expose a pollable file descriptor), the [`WaitMode`]s, the iceoryx2 node of the
+//! process ([`Link`]: signal handling, dead-node cleanup), validation and counting in the callers.
+//!
+//! Service settings of the iceoryx2 transport (every process opens the topics through this module, so
+//! they always agree): up to [`MAX_PUBLISHERS`] publishers (a second planner can attach during a swap),
+//! [`MAX_SUBSCRIBERS`] subscribers, a subscriber buffer of [`SUBSCRIBER_BUFFER`] samples (oldest
+//! overwritten when full), no history (a late subscriber waits for the next message). The event service
+//! announces publisher lifecycle with the [`event_id`]s, so a subscriber learns when a publisher appears,
+//! leaves or is found dead (after a dead-node cleanup, e.g. by [`node`] at start-up).
+//!
+//! All ports are single-threaded (iceoryx2's `ipc::Service` ports are not thread-safe): create nodes and
+//! ports on the thread that uses them.
+
+pub mod iox;
+pub mod uds;
+
+use core::fmt;
+use core::marker::PhantomData;
+use core::str::FromStr;
+use core::time::Duration;
+use std::time::Instant;
+
+use iceoryx2::node::CleanupState;
+use iceoryx2::prelude::*;
+use thiserror::Error;
+
+use crate::messages::{Message, now_ns};
+
+/// The node type of every uavloc process (inter-process iceoryx2 services).
+pub type IpcNode = Node<ipc::Service>;
+
+/// Most publishers per topic (the control topic has one per process, plus swapped-in instances and the
+/// launcher).
+pub const MAX_PUBLISHERS: usize = 8;
+/// Most subscribers per topic.
+pub const MAX_SUBSCRIBERS: usize = 16;
+/// Samples a subscriber buffers before the oldest is overwritten.
+pub const SUBSCRIBER_BUFFER: usize = 16;
+/// Samples a late subscriber receives from before it connected.
+pub const HISTORY: usize = 0;
+
+/// Event ids on a topic's event service.
+pub mod event_id {
+    /// A sample was sent.
+    pub const SAMPLE: usize = 1;
+    /// A publisher (its notifier) was created.
+    pub const PUBLISHER_CREATED: usize = 2;
+    /// A publisher was dropped.
+    pub const PUBLISHER_DROPPED: usize = 3;
+    /// A publisher's process was found dead by a dead-node cleanup.
+    pub const PUBLISHER_DEAD: usize = 4;
+}
+
+/// A transport failure.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum TransportError {
+    /// A service or node name is not valid for iceoryx2.
+    #[error("invalid {what} name {name:?}: {detail}")]
+    BadName {
+        /// `"service"` or `"node"`.
+        what: &'static str,
+        /// The name given.
+        name: String,
+        /// iceoryx2's reason.
+        detail: String,
+    },
+    /// A transport operation failed (the detail is iceoryx2's error variant, e.g. `IncompatibleTypes`, or
+    /// the operating system's error for the socket transport).
+    #[error("{op} on {service:?} failed: {detail}")]
+    Failed {
+        /// What was attempted.
+        op: &'static str,
+        /// The service (or node) name.
+        service: String,
+        /// The underlying error.
+        detail: String,
+    },
+    /// A blocking wait was interrupted by SIGINT/SIGTERM: shut down.
+    #[error("interrupted by a signal")]
+    Interrupted,
+}
+
+pub(crate) fn failed(op: &'static str, service: &str, e: impl fmt::Debug) -> TransportError {
+    TransportError::Failed { op, service: service.to_owned(), detail: format!("{e:?}") }
+}
+
+/// Which transport carries the topics' messages (`--transport iceoryx2|uds`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum TransportKind {
+    /// iceoryx2 publish/subscribe, zero-copy shared memory, with event services for wake-ups.
+    #[default]
+    Iceoryx2,
+    /// Unix-domain datagram sockets carrying the bytes of the `#[repr(C)]` messages (the baseline).
+    Uds,
+}
+
+impl TransportKind {
+    /// Both, in the order benchmarks report them.
+    pub const ALL: [TransportKind; 2] = [TransportKind::Iceoryx2, TransportKind::Uds];
+
+    /// `"iceoryx2"` or `"uds"` (the flag value).
+    pub fn name(self) -> &'static str {
+        match self {
+            TransportKind::Iceoryx2 => "iceoryx2",
+            TransportKind::Uds => "uds",
+        }
+    }
+}
+
+impl fmt::Display for TransportKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for TransportKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "iceoryx2" | "iox2" => Ok(TransportKind::Iceoryx2),
+            "uds" => Ok(TransportKind::Uds),
+            _ => Err(format!("unknown transport {s:?} (expected iceoryx2 or uds)")),
+        }
+    }
+}
+
+/// How a process waits for its next message (`--wait`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum WaitMode {
+    /// Block in the kernel at once (no CPU while idle; each wake-up costs the scheduler's latency).
+    #[default]
+    Block,
+    /// Busy-poll (yielding the CPU between polls) for the whole timeout; never blocks. Lowest latency
+    /// while every process has a core; burns a core per process when idle.
+    Spin,
+    /// Busy-poll for `--spin-us`, then block.
+    SpinThenBlock,
+}
+
+impl WaitMode {
+    /// All three, in the order benchmarks report them.
+    pub const ALL: [WaitMode; 3] = [WaitMode::Block, WaitMode::SpinThenBlock, WaitMode::Spin];
+
+    /// `"block"`, `"spin"` or `"spin-then-block"` (the flag value).
+    pub fn name(self) -> &'static str {
+        match self {
+            WaitMode::Block => "block",
+            WaitMode::Spin => "spin",
+            WaitMode::SpinThenBlock => "spin-then-block",
+        }
+    }
+
+    /// How a wait of at most `timeout` is split into (busy-poll, then block) for this mode, with `spin` the
+    /// busy-poll budget of [`WaitMode::SpinThenBlock`].
+    pub fn split(self, spin: Duration, timeout: Duration) -> (Duration, Duration) {
+        match self {
+            WaitMode::Block => (Duration::ZERO, timeout),
+            WaitMode::Spin => (timeout, Duration::ZERO),
+            WaitMode::SpinThenBlock => (spin.min(timeout), timeout.saturating_sub(spin)),
+        }
+    }
+}
+
+impl fmt::Display for WaitMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for WaitMode {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "block" => Ok(WaitMode::Block),
+            "spin" => Ok(WaitMode::Spin),
+            "spin-then-block" => Ok(WaitMode::SpinThenBlock),
+            _ => Err(format!("unknown wait mode {s:?} (expected block, spin or spin-then-block)")),
+        }
+    }
+}
+
+/// How a process waits: the mode and the busy-poll budget of [`WaitMode::SpinThenBlock`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct WaitPolicy {
+    /// The mode.
+    pub mode: WaitMode,
+    /// Busy-poll budget of [`WaitMode::SpinThenBlock`] (ignored by the other modes).
+    pub spin: Duration,
+}
+
+impl WaitPolicy {
+    /// The policy of the `--wait MODE --spin-us US` flags.
+    pub fn new(mode: WaitMode, spin_us: u64) -> Self {
+        WaitPolicy { mode, spin: Duration::from_micros(spin_us) }
+    }
+
+    /// (busy-poll, then block) for a wait of at most `timeout`; see [`WaitMode::split`].
+    pub fn split(&self, timeout: Duration) -> (Duration, Duration) {
+        self.mode.split(self.spin, timeout)
+    }
+}
+
+/// Creates the iceoryx2 node of a process, named `name` (e.g. [`services::node_name`](crate::services::node_name)),
+/// after removing the stale resources of dead nodes (processes killed without cleaning up).
+///
+/// The default configuration also cleans up dead nodes on node creation and service opening; the explicit
+/// call makes the intent visible and runs it before any of our services are touched.
+pub fn node(name: &str) -> Result<IpcNode, TransportError> {
+    make_node(name, SignalHandlingMode::HandleTerminationRequests)
+}
+
+/// [`node`] for a process that handles SIGINT/SIGTERM itself (e.g. a launcher): iceoryx2 registers no
+/// signal handler for it.
+pub fn node_without_signal_handling(name: &str) -> Result<IpcNode, TransportError> {
+    make_node(name, SignalHandlingMode::Disabled)
+}
+
+fn make_node(name: &str, signals: SignalHandlingMode) -> Result<IpcNode, TransportError> {
+    let node_name = NodeName::new(name).map_err(|e| TransportError::BadName {
+        what: "node",
+        name: name.to_owned(),
+        detail: format!("{e:?}"),
+    })?;
+    let node = NodeBuilder::new()
+        .name(&node_name)
+        .signal_handling_mode(signals)
+        .create::<ipc::Service>()
+        .map_err(|e| failed("creating node", name, e))?;
+    cleanup_dead_nodes(&node);
+    Ok(node)
+}
+
+/// Sets iceoryx2's log level from `IOX2_LOG_LEVEL`, else to `Error`: hides the "No config file was loaded"
+/// warning every process would print at start-up (iceoryx2 logs to stderr). Call once, before [`node`].
+pub fn quiet_logs() {
+    set_log_level_from_env_or(LogLevel::Error);
+}
+
+/// Removes the stale resources of all dead nodes now; returns how many were cleaned and how many failed
+/// (e.g. being cleaned by another process, or insufficient permissions).
+pub fn cleanup_dead_nodes(node: &IpcNode) -> CleanupState {
+    node.try_cleanup_dead_nodes()
+}
+
+/// A process's attachment to the pipeline: its iceoryx2 node (identity, SIGINT/SIGTERM handling, dead-node
+/// cleanup — the same for both transports) and the transport its topics use.
+#[derive(Debug)]
+pub struct Link {
+    node: IpcNode,
+    kind: TransportKind,
+}
+
+impl Link {
+    /// Creates the process's node `name` (see [`node`]) for topics over `kind`.
+    pub fn open(kind: TransportKind, name: &str) -> Result<Self, TransportError> {
+        Ok(Link { node: node(name)?, kind })
+    }
+
+    /// [`open`](Self::open) for a process that handles SIGINT/SIGTERM itself (see
+    /// [`node_without_signal_handling`]).
+    pub fn open_without_signal_handling(kind: TransportKind, name: &str) -> Result<Self, TransportError> {
+        Ok(Link { node: node_without_signal_handling(name)?, kind })
+    }
+
+    /// The iceoryx2 node.
+    pub fn node(&self) -> &IpcNode {
+        &self.node
+    }
+
+    /// The transport of this link's topics.
+    pub fn kind(&self) -> TransportKind {
+        self.kind
+    }
+
+    /// Whether SIGINT/SIGTERM has been received (a non-blocking check).
+    pub fn interrupted(&self) -> bool {
+        self.node.wait(Duration::ZERO).is_err()
+    }
+
+    /// Sleeps for `d`; [`TransportError::Interrupted`] at once on SIGINT/SIGTERM.
+    pub fn sleep(&self, d: Duration) -> Result<(), TransportError> {
+        self.node.wait(d).map_err(|_| TransportError::Interrupted)
+    }
+}
+
+/// The sending half of a transport (implemented by [`iox::IoxPublisher`] and [`uds::UdsPublisher`]).
+pub trait PublishPort<T: Message>: fmt::Debug {
+    /// Delivers `msg` (already stamped) to every current subscriber and wakes them; returns how many it
+    /// was delivered to.
+    fn deliver(&self, msg: &T) -> Result<usize, TransportError>;
+
+    /// How many subscribers the topic has now (for start-up checks).
+    fn subscriber_count(&self) -> Result<usize, TransportError>;
+
+    /// How many publishers the topic has now, this one included.
+    fn publisher_count(&self) -> Result<usize, TransportError>;
+
+    /// Messages that could not be delivered to some subscriber (its buffer full) and were dropped; 0 for
+    /// transports that overwrite the oldest instead (counted by the receivers' sequence checks then).
+    fn dropped(&self) -> u64 {
+        0
+    }
+}
+
+/// The receiving half of a transport (implemented by [`iox::IoxSubscriber`] and [`uds::UdsSubscriber`]).
+/// Its file descriptor becomes readable when messages (or events) are pending, so a `WaitSet` can wait on
+/// several subscribers of either kind.
+pub trait SubscribePort<T: Message>: fmt::Debug {
+    /// Consumes the pending wake-ups, then appends every buffered message to `out` (oldest first).
+    fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError>;
+
+    /// Whether messages are buffered (cheap: what a busy-poll calls).
+    fn has_samples(&self) -> Result<bool, TransportError>;
+
+    /// Blocks until a wake-up or `timeout`; [`TransportError::Interrupted`] on SIGINT/SIGTERM.
+    fn block(&self, timeout: Duration) -> Result<(), TransportError>;
+
+    /// The file descriptor a `WaitSet` waits on.
+    fn file_descriptor(&self) -> &FileDescriptor;
+
+    /// How many publishers the topic has now (for start-up checks).
+    fn publisher_count(&self) -> Result<usize, TransportError>;
+}
+
+/// Entry point: `Topic::<Measurement>::publisher(&link, &services::measurement(&domain))`.
+pub struct Topic<T: Message>(PhantomData<T>);
+
+impl<T: Message> Topic<T> {
+    /// Opens (or creates) the topic `name` on the link's transport and adds a publisher to it.
+    pub fn publisher(link: &Link, name: &str) -> Result<TopicPublisher<T>, TransportError> {
+        let port: Box<dyn PublishPort<T>> = match link.kind {
+            TransportKind::Iceoryx2 => Box::new(iox::IoxPublisher::create(&link.node, name)?),
+            TransportKind::Uds => Box::new(uds::UdsPublisher::create(name)?),
+        };
+        Ok(TopicPublisher { name: name.to_owned(), port })
+    }
+
+    /// Opens (or creates) the topic `name` on the link's transport and adds a subscriber to it.
+    pub fn subscriber(link: &Link, name: &str) -> Result<TopicSubscriber<T>, TransportError> {
+        let port: Box<dyn SubscribePort<T>> = match link.kind {
+            TransportKind::Iceoryx2 => Box::new(iox::IoxSubscriber::create(&link.node, name)?),
+            TransportKind::Uds => Box::new(uds::UdsSubscriber::create(name)?),
+        };
+        Ok(TopicSubscriber { name: name.to_owned(), port })
+    }
+}
+
+/// What [`TopicPublisher::send`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Sent {
+    /// The publish stamp written into the message (`header.stamps.published_ns` and the kind's own slot).
+    pub published_ns: u64,
+    /// Subscribers the sample was delivered to.
+    pub subscribers: usize,
+}
+
+/// The sending end of a topic.
+#[derive(Debug)]
+pub struct TopicPublisher<T: Message> {
+    name: String,
+    port: Box<dyn PublishPort<T>>,
+}
+
+impl<T: Message> TopicPublisher<T> {
+    /// Stamps `msg` with the publish time ([`Stamps::mark_published`](crate::Stamps::mark_published)),
+    /// delivers it to the subscribers and wakes them.
+    pub fn send(&self, msg: &T) -> Result<Sent, TransportError> {
+        let mut msg = *msg;
+        let published_ns = now_ns();
+        msg.header_mut().stamps.mark_published(T::KIND, published_ns);
+        let subscribers = self.port.deliver(&msg)?;
+        Ok(Sent { published_ns, subscribers })
+    }
+
+    /// The topic's service name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Subscribers of the topic now.
+    pub fn subscriber_count(&self) -> Result<usize, TransportError> {
+        self.port.subscriber_count()
+    }
+
+    /// Publishers of the topic now (this one included).
+    pub fn publisher_count(&self) -> Result<usize, TransportError> {
+        self.port.publisher_count()
+    }
+
+    /// Messages dropped for a full subscriber buffer (socket transport; see [`PublishPort::dropped`]).
+    pub fn dropped(&self) -> u64 {
+        self.port.dropped()
+    }
+}
+
+/// Events seen on a topic's event service while draining it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TopicEvents {
+    /// Sample notifications.
+    pub samples: u64,
+    /// Publishers created.
+    pub publishers_created: u64,
+    /// Publishers dropped.
+    pub publishers_dropped: u64,
+    /// Publishers found dead.
+    pub publishers_dead: u64,
+    /// Any other event id (socket transport: datagrams of the wrong size, dropped).
+    pub other: u64,
+}
+
+impl TopicEvents {
+    pub(crate) fn add(&mut self, id: EventId, count: u64) {
+        let slot = match id.as_value() {
+            event_id::SAMPLE => &mut self.samples,
+            event_id::PUBLISHER_CREATED => &mut self.publishers_created,
+            event_id::PUBLISHER_DROPPED => &mut self.publishers_dropped,
+            event_id::PUBLISHER_DEAD => &mut self.publishers_dead,
+            _ => &mut self.other,
+        };
+        *slot += count;
+    }
+}
+
+/// The receiving end of a topic; attach it to a `WaitSet` with `attach_notification(&subscriber)`.
+#[derive(Debug)]
+pub struct TopicSubscriber<T: Message> {
+    name: String,
+    port: Box<dyn SubscribePort<T>>,
+}
+
+impl<T: Message> TopicSubscriber<T> {
+    /// Consumes the pending wake-ups, then appends every buffered message to `out` (oldest first).
+    /// Returns the events consumed. Messages are copied out of the transport and not validated.
+    pub fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError> {
+        self.port.receive_into(out)
+    }
+
+    /// Consumes the pending wake-ups and returns every buffered message (oldest first; possibly none).
+    pub fn receive_all(&self) -> Result<Vec<T>, TransportError> {
+        let mut out = Vec::new();
+        self.receive_into(&mut out)?;
+        Ok(out)
+    }
+
+    /// Waits up to `spin + timeout` for messages: busy-polls for `spin` (cheap when the next message is due
+    /// within microseconds; the CPU is yielded between polls), then blocks for `timeout`; returns whatever
+    /// is buffered then (possibly nothing, e.g. on a timeout or a lifecycle event).
+    /// [`TransportError::Interrupted`] on SIGINT/SIGTERM.
+    pub fn wait(&self, spin: Duration, timeout: Duration) -> Result<Vec<T>, TransportError> {
+        if !spin_until(spin, || self.has_samples())? && !timeout.is_zero() {
+            // The events are consumed again (and counted) by receive_all; here they only wake us.
+            self.port.block(timeout)?;
+        }
+        self.receive_all()
+    }
+
+    /// Whether messages are buffered.
+    pub fn has_samples(&self) -> Result<bool, TransportError> {
+        self.port.has_samples()
+    }
+
+    /// Publishers of the topic now.
+    pub fn publisher_count(&self) -> Result<usize, TransportError> {
+        self.port.publisher_count()
+    }
+
+    /// The topic's service name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+}
+
+/// Busy-polls `ready` for up to `spin` (at least once), yielding the CPU between polls so that processes
+/// sharing a core still run; whether it became ready.
+fn spin_until(spin: Duration, mut ready: impl FnMut() -> Result<bool, TransportError>) -> Result<bool, TransportError> {
+    let start = Instant::now();
+    loop {
+        if ready()? {
+            return Ok(true);
+        }
+        if start.elapsed() >= spin {
+            return Ok(false);
+        }
+        std::thread::yield_now();
+    }
+}
+
+/// Waits on a `WaitSet` (to which several topics' subscribers are attached): busy-polls `ready` for `spin`
+/// first, then blocks for at most `timeout`. Returns `Ok(())` on any wake-up, a timeout or a signal other
+/// than SIGINT/SIGTERM (the caller drains its subscribers either way), [`TransportError::Interrupted`] on
+/// SIGINT/SIGTERM.
+pub fn wait_any(
+    waitset: &WaitSet<ipc::Service>,
+    spin: Duration,
+    timeout: Duration,
+    ready: impl FnMut() -> Result<bool, TransportError>,
+) -> Result<(), TransportError> {
+    if spin_until(spin, ready)? || timeout.is_zero() {
+        return Ok(());
+    }
+    match waitset.wait_and_process_once_with_timeout(|_| CallbackProgression::Continue, timeout) {
+        Ok(iceoryx2::waitset::WaitSetRunResult::TerminationRequest) => Err(TransportError::Interrupted),
+        Ok(_) => Ok(()),
+        Err(e) => Err(failed("waiting", "waitset", e)),
+    }
+}
+
+/// A `WaitSet` for the subscribers of one process (either transport).
+pub fn waitset() -> Result<WaitSet<ipc::Service>, TransportError> {
+    WaitSetBuilder::new().create::<ipc::Service>().map_err(|e| failed("creating", "waitset", e))
+}
+
+impl<T: Message> FileDescriptorBased for TopicSubscriber<T> {
+    fn file_descriptor(&self) -> &FileDescriptor {
+        self.port.file_descriptor()
+    }
+}
+
+impl<T: Message> SynchronousMultiplexing for TopicSubscriber<T> {}
+
+/// Default busy-poll budget of `--wait spin-then-block` when `--spin-us` is not given, µs.
+pub const DEFAULT_SPIN_US: u64 = 100;
+
+/// The transport and wait flags every process (and `uavloc launch`, which passes them on) takes.
+#[derive(clap::Args, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LinkArgs {
+    /// Transport of the topics: iceoryx2 (zero-copy shared memory) | uds (Unix-domain datagram sockets,
+    /// the benchmark baseline). Every process of a domain must use the same one.
+    #[arg(long, value_name = "KIND", default_value = "iceoryx2")]
+    pub transport: TransportKind,
+    /// How to wait for the next message: block (no CPU while idle) | spin (busy-poll, yielding the CPU;
+    /// never blocks) | spin-then-block (busy-poll --spin-us, then block). Default: block, or
+    /// spin-then-block when --spin-us is given.
+    #[arg(long, value_name = "MODE")]
+    pub wait: Option<WaitMode>,
+    /// Busy-poll budget of spin-then-block, microseconds (default 100 with --wait spin-then-block).
+    #[arg(long, value_name = "US")]
+    pub spin_us: Option<u64>,
+}
+
+impl LinkArgs {
+    /// The wait policy of the flags (see [`LinkArgs::wait`]).
+    pub fn policy(&self) -> WaitPolicy {
+        let mode = self.wait.unwrap_or(match self.spin_us {
+            Some(us) if us > 0 => WaitMode::SpinThenBlock,
+            _ => WaitMode::Block,
+        });
+        WaitPolicy::new(mode, self.spin_us.unwrap_or(DEFAULT_SPIN_US))
+    }
+
+    /// The flags that reproduce these settings on a child process's command line.
+    pub fn to_flags(&self) -> Vec<String> {
+        let policy = self.policy();
+        let mut flags = vec!["--transport".to_string(), self.transport.name().into(), "--wait".into()];
+        flags.push(policy.mode.name().into());
+        flags.extend(["--spin-us".to_string(), policy.spin.as_micros().to_string()]);
+        flags
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wait_modes_split_a_wait() {
+        let t = Duration::from_millis(10);
+        let s = Duration::from_micros(200);
+        assert_eq!(WaitMode::Block.split(s, t), (Duration::ZERO, t));
+        assert_eq!(WaitMode::Spin.split(s, t), (t, Duration::ZERO));
+        assert_eq!(WaitMode::SpinThenBlock.split(s, t), (s, t - s));
+        assert_eq!(WaitMode::SpinThenBlock.split(t * 2, t), (t, Duration::ZERO));
+    }
+
+    #[test]
+    fn names_round_trip() {
+        for k in TransportKind::ALL {
+            assert_eq!(k.name().parse::<TransportKind>(), Ok(k));
+        }
+        for m in WaitMode::ALL {
+            assert_eq!(m.name().parse::<WaitMode>(), Ok(m));
+        }
+        assert!("tcp".parse::<TransportKind>().unwrap_err().contains("iceoryx2 or uds"));
+        assert!("busy".parse::<WaitMode>().unwrap_err().contains("spin-then-block"));
+    }
+
+    #[test]
+    fn link_args_policy_and_flags() {
+        let a = LinkArgs::default();
+        assert_eq!(a.policy().mode, WaitMode::Block);
+        let a = LinkArgs { spin_us: Some(50), ..LinkArgs::default() };
+        assert_eq!(a.policy(), WaitPolicy::new(WaitMode::SpinThenBlock, 50));
+        let a = LinkArgs { wait: Some(WaitMode::SpinThenBlock), ..LinkArgs::default() };
+        assert_eq!(a.policy().spin, Duration::from_micros(DEFAULT_SPIN_US));
+        let a = LinkArgs { transport: TransportKind::Uds, wait: Some(WaitMode::Spin), spin_us: None };
+        assert_eq!(a.to_flags(), ["--transport", "uds", "--wait", "spin", "--spin-us", "100"]);
+    }
+}
