@@ -110,6 +110,9 @@ pub enum Command {
         after_help = paper::AFTER_HELP
     )]
     Paper(paper::PaperArgs),
+    /// Benchmarks: pipeline latency per hop and end to end (iceoryx2 vs sockets), planner compute time.
+    #[command(long_about = bench::LONG_ABOUT)]
+    Bench(bench::BenchArgs),
     /// Run one pipeline process in this binary (what `uavloc launch` starts): emitter-sim, estimator,
     /// planner, monitor.
     #[command(hide = true)]

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::Parser;
 use clap::error::ErrorKind;
 use uavloc::{
-    Cli, CliError, Command, Diagnostic, Report, crlb, global, launch, locate, one_line_clap_error, paper, rmse,
+    Cli, CliError, Command, Diagnostic, Report, bench, crlb, global, launch, locate, one_line_clap_error, paper, rmse,
     simulate, swap,
 };
 
@@ -38,6 +38,11 @@ fn main() -> ExitCode {
         Command::Launch(a) => emit(launch::run(a), json),
         Command::Swap(a) => emit(swap::run(a), json),
         Command::Paper(a) => emit(paper::run(a), json),
+        Command::Bench(a) => match &a.what {
+            bench::BenchCommand::Latency(a) => emit(bench::latency::run_latency(a), json),
+            bench::BenchCommand::Compare(a) => emit(bench::latency::run_compare(a), json),
+            bench::BenchCommand::Planner(a) => emit(bench::planner::run(a), json),
+        },
         Command::Process(a) => launch::run_process(a),
     }
 }
