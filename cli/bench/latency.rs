@@ -464,11 +464,8 @@ fn goals(runs: &[RunResult], objective: ObjectiveKind) -> Vec<Goal> {
             });
         }
         if r.wait == "block" && !r.idle_cpu_pct.is_empty() {
-            let worst = r
-                .idle_cpu_pct
-                .iter()
-                .max_by(|a, b| a.1.total_cmp(b.1))
-                .map_or(("-", 0.0), |(k, v)| (k.as_str(), *v));
+            let worst =
+                r.idle_cpu_pct.iter().max_by(|a, b| a.1.total_cmp(b.1)).map_or(("-", 0.0), |(k, v)| (k.as_str(), *v));
             out.push(Goal {
                 goal: format!("idle CPU < 10 % per process ({})", r.label()),
                 met: worst.1 < 10.0,
