@@ -681,8 +681,15 @@ impl Report for LatencyReport {
         for g in &self.goals {
             let _ = writeln!(s, "  [{}] {} — {}", if g.met { "met" } else { "MISSED" }, g.goal, g.detail);
         }
-        for f in &self.files {
-            let _ = writeln!(s, "wrote {}", f.display());
+        let csv = self.files.iter().filter(|f| f.extension().is_some_and(|e| e == "csv")).count();
+        if let Some(dir) = self.files.first().and_then(|f| f.parent()) {
+            let others: Vec<String> = self
+                .files
+                .iter()
+                .filter(|f| f.extension().is_none_or(|e| e != "csv"))
+                .filter_map(|f| f.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect();
+            let _ = writeln!(s, "\nwrote {csv} histogram CSVs and {} into {}", others.join(", "), dir.display());
         }
         s
     }
