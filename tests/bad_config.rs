@@ -1,0 +1,115 @@
+//! Malformed scenarios and command-line flags, through every entry point a user types (`simulate`,
+//! `launch`, the process binaries via `uavloc process <role>`, `bench`, the calculator): each is refused
+//! with exactly one `error:` line on stderr that names the problem (the key or the flag), exit code 2,
+//! nothing on stdout, and no process started.
+
+mod common;
+
+use common::{scratch, uavloc};
+
+/// Runs `args` and checks the refusal; `needle` must appear in the error line.
+fn refused(args: &[&str], needle: &str) {
+    let out = uavloc(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?} should exit 2; stderr: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{args:?}: one line expected, got: {err}");
+    assert!(lines[0].starts_with("error:"), "{args:?}: {err}");
+    assert!(lines[0].contains(needle), "{args:?}: {needle:?} not named in: {}", lines[0]);
+    assert!(out.stdout.is_empty(), "{args:?}: stdout {}", String::from_utf8_lossy(&out.stdout));
+}
+
+/// (scenario file content, what the error must name).
+const BAD_SCENARIOS: [(&str, &str); 28] = [
+    ("speeed = 10.0", "speeed"),                          // unknown key
+    ("[pso]\nparticle = 40", "particle"),                 // unknown key in a table
+    ("speed = \"fast\"", "speed"),                        // wrong type
+    ("steps = 2.5", "steps"),                             // wrong type
+    ("steps = -1", "steps"),                              // negative count
+    ("speed = -5.0", "speed"),                            // negative speed
+    ("speed = 0.0", "speed"),                             // zero speed
+    ("speed = nan", "speed"),                             // NaN in a file
+    ("emitter = [nan, 0.0]", "emitter"),                  // NaN in a file
+    ("sigma = nan", "sigma"),                             // NaN in a file
+    ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, inf]]", "uavs"), // infinity
+    ("delta_alpha_deg = 0", "delta_alpha_deg"),           // Δα outside (0, π]
+    ("delta_alpha_deg = 181", "delta_alpha_deg"),         // Δα outside (0, π]
+    ("delta_alpha_deg = -30", "delta_alpha_deg"),         // Δα outside (0, π]
+    ("uavs = [[0.0, 0.0], [1000.0, 0.0]]", "uavs"),       // fewer than 3 UAVs
+    ("uavs = [[0,0],[1,0],[2,0],[3,0],[4,0],[5,0],[6,0],[7,0],[8,0]]", "uavs"), // more than 8
+    ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, 0.0]]", "uavs"), // coincident UAVs
+    ("sigma = [1.0, -1.0, 1.0]", "sigma"),                // negative σ
+    ("sigma = [1.0, 1.0]", "sigma"),                      // σ list of the wrong length
+    ("dt = 0", "dt"),
+    ("steps = 0", "steps"),
+    ("headings_deg = [0.0, 1.0]", "headings_deg"),        // wrong length
+    ("target = \"oracle\"", "target"),
+    ("mc_scheme = \"bogus\"", "mc_scheme"),
+    ("[pso]\nparticles = 0", "pso.particles"),
+    ("[ga]\nmutation_rate = 2.0", "ga.mutation_rate"),
+    ("l_min = -1", "l_min"),
+    ("speed = ", "speed"),                                // syntax error
+];
+
+#[test]
+fn malformed_scenarios_are_refused_by_every_entry_point() {
+    let dir = scratch("bad-config");
+    // Each file through one entry point, rotating, so every entry point sees several kinds of error.
+    let entry_points: [&[&str]; 5] = [
+        &["simulate", "--steps", "1"],
+        &["launch", "--headless", "--steps", "1"],
+        &["process", "planner"],
+        &["process", "emitter-sim"],
+        &["process", "monitor"],
+    ];
+    for (i, (text, needle)) in BAD_SCENARIOS.iter().enumerate() {
+        let file = dir.join(format!("bad-{i}.toml"));
+        std::fs::write(&file, text).unwrap();
+        let mut args: Vec<&str> = entry_points[i % entry_points.len()].to_vec();
+        let path = file.to_str().unwrap().to_string();
+        args.extend(["--scenario", &path]);
+        refused(&args, needle);
+    }
+    // Not a scenario at all: a missing file, a directory, bytes that are not UTF-8.
+    refused(&["simulate", "--scenario", "/nonexistent/uavloc.toml"], "/nonexistent/uavloc.toml");
+    let binary = dir.join("binary.toml");
+    std::fs::write(&binary, [0xff, 0xfe, 0x00, 0x9c]).unwrap();
+    refused(&["launch", "--headless", "--scenario", binary.to_str().unwrap()], "binary.toml");
+    refused(&["simulate", "--scenario", dir.to_str().unwrap()], "scenario");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn malformed_flags_are_refused() {
+    let cases: &[(&[&str], &str)] = &[
+        (&["launch", "--steps", "-3"], "-3"),
+        (&["launch", "--steps=-3"], "--steps"),
+        (&["launch", "--steps", "many"], "--steps"),
+        (&["launch", "--seed", "abc"], "--seed"),
+        (&["launch", "--objective", "nonsense"], "--objective"),
+        (&["launch", "--solver", "simplex"], "--solver"),
+        (&["launch", "--transport", "pigeon"], "--transport"),
+        (&["launch", "--wait", "sometimes"], "--wait"),
+        (&["launch", "--domain", "a/b"], "domain"),
+        (&["launch", "--mode", "fast"], "--mode"),
+        (&["launch", "--mode", "realtime", "--time-scale", "0"], "time-scale"),
+        (&["launch", "--mode", "realtime", "--time-scale", "nan"], "time-scale"),
+        (&["launch", "--mode", "realtime", "--time-scale", "-2"], "time-scale"),
+        (&["launch", "--mode", "realtime", "--step-delay-ms", "5"], "step-delay-ms"),
+        (&["launch", "--command-timeout-s=-1"], "command-timeout-s"),
+        (&["launch", "--no-such-flag"], "--no-such-flag"),
+        (&["simulate", "--steps", "0"], "steps"),
+        (&["process", "planner", "--objective", "x"], "--objective"),
+        (&["process", "estimator", "--transport", "tcp"], "--transport"),
+        (&["process", "emitter-sim", "--retry-interval-ms", "0"], "retry-interval-ms"),
+        (&["bench", "latency", "--cores", "5000"], "--cores"),
+        (&["bench", "planner", "--steps", "0"], "--steps"),
+        (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "-1"], "sigma"),
+        (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--target", "5,5", "--sigma", "1"], "3"),
+        (&["crlb", "--uav", "0,0", "--uav", "0,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1"], "coincide"),
+        (&["crlb", "--uav", "0,nan", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1"], "--uav"),
+    ];
+    for (args, needle) in cases {
+        refused(args, needle);
+    }
+}
