@@ -21,34 +21,34 @@ fn refused(args: &[&str], needle: &str) {
 
 /// (scenario file content, what the error must name).
 const BAD_SCENARIOS: [(&str, &str); 28] = [
-    ("speeed = 10.0", "speeed"),                          // unknown key
-    ("[pso]\nparticle = 40", "particle"),                 // unknown key in a table
-    ("speed = \"fast\"", "speed"),                        // wrong type
-    ("steps = 2.5", "steps"),                             // wrong type
-    ("steps = -1", "steps"),                              // negative count
-    ("speed = -5.0", "speed"),                            // negative speed
-    ("speed = 0.0", "speed"),                             // zero speed
-    ("speed = nan", "speed"),                             // NaN in a file
-    ("emitter = [nan, 0.0]", "emitter"),                  // NaN in a file
-    ("sigma = nan", "sigma"),                             // NaN in a file
-    ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, inf]]", "uavs"), // infinity
-    ("delta_alpha_deg = 0", "delta_alpha_deg"),           // Δα outside (0, π]
-    ("delta_alpha_deg = 181", "delta_alpha_deg"),         // Δα outside (0, π]
-    ("delta_alpha_deg = -30", "delta_alpha_deg"),         // Δα outside (0, π]
-    ("uavs = [[0.0, 0.0], [1000.0, 0.0]]", "uavs"),       // fewer than 3 UAVs
+    ("speeed = 10.0", "speeed"),                                                // unknown key
+    ("[pso]\nparticle = 40", "particle"),                                       // unknown key in a table
+    ("speed = \"fast\"", "speed"),                                              // wrong type
+    ("steps = 2.5", "steps"),                                                   // wrong type
+    ("steps = -1", "steps"),                                                    // negative count
+    ("speed = -5.0", "speed"),                                                  // negative speed
+    ("speed = 0.0", "speed"),                                                   // zero speed
+    ("speed = nan", "speed"),                                                   // NaN in a file
+    ("emitter = [nan, 0.0]", "emitter"),                                        // NaN in a file
+    ("sigma = nan", "sigma"),                                                   // NaN in a file
+    ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, inf]]", "uavs"),                 // infinity
+    ("delta_alpha_deg = 0", "delta_alpha_deg"),                                 // Δα outside (0, π]
+    ("delta_alpha_deg = 181", "delta_alpha_deg"),                               // Δα outside (0, π]
+    ("delta_alpha_deg = -30", "delta_alpha_deg"),                               // Δα outside (0, π]
+    ("uavs = [[0.0, 0.0], [1000.0, 0.0]]", "uavs"),                             // fewer than 3 UAVs
     ("uavs = [[0,0],[1,0],[2,0],[3,0],[4,0],[5,0],[6,0],[7,0],[8,0]]", "uavs"), // more than 8
-    ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, 0.0]]", "uavs"), // coincident UAVs
-    ("sigma = [1.0, -1.0, 1.0]", "sigma"),                // negative σ
-    ("sigma = [1.0, 1.0]", "sigma"),                      // σ list of the wrong length
+    ("uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, 0.0]]", "uavs"),                 // coincident UAVs
+    ("sigma = [1.0, -1.0, 1.0]", "sigma"),                                      // negative σ
+    ("sigma = [1.0, 1.0]", "sigma"),                                            // σ list of the wrong length
     ("dt = 0", "dt"),
     ("steps = 0", "steps"),
-    ("headings_deg = [0.0, 1.0]", "headings_deg"),        // wrong length
+    ("headings_deg = [0.0, 1.0]", "headings_deg"), // wrong length
     ("target = \"oracle\"", "target"),
     ("mc_scheme = \"bogus\"", "mc_scheme"),
     ("[pso]\nparticles = 0", "pso.particles"),
     ("[ga]\nmutation_rate = 2.0", "ga.mutation_rate"),
     ("l_min = -1", "l_min"),
-    ("speed = ", "speed"),                                // syntax error
+    ("speed = ", "speed"), // syntax error
 ];
 
 #[test]

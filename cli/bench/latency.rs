@@ -15,8 +15,9 @@
 //!   estimator and planner, and the command's way back).
 //!
 //! `lost` counts steps missing from the record, messages of recorded steps the monitor never got (a
-//! replayed message carries no stamps and counts as lost), emitter-sim's replays for late commands and
-//! messages the socket transport dropped: every one is a message that did not arrive the first time.
+//! replayed message carries no stamps, so a message the monitor lost and asked to be replayed counts as
+//! lost) and emitter-sim's replays for late commands: every one is a message that did not arrive the first
+//! time.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -139,6 +139,11 @@ impl Assembler {
         self.scenario.steps as u64
     }
 
+    /// The newest step of which a message is waiting (none when nothing is pending).
+    pub fn newest_pending_step(&self) -> Option<u64> {
+        self.pending.keys().next_back().copied()
+    }
+
     /// The next step to complete.
     pub fn next_step(&self) -> u64 {
         self.next

@@ -70,6 +70,10 @@ pub const EXIT_INTERRUPTED: u8 = 130;
 /// arrived between two waits (a signal during a wait interrupts it at once).
 pub const IDLE_WAKEUP: Duration = Duration::from_secs(1);
 
+/// When the step the monitor waits for is incomplete while a message of this many steps later is in, one of
+/// its messages was lost: the monitor asks emitter-sim for a replay from it.
+pub const STALL_STEPS: u64 = 3;
+
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
 The monitor subscribes to <domain>/measurement, /estimate, /command and /truth and needs the run's
@@ -226,6 +230,8 @@ pub struct MonitorSummary {
     /// Messages of the recorded steps that never reached the monitor (measurement, estimate, command and
     /// truth of each step; the last step has no command). 0 when nothing was lost.
     pub missing_messages: u64,
+    /// Replays this monitor asked for because a message was lost (see [`STALL_STEPS`]).
+    pub replays_requested: u64,
     /// CPU time this process used, seconds.
     pub cpu_s: f64,
 }
@@ -359,6 +365,7 @@ struct State {
     /// The last command received per step (its stamps), and the next step's trigger stamps.
     missing: u64,
     stamps: Option<StampsCsv>,
+    replays_requested: u64,
 }
 
 impl State {
@@ -600,6 +607,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         received: HashMap::new(),
         missing: 0,
         stamps,
+        replays_requested: 0,
     };
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
     let mut interrupted = link.interrupted();
@@ -637,6 +645,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     }
 
     let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
+    let mut replay_asked: Option<u64> = None;
     while !interrupted && !state.assembler.is_done() {
         let ready = || {
             Ok(truths.has_samples()?
@@ -656,6 +665,23 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         state.drain(&estimates, Assembler::add_estimate)?;
         state.drain(&commands, Assembler::add_command)?;
         state.complete_steps();
+        // A message of the step we wait for was lost (e.g. overwritten in a full buffer while this
+        // monitor was starved of CPU) if newer steps are in and it is not: ask emitter-sim to replay
+        // from it (once per step), as a restarted monitor would.
+        let next = state.assembler.next_step();
+        if let Some(newest) = state.assembler.newest_pending_step()
+            && newest >= next + STALL_STEPS
+            && replay_asked != Some(next)
+            && !state.assembler.is_done()
+        {
+            replay_asked = Some(next);
+            state.replays_requested += 1;
+            state.log.write("replay_request", json!({"step": next, "newest": newest}));
+            if !args.quiet {
+                eprintln!("monitor: a message of step {next} was lost (step {newest} is in); asking for a replay");
+            }
+            control.send(ControlKind::Hello, next, "lost")?;
+        }
         if !interrupted {
             interrupted = link.interrupted();
         }
@@ -673,6 +699,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         missed_commands: state.missed,
         latency: state.samples.summary(),
         missing_messages: state.missing,
+        replays_requested: state.replays_requested,
         cpu_s: protocol::process::cpu_seconds(),
     };
     if let Some(csv) = state.stamps.take() {

@@ -19,6 +19,7 @@ use std::str::FromStr;
 use nalgebra::Vector2;
 use tdoa::global::{GlobalCrlb, McScheme, Method, MonteCarlo, PreparedObjective};
 use tdoa::rng::{Purpose, derive_seed};
+use tdoa::singular::singular_report;
 use tdoa::{MAX_UAVS, NoiseModel, Sensors, TdoaError, Uncertainty};
 
 /// The planning choices accepted on the command line.
@@ -92,8 +93,10 @@ impl FromStr for ObjectiveKind {
 
 /// A criterion prepared for one planning step, evaluated at candidate next waypoints.
 pub trait PlanObjective: Send + Sync {
-    /// The criterion's value for UAVs at `next` (metres), m²; `+∞` when the geometry is invalid
-    /// (coincident UAVs, wrong count) or the FIM is singular.
+    /// The criterion's value for UAVs at `next` (metres), m²; `+∞` — the explicit infeasible value —
+    /// when the geometry is invalid (coincident UAVs, wrong count), the FIM is singular at ẑ (single,
+    /// analytical), or the support square reaches the FIM's singular locus (mc, cubature: the global
+    /// CRLB integral diverges there).
     fn evaluate(&self, next: &[Vector2<f64>]) -> f64;
 }
 
@@ -103,6 +106,10 @@ pub struct CrlbObjective {
     prepared: Box<dyn PreparedObjective>,
     noise: NoiseModel,
     effective_samples: Option<f64>,
+    /// For the sampled criteria (mc, cubature, quadrature): the support, checked against the candidate's
+    /// singular locus (a support that reaches it has an infinite global CRLB, which samples would
+    /// estimate as a large but finite, random number).
+    support: Option<Uncertainty>,
 }
 
 impl fmt::Debug for CrlbObjective {
@@ -129,10 +136,11 @@ impl CrlbObjective {
             let mc = MonteCarlo::new(mc_samples, seed, mc_scheme)?;
             // The weights depend only on the uncertainty, so the ESS is one number per step.
             let effective_samples = Some(mc.rule(unc).effective_sample_size());
-            return Ok(Self { method, prepared: mc.prepare(unc), noise, effective_samples });
+            return Ok(Self { method, prepared: mc.prepare(unc), noise, effective_samples, support: Some(*unc) });
         }
         let built: Box<dyn GlobalCrlb> = method.build(mc_samples, seed)?;
-        Ok(Self { method, prepared: built.prepare(unc), noise, effective_samples: None })
+        let support = matches!(method, Method::Cubature | Method::Quadrature).then_some(*unc);
+        Ok(Self { method, prepared: built.prepare(unc), noise, effective_samples: None, support })
     }
 
     /// Kish's effective sample size `1/Σω²` of the `mc` criterion's K weighted points (`None` for the
@@ -158,6 +166,11 @@ impl PlanObjective for CrlbObjective {
             *u = [p.x, p.y];
         }
         match Sensors::new(&uavs[..next.len()], self.noise.clone()) {
+            Ok(sensors)
+                if self.support.as_ref().is_some_and(|unc| singular_report(&sensors, unc).intersects_support) =>
+            {
+                f64::INFINITY
+            }
             Ok(sensors) => self.prepared.evaluate(&sensors).trace_m2,
             Err(_) => f64::INFINITY,
         }
@@ -211,6 +224,35 @@ mod tests {
             CrlbObjective::prepare(Method::Analytical, &unc, noise, 200, McScheme::UniformWeighted, 0, 0).unwrap();
         assert_eq!(obj.evaluate(&uavs), f64::INFINITY);
         assert_eq!(obj.evaluate(&uavs[..2]), f64::INFINITY);
+    }
+
+    /// Issue 7: degenerate geometry never panics and gives the explicit infeasible value `+∞` for every
+    /// criterion — coincident UAVs; collinear UAVs with the estimate on their line; the estimate on a
+    /// baseline extension; a UAV on top of the estimate. (The uncertainty square around ẑ then reaches
+    /// the singular locus of F, where tr F⁻¹ is not integrable, so the global criteria are +∞ too.)
+    #[test]
+    fn degenerate_geometry_is_infinite_for_every_criterion() {
+        let z = Vector2::new(5000.0, 0.0);
+        let unc = Uncertainty::with_eq36_side(z, Matrix2::new(4e4, 0.0, 0.0, 4e4), 5000.0, 0.1).unwrap();
+        let noise = NoiseModel::uniform(3, 28.7712).unwrap();
+        let v = |x: f64, y: f64| Vector2::new(x, y);
+        let cases: [(&str, Vec<Vector2<f64>>); 4] = [
+            ("coincident", vec![v(0.0, 0.0), v(0.0, 0.0), v(1000.0, 3000.0)]),
+            ("collinear through the estimate", vec![v(0.0, 0.0), v(1000.0, 0.0), v(2500.0, 0.0)]),
+            ("estimate on a baseline extension", vec![v(0.0, 0.0), v(2000.0, 0.0), v(1000.0, 4000.0)]),
+            ("UAV on top of the estimate", vec![v(5000.0, 0.0), v(0.0, 3000.0), v(1000.0, -4000.0)]),
+        ];
+        for kind in [ObjectiveKind::Single, ObjectiveKind::Mc, ObjectiveKind::Analytical, ObjectiveKind::Cubature] {
+            let obj =
+                CrlbObjective::prepare(kind.criterion(), &unc, noise.clone(), 200, McScheme::UniformWeighted, 1, 0)
+                    .unwrap();
+            for (what, uavs) in &cases {
+                assert_eq!(obj.evaluate(uavs), f64::INFINITY, "{kind}: {what}");
+            }
+            // A regular geometry next to them is finite: the value is not infinite by accident.
+            let fine = [v(0.0, 5000.0), v(10000.0, 4000.0), v(5000.0, -6000.0)];
+            assert!(obj.evaluate(&fine).is_finite(), "{kind}");
+        }
     }
 
     #[test]

@@ -48,7 +48,7 @@ pub const MAX_PUBLISHERS: usize = 8;
 /// Most subscribers per topic.
 pub const MAX_SUBSCRIBERS: usize = 16;
 /// Samples a subscriber buffers before the oldest is overwritten.
-pub const SUBSCRIBER_BUFFER: usize = 16;
+pub const SUBSCRIBER_BUFFER: usize = 64;
 /// Samples a late subscriber receives from before it connected.
 pub const HISTORY: usize = 0;
 
