@@ -93,3 +93,26 @@ fn sigterm_to_processes_started_by_hand() {
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// SIGKILL to the launcher (no handler runs): its children get SIGTERM from the kernel
+/// (PR_SET_PDEATHSIG), stop cleanly and leave no process and no iceoryx2 resource behind.
+#[test]
+fn sigkill_to_the_launcher_leaves_no_child_behind() {
+    let d = domain("shutdown", "launcher-killed");
+    let dir = scratch("shutdown-launcher-killed");
+    let mut launch = Launch::start(&d, &dir, &["--steps", "500", "--step-delay-ms", "20"]);
+    launch.wait_for_step(3, Duration::from_secs(30));
+    let children: Vec<u32> =
+        ["monitor", "planner", "estimator", "emitter-sim"].iter().filter_map(|r| pid_of(&d, r)).collect();
+    assert_eq!(children.len(), 4, "the four children of {d} run");
+    kill(launch.child.id(), libc::SIGKILL);
+    let status = wait_exit(&mut launch.child, Duration::from_secs(10), "the launcher");
+    assert_eq!(status.code(), None, "killed by a signal");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while children.iter().any(|&pid| common::is_alive(pid)) {
+        assert!(Instant::now() < deadline, "children of a killed launcher still run: {children:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}

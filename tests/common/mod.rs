@@ -120,6 +120,11 @@ pub fn is_zombie(pid: u32) -> bool {
         .unwrap_or(false)
 }
 
+/// Whether `pid` runs (exists and is not a zombie waiting to be reaped).
+pub fn is_alive(pid: u32) -> bool {
+    std::path::Path::new(&format!("/proc/{pid}")).exists() && !is_zombie(pid)
+}
+
 /// Sends `signal` to `pid`.
 pub fn kill(pid: u32, signal: i32) {
     // SAFETY: kill(2) with a pid read from /proc or of our own child; a stale pid at worst gets ESRCH.
