@@ -139,9 +139,25 @@ pub struct RunResult {
     pub wall_s: f64,
     #[serde(skip)]
     histograms: Vec<(String, LatencyHistogram)>,
+    /// Runs merged into this one (`compare --rounds`).
+    #[serde(skip)]
+    rounds: usize,
 }
 
 impl RunResult {
+    /// Derives the percentiles of every series from the histograms, and the CPU shares from the CPU
+    /// times and the wall time.
+    fn summarize(&mut self) {
+        self.end_to_end = self.histogram("end_to_end").and_then(LatencyHistogram::percentiles);
+        for (kind, name) in SERIES.iter().skip(1) {
+            let p = self.histogram(&format!("{kind}/{name}")).and_then(LatencyHistogram::percentiles);
+            let map = if *kind == "hop" { &mut self.hops } else { &mut self.compute };
+            map.insert(name.to_string(), p);
+        }
+        let wall = self.wall_s.max(1e-9);
+        self.cpu_pct = self.cpu_s.iter().map(|(k, v)| (k.clone(), 100.0 * v / wall)).collect();
+    }
+
     /// The histogram of a series (`end_to_end`, `hop/<name>`, `compute/<name>`).
     pub fn histogram(&self, series: &str) -> Option<&LatencyHistogram> {
         self.histograms.iter().find(|(n, _)| n == series).map(|(_, h)| h)
@@ -291,14 +307,15 @@ fn prepare(flags: &RunFlags) -> Result<Vec<usize>, CliError> {
 
 /// Runs the process set once and measures it.
 pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliError> {
-    let stamps_file = std::env::temp_dir().join(format!("uavloc-{}.stamps.csv", unique_domain()));
+    let domain = unique_domain();
+    let stamps_file = std::env::temp_dir().join(format!("uavloc-{domain}.stamps.csv"));
     let args = LaunchArgs {
         scenario: flags.scenario.clone(),
         objective: flags.objective,
         solver: planner::SolverKind::Pso,
         steps: Some(config.steps),
         seed: None,
-        domain: Some(unique_domain()),
+        domain: Some(domain),
         headless: true,
         out: None,
         log: None,
@@ -333,18 +350,6 @@ fn summary_u64(report: &LaunchReport, role: &str, key: &str) -> u64 {
 }
 
 fn result(config: &RunConfig, report: &LaunchReport, rows: &[StepStamps]) -> RunResult {
-    let histograms = histograms(rows);
-    let pct = |name: &str| histograms.iter().find(|(n, _)| n == name).and_then(|(_, h)| h.percentiles());
-    let mut hops = BTreeMap::new();
-    let mut compute = BTreeMap::new();
-    for (kind, name) in SERIES.iter().skip(1) {
-        let p = pct(&format!("{kind}/{name}"));
-        if *kind == "hop" {
-            hops.insert(name.to_string(), p)
-        } else {
-            compute.insert(name.to_string(), p)
-        };
-    }
     let expected_rows = config.steps as u64 + 1;
     let lost = expected_rows.saturating_sub(rows.len() as u64)
         + summary_u64(report, "monitor", "missing_messages")
@@ -355,21 +360,23 @@ fn result(config: &RunConfig, report: &LaunchReport, rows: &[StepStamps]) -> Run
             *cpu_s.entry(c.role.clone()).or_insert(0.0) += t;
         }
     }
-    let cpu_pct = cpu_s.iter().map(|(k, v)| (k.clone(), 100.0 * v / report.wall_s.max(1e-9))).collect();
-    RunResult {
+    let mut r = RunResult {
         transport: config.transport.name().into(),
         wait: config.wait.name().into(),
         steps: config.steps,
         lost,
-        end_to_end: pct("end_to_end"),
-        hops,
-        compute,
+        end_to_end: None,
+        hops: BTreeMap::new(),
+        compute: BTreeMap::new(),
         cpu_s,
-        cpu_pct,
+        cpu_pct: BTreeMap::new(),
         idle_cpu_pct: report.idle_cpu.clone(),
         wall_s: report.wall_s,
-        histograms,
-    }
+        histograms: histograms(rows),
+        rounds: 1,
+    };
+    r.summarize();
+    r
 }
 
 /// Writes the histograms of `runs` as CSV, the end-to-end (and, for one run, every series') distribution
@@ -448,6 +455,14 @@ pub struct Goal {
     pub detail: String,
 }
 
+/// The end-to-end percentiles of the iceoryx2 and the uds run of wait mode `w`, when both were measured.
+fn pair(runs: &[RunResult], w: WaitMode) -> Option<(Percentiles, Percentiles)> {
+    let find = |t: TransportKind| {
+        runs.iter().find(|r| r.transport == t.name() && r.wait == w.name()).and_then(|r| r.end_to_end)
+    };
+    Some((find(TransportKind::Iceoryx2)?, find(TransportKind::Uds)?))
+}
+
 fn goals(runs: &[RunResult], objective: ObjectiveKind) -> Vec<Goal> {
     let mut out = Vec::new();
     for r in runs {
@@ -480,10 +495,7 @@ fn goals(runs: &[RunResult], objective: ObjectiveKind) -> Vec<Goal> {
         });
     }
     for w in WaitMode::ALL {
-        let find = |t: TransportKind| runs.iter().find(|r| r.transport == t.name() && r.wait == w.name());
-        if let (Some(i), Some(u)) = (find(TransportKind::Iceoryx2), find(TransportKind::Uds))
-            && let (Some(a), Some(b)) = (&i.end_to_end, &u.end_to_end)
-        {
+        if let Some((a, b)) = pair(runs, w) {
             out.push(Goal {
                 goal: format!("iceoryx2 ahead of uds at p50 and p99 ({w})"),
                 met: a.p50_us < b.p50_us && a.p99_us < b.p99_us,
@@ -498,10 +510,7 @@ fn ratios(runs: &[RunResult]) -> Vec<Ratio> {
     WaitMode::ALL
         .iter()
         .filter_map(|w| {
-            let find = |t: TransportKind| {
-                runs.iter().find(|r| r.transport == t.name() && r.wait == w.name()).and_then(|r| r.end_to_end)
-            };
-            let (a, b) = (find(TransportKind::Iceoryx2)?, find(TransportKind::Uds)?);
+            let (a, b) = pair(runs, *w)?;
             Some(Ratio {
                 wait: w.name().into(),
                 p50: a.p50_us / b.p50_us,
@@ -568,32 +577,24 @@ pub fn run_compare(args: &CompareArgs) -> Result<LatencyReport, CliError> {
     finish(&args.run, cores, runs, ratios)
 }
 
-/// Adds run `b` (same configuration) to `a`: histograms merged, counts and times summed, idle CPU the mean.
+/// Adds run `b` (same configuration) to `a`: histograms merged, counts and times summed, idle CPU the mean
+/// over the merged runs.
 fn merge(mut a: RunResult, b: RunResult) -> RunResult {
     for ((_, ha), (_, hb)) in a.histograms.iter_mut().zip(&b.histograms) {
         ha.merge(hb);
     }
     a.steps += b.steps;
     a.lost += b.lost;
-    let wall = a.wall_s + b.wall_s;
+    a.wall_s += b.wall_s;
     for (k, v) in b.cpu_s {
         *a.cpu_s.entry(k).or_insert(0.0) += v;
     }
-    a.cpu_pct = a.cpu_s.iter().map(|(k, v)| (k.clone(), 100.0 * v / wall.max(1e-9))).collect();
+    let n = a.rounds as f64;
     for (k, v) in b.idle_cpu_pct {
-        a.idle_cpu_pct.entry(k).and_modify(|x| *x = 0.5 * (*x + v)).or_insert(v);
+        a.idle_cpu_pct.entry(k).and_modify(|x| *x = (*x * n + v) / (n + 1.0)).or_insert(v);
     }
-    a.wall_s = wall;
-    let pct = |h: &[(String, LatencyHistogram)], name: &str| {
-        h.iter().find(|(n, _)| n == name).and_then(|(_, h)| h.percentiles())
-    };
-    a.end_to_end = pct(&a.histograms, "end_to_end");
-    for (k, v) in a.hops.iter_mut() {
-        *v = pct(&a.histograms, &format!("hop/{k}"));
-    }
-    for (k, v) in a.compute.iter_mut() {
-        *v = pct(&a.histograms, &format!("compute/{k}"));
-    }
+    a.rounds += b.rounds;
+    a.summarize();
     a
 }
 
@@ -779,6 +780,7 @@ mod tests {
             idle_cpu_pct: [("planner".to_string(), 0.5), ("monitor".to_string(), 12.0)].into(),
             wall_s: 1.0,
             histograms: Vec::new(),
+            rounds: 1,
         };
         let runs = [mk("iceoryx2", "block", 100.0, 400.0, 0), mk("uds", "block", 200.0, 300.0, 1)];
         let r = ratios(&runs);

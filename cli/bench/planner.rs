@@ -31,6 +31,8 @@ use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
 use serde::Serialize;
 use tdoa::rng::{Purpose, derive_seed};
 
+use experiments::stats::quantile;
+
 use crate::error::CliError;
 use crate::output::{Report, Table};
 use crate::simulate::scenario_from;
@@ -292,20 +294,6 @@ pub struct Stats {
     pub mean: f64,
 }
 
-/// The `p`-quantile (0 ≤ p ≤ 1) of ascending `sorted` by linear interpolation between order statistics
-/// (NaN when empty).
-pub fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let pos = p.clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
-    let i = pos.floor() as usize;
-    match sorted.get(i + 1) {
-        Some(next) => sorted[i] + (pos - i as f64) * (next - sorted[i]),
-        None => sorted[i],
-    }
-}
-
 impl Stats {
     /// The statistics of `samples` (any order).
     pub fn of(samples: &[f64]) -> Self {
@@ -314,9 +302,9 @@ impl Stats {
         let n = s.len();
         Self {
             n,
-            median: percentile(&s, 0.5),
-            p90: percentile(&s, 0.9),
-            p99: percentile(&s, 0.99),
+            median: quantile(&s, 0.5),
+            p90: quantile(&s, 0.9),
+            p99: quantile(&s, 0.99),
             max: s.last().copied().unwrap_or(f64::NAN),
             mean: if n == 0 { f64::NAN } else { s.iter().sum::<f64>() / n as f64 },
         }
@@ -634,9 +622,10 @@ mod tests {
         assert_eq!((odd.median, odd.max, odd.mean), (2.0, 3.0, 2.0));
         let one = Stats::of(&[7.0]);
         assert_eq!((one.median, one.p90, one.p99, one.max), (7.0, 7.0, 7.0, 7.0));
-        assert!(percentile(&[], 0.5).is_nan());
-        assert_eq!(percentile(&[1.0, 2.0], 0.0), 1.0);
-        assert_eq!(percentile(&[1.0, 2.0], 1.0), 2.0);
+        assert!(Stats::of(&[]).median.is_nan());
+        let two = Stats::of(&[2.0, 1.0]);
+        assert_eq!((two.median, two.max), (1.5, 2.0));
+        assert!((two.p99 - 1.99).abs() < 1e-12);
     }
 
     #[test]

@@ -362,7 +362,7 @@ struct State {
     quiet: bool,
     /// When the monitor first received each (kind, step) of the steps not yet recorded.
     received: HashMap<(MessageKind, u64), u64>,
-    /// The last command received per step (its stamps), and the next step's trigger stamps.
+    /// Messages of recorded steps that never arrived (see [`MonitorSummary::missing_messages`]).
     missing: u64,
     stamps: Option<StampsCsv>,
     replays_requested: u64,
