@@ -86,6 +86,11 @@ Two modes (--mode):
                       active_constraints [\"command_missed\"], and \"missed_commands\" counts it. With
                       every command in time the run still equals simulate.
 
+Staleness (--estimate-deadline-ms D, off by default): when a step's estimate has not reached the planner D
+ms after the step's measurement, the planner holds course (commands the current headings; the UAVs fly
+straight on); the step is recorded with active_constraints [\"estimate_stale\"] and counted in
+\"stale_steps\". Meant for realtime runs; a lock-step run with a deadline depends on timing.
+
 The monitor shows one line per step on stderr (CRLB and RMSE at the truth, estimate error, hop latencies,
 active planner, rejected messages) unless --headless. At the end the run is printed as a table, or with
 --json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\",
@@ -163,6 +168,11 @@ pub struct LaunchArgs {
     /// (--time-scale 100 runs the paper's 10 s step in 0.1 s, 1 is true real time). Ignored in lockstep.
     #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
     pub time_scale: f64,
+    /// The planner's staleness deadline: a step whose estimate has not arrived this many milliseconds
+    /// after its measurement is held (the current headings commanded, recorded as "estimate_stale").
+    /// 0: no deadline.
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub estimate_deadline_ms: u64,
     /// emitter-sim waits this many milliseconds before each step after step 0 (a slow lock-step run for
     /// a demo, or to swap or kill a process mid-run; the results do not change). 0: full speed. Lockstep
     /// mode only (realtime: --time-scale).
@@ -663,6 +673,8 @@ pub struct LaunchReport {
     /// Realtime mode: steps whose command had not reached emitter-sim when the next step was due (the UAVs
     /// flew straight on); 0 in lock-step mode.
     pub missed_commands: u64,
+    /// Steps whose command was the planner's hold (no fresh estimate within --estimate-deadline-ms).
+    pub stale_steps: u64,
     /// Every process instance the launch started, in start order.
     #[serde(rename = "processes")]
     pub children: Vec<ChildReport>,
@@ -796,12 +808,18 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         .filter(|c| c.role == "emitter-sim")
         .filter_map(|c| c.summary.as_ref().and_then(|s| s["missed_commands"].as_u64()))
         .sum();
+    let stale_steps = run
+        .steps
+        .iter()
+        .filter(|s| s.active_constraints.iter().any(|a| a == monitor::assemble::ESTIMATE_STALE))
+        .count() as u64;
     Ok(LaunchReport {
         run,
         restarts: sup.restarts,
         rejected: children.iter().map(|c| c.rejected).sum(),
         rejected_by,
         missed_commands,
+        stale_steps,
         domain: domain.to_string(),
         mode: match args.mode {
             Mode::Lockstep => "lockstep".to_string(),
@@ -889,6 +907,9 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
                     "--solver".into(),
                     args.solver.name().into(),
                 ]);
+                if args.estimate_deadline_ms > 0 {
+                    flags.extend(["--estimate-deadline-ms".to_string(), args.estimate_deadline_ms.to_string()]);
+                }
                 if args.plan_delay_ms > 0 {
                     flags.extend(["--plan-delay-ms".to_string(), args.plan_delay_ms.to_string()]);
                     if !args.plan_delay_steps.is_empty() {
@@ -969,6 +990,7 @@ impl Report for LaunchReport {
             .row("median cycle", p50("cycle"))
             .row("rejected messages", self.rejected.to_string())
             .row("missed commands", self.missed_commands.to_string())
+            .row("stale estimates (held course)", self.stale_steps.to_string())
             .row("restarts", self.restarts.to_string())
             .row("wall time", format!("{:.2} s", self.wall_s));
         for c in &self.children {
@@ -987,6 +1009,13 @@ impl Report for LaunchReport {
                 self.domain,
                 self.leftovers.nodes.iter().map(|n| format!("{} ({})", n.name, n.state)).collect::<Vec<_>>(),
                 self.leftovers.services
+            )));
+        }
+        if self.stale_steps > 0 {
+            out.push(Diagnostic::Warning(format!(
+                "{} step(s) had no fresh estimate within the planner's deadline (it held course): see \
+                 active_constraints \"estimate_stale\"",
+                self.stale_steps
             )));
         }
         if self.missed_commands > 0 {

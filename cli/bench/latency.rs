@@ -325,6 +325,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
         idle_probe_ms: flags.idle_ms,
         mode: emitter_sim::process::Mode::Lockstep,
         time_scale: 1.0,
+        estimate_deadline_ms: 0,
         step_delay_ms: 0,
         plan_delay_ms: 0,
         plan_delay_steps: Vec::new(),

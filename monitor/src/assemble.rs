@@ -25,6 +25,11 @@
 //! them), `objective_value` and `plan_ms` null, `active_constraints` = `["command_missed"]`
 //! ([`COMMAND_MISSED`]), no planner; a command for it that arrives anyway is ignored.
 //!
+//! A step whose command is a *hold* ([`Command::FLAG_HOLD`]: no fresh estimate reached the planner within
+//! its staleness deadline, so it commanded the current headings) records those headings, `objective_value`
+//! and `plan_ms` null, `active_constraints` = `["estimate_stale"]` ([`ESTIMATE_STALE`]), and the planner
+//! that held.
+//!
 //! Messages for steps already completed or beyond the last step are ignored (and counted).
 
 use std::collections::BTreeMap;
@@ -40,6 +45,9 @@ use crate::record::{PlannerRef, RunRecord, StepRecord};
 
 /// The `active_constraints` entry of a step whose command was missed (see the module docs).
 pub const COMMAND_MISSED: &str = "command_missed";
+
+/// The `active_constraints` entry of a step whose command was a hold (see the module docs).
+pub const ESTIMATE_STALE: &str = "estimate_stale";
 
 /// The planner that produced a step's command.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -67,6 +75,9 @@ pub struct CompletedStep {
     pub truth: [f64; 2],
     /// The step's command was missed (real-time mode): the UAVs kept their headings.
     pub missed: bool,
+    /// The step's command was a hold: no fresh estimate reached the planner in time, the UAVs kept their
+    /// headings.
+    pub held: bool,
     /// The stamps of the step's chain (the command's; on the last step, or a missed one, the estimate's).
     pub chain: Stamps,
     /// When emitter-sim received the step's command (from the next step's truth; 0 if unknown).
@@ -290,9 +301,13 @@ impl Assembler {
         let latencies = match c {
             Some(c) => {
                 record.headings_rad = c.headings().to_vec();
-                record.objective_value = (c.objective >= 0.0).then(|| c.objective.sqrt());
-                record.plan_ms = Some(c.plan_time_us as f64 / 1e3);
-                record.active_constraints = active_mask::decode(c.active_constraints, c.len());
+                if c.is_hold() {
+                    record.active_constraints = vec![ESTIMATE_STALE.to_string()];
+                } else {
+                    record.objective_value = (c.objective >= 0.0).then(|| c.objective.sqrt());
+                    record.plan_ms = Some(c.plan_time_us as f64 / 1e3);
+                    record.active_constraints = active_mask::decode(c.active_constraints, c.len());
+                }
                 let info = PlannerInfo {
                     instance: c.planner_instance,
                     solver: c.solver().unwrap_or("?").to_string(),
@@ -311,7 +326,18 @@ impl Assembler {
         };
         let error_m = (position[0] - truth.x).hypot(position[1] - truth.y);
         self.steps.push(record.clone());
-        CompletedStep { record, latencies, planner, error_m, truth: t.position, missed, chain, command_received_ns: 0 }
+        let held = c.is_some_and(Command::is_hold);
+        CompletedStep {
+            record,
+            latencies,
+            planner,
+            error_m,
+            truth: t.position,
+            missed,
+            held,
+            chain,
+            command_received_ns: 0,
+        }
     }
 
     /// The record of the steps completed so far (the whole run once [`is_done`](Self::is_done)).

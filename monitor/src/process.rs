@@ -15,15 +15,18 @@
 //! - `step` (the step's record, its truth, its latencies in µs and planner; `command_missed: true` when
 //!   the step's command did not reach emitter-sim in time — real-time mode — and the UAVs kept their
 //!   headings: the record then has `active_constraints: ["command_missed"]`, `objective_value` null);
-//!   `command_missed` (step) for such a step; `end` (complete, steps, rejected, ignored,
-//!   missed_commands).
+//!   `command_missed` (step) for such a step; `estimate_stale: true` when the step's command was the
+//!   planner's hold (no fresh estimate within its `--estimate-deadline-ms`; the record then has
+//!   `active_constraints: ["estimate_stale"]`), and an `estimate_stale` (step) event; `end` (complete,
+//!   steps, rejected, ignored, missed_commands, stale_steps).
 //!
 //! `uavloc launch` appends `restart` events (role, attempt, exit, backoff_ms) to the same file: every line
 //! is written with one `write` on a file opened for appending.
 //!
 //! The status line of a step (stderr, unless `--quiet`): step, CRLB at the truth, RMSE, estimate error,
 //! the hops measurement→estimator and estimate→planner, the planning time, the whole cycle, the active
-//! planner and the rejected-message count; `COMMAND MISSED` for a step flown without its command.
+//! planner and the rejected-message count; `COMMAND MISSED` for a step flown without its command,
+//! `ESTIMATE STALE` for a step whose command was the planner's hold.
 //!
 //! A step is recorded when the truth of the next one is in: only emitter-sim knows whether a command
 //! reached the world in time (see [`crate::assemble`]).
@@ -225,6 +228,8 @@ pub struct MonitorSummary {
     pub planners: u64,
     /// Steps recorded whose command was missed (real-time mode).
     pub missed_commands: u64,
+    /// Steps recorded whose command was the planner's hold (no fresh estimate within its deadline).
+    pub stale_steps: u64,
     /// Latencies of the planned steps.
     pub latency: LatencySummary,
     /// Messages of the recorded steps that never reached the monitor (measurement, estimate, command and
@@ -337,7 +342,13 @@ fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
         fmt_us(l.estimate_hop_ns),
         r.plan_ms.map_or("-".into(), |ms| format!("{ms:.3} ms")),
         fmt_us(l.cycle_ns),
-        if done.missed { "  COMMAND MISSED (flew straight on)" } else { "" },
+        if done.missed {
+            "  COMMAND MISSED (flew straight on)"
+        } else if done.held {
+            "  ESTIMATE STALE (planner held course)"
+        } else {
+            ""
+        },
     )
 }
 
@@ -359,6 +370,7 @@ struct State {
     planner: Option<PlannerInfo>,
     planners: u64,
     missed: u64,
+    stale: u64,
     quiet: bool,
     /// When the monitor first received each (kind, step) of the steps not yet recorded.
     received: HashMap<(MessageKind, u64), u64>,
@@ -474,11 +486,16 @@ impl State {
                     "planner": done.planner.as_ref().map(|p| json!({"instance": p.instance, "solver": p.solver, "objective": p.objective})),
                     "truth": done.truth,
                     "command_missed": done.missed,
+                    "estimate_stale": done.held,
                 }),
             );
             if done.missed {
                 self.missed += 1;
                 self.log.write("command_missed", json!({"step": done.record.step}));
+            }
+            if done.held {
+                self.stale += 1;
+                self.log.write("estimate_stale", json!({"step": done.record.step}));
             }
             if !self.quiet {
                 eprintln!("{}", status_line(&done, self.assembler.last_step(), self.counter.total()));
@@ -603,6 +620,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         planner: None,
         planners: 0,
         missed: 0,
+        stale: 0,
         quiet: args.quiet,
         received: HashMap::new(),
         missing: 0,
@@ -697,6 +715,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         ignored: state.assembler.ignored(),
         planners: state.planners,
         missed_commands: state.missed,
+        stale_steps: state.stale,
         latency: state.samples.summary(),
         missing_messages: state.missing,
         replays_requested: state.replays_requested,
@@ -710,6 +729,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         json!({
             "complete": summary.complete, "steps": summary.steps, "rejected": summary.rejected,
             "ignored": summary.ignored, "missed_commands": summary.missed_commands,
+            "stale_steps": summary.stale_steps,
         }),
     );
     write_outputs(args, &run)?;

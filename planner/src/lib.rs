@@ -30,6 +30,7 @@ pub mod process;
 pub mod pso;
 pub mod scenario;
 pub mod solver;
+pub mod staleness;
 pub mod step;
 
 pub use aco::{Aco, AcoConfig};

@@ -18,6 +18,14 @@
 //! - Only `target = "chan"` is supported: `controlled` mode needs the true emitter, which the pipeline
 //!   never shows the planner (use `uavloc simulate` for it).
 //! - Invalid estimates are counted (per rejection kind) and ignored.
+//! - **Staleness deadline** (`--estimate-deadline-ms D`, off by default): the planner also subscribes to
+//!   the measurements; when the estimate of the newest measured step has not arrived D ms after its
+//!   measurement, the planner *holds course*: it publishes a command with the UAVs' current headings (they
+//!   fly straight on) flagged [`Command::FLAG_HOLD`] (objective −1, no plan time), counts it (`held`) and
+//!   logs it; the monitor shows the step as `estimate_stale`. The estimate that comes later still becomes
+//!   the last usable one, and the step is answered with its hold (`late_estimates`). With a deadline the
+//!   run depends on timing (like emitter-sim's real-time mode), so lock-step reproductions of `simulate`
+//!   leave it off.
 //! - `--plan-delay-ms` (with `--plan-delay-steps`) is a test / fault-injection aid: the planner sleeps
 //!   before planning those steps, like a slow one, e.g. to make its commands miss their step in
 //!   emitter-sim's real-time mode (`tests/realtime.rs`).
@@ -38,21 +46,22 @@ use std::collections::BTreeMap;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use clap::Args;
 use nalgebra::{Matrix2, Vector2};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
-    Command, ControlChannel, ControlKind, Estimate, EstimateStatus, Message, PlanInfo, RejectionCounter, Topic,
-    TransportError, now_ns,
+    Command, ControlChannel, ControlKind, Estimate, EstimateStatus, Measurement, Message, PlanInfo, RejectionCounter,
+    Topic, TopicSubscriber, TransportError, now_ns,
 };
 
 use crate::active_mask;
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError, TargetMode};
 use crate::solver::SolverKind;
+use crate::staleness::{DueStep, Freshness, HoldTracker, hold_plan};
 use crate::step::{PlanRequest, plan_step};
 
 /// The role name (node name suffix, `uavloc process planner`).
@@ -72,6 +81,7 @@ are supported (controlled mode needs the truth, which only `uavloc simulate` can
 Examples:
   planner --domain lab1
   planner --domain lab1 --objective mc --solver ga --scenario scenarios/nominal.toml --seed 7
+  planner --domain lab1 --estimate-deadline-ms 50   hold course when a step's estimate is 50 ms late
   UAVLOC_DOMAIN=lab1 planner --spin-us 50";
 
 /// Flags of the planner process (`planner [FLAGS]` or `uavloc process planner [FLAGS]`).
@@ -101,6 +111,11 @@ pub struct PlannerArgs {
     /// Take over from the running planner at the next step (see `uavloc swap planner`).
     #[arg(long)]
     pub takeover: bool,
+    /// Staleness deadline: when a step's estimate has not arrived this many milliseconds after its
+    /// measurement, hold course (command the current headings, flagged as a hold; the monitor shows
+    /// `estimate_stale`). 0: no deadline (wait for every estimate; what lock-step reproductions need).
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub estimate_deadline_ms: u64,
     /// Test / fault-injection aid: sleep this many milliseconds before planning a step (see
     /// --plan-delay-steps), as a slow planner would; e.g. to make commands miss their step in emitter-sim's
     /// realtime mode. 0: no delay. The plan itself does not change.
@@ -154,6 +169,10 @@ pub struct PlannerSummary {
     pub errors: u64,
     /// Commands sent again for an estimate seen before (a replay).
     pub resent: u64,
+    /// Steps held: no fresh estimate within `--estimate-deadline-ms`, the current headings commanded.
+    pub held: u64,
+    /// Estimates of held steps (arrived after the deadline; answered with the hold, not planned).
+    pub late_estimates: u64,
     /// With `--takeover`: the first step this planner planned (it took over there).
     pub took_over_at: Option<u64>,
     /// The step from which a newer planner took over (this one exited then).
@@ -216,12 +235,21 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let estimates = Topic::<Estimate>::subscriber(&link, &services::estimate(&domain))?;
     let commands = Topic::<Command>::publisher(&link, &services::command(&domain))?;
     let control = ControlChannel::open(&link, &domain, ROLE, instance, started_ns)?;
+    // With a staleness deadline: the measurements start each step's deadline.
+    let measurements: Option<TopicSubscriber<Measurement>> = if args.estimate_deadline_ms > 0 {
+        Some(Topic::<Measurement>::subscriber(&link, &services::measurement(&domain))?)
+    } else {
+        None
+    };
     let waitset = protocol::transport::waitset()?;
     let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
-    let _guards = [
+    let mut guards = vec![
         waitset.attach_notification(&estimates).map_err(attach_failed)?,
         waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
     ];
+    if let Some(m) = &measurements {
+        guards.push(waitset.attach_notification(m).map_err(attach_failed)?);
+    }
     let detail = format!("{}/{}", args.solver.name(), args.objective.name());
     if !args.takeover {
         // "Replay the run from step 0 for me" (a no-op at the start of a launch: emitter-sim is not there).
@@ -252,8 +280,23 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let mut from_step: Option<u64> = None;
     let mut seen_before_takeover = 0u32;
     let mut last_planned: Option<u64> = None;
+    let mut tracker = (args.estimate_deadline_ms > 0)
+        .then(|| HoldTracker::new(Duration::from_millis(args.estimate_deadline_ms), MAX_CACHED_STEPS as u64));
+    let mut measurement_seq = None;
     'run: loop {
-        let ready = || Ok(estimates.has_samples()? || control.subscriber().has_samples()?);
+        let ready = || {
+            Ok(estimates.has_samples()?
+                || control.subscriber().has_samples()?
+                || measurements.as_ref().map_or(Ok(false), |m| m.has_samples())?)
+        };
+        // Wake up for the earliest staleness deadline too.
+        let (spin, block) = match tracker.as_ref().and_then(HoldTracker::next_deadline) {
+            Some(d) => {
+                let left = d.saturating_duration_since(Instant::now());
+                (spin.min(left), block.min(left.max(Duration::from_micros(1))))
+            }
+            None => (spin, block),
+        };
         match protocol::transport::wait_any(&waitset, spin, block, ready) {
             Ok(()) => {}
             Err(TransportError::Interrupted) => break,
@@ -284,6 +327,20 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         {
             summary.handed_over_at = Some(f);
             break 'run;
+        }
+        if let (Some(t), Some(sub)) = (tracker.as_mut(), measurements.as_ref()) {
+            let now = Instant::now();
+            for m in sub.receive_all()? {
+                if let Err(r) = counter.check(&m, &mut measurement_seq) {
+                    summary.rejected += 1;
+                    eprintln!("planner: rejected a measurement: {r}");
+                    continue;
+                }
+                let step = m.header.step;
+                let positions = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+                let plannable = step < scenario.steps as u64 && !answers.contains_key(&step);
+                t.on_measurement(step, now, positions, m.headings().to_vec(), plannable);
+            }
         }
         let received_ns = now_ns();
         for est in estimates.receive_all()? {
@@ -338,6 +395,21 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
             }
             if step >= scenario.steps as u64 {
                 continue; // the final step is recorded, not planned
+            }
+            if let Some(t) = tracker.as_mut()
+                && t.on_estimate(step) == Freshness::Late
+            {
+                // Held already: the estimate updated the last usable one; the step's answer is its hold.
+                summary.late_estimates += 1;
+                if let Some((_, hold)) = answers.get(&step) {
+                    seq += 1;
+                    let mut again = *hold;
+                    again.header.seq = seq;
+                    commands.send(&again)?;
+                    summary.resent += 1;
+                    summary.published += 1;
+                }
+                continue;
             }
             let key = content_key(&est, usable.as_ref());
             if let Some((known, cached)) = answers.get(&step)
@@ -413,6 +485,27 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 answers.pop_first();
             }
         }
+        // Steps whose estimate missed the deadline: hold course.
+        if let Some(t) = tracker.as_mut() {
+            for due in t.due(Instant::now()) {
+                if from_step.is_some_and(|f| due.step < f) || (args.takeover && from_step.is_none()) {
+                    continue; // the running planner's step
+                }
+                let hold = hold_command(&due, &scenario, args, &mut seq, instance)?;
+                commands.send(&hold)?;
+                summary.held += 1;
+                summary.published += 1;
+                last_planned = last_planned.max(Some(due.step));
+                eprintln!(
+                    "planner: step {}: no estimate within {} ms of the measurement; holding course",
+                    due.step, args.estimate_deadline_ms
+                );
+                answers.insert(due.step, (Vec::new(), hold));
+                if answers.len() > MAX_CACHED_STEPS {
+                    answers.pop_first();
+                }
+            }
+        }
         // A newer planner took over and this one has planned every step before it: hand over.
         if let Some(f) = handover
             && last_planned.is_some_and(|l| l + 1 >= f)
@@ -421,6 +514,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
             break 'run;
         }
     }
+    drop(guards);
     if !args.quiet {
         if let Some(f) = summary.handed_over_at {
             eprintln!("planner: handed over to the newer planner at step {f}");
@@ -429,6 +523,35 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     }
     summary.cpu_s = protocol::process::cpu_seconds();
     Ok(summary)
+}
+
+/// The hold command of a step whose estimate missed the deadline (see the module docs).
+fn hold_command(
+    due: &DueStep,
+    scenario: &Scenario,
+    args: &PlannerArgs,
+    seq: &mut u64,
+    instance: u64,
+) -> Result<Command, ProcessError> {
+    let (headings, waypoints) = hold_plan(&due.positions, &due.headings, scenario.speed, scenario.dt);
+    *seq += 1;
+    let mut hold = Command::new(
+        due.step,
+        *seq,
+        instance,
+        &PlanInfo {
+            headings: &headings,
+            waypoints: &waypoints,
+            objective: -1.0,
+            solver: args.solver.name(),
+            objective_name: args.objective.name(),
+            plan_time_us: 0,
+            active_constraints: 0,
+        },
+    )
+    .map_err(|e| ProcessError::Failed(format!("step {}: hold command: {e}", due.step)))?;
+    hold.flags |= Command::FLAG_HOLD;
+    Ok(hold)
 }
 
 /// Runs the planner and maps the outcome to an exit code (errors as one `error:` line on stderr); in

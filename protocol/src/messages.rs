@@ -656,7 +656,7 @@ pub struct PlanInfo<'a> {
 
 /// planner → emitter-sim, monitor: the headings to fly for the next step.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Command/v1")]
+#[type_name("uavloc::Command/v2")]
 #[repr(C)]
 pub struct Command {
     /// Common header (step of the estimate it was planned from).
@@ -669,8 +669,9 @@ pub struct Command {
     pub active_constraints: u64,
     /// Number of UAVs N (3..=8).
     pub count: u32,
-    /// Explicit padding; 0 when sent.
-    pub reserved: u32,
+    /// What kind of command this is: 0 a plan; [`Command::FLAG_HOLD`] a hold (see there). Unknown bits are
+    /// ignored.
+    pub flags: u32,
     /// Criterion value at the waypoints.
     pub objective: f64,
     /// Commanded headings, radians.
@@ -683,9 +684,19 @@ pub struct Command {
     pub objective_name: Name16,
 }
 
-impl_message!(Command, MessageKind::Command, 1, "uavloc::Command/v1");
+impl_message!(Command, MessageKind::Command, 2, "uavloc::Command/v2");
 
 impl Command {
+    /// [`Command::flags`] bit: a *hold*, not a plan — no fresh estimate of the step reached the planner
+    /// within its deadline (`planner --estimate-deadline-ms`), so it commands the UAVs' current headings
+    /// (they fly straight on); `objective` is then −1 (no value) and `plan_time_us` 0.
+    pub const FLAG_HOLD: u32 = 1;
+
+    /// Whether this is a hold ([`Command::FLAG_HOLD`]).
+    pub fn is_hold(&self) -> bool {
+        self.flags & Self::FLAG_HOLD != 0
+    }
+
     /// A command for `plan.headings.len()` UAVs.
     pub fn new(step: u64, seq: u64, planner_instance: u64, plan: &PlanInfo<'_>) -> Result<Self, ProtocolError> {
         let n = check_count(plan.headings.len())?;
@@ -696,7 +707,7 @@ impl Command {
             plan_time_us: plan.plan_time_us,
             active_constraints: plan.active_constraints,
             count: n as u32,
-            reserved: 0,
+            flags: 0,
             objective: plan.objective,
             headings: [0.0; MAX_UAVS],
             waypoints: [[0.0; 2]; MAX_UAVS],

@@ -1,0 +1,100 @@
+//! Staleness: in a real-time run with a planner deadline (`--estimate-deadline-ms`), the estimator is
+//! frozen (SIGSTOP) for several steps. No fresh estimate reaches the planner, so it holds course: it
+//! commands the UAVs' current headings, which the world flies (straight on, in time — no step is missed),
+//! and the monitor records those steps as `estimate_stale`, logs them and counts them. When the estimator
+//! thaws (SIGCONT) it works off its backlog; the late estimates are answered with the holds, and planning
+//! goes on from the fresh ones.
+
+mod common;
+
+use std::time::Duration;
+
+use common::{Launch, assert_nothing_left, domain, kill, pid_of, read_events, scratch};
+use serde_json::Value;
+
+const STEPS: u64 = 40;
+
+fn headings(step: &Value) -> Vec<f64> {
+    step["headings_rad"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+}
+
+fn uavs(step: &Value) -> Vec<[f64; 2]> {
+    serde_json::from_value(step["uavs"].clone()).unwrap()
+}
+
+#[test]
+fn a_frozen_estimator_makes_the_planner_hold_course_and_the_monitor_show_it() {
+    let d = domain("stale", "freeze");
+    let dir = scratch("stale-freeze");
+    let steps = STEPS.to_string();
+    // 0.1 s per step; a step's estimate normally reaches the planner within a millisecond or two.
+    let mut launch = Launch::start(
+        &d,
+        &dir,
+        &["--steps", &steps, "--mode", "realtime", "--time-scale", "100", "--estimate-deadline-ms", "30"],
+    );
+    launch.wait_for_step(8, Duration::from_secs(30));
+    let estimator = pid_of(&d, "estimator").expect("the estimator runs");
+    kill(estimator, libc::SIGSTOP);
+    std::thread::sleep(Duration::from_millis(700));
+    kill(estimator, libc::SIGCONT);
+    let stderr_path = launch.stderr.clone();
+    let run = launch.finish_json();
+    let stderr = std::fs::read_to_string(stderr_path).unwrap_or_default();
+
+    let records = run["steps"].as_array().unwrap();
+    assert_eq!(records.len() as u64, STEPS + 1, "{stderr}");
+    let held: Vec<u64> = records
+        .iter()
+        .filter(|s| s["active_constraints"].as_array().unwrap().iter().any(|a| a == "estimate_stale"))
+        .map(|s| s["step"].as_u64().unwrap())
+        .collect();
+    // ~7 steps of 0.1 s frozen: at least 4 held (margin for the freeze starting mid-step and a slow machine).
+    assert!(held.len() >= 4, "held steps {held:?}\n{stderr}");
+    assert_eq!(run["stale_steps"].as_u64(), Some(held.len() as u64));
+
+    let speed = 50.0;
+    let dt = 10.0;
+    for &k in &held {
+        let (prev, this, next) = (&records[k as usize - 1], &records[k as usize], &records[k as usize + 1]);
+        // A hold commands the headings the UAVs have: those of the command flown before.
+        assert_eq!(headings(this), headings(prev), "step {k}: a hold keeps the headings");
+        assert!(this["objective_value"].is_null() && this["plan_ms"].is_null(), "step {k}: {this}");
+        // ... and the world flew it straight on, one interval at the UAV speed.
+        for ((p, q), psi) in uavs(this).iter().zip(uavs(next)).zip(headings(this)) {
+            let expected = [p[0] + speed * dt * psi.cos(), p[1] + speed * dt * psi.sin()];
+            assert!((q[0] - expected[0]).hypot(q[1] - expected[1]) < 1e-6, "step {k}: {q:?} vs {expected:?}");
+        }
+    }
+    // Planning went on after the thaw: the last steps have plans again.
+    let last_planned = &records[STEPS as usize - 1];
+    assert!(last_planned["objective_value"].is_number(), "{last_planned}");
+
+    // The planner counted what it held and the late estimates it answered with the holds.
+    let planner = run["processes"].as_array().unwrap().iter().find(|p| p["role"] == "planner").unwrap();
+    assert_eq!(planner["summary"]["held"].as_u64(), Some(held.len() as u64), "{planner}");
+    assert!(planner["summary"]["late_estimates"].as_u64().unwrap() >= 1, "{planner}");
+    let monitor = run["processes"].as_array().unwrap().iter().find(|p| p["role"] == "monitor").unwrap();
+    assert_eq!(monitor["summary"]["stale_steps"].as_u64(), Some(held.len() as u64), "{monitor}");
+    assert!(stderr.contains("holding course"), "{stderr}");
+
+    // The monitor's log has an event per held step, and the step events say so.
+    let events = read_events(&dir.join("run.jsonl"));
+    let logged: Vec<u64> =
+        events.iter().filter(|e| e["event"] == "estimate_stale").map(|e| e["step"].as_u64().unwrap()).collect();
+    assert_eq!(logged, held);
+    for e in events.iter().filter(|e| e["event"] == "step") {
+        let k = e["step"].as_u64().unwrap();
+        assert_eq!(e["estimate_stale"].as_bool(), Some(held.contains(&k)), "step {k}");
+    }
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_deadline_flag_that_is_not_a_number_is_a_clear_error() {
+    let out = common::uavloc(&["launch", "--estimate-deadline-ms", "soon"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--estimate-deadline-ms"), "{stderr}");
+}
