@@ -142,7 +142,8 @@ pub struct LaunchArgs {
     /// Directory for the monitor's CSVs, run.json and plots (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// The monitor's JSON-lines event log.
+    /// The monitor's JSON-lines event log (default: a file in the launch's private state directory,
+    /// removed at the end). The step records are kept there during the run, not in memory.
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
     /// emitter-sim gives up when a step's command has not arrived after this many seconds.
@@ -750,8 +751,12 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     }
 
     catch_termination_signals();
-    let mut sup = Supervisor::new(domain.clone(), args.log.clone(), args.max_restarts);
-    let result = start_and_run(&mut sup, args, &domain);
+    // Checkpoints (and the monitor's log when --log is not given) live in a private directory of this
+    // launch, removed at the end: a restarted child resumes from what its predecessor wrote there.
+    let state = StateDir::create(&domain)?;
+    let log = args.log.clone().unwrap_or_else(|| state.path("monitor.jsonl"));
+    let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts);
+    let result = start_and_run(&mut sup, args, &domain, &state, &log);
     sup.stop_all();
     // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown
     // message.
@@ -866,8 +871,56 @@ fn wait_until_no_process_left(domain: &Domain) {
     eprintln!("warning: processes of domain {domain} are still running after the shutdown message");
 }
 
+/// The private directory of one launch (checkpoints, and the monitor's log when `--log` is not given):
+/// `$TMPDIR/uavloc-<uid>/launch-<pid>`, mode 0700 (as its parent), removed when dropped.
+struct StateDir(PathBuf);
+
+impl StateDir {
+    fn create(domain: &Domain) -> Result<Self, CliError> {
+        use std::os::unix::fs::{DirBuilderExt as _, MetadataExt as _};
+        // SAFETY: getuid has no preconditions and cannot fail.
+        let uid = unsafe { libc::getuid() };
+        let parent = std::env::temp_dir().join(format!("uavloc-{uid}"));
+        let failed = |what: &PathBuf, e: std::io::Error| {
+            CliError::Failed(format!("the launch's state directory {}: {e}", what.display()))
+        };
+        match std::fs::DirBuilder::new().mode(0o700).create(&parent) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+            Err(e) => return Err(failed(&parent, e)),
+        }
+        let meta = std::fs::symlink_metadata(&parent).map_err(|e| failed(&parent, e))?;
+        if !meta.is_dir() || meta.uid() != uid || meta.mode() & 0o077 != 0 {
+            return Err(CliError::Failed(format!(
+                "the launch's state directory {} is not a directory of this user with mode 0700; remove it",
+                parent.display()
+            )));
+        }
+        let dir = parent.join(format!("launch-{}-{domain}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir); // a leftover of an earlier launch with the same pid
+        std::fs::DirBuilder::new().mode(0o700).create(&dir).map_err(|e| failed(&dir, e))?;
+        Ok(StateDir(dir))
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for StateDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
 /// Starts the children in order, each after the previous one is ready, and waits for the end of the run.
-fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Result<(), CliError> {
+fn start_and_run(
+    sup: &mut Supervisor,
+    args: &LaunchArgs,
+    domain: &Domain,
+    state: &StateDir,
+    log: &std::path::Path,
+) -> Result<(), CliError> {
     let common = ["--domain".to_string(), domain.to_string()];
     let mut run_flags = Vec::new();
     if let Some(p) = &args.scenario {
@@ -883,15 +936,16 @@ fn start_and_run(sup: &mut Supervisor, args: &LaunchArgs, domain: &Domain) -> Re
     for role in START_ORDER {
         let mut flags = common.to_vec();
         flags.extend(link.iter().cloned());
+        if role != "monitor" {
+            flags.extend(["--checkpoint".to_string(), state.path(&format!("{role}.ckpt")).display().to_string()]);
+        }
         if role == "emitter-sim" && args.idle_probe_ms > 0 {
             sup.idle_cpu = probe_idle_cpu(sup, Duration::from_millis(args.idle_probe_ms));
         }
         match role {
             "monitor" => {
                 flags.extend(run_flags.iter().cloned());
-                if let Some(p) = &args.log {
-                    flags.extend(["--log".to_string(), p.display().to_string()]);
-                }
+                flags.extend(["--log".to_string(), log.display().to_string()]);
                 if let Some(p) = &args.out {
                     flags.extend(["--out".to_string(), p.display().to_string()]);
                 }

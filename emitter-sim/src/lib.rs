@@ -61,6 +61,17 @@ pub struct Measurement {
     pub range_diffs: RangeDiffs,
 }
 
+/// The moving part of a [`World`] (everything else comes from the scenario): what emitter-sim checkpoints.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Snapshot {
+    /// The step about to be measured.
+    pub step: u64,
+    /// UAV positions, metres.
+    pub positions: Vec<[f64; 2]>,
+    /// UAV headings, radians.
+    pub headings: Vec<f64>,
+}
+
 /// The simulated world of one run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct World {
@@ -135,6 +146,35 @@ impl World {
         Ok(Measurement { step: self.step, uavs: self.positions.clone(), range_diffs })
     }
 
+    /// The world's moving part (see [`Snapshot`]).
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            step: self.step,
+            positions: self.positions.iter().map(|p| [p.x, p.y]).collect(),
+            headings: self.headings.clone(),
+        }
+    }
+
+    /// The world of `scenario` (validated) at the state of `snapshot` — the world that took the snapshot,
+    /// bit for bit. Refuses a snapshot with another UAV count or non-finite numbers.
+    pub fn restore(scenario: &Scenario, snapshot: &Snapshot) -> Result<Self, WorldError> {
+        let mut world = Self::from_scenario(scenario)?;
+        let n = world.positions.len();
+        if snapshot.positions.len() != n || snapshot.headings.len() != n {
+            return Err(WorldError::HeadingCount { expected: n, got: snapshot.headings.len() });
+        }
+        if let Some((uav, &value)) = snapshot.headings.iter().enumerate().find(|(_, h)| !h.is_finite()) {
+            return Err(WorldError::HeadingNotFinite { uav, value });
+        }
+        if let Some(&value) = snapshot.positions.iter().flatten().find(|v| !v.is_finite()) {
+            return Err(WorldError::Geometry(TdoaError::NotFinite { what: "a snapshot's UAV position".into(), value }));
+        }
+        world.positions = snapshot.positions.iter().map(|p| Vector2::new(p[0], p[1])).collect();
+        world.headings = snapshot.headings.clone();
+        world.step = snapshot.step;
+        Ok(world)
+    }
+
     /// Flies every UAV for one interval along the circular arc to its commanded heading (radians) and
     /// advances the step. Refuses (leaving the world unchanged) a wrong count or a non-finite heading.
     pub fn apply(&mut self, headings: &[f64]) -> Result<(), WorldError> {
@@ -169,6 +209,23 @@ mod tests {
         assert_eq!(w.positions(), sc.uav_positions().as_slice());
         assert_eq!(w.headings(), sc.initial_headings().as_slice());
         assert_eq!((w.step(), w.seed()), (0, sc.seed));
+    }
+
+    #[test]
+    fn a_restored_snapshot_is_the_same_world() {
+        let mut w = world();
+        for k in 0..5 {
+            w.apply(&[0.1 * k as f64, -0.2, 1.0]).unwrap();
+        }
+        let back = World::restore(&Scenario::default(), &w.snapshot()).unwrap();
+        assert_eq!(back, w);
+        assert_eq!(back.measure().unwrap(), w.measure().unwrap());
+        let mut bad = w.snapshot();
+        bad.headings.pop();
+        assert!(World::restore(&Scenario::default(), &bad).is_err());
+        bad = w.snapshot();
+        bad.positions[1][0] = f64::NAN;
+        assert!(World::restore(&Scenario::default(), &bad).is_err());
     }
 
     #[test]

@@ -30,15 +30,21 @@
 //!
 //! # Replays: how the pipeline survives a restarted process
 //!
-//! emitter-sim keeps the truth and measurement of every step it published. It *replays* steps `from..=k`
+//! emitter-sim keeps the truth and measurement of the last [`HISTORY_STEPS`] steps it published (older
+//! ones are forgotten, so its memory does not grow with the run). It *replays* steps `from..=k`
 //! — publishes them again, same step, same data, new sequence numbers, one step at a time, each after the
 //! command of the previous one came back (that command is not applied: the world is already past it) —
 //! when
 //! - a process announces itself on the control topic ([`ControlKind::Hello`]: an estimator or planner
-//!   restarted after a crash asks for step 0, since their state is rebuilt from the whole run; a
-//!   restarted monitor asks for the first step missing from its log), or
+//!   restarted after a crash asks for the step after its checkpoint, or for step 0 without one, since
+//!   their state is rebuilt from the run; a restarted monitor asks for the first step missing from its
+//!   log), or
 //! - (lock-step only) the command of step k has not come `--retry-interval-ms` after the step was
-//!   (re)published: a process died or lost the message; everything is replayed from step 0.
+//!   (re)published: a process died or lost the message; the steps from the checkpoint step at or below k
+//!   are replayed.
+//!
+//! A request for a step older than the history is refused: emitter-sim stops with an error naming the
+//! steps (a process restarted without its checkpoint cannot rejoin a run longer than the history).
 //!
 //! The estimator and the planner answer a message they have seen before with the answer they gave
 //! before, so a replay costs a hop per step and changes nothing; a process that lost its state rebuilds
@@ -47,9 +53,12 @@
 //! it pauses when the next step is due and goes on after it (up to the step current by then), and a
 //! replayed step that gets no answer within `--retry-interval-ms` is sent again.
 //!
-//! A restarted emitter-sim starts from step 0: the world is deterministic, so it publishes exactly the
+//! A restarted emitter-sim starts from the older of the two world snapshots in its `--checkpoint` file
+//! (the world before a checkpoint step c, written once the command of step c came back; see
+//! [`protocol::checkpoint`]; with fewer than two, the run is young and it starts from step 0), else from
+//! step 0: the world is deterministic, so it publishes exactly the
 //! measurements of its predecessor, the estimator and planner answer them from what they kept, and the run
-//! fast-forwards to where it was. (In real-time mode it starts the schedule again, at step 0: the steps
+//! fast-forwards to where it was. (In real-time mode it starts the schedule again at that step: the steps
 //! are flown again at the real-time rate, and a run that had missed steps is flown anew from there.)
 //!
 //! Before step 0 it waits until the pipeline is connected — at least `--min-subscribers` subscribers on
@@ -57,7 +66,7 @@
 //! published before its subscriber exists is lost (the topics keep no history). SIGINT/SIGTERM, or a
 //! [`ControlKind::Shutdown`], stop it cleanly (exit code 130).
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, VecDeque};
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -66,6 +75,7 @@ use std::time::{Duration, Instant};
 use clap::{Args, ValueEnum};
 use iceoryx2::prelude::*;
 use planner::process::load_scenario;
+use protocol::checkpoint::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::transport::{Link, TopicPublisher, WaitMode, wait_any};
@@ -74,7 +84,7 @@ use protocol::{
     TopicSubscriber, Truth, now_ns,
 };
 
-use crate::World;
+use crate::{Snapshot, World};
 
 /// The role name (node name suffix, `uavloc process emitter-sim`).
 pub const ROLE: &str = "emitter-sim";
@@ -202,6 +212,11 @@ pub struct EmitterSimArgs {
     /// 10 s interval takes 0.1 s at --time-scale 100). Ignored in lock-step mode.
     #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
     pub time_scale: f64,
+    /// Checkpoint file: a world snapshot is written there every 256 steps, and a start that finds it (a
+    /// restart in the same run) flies on from the oldest snapshot kept instead of from step 0. Remove it
+    /// before a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -241,8 +256,18 @@ pub struct EmitterSummary {
     pub replays: u64,
     /// Replays because a step's command was late.
     pub retries: u64,
+    /// The step this instance started from (0, or a checkpoint's snapshot after a restart).
+    pub started_at: u64,
     /// CPU time this process used, seconds.
     pub cpu_s: f64,
+}
+
+/// What emitter-sim writes to its `--checkpoint` file: the last world snapshots (oldest first), each with
+/// whether the command of the step before it was missed.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Saved {
+    /// At most [`EMITTER_SNAPSHOTS`], one every [`checkpoint::CHECKPOINT_EVERY`] steps.
+    pub snapshots: Vec<(Snapshot, bool)>,
 }
 
 fn announce(supervised: bool, line: &str) {
@@ -296,8 +321,10 @@ struct Sim<'a> {
     counter: RejectionCounter,
     last_seq: Option<u64>,
     seq: u64,
-    /// The truth and measurement of every step published so far, as first published.
-    sent: Vec<(Truth, Measurement)>,
+    /// The truth and measurement of the last [`HISTORY_STEPS`] steps published, as first published.
+    sent: VecDeque<(Truth, Measurement)>,
+    /// The step of `sent[0]`.
+    sent_base: u64,
     /// The command applied for the step being waited for, with its receive time.
     applied: Option<(Command, u64)>,
     /// The first step a process that joined asked to see again.
@@ -319,9 +346,41 @@ impl Sim<'_> {
         Ok(())
     }
 
+    /// Keeps the first publication of a step for replays (forgetting the oldest beyond the history).
+    fn keep(&mut self, truth: Truth, measurement: Measurement) {
+        // Forget first, then add: the ring never outgrows its capacity (a growing VecDeque would double its
+        // buffer and touch new pages for another 4096 steps).
+        if self.sent.len() as u64 >= HISTORY_STEPS {
+            self.sent.pop_front();
+            self.sent_base += 1;
+        }
+        self.sent.push_back((truth, measurement));
+        if let Some(&first) = self.missed.first()
+            && first < self.sent_base
+        {
+            self.missed = self.missed.split_off(&self.sent_base);
+        }
+    }
+
+    /// An error unless step `from` is still kept for replays.
+    fn check_kept(&self, from: u64, who: &str) -> Result<(), ProcessError> {
+        if from < self.sent_base {
+            return Err(ProcessError::Failed(format!(
+                "{who} asked for a replay from step {from}, but only steps {}..={} are kept (the last {HISTORY_STEPS}); \
+                 a process restarted without its --checkpoint cannot rejoin a run this long",
+                self.sent_base,
+                self.sent_base + self.sent.len() as u64 - 1
+            )));
+        }
+        Ok(())
+    }
+
     /// Publishes step `j` again (new sequence number, no stamps: its latencies mean nothing).
     fn send_again(&mut self, j: u64) -> Result<(), ProcessError> {
-        let (mut truth, mut measurement) = self.sent[j as usize];
+        let i = j.checked_sub(self.sent_base).filter(|i| (*i as usize) < self.sent.len()).ok_or_else(|| {
+            ProcessError::Failed(format!("step {j} is not kept for a replay (kept: from step {})", self.sent_base))
+        })?;
+        let (mut truth, mut measurement) = self.sent[i as usize];
         truth.header.stamps = Stamps::default();
         measurement.header.stamps = Stamps::default();
         self.send(truth, measurement)
@@ -375,6 +434,12 @@ impl Sim<'_> {
                 Some(ControlKind::Shutdown) => return Err(ProcessError::Interrupted),
                 Some(ControlKind::Hello) if matches!(c.role(), Some("estimator" | "planner" | "monitor")) => {
                     let from = c.header.step;
+                    // A request beyond the steps published is for the next step: nothing to replay yet.
+                    let published = self.sent_base + self.sent.len() as u64;
+                    if from >= published {
+                        continue;
+                    }
+                    self.check_kept(from, &format!("a {} (instance {:#x})", c.role().unwrap_or("?"), c.instance))?;
                     if !self.args.quiet {
                         eprintln!(
                             "emitter-sim: a {} joined (instance {:#x}); replaying from step {from}",
@@ -513,9 +578,12 @@ impl Sim<'_> {
                 )));
             }
             if now - published >= retry {
-                eprintln!("emitter-sim: step {k}: no command after {retry:?}; replaying the run from step 0");
+                // From the checkpoint step at or below k: every process can answer from there, also one
+                // restarted from its checkpoint (see protocol::checkpoint).
+                let from = checkpoint::checkpoint_step_at_or_below(k).max(self.sent_base);
+                eprintln!("emitter-sim: step {k}: no command after {retry:?}; replaying the run from step {from}");
                 self.summary.retries += 1;
-                self.replay_from = Some(0);
+                self.replay_from = Some(from);
             }
             if let Some(from) = self.replay_from.take() {
                 self.summary.replays += 1;
@@ -558,7 +626,31 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     if args.retry_interval_ms == 0 {
         return Err(ProcessError::Input("--retry-interval-ms must be > 0".into()));
     }
-    let world = World::from_scenario(&scenario).map_err(|e| ProcessError::Input(format!("scenario: {e}")))?;
+    // A restart in the same run flies on from the oldest snapshot of its checkpoint.
+    let saved = match &args.checkpoint {
+        Some(path) => checkpoint::load::<Saved>(path, ROLE, domain.as_str())
+            .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?,
+        None => None,
+    };
+    let mut snapshots: Vec<(Snapshot, bool)> = saved.map(|s| s.snapshots).unwrap_or_default();
+    // Only a full set goes far enough back for every other process's checkpoint (see protocol::checkpoint).
+    let oldest = snapshots.first().filter(|_| snapshots.len() >= EMITTER_SNAPSHOTS);
+    let (world, start_step, start_missed) = match oldest {
+        Some((snapshot, missed)) => (
+            World::restore(&scenario, snapshot).map_err(|e| {
+                ProcessError::Input(format!("--checkpoint: a snapshot that does not fit the scenario: {e}"))
+            })?,
+            snapshot.step,
+            *missed,
+        ),
+        None => (World::from_scenario(&scenario).map_err(|e| ProcessError::Input(format!("scenario: {e}")))?, 0, false),
+    };
+    if start_step > scenario.steps as u64 {
+        return Err(ProcessError::Input(format!(
+            "--checkpoint: its snapshot is of step {start_step}, beyond the run's {} steps",
+            scenario.steps
+        )));
+    }
     let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the run cleanly.
     if link.interrupted() {
@@ -579,6 +671,9 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     wait_for_pipeline(&link, &measurements, &commands, &domain, args)?;
     control.send(ControlKind::Hello, 0, "")?;
     announce(args.supervised, "ready");
+    if !args.quiet && start_step > 0 {
+        eprintln!("emitter-sim: resumed from the checkpoint's snapshot of step {start_step}");
+    }
     if !args.quiet {
         let pace = match interval {
             None => "lock-step".to_string(),
@@ -603,13 +698,19 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         commands: &commands,
         control: &control,
         world,
-        summary: EmitterSummary { role: ROLE, mode: args.mode.name(), ..EmitterSummary::default() },
+        summary: EmitterSummary {
+            role: ROLE,
+            mode: args.mode.name(),
+            started_at: start_step,
+            ..EmitterSummary::default()
+        },
         counter: RejectionCounter::new(),
         last_seq: None,
         // Sequence numbers start at the monotonic clock: a restarted emitter-sim continues above its
         // predecessor.
         seq: now_ns(),
-        sent: Vec::new(),
+        sent: VecDeque::with_capacity(HISTORY_STEPS as usize),
+        sent_base: start_step,
         applied: None,
         replay_from: None,
         replay_next: None,
@@ -621,15 +722,21 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let sigmas = scenario.range_sigmas();
     let truth = sim.world.truth();
     let mut trigger: Option<(Command, u64)> = None;
-    let mut previous = CommandOutcome::None;
+    let mut previous = match (start_step, start_missed) {
+        (0, _) => CommandOutcome::None,
+        (_, false) => CommandOutcome::Flown,
+        (_, true) => CommandOutcome::Missed,
+    };
     let step_delay = Duration::from_millis(args.step_delay_ms);
-    // Real-time mode: step k is due at t0 + k·interval, t0 the publication of step 0.
+    // Real-time mode: step k is due at t0 + (k − k0)·interval, t0 the publication of the first step k0.
     let mut t0: Option<Instant> = None;
-    let due = |t0: Instant, k: u64| t0 + interval.unwrap_or_default().mul_f64(k as f64);
-    for k in 0..=scenario.steps as u64 {
-        if interval.is_none() && k > 0 && !step_delay.is_zero() && link.sleep(step_delay).is_err() {
+    let due = |t0: Instant, k: u64| t0 + interval.unwrap_or_default().mul_f64((k - start_step) as f64);
+    for k in start_step..=scenario.steps as u64 {
+        if interval.is_none() && k > start_step && !step_delay.is_zero() && link.sleep(step_delay).is_err() {
             return Err(ProcessError::Interrupted);
         }
+        let before = (args.checkpoint.is_some() && checkpoint::is_checkpoint_step(k))
+            .then(|| (sim.world.snapshot(), previous == CommandOutcome::Missed));
         let meas = sim.world.measure().map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
         let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
         let mut message = Measurement::new(k, 0, &uavs, meas.range_diffs.as_slice(), &sigmas, sim.world.headings())
@@ -640,7 +747,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             // The monitor learns from the truth when the previous step's command reached the world.
             truth = truth.carrying(cmd, *received_ns);
         }
-        sim.sent.push((truth, message));
+        sim.keep(truth, message);
         if interval.is_some() {
             let now = Instant::now();
             let start = *t0.get_or_insert(now);
@@ -679,6 +786,18 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             },
         }
         sim.summary.steps += 1;
+        // The world before a checkpoint step, once its command came back (the estimator and the planner
+        // have checkpointed the step by then).
+        if let (Some(path), Some(snapshot)) = (&args.checkpoint, before)
+            && previous == CommandOutcome::Flown
+            && snapshots.last().is_none_or(|(s, _)| s.step < snapshot.0.step)
+        {
+            checkpoint::push_kept(&mut snapshots, snapshot, EMITTER_SNAPSHOTS);
+            let saved = Saved { snapshots: snapshots.clone() };
+            if let Err(e) = checkpoint::save(path, ROLE, domain.as_str(), &saved) {
+                eprintln!("emitter-sim: {e}");
+            }
+        }
     }
     let mut summary = sim.summary;
     if !args.quiet {

@@ -18,6 +18,13 @@
 //!   the same scenario from step 0) gets the same estimate again, without touching the state
 //!   (`resent`). A measurement of a known step with other content is a new run (at step 0) or out of
 //!   chain.
+//! - With `--checkpoint FILE` it writes its state (the last step estimated and the previous estimate) to
+//!   FILE every [`checkpoint::CHECKPOINT_EVERY`] steps, right before it estimates such a step; started
+//!   again with the same FILE (a restart) it resumes from it and asks for the replay from that step
+//!   instead of step 0 (see [`protocol::checkpoint`]). It keeps its last checkpoints and rewinds to one
+//!   when the world was rewound there (a restarted emitter-sim re-publishing a checkpoint step it has no
+//!   answer for). Answers are kept for the last [`MAX_CACHED_STEPS`] steps, so
+//!   its memory does not grow with the run.
 //! - When Chan fails the library keeps its previous estimate; on the wire that is a `failed` estimate
 //!   (no position), and the receivers fall back to the last usable one they saw — the same numbers.
 //! - Invalid measurements are counted (per rejection kind) and ignored.
@@ -34,11 +41,13 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write as _;
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Args;
 use nalgebra::Vector2;
+use protocol::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
@@ -77,6 +86,11 @@ pub struct EstimatorArgs {
     /// Take over from the running estimator at the next step (see `uavloc swap estimator`).
     #[arg(long)]
     pub takeover: bool,
+    /// Checkpoint file: the state is written there every 256 steps, and a start that finds it (a restart
+    /// in the same run) resumes from it instead of having the run replayed from step 0. Remove it before
+    /// a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -114,8 +128,17 @@ pub struct EstimatorSummary {
     pub cpu_s: f64,
 }
 
-/// Steps whose answers are kept (the oldest is forgotten beyond).
-pub const MAX_CACHED_STEPS: usize = 1 << 16;
+/// Steps whose answers are kept (the oldest is forgotten beyond): emitter-sim's replay history.
+pub const MAX_CACHED_STEPS: usize = HISTORY_STEPS as usize;
+
+/// What the estimator writes to its `--checkpoint` file.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Checkpoint {
+    /// The last step estimated.
+    pub step: u64,
+    /// The previous usable estimate (metres) and its covariance (m²), the prior of the next solve.
+    pub previous: Option<([f64; 2], [[f64; 2]; 2])>,
+}
 
 /// The content of a measurement (everything but header and stamps), bit for bit.
 fn content_key(m: &Measurement) -> Vec<u64> {
@@ -124,12 +147,14 @@ fn content_key(m: &Measurement) -> Vec<u64> {
     key
 }
 
-/// The estimator's per-run state: the library estimator, the last step estimated and each step's answer.
+/// The estimator's per-run state: the library estimator, the last step estimated, each step's answer and
+/// the last checkpoints (the state before each checkpoint step).
 #[derive(Debug, Default)]
 pub struct StepEstimator {
     estimator: Estimator,
     last_step: Option<u64>,
     answers: BTreeMap<u64, (Vec<u64>, Fix)>,
+    checkpoints: Vec<Checkpoint>,
 }
 
 /// What [`StepEstimator::handle`] did with a measurement.
@@ -160,12 +185,51 @@ impl StepEstimator {
             ),
             last_step: Some(step),
             answers: BTreeMap::new(),
+            checkpoints: Vec::new(),
         }
     }
 
     /// The last step estimated.
     pub fn last_step(&self) -> Option<u64> {
         self.last_step
+    }
+
+    /// The state to checkpoint (`None` before the first step).
+    pub fn checkpoint(&self) -> Option<Checkpoint> {
+        let step = self.last_step?;
+        let previous =
+            self.estimator.previous().map(|(p, c)| ([p.x, p.y], [[c[(0, 0)], c[(0, 1)]], [c[(1, 0)], c[(1, 1)]]]));
+        Some(Checkpoint { step, previous })
+    }
+
+    /// The state a checkpoint was written from (no answers kept: a replay from `step + 1` follows).
+    pub fn from_checkpoint(c: &Checkpoint) -> Self {
+        match c.previous {
+            Some((position, covariance)) => Self::resume(c.step, position, covariance),
+            None => Self { last_step: Some(c.step), ..Self::default() },
+        }
+    }
+
+    /// The state of the newest of `kept` checkpoints (oldest first), keeping them all as rewind points.
+    pub fn from_checkpoints(kept: Vec<Checkpoint>) -> Self {
+        let mut s = kept.last().map_or_else(Self::new, Self::from_checkpoint);
+        s.checkpoints = kept;
+        s
+    }
+
+    /// The checkpoints kept, oldest first.
+    pub fn checkpoints(&self) -> &[Checkpoint] {
+        &self.checkpoints
+    }
+
+    /// Records the current state as a checkpoint (kept among the last [`PROCESS_CHECKPOINTS`]); `false`
+    /// before the first step.
+    pub fn take_checkpoint(&mut self) -> bool {
+        let Some(c) = self.checkpoint() else { return false };
+        if self.checkpoints.last() != Some(&c) {
+            checkpoint::push_kept(&mut self.checkpoints, c, PROCESS_CHECKPOINTS);
+        }
+        true
     }
 
     /// The answer to a (validated) measurement; see the module docs.
@@ -180,7 +244,17 @@ impl StepEstimator {
         if step == 0 {
             *self = Self::new(); // a new run
         } else if self.last_step.is_none_or(|last| step != last + 1) {
-            return Answer::OutOfChain;
+            // A checkpoint step we have the state before, but no answer for: the world was rewound there.
+            match self.checkpoints.iter().rev().find(|c| c.step + 1 == step).copied() {
+                Some(c) if self.last_step.is_some_and(|last| step <= last) => {
+                    let kept = std::mem::take(&mut self.checkpoints);
+                    let answers = std::mem::take(&mut self.answers);
+                    *self = Self::from_checkpoint(&c);
+                    self.checkpoints = kept;
+                    self.answers = answers;
+                }
+                _ => return Answer::OutOfChain,
+            }
         }
         let fix = estimate_measurement(&mut self.estimator, m);
         self.last_step = Some(step);
@@ -248,21 +322,33 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     if let Some(p) = &predecessor {
         guards.push(waitset.attach_notification(p).map_err(attach_failed)?);
     }
+    // A restart in the same run resumes from its checkpoint.
+    let kept = match (&args.checkpoint, args.takeover) {
+        (Some(path), false) => checkpoint::load::<Vec<Checkpoint>>(path, ROLE, domain.as_str())
+            .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?
+            .unwrap_or_default(),
+        _ => Vec::new(),
+    };
+    let resumed = kept.last().copied();
+    let mut state = StepEstimator::from_checkpoints(kept);
     if !args.takeover {
-        // "Replay the run from step 0 for me" (a no-op at the start of a launch: emitter-sim is not there).
-        control.send(ControlKind::Hello, 0, "")?;
+        // "Replay the run for me from the step after my checkpoint, else from step 0" (a no-op at the start
+        // of a launch: emitter-sim is not there).
+        control.send(ControlKind::Hello, resumed.map_or(0, |c| c.step + 1), "")?;
     }
     let mut summary = EstimatorSummary { role: ROLE, instance, ..EstimatorSummary::default() };
     announce(args.supervised, "ready");
     if !args.quiet {
         eprintln!("estimator: domain {domain}, instance {instance:#x}");
+        if let Some(c) = &resumed {
+            eprintln!("estimator: resumed from the checkpoint of step {}", c.step);
+        }
     }
 
     let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
     let mut counter = RejectionCounter::new();
     let mut last_seq = None;
     let mut seq = now_ns();
-    let mut state = StepEstimator::new();
     // The swap: the step a newer estimator takes over from (this one stops before it), and with
     // --takeover the step this one takes over from.
     let mut handover: Option<u64> = None;
@@ -348,6 +434,15 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
             if args.takeover && from_step.is_none() {
                 continue; // the running estimator's step
             }
+            // The checkpoint (the state before a checkpoint step) goes out before the step's estimate.
+            if let Some(path) = &args.checkpoint
+                && checkpoint::is_checkpoint_step(step)
+                && state.last_step() == Some(step - 1)
+                && state.take_checkpoint()
+                && let Err(e) = checkpoint::save(path, ROLE, domain.as_str(), &state.checkpoints())
+            {
+                eprintln!("estimator: {e}");
+            }
             let fix = match state.handle(&m) {
                 Answer::New(fix) => fix,
                 Answer::Again(fix) => {
@@ -368,6 +463,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
                 summary.failed += 1;
                 eprintln!("estimator: step {step}: no fix (the previous estimate stands)");
             }
+
             seq += 1;
             let estimate = Estimate::from_measurement(&m, received_ns, seq, instance, fix)
                 .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;

@@ -100,6 +100,8 @@ pub struct Assembler {
     pending: BTreeMap<u64, Pending>,
     usable: Option<([f64; 2], [[f64; 2]; 2])>,
     steps: Vec<StepRecord>,
+    /// Whether completed records are kept in `steps` (else the caller keeps them, e.g. in a log).
+    keep: bool,
     emitter: Option<[f64; 2]>,
     names: Option<(String, String)>,
     ignored: u64,
@@ -114,6 +116,7 @@ impl Assembler {
             pending: BTreeMap::new(),
             usable: None,
             steps: Vec::new(),
+            keep: true,
             emitter: None,
             names: None,
             ignored: 0,
@@ -135,13 +138,39 @@ impl Assembler {
         }
         let mut a = Self::new(scenario);
         a.next = steps.len() as u64;
-        a.usable = steps
-            .last()
-            .filter(|s| s.estimate.iter().chain(s.estimate_cov.iter().flatten()).all(|v| v.is_finite()))
-            .map(|s| (s.estimate, s.estimate_cov));
+        a.usable = steps.last().and_then(usable_of);
         a.emitter = emitter;
         a.names = names;
         a.steps = steps;
+        Some(a)
+    }
+
+    /// The same assembler, but it does not keep the completed records (its memory then does not grow with
+    /// the run): [`record`](Self::record) has no steps, the caller keeps them (the monitor's log).
+    pub fn forgetting(mut self) -> Self {
+        self.keep = false;
+        self.steps = Vec::new();
+        self
+    }
+
+    /// Like [`resume`](Self::resume) for an assembler that does not keep records ([`forgetting`](Self::forgetting)):
+    /// steps `0..next` are recorded elsewhere, `last` is the record of step `next − 1` (`None` when
+    /// `next` is 0). `None` if `last` is not that step or `next` is beyond the run.
+    pub fn resume_forgetting(
+        scenario: Scenario,
+        next: u64,
+        last: Option<&StepRecord>,
+        emitter: Option<[f64; 2]>,
+        names: Option<(String, String)>,
+    ) -> Option<Self> {
+        if next > scenario.steps as u64 + 1 || last.map(|s| s.step + 1).unwrap_or(0) != next {
+            return None;
+        }
+        let mut a = Self::new(scenario).forgetting();
+        a.next = next;
+        a.usable = last.and_then(usable_of);
+        a.emitter = emitter;
+        a.names = names;
         Some(a)
     }
 
@@ -325,7 +354,9 @@ impl Assembler {
             None => e.header.stamps.latencies(),
         };
         let error_m = (position[0] - truth.x).hypot(position[1] - truth.y);
-        self.steps.push(record.clone());
+        if self.keep {
+            self.steps.push(record.clone());
+        }
         let held = c.is_some_and(Command::is_hold);
         CompletedStep {
             record,
@@ -352,6 +383,16 @@ impl Assembler {
             steps: self.steps.clone(),
         }
     }
+}
+
+/// The usable estimate a record leaves behind (a failed step records the previous usable one; none
+/// before the first).
+fn usable_of(s: &StepRecord) -> Option<([f64; 2], [[f64; 2]; 2])> {
+    s.estimate
+        .iter()
+        .chain(s.estimate_cov.iter().flatten())
+        .all(|v| v.is_finite())
+        .then_some((s.estimate, s.estimate_cov))
 }
 
 #[cfg(test)]
@@ -487,8 +528,19 @@ mod tests {
             // A failed last estimate: both fall back on step 0's.
             x.add_estimate(estimate(2, Fix::Failed));
         }
-        assert_eq!(a.complete_ready(), b.complete_ready());
+        let mut c =
+            Assembler::resume_forgetting(scenario(2), 2, records.last(), Some([25000.0, 15000.0]), names.clone())
+                .unwrap();
+        c.add_measurement(measurement(2));
+        c.add_truth(flown(2));
+        c.add_estimate(estimate(2, Fix::Failed));
+        let from_b = b.complete_ready();
+        assert_eq!(a.complete_ready(), from_b);
+        assert_eq!(c.complete_ready(), from_b, "a forgetting assembler completes the same steps");
         assert_eq!(a.record(), b.record());
+        assert!(c.record().steps.is_empty(), "and keeps none");
+        assert!(Assembler::resume_forgetting(scenario(2), 2, records.first(), None, None).is_none(), "not step 1");
+        assert!(Assembler::resume_forgetting(scenario(2), 9, None, None, None).is_none());
         let mut gap = records;
         gap.remove(0);
         assert!(Assembler::resume(scenario(2), gap, None, names).is_none(), "steps must start at 0");

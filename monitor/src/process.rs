@@ -50,7 +50,9 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Args;
+use hdrhistogram::Histogram;
 use planner::process::load_scenario;
+use protocol::checkpoint::checkpoint_step_at_or_below;
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::transport::wait_any;
@@ -150,13 +152,11 @@ pub struct LatencyStat {
 }
 
 impl LatencyStat {
-    fn of(samples_ns: &[u64]) -> Option<Self> {
-        if samples_ns.is_empty() {
+    fn of(h: &Histogram<u64>) -> Option<Self> {
+        if h.is_empty() {
             return None;
         }
-        let mut v = samples_ns.to_vec();
-        v.sort_unstable();
-        Some(Self { p50_us: v[v.len() / 2] as f64 / 1e3, max_us: v[v.len() - 1] as f64 / 1e3, n: v.len() })
+        Some(Self { p50_us: h.value_at_quantile(0.5) as f64 / 1e3, max_us: h.max() as f64 / 1e3, n: h.len() as usize })
     }
 }
 
@@ -176,13 +176,23 @@ pub struct LatencySummary {
     pub cycle: Option<LatencyStat>,
 }
 
-#[derive(Debug, Default)]
+/// The latencies of the planned steps, in histograms of fixed size (the memory does not grow with the run;
+/// a median is known to 0.1 %, the maximum exactly).
+#[derive(Debug)]
 struct LatencySamples {
-    command_hop: Vec<u64>,
-    measurement_hop: Vec<u64>,
-    estimate_hop: Vec<u64>,
-    end_to_end: Vec<u64>,
-    cycle: Vec<u64>,
+    command_hop: Histogram<u64>,
+    measurement_hop: Histogram<u64>,
+    estimate_hop: Histogram<u64>,
+    end_to_end: Histogram<u64>,
+    cycle: Histogram<u64>,
+}
+
+impl Default for LatencySamples {
+    fn default() -> Self {
+        // 3 significant figures; values beyond the initial range grow the histogram (to at most 64 bits).
+        let h = || Histogram::<u64>::new(3).expect("3 significant figures are valid");
+        Self { command_hop: h(), measurement_hop: h(), estimate_hop: h(), end_to_end: h(), cycle: h() }
+    }
 }
 
 impl LatencySamples {
@@ -194,7 +204,9 @@ impl LatencySamples {
             (l.end_to_end_ns, &mut self.end_to_end),
             (l.cycle_ns, &mut self.cycle),
         ] {
-            s.extend(v);
+            if let Some(ns) = v {
+                s.saturating_record(ns);
+            }
         }
     }
 
@@ -270,7 +282,11 @@ impl EventLog {
 /// What a monitor's log says about a run.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct LoggedRun {
-    /// The step records, in order from step 0 (up to the first gap).
+    /// How many steps are recorded, in order from step 0 (up to the first gap).
+    pub count: u64,
+    /// The record of the last of them.
+    pub last: Option<StepRecord>,
+    /// All of them (when asked for; else empty).
     pub steps: Vec<StepRecord>,
     /// The true emitter.
     pub truth: Option<[f64; 2]>,
@@ -278,19 +294,24 @@ pub struct LoggedRun {
     pub names: Option<(String, String)>,
 }
 
-/// Reads a monitor's log back; lines that do not parse are skipped (e.g. the last one of a killed
-/// monitor).
-pub fn read_log(path: &Path) -> LoggedRun {
-    let text = std::fs::read_to_string(path).unwrap_or_default();
-    let mut steps: Vec<StepRecord> = Vec::new();
+/// Reads a monitor's log back, line by line (a missing file is an empty log); lines that do not parse are
+/// skipped (e.g. the last one of a killed monitor). The step records are kept only with `keep_steps`.
+pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
+    use std::io::BufRead as _;
+    let mut run = LoggedRun::default();
+    let Ok(file) = File::open(path) else { return run };
     let (mut truth, mut names) = (None, None);
-    for line in text.lines() {
-        let Ok(e) = serde_json::from_str::<serde_json::Value>(line) else { continue };
+    for line in std::io::BufReader::new(file).lines() {
+        let Ok(line) = line else { break };
+        if !line.contains("\"event\":\"step\"") {
+            continue;
+        }
+        let Ok(e) = serde_json::from_str::<serde_json::Value>(&line) else { continue };
         if e["event"] != "step" {
             continue;
         }
         let Ok(record) = serde_json::from_value::<StepRecord>(e["record"].clone()) else { continue };
-        if record.step != steps.len() as u64 {
+        if record.step != run.count {
             continue; // a duplicate, or a gap: keep the steps from 0 without gaps
         }
         if truth.is_none() {
@@ -302,9 +323,13 @@ pub fn read_log(path: &Path) -> LoggedRun {
         {
             names = Some((objective.to_string(), solver.to_string()));
         }
-        steps.push(record);
+        run.count += 1;
+        if keep_steps {
+            run.steps.push(record.clone());
+        }
+        run.last = Some(record);
     }
-    LoggedRun { steps, truth, names }
+    LoggedRun { truth, names, ..run }
 }
 
 fn us(ns: Option<u64>) -> Option<f64> {
@@ -597,17 +622,18 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let scenario = load_scenario(args.scenario.as_deref(), args.steps, args.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
-    // A restart takes the steps its predecessor logged.
+    // With a log, the step records live there, not in memory (read back at the end); a restart takes the
+    // steps its predecessor logged.
     let (assembler, resumed) = match (&args.log, args.resume) {
         (Some(path), true) => {
-            let LoggedRun { steps, truth, names } = read_log(path);
-            let n = steps.len();
-            match Assembler::resume(scenario.clone(), steps, truth, names) {
-                Some(a) => (a, Some(n)),
-                None => (Assembler::new(scenario.clone()), Some(0)),
+            let LoggedRun { count, last, truth, names, .. } = read_log(path, false);
+            match Assembler::resume_forgetting(scenario.clone(), count, last.as_ref(), truth, names) {
+                Some(a) => (a, Some(count)),
+                None => (Assembler::new(scenario.clone()).forgetting(), Some(0)),
             }
         }
-        _ => (Assembler::new(scenario.clone()), None),
+        (Some(_), false) => (Assembler::new(scenario.clone()).forgetting(), None),
+        (None, _) => (Assembler::new(scenario.clone()), None),
     };
     let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
     let stamps = args.stamps.as_deref().map(StampsCsv::create).transpose()?;
@@ -651,7 +677,9 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         Some(n) => state.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
     }
     // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
-    control.send(ControlKind::Hello, state.assembler.next_step(), "")?;
+    // (From the checkpoint step at or below it: the estimator and planner can answer from there even when
+    // they were restarted; see protocol::checkpoint.)
+    control.send(ControlKind::Hello, checkpoint_step_at_or_below(state.assembler.next_step()), "")?;
     announce(args.supervised, "ready");
     if !args.quiet {
         match resumed {
@@ -698,14 +726,26 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             if !args.quiet {
                 eprintln!("monitor: a message of step {next} was lost (step {newest} is in); asking for a replay");
             }
-            control.send(ControlKind::Hello, next, "lost")?;
+            control.send(ControlKind::Hello, checkpoint_step_at_or_below(next), "lost")?;
         }
         if !interrupted {
             interrupted = link.interrupted();
         }
     }
 
-    let run = state.assembler.record();
+    let mut run = state.assembler.record();
+    if let Some(path) = &args.log {
+        // The records are in the log (this instance's and its predecessors').
+        run.steps = read_log(path, true).steps;
+        if run.steps.len() as u64 != state.assembler.next_step() {
+            return Err(ProcessError::Failed(format!(
+                "--log {}: {} steps recorded, but the log has {} of them (was it changed during the run?)",
+                path.display(),
+                state.assembler.next_step(),
+                run.steps.len()
+            )));
+        }
+    }
     let summary = MonitorSummary {
         role: ROLE,
         complete: state.assembler.is_done(),

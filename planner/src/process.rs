@@ -15,6 +15,12 @@
 //!   step, so a restarted planner — which announces itself on the control topic
 //!   ([`ControlKind::Hello`], from step 0) and gets the run replayed — plans exactly what its
 //!   predecessor would have.
+//! - With `--checkpoint FILE` it writes its state (the last usable estimate) to FILE every
+//!   [`checkpoint::CHECKPOINT_EVERY`] steps, before publishing that step's command; started again with
+//!   the same FILE (a restart) it resumes from it and asks for the replay from that step (planned again
+//!   from the same inputs: the same command) instead of step 0. It keeps its last checkpoints and takes
+//!   one up again when the world was rewound to its step (a restarted emitter-sim) (see [`protocol::checkpoint`]). Commands are kept for the last [`MAX_CACHED_STEPS`] steps, so
+//!   its memory does not grow with the run.
 //! - Only `target = "chan"` is supported: `controlled` mode needs the true emitter, which the pipeline
 //!   never shows the planner (use `uavloc simulate` for it).
 //! - Invalid estimates are counted (per rejection kind) and ignored.
@@ -50,6 +56,7 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 use nalgebra::{Matrix2, Vector2};
+use protocol::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
@@ -111,6 +118,11 @@ pub struct PlannerArgs {
     /// Take over from the running planner at the next step (see `uavloc swap planner`).
     #[arg(long)]
     pub takeover: bool,
+    /// Checkpoint file: the state is written there every 256 steps, and a start that finds it (a restart
+    /// in the same run) resumes from it instead of having the run replayed from step 0. Remove it before
+    /// a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
     /// Staleness deadline: when a step's estimate has not arrived this many milliseconds after its
     /// measurement, hold course (command the current headings, flagged as a hold; the monitor shows
     /// `estimate_stale`). 0: no deadline (wait for every estimate; what lock-step reproductions need).
@@ -181,8 +193,27 @@ pub struct PlannerSummary {
     pub cpu_s: f64,
 }
 
-/// Steps whose commands are kept (the oldest is forgotten beyond).
-pub const MAX_CACHED_STEPS: usize = 1 << 16;
+/// Steps whose commands are kept (the oldest is forgotten beyond): emitter-sim's replay history.
+pub const MAX_CACHED_STEPS: usize = HISTORY_STEPS as usize;
+
+/// What the planner writes to its `--checkpoint` file.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Checkpoint {
+    /// The step it was written at (a restart asks for the replay from it and plans it again).
+    pub step: u64,
+    /// The last usable estimate (metres) and its covariance (m²) after that step's estimate.
+    pub usable: Option<([f64; 2], [[f64; 2]; 2])>,
+}
+
+fn to_wire(u: &(Vector2<f64>, Matrix2<f64>)) -> ([f64; 2], [[f64; 2]; 2]) {
+    let (z, m) = u;
+    ([z.x, z.y], [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]])
+}
+
+fn from_wire(u: &([f64; 2], [[f64; 2]; 2])) -> (Vector2<f64>, Matrix2<f64>) {
+    let (z, c) = u;
+    (Vector2::new(z[0], z[1]), Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]))
+}
 
 /// Everything a plan depends on besides the step (the estimate's geometry, status, ẑ and M, and the usable
 /// estimate it plans from), bit for bit.
@@ -251,9 +282,18 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         guards.push(waitset.attach_notification(m).map_err(attach_failed)?);
     }
     let detail = format!("{}/{}", args.solver.name(), args.objective.name());
+    // A restart in the same run resumes from its checkpoint.
+    let mut kept = match (&args.checkpoint, args.takeover) {
+        (Some(path), false) => checkpoint::load::<Vec<Checkpoint>>(path, ROLE, domain.as_str())
+            .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?
+            .unwrap_or_default(),
+        _ => Vec::new(),
+    };
+    let resumed = kept.last().copied();
     if !args.takeover {
-        // "Replay the run from step 0 for me" (a no-op at the start of a launch: emitter-sim is not there).
-        control.send(ControlKind::Hello, 0, &detail)?;
+        // "Replay the run for me from my checkpoint's step, else from step 0" (a no-op at the start of a
+        // launch: emitter-sim is not there).
+        control.send(ControlKind::Hello, resumed.map_or(0, |c| c.step), &detail)?;
     }
     let mut summary = PlannerSummary { role: ROLE, instance, ..PlannerSummary::default() };
     announce(args.supervised, "ready");
@@ -265,6 +305,9 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
             scenario.steps,
             scenario.seed
         );
+        if let Some(c) = &resumed {
+            eprintln!("planner: resumed from the checkpoint of step {}", c.step);
+        }
     }
 
     let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
@@ -272,7 +315,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let mut last_seq = None;
     // Sequence numbers start at the monotonic clock: a restarted planner continues above its predecessor.
     let mut seq = now_ns();
-    let mut usable: Option<(Vector2<f64>, Matrix2<f64>)> = None;
+    let mut usable: Option<(Vector2<f64>, Matrix2<f64>)> = resumed.and_then(|c| c.usable.as_ref().map(from_wire));
     let mut answers: BTreeMap<u64, (Vec<u64>, Command)> = BTreeMap::new();
     // The swap: the step a newer planner takes over from (this one stops before it), and with
     // --takeover the step this one takes over from (and how often the step before it was seen).
@@ -360,6 +403,13 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                     Vector2::new(est.position[0], est.position[1]),
                     Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]),
                 ));
+            }
+            // A checkpoint step planned before: whatever came since (e.g. a replay from further back), the
+            // last usable estimate after it is the one checkpointed — the world may have been rewound there.
+            if last_planned.is_some_and(|l| step <= l)
+                && let Some(c) = kept.iter().find(|c| c.step == step)
+            {
+                usable = c.usable.as_ref().map(from_wire);
             }
             if let Some(f) = handover
                 && step >= f
@@ -477,6 +527,17 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 },
             )
             .map_err(|e| ProcessError::Failed(format!("step {step}: command: {e}")))?;
+            // The checkpoint goes out before the answer that depends on it.
+            if let Some(path) = &args.checkpoint
+                && checkpoint::is_checkpoint_step(step)
+                && kept.last().is_none_or(|c| c.step < step)
+            {
+                let state = Checkpoint { step, usable: usable.as_ref().map(to_wire) };
+                checkpoint::push_kept(&mut kept, state, PROCESS_CHECKPOINTS);
+                if let Err(e) = checkpoint::save(path, ROLE, domain.as_str(), &kept) {
+                    eprintln!("planner: {e}");
+                }
+            }
             commands.send(&command)?;
             summary.published += 1;
             last_planned = last_planned.max(Some(step));

@@ -19,6 +19,7 @@
 //! Conventions follow `uavloc-tdoa`: 2-D positions in metres, angles in radians, `uavs[0]` is the reference
 //! UAV, range differences `d_i = r_i − r_0` for i = 1..N−1, 3 ≤ N ≤ [`MAX_UAVS`].
 
+pub mod checkpoint;
 pub mod control;
 pub mod messages;
 pub mod process;

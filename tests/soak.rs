@@ -1,0 +1,216 @@
+//! Long runs through the four processes: memory stays flat, nothing is lost, and a crash after the replay
+//! history has wrapped is recovered from the checkpoints (see `protocol::checkpoint`).
+//!
+//! - `soak_flat_memory_and_no_lost_message` (in `cargo test`): 12 000 lock-step steps (≈ 6 s), three
+//!   times the replay history (4 096 steps), RSS of every process sampled at step 5 000 (after the
+//!   history and the answer caches are full) and 100 steps before the end.
+//! - `soak_100k_steps` (`cargo test --release --test soak -- --ignored`): the same over 100 000 steps
+//!   (≈ 1 min on 2 cores; the monitor's log grows to ≈ 170 MB on disk, in the test's scratch directory,
+//!   removed at the end).
+//! - `a_crash_after_the_history_wrapped_resumes_from_the_checkpoints`: 5 000 steps; the estimator, the
+//!   planner, emitter-sim and the monitor are each killed once after step 4 096 — a replay from step 0 is
+//!   impossible then — and the run still equals `uavloc simulate`'s, bit for bit.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, Seek, SeekFrom};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
+use serde_json::Value;
+
+const ROLES: [&str; 4] = ["emitter-sim", "estimator", "planner", "monitor"];
+
+/// Follows the monitor's log without re-reading it: the newest step logged so far.
+struct LogTail {
+    offset: u64,
+    partial: String,
+    newest: Option<u64>,
+}
+
+impl LogTail {
+    fn new() -> Self {
+        Self { offset: 0, partial: String::new(), newest: None }
+    }
+
+    fn poll(&mut self, path: &Path) -> Option<u64> {
+        let Ok(mut f) = std::fs::File::open(path) else { return self.newest };
+        if f.seek(SeekFrom::Start(self.offset)).is_err() {
+            return self.newest;
+        }
+        let mut reader = BufReader::new(f);
+        loop {
+            let mut line = String::new();
+            match reader.read_line(&mut line) {
+                Ok(0) | Err(_) => break,
+                Ok(n) => {
+                    self.offset += n as u64;
+                    if !line.ends_with('\n') {
+                        self.partial.push_str(&line);
+                        break;
+                    }
+                    let whole = std::mem::take(&mut self.partial) + &line;
+                    if whole.contains("\"event\":\"step\"")
+                        && let Ok(e) = serde_json::from_str::<Value>(&whole)
+                        && let Some(k) = e["step"].as_u64()
+                    {
+                        self.newest = self.newest.max(Some(k));
+                    }
+                }
+            }
+        }
+        self.newest
+    }
+
+    /// Waits until step `step` is logged (panics after `timeout` or when the launch ends first).
+    fn wait_for(&mut self, launch: &mut Launch, step: u64, timeout: Duration) {
+        let deadline = Instant::now() + timeout;
+        while self.poll(&launch.log).is_none_or(|n| n < step) {
+            if let Ok(Some(status)) = launch.child.try_wait() {
+                panic!("the launch ended ({status}) before step {step}:\n{}", launch.stderr_text());
+            }
+            assert!(Instant::now() < deadline, "step {step} not logged within {timeout:?}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+/// Resident set size of a process, bytes.
+fn rss_bytes(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("/proc/<pid>/status");
+    let line = status.lines().find(|l| l.starts_with("VmRSS:")).expect("VmRSS");
+    line.split_whitespace().nth(1).and_then(|v| v.parse::<u64>().ok()).expect("VmRSS value") * 1024
+}
+
+fn rss_of_all(d: &str) -> BTreeMap<&'static str, (u32, u64)> {
+    ROLES
+        .iter()
+        .map(|r| {
+            let pid = pid_of(d, r).unwrap_or_else(|| panic!("no {r} of {d}"));
+            (*r, (pid, rss_bytes(pid)))
+        })
+        .collect()
+}
+
+fn summary<'a>(run: &'a Value, role: &str) -> &'a Value {
+    &run["processes"].as_array().unwrap().iter().rev().find(|p| p["role"] == role).unwrap()["summary"]
+}
+
+fn soak(steps: u64, first_sample: u64) {
+    let d = domain("soak", &steps.to_string());
+    let dir = scratch(&format!("soak-{steps}"));
+    let n = steps.to_string();
+    let mut launch = Launch::start(&d, &dir, &["--steps", &n]);
+    let mut tail = LogTail::new();
+    let timeout = Duration::from_secs(60 + steps / 200);
+    tail.wait_for(&mut launch, first_sample, timeout);
+    let start = rss_of_all(&d);
+    tail.wait_for(&mut launch, steps - 100, timeout);
+    let end = rss_of_all(&d);
+    let run = launch.finish_json();
+
+    let mut table = String::new();
+    for r in ROLES {
+        let ((p0, a), (p1, b)) = (start[r], end[r]);
+        assert_eq!(p0, p1, "{r} was restarted");
+        table += &format!(
+            "{r:>12}: RSS {:.1} MiB at step {first_sample}, {:.1} MiB at step {}, {:+.2} %\n",
+            a as f64 / 1048576.0,
+            b as f64 / 1048576.0,
+            steps - 100,
+            100.0 * (b as f64 / a as f64 - 1.0)
+        );
+    }
+    eprintln!("{table}");
+    for r in ROLES {
+        let (a, b) = (start[r].1, end[r].1);
+        assert!(b as f64 <= a as f64 * 1.05, "{r}: RSS grew by more than 5 %:\n{table}");
+    }
+
+    // Every step recorded, nothing lost, nothing replayed or rejected.
+    assert_eq!(run["steps"].as_array().unwrap().len() as u64, steps + 1);
+    assert_eq!((run["restarts"].as_u64(), run["rejected"].as_u64()), (Some(0), Some(0)));
+    let monitor = summary(&run, "monitor");
+    assert_eq!(monitor["complete"], true, "{monitor}");
+    assert_eq!(monitor["missing_messages"].as_u64(), Some(0), "{monitor}");
+    assert_eq!(monitor["replays_requested"].as_u64(), Some(0), "{monitor}");
+    let emitter = summary(&run, "emitter-sim");
+    assert_eq!(emitter["steps"].as_u64(), Some(steps), "{emitter}");
+    assert_eq!((emitter["replays"].as_u64(), emitter["retries"].as_u64()), (Some(0), Some(0)), "{emitter}");
+    let estimator = summary(&run, "estimator");
+    assert_eq!(estimator["published"].as_u64(), Some(steps + 1), "{estimator}");
+    assert_eq!(estimator["out_of_chain"].as_u64(), Some(0), "{estimator}");
+    let planner = summary(&run, "planner");
+    assert_eq!(planner["published"].as_u64(), Some(steps), "{planner}");
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn soak_flat_memory_and_no_lost_message() {
+    soak(12_000, 5_000);
+}
+
+#[test]
+#[ignore = "long: 100 000 steps, about a minute; run with --ignored"]
+fn soak_100k_steps() {
+    soak(100_000, 5_000);
+}
+
+#[test]
+fn a_crash_after_the_history_wrapped_resumes_from_the_checkpoints() {
+    const STEPS: u64 = 5_000;
+    let d = domain("soak", "wrapped");
+    let dir = scratch("soak-wrapped");
+    let n = STEPS.to_string();
+    // Slow enough to kill at chosen steps (≈ 2 ms per step).
+    let mut launch = Launch::start(&d, &dir, &["--steps", &n, "--step-delay-ms", "1"]);
+    let mut tail = LogTail::new();
+    let mut killed = BTreeMap::new();
+    for (role, at) in [("monitor", 4_200), ("estimator", 4_350), ("planner", 4_500), ("emitter-sim", 4_650)] {
+        tail.wait_for(&mut launch, at, Duration::from_secs(120));
+        // The previous victim's successor must be up before the next kill.
+        let deadline = Instant::now() + Duration::from_secs(20);
+        let pid = loop {
+            if let Some(pid) = pid_of(&d, role) {
+                break pid;
+            }
+            assert!(Instant::now() < deadline, "no {role} running");
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        kill(pid, libc::SIGKILL);
+        killed.insert(role, (pid, at));
+    }
+    let stderr_path = launch.stderr.clone();
+    let run = launch.finish_json();
+    let stderr = std::fs::read_to_string(stderr_path).unwrap_or_default();
+    assert_eq!(run["restarts"].as_u64(), Some(4), "{stderr}");
+    for bad in ["AlreadyExists", "already exists", "Incompatible", "incompatible", "error:", "are kept"] {
+        assert!(!stderr.contains(bad), "{bad:?} in:\n{stderr}");
+    }
+    // The restarted estimator and planner asked for a replay from their checkpoint, not from step 0 (which
+    // emitter-sim no longer has), and the restarted emitter-sim flew on from a snapshot.
+    let events = common::read_events(&dir.join("run.jsonl"));
+    for role in ["estimator", "planner"] {
+        let hellos: Vec<u64> = events
+            .iter()
+            .filter(|e| e["event"] == "hello" && e["role"] == role)
+            .filter_map(|e| e["step"].as_u64())
+            .collect();
+        let at = killed[role].1;
+        assert!(hellos.iter().any(|&s| s > 0 && s + 2 * 256 >= at && s <= at + 256), "{role}: hellos {hellos:?}");
+    }
+    let emitter = summary(&run, "emitter-sim");
+    let started = emitter["started_at"].as_u64().unwrap();
+    assert!(started > 0 && started < killed["emitter-sim"].1, "{emitter}");
+    assert_eq!(emitter["steps"].as_u64(), Some(STEPS - started), "{emitter}");
+
+    // And the run is exactly simulate's.
+    let sim = json_of(&["simulate", "--json", "--steps", &n]);
+    assert_same_run(&sim, &run, "wrapped");
+    assert_eq!(run["rejected"].as_u64(), Some(0));
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
