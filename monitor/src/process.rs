@@ -189,8 +189,8 @@ struct LatencySamples {
 
 impl Default for LatencySamples {
     fn default() -> Self {
-        // 3 significant figures; values beyond the initial range grow the histogram (to at most 64 bits).
-        let h = || Histogram::<u64>::new(3).expect("3 significant figures are valid");
+        // 1 ns .. 1 h at 3 significant figures; larger values are clamped to 1 h.
+        let h = || Histogram::<u64>::new_with_bounds(1, 3_600_000_000_000, 3).expect("valid histogram bounds");
         Self { command_hop: h(), measurement_hop: h(), estimate_hop: h(), end_to_end: h(), cycle: h() }
     }
 }
