@@ -77,19 +77,12 @@ impl LogTail {
     }
 }
 
-/// Resident set size of a process, bytes.
-fn rss_bytes(pid: u32) -> u64 {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("/proc/<pid>/status");
-    let line = status.lines().find(|l| l.starts_with("VmRSS:")).expect("VmRSS");
-    line.split_whitespace().nth(1).and_then(|v| v.parse::<u64>().ok()).expect("VmRSS value") * 1024
-}
-
 fn rss_of_all(d: &str) -> BTreeMap<&'static str, (u32, u64)> {
     ROLES
         .iter()
         .map(|r| {
             let pid = pid_of(d, r).unwrap_or_else(|| panic!("no {r} of {d}"));
-            (*r, (pid, rss_bytes(pid)))
+            (*r, (pid, uavloc::bench::sys::rss_bytes(pid).unwrap_or_else(|e| panic!("RSS of {r}: {e}"))))
         })
         .collect()
 }
