@@ -68,7 +68,7 @@ use crate::active_mask;
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError, TargetMode};
 use crate::solver::SolverKind;
-use crate::staleness::{DueStep, Freshness, HoldTracker, hold_plan};
+use crate::staleness::{self, DueStep, Freshness, HoldTracker, hold_plan};
 use crate::step::{PlanRequest, plan_step};
 
 /// The role name (node name suffix, `uavloc process planner`).
@@ -382,7 +382,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 let step = m.header.step;
                 let positions = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
                 let plannable = step < scenario.steps as u64 && !answers.contains_key(&step);
-                t.on_measurement(step, now, positions, m.headings().to_vec(), plannable);
+                t.on_measurement(step, now, positions, m.headings().to_vec(), staleness::fingerprint(&m), plannable);
             }
         }
         let received_ns = now_ns();

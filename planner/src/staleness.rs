@@ -5,7 +5,7 @@
 //!
 //! [`HoldTracker`] is the bookkeeping, a pure state machine over (step, time) events, without any IPC:
 //! - [`HoldTracker::on_measurement`] starts the deadline of a step (only of the newest step: a replayed,
-//!   older measurement starts none);
+//!   older measurement starts none; a step 0 that differs from the first one seen starts a new run);
 //! - [`HoldTracker::on_estimate`] says whether the step's estimate is fresh (its deadline is cancelled) or
 //!   late (the step was held already; the estimate still updates the planner's last usable one, but the
 //!   step is answered with the hold it got);
@@ -45,6 +45,8 @@ pub struct HoldTracker {
     deadline: Duration,
     window: u64,
     newest: Option<u64>,
+    /// The content fingerprint of the step-0 measurement of the current run.
+    first: Option<u64>,
     pending: BTreeMap<u64, (Instant, DueStep)>,
     held: BTreeSet<u64>,
 }
@@ -53,7 +55,14 @@ impl HoldTracker {
     /// A tracker with `deadline` (measurement received → estimate received) that remembers the held steps
     /// of the last `window` steps.
     pub fn new(deadline: Duration, window: u64) -> Self {
-        Self { deadline, window: window.max(1), newest: None, pending: BTreeMap::new(), held: BTreeSet::new() }
+        Self {
+            deadline,
+            window: window.max(1),
+            newest: None,
+            first: None,
+            pending: BTreeMap::new(),
+            held: BTreeSet::new(),
+        }
     }
 
     /// The deadline.
@@ -61,22 +70,31 @@ impl HoldTracker {
         self.deadline
     }
 
-    /// A measurement of `step` (UAVs at `positions`, heading `headings`) was received at `now`. Starts the
-    /// step's deadline if it is the newest step seen and `plannable` (below the run's last step, not
-    /// answered yet); a step 0 starts a new run.
+    /// A measurement of `step` (UAVs at `positions`, heading `headings`; `fingerprint` identifies its
+    /// content, see [`fingerprint`]) was received at `now`. Starts the step's deadline if it is the newest
+    /// step seen and `plannable` (below the run's last step, not answered yet).
+    ///
+    /// A step 0 whose content differs from the first step 0 seen starts a new run (the old deadlines and
+    /// holds are void). The same step 0 again is a replay (a monitor or a restarted process asked for
+    /// one, or a restarted emitter-sim flies the same run again): it starts nothing and keeps the holds,
+    /// which the re-flown steps are answered with.
     pub fn on_measurement(
         &mut self,
         step: u64,
         now: Instant,
         positions: Vec<Vector2<f64>>,
         headings: Vec<f64>,
+        fingerprint: u64,
         plannable: bool,
     ) {
-        if step == 0 && self.newest.is_some_and(|n| n > 0) {
-            // A new run (or a restarted emitter-sim flying from step 0): the old deadlines are void.
-            self.pending.clear();
-            self.held.clear();
-            self.newest = None;
+        if step == 0 {
+            if self.first.is_some_and(|f| f != fingerprint) {
+                // A new run: the old deadlines are void.
+                self.pending.clear();
+                self.held.clear();
+                self.newest = None;
+            }
+            self.first = Some(fingerprint);
         }
         if self.newest.is_some_and(|n| step <= n) {
             return; // a replay of a step seen before
@@ -124,6 +142,17 @@ impl HoldTracker {
     }
 }
 
+/// A fingerprint of a measurement's content (UAV positions, range differences, noise, headings; bit
+/// exact): a replay carries the content of the first publication, so it has the same fingerprint.
+pub fn fingerprint(m: &protocol::Measurement) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for v in m.uavs().iter().flatten().chain(m.diffs()).chain(m.sigmas()).chain(m.headings()) {
+        v.to_bits().hash(&mut h);
+    }
+    h.finish()
+}
+
 /// The headings and waypoints of a hold: every UAV keeps its heading and flies straight on for one
 /// interval (`speed` m/s for `dt` s: the arc kinematics with zero turn, eq. 24).
 pub fn hold_plan(positions: &[Vector2<f64>], headings: &[f64], speed: f64, dt: f64) -> (Vec<f64>, Vec<[f64; 2]>) {
@@ -143,7 +172,7 @@ mod tests {
     use super::*;
 
     fn measure(t: &mut HoldTracker, step: u64, now: Instant) {
-        t.on_measurement(step, now, vec![Vector2::new(step as f64, 0.0)], vec![0.5], true);
+        t.on_measurement(step, now, vec![Vector2::new(step as f64, 0.0)], vec![0.5], 7, true);
     }
 
     #[test]
@@ -182,11 +211,47 @@ mod tests {
         assert_eq!(t.on_estimate(0), Freshness::Fresh);
         assert_eq!(t.on_estimate(1), Freshness::Fresh);
         measure(&mut t, 1, t0); // replayed
-        t.on_measurement(2, t0, vec![Vector2::zeros()], vec![0.0], false); // the final step
+        t.on_measurement(2, t0, vec![Vector2::zeros()], vec![0.0], 7, false); // the final step
         assert!(t.due(t0 + Duration::from_secs(1)).is_empty());
-        // An old step measured again after a restart of emitter-sim from step 0 is a new run.
-        measure(&mut t, 0, t0);
+        // A step 0 with other content is a new run.
+        t.on_measurement(0, t0, vec![Vector2::zeros()], vec![0.5], 8, true);
         assert_eq!(t.due(t0 + Duration::from_secs(1)).len(), 1);
+    }
+
+    #[test]
+    fn a_replayed_step_0_keeps_the_run_its_deadlines_and_its_holds() {
+        // A monitor that misses an estimate asks for a replay from step 0 while the estimator is frozen:
+        // the replayed step 0 arrives between the live steps and must not restart the run.
+        let t0 = Instant::now();
+        let ms = Duration::from_millis;
+        let mut t = HoldTracker::new(ms(30), 100);
+        for k in 0..3 {
+            measure(&mut t, k, t0 + ms(100 * k));
+            if k < 2 {
+                assert_eq!(t.on_estimate(k), Freshness::Fresh);
+            }
+        }
+        assert_eq!(t.due(t0 + ms(230)).len(), 1, "step 2 held");
+        measure(&mut t, 0, t0 + ms(240)); // the replay
+        measure(&mut t, 3, t0 + ms(300));
+        measure(&mut t, 0, t0 + ms(310)); // again
+        let due: Vec<u64> = t.due(t0 + ms(330)).iter().map(|d| d.step).collect();
+        assert_eq!(due, vec![3], "the live step still gets its deadline");
+        assert!(t.is_held(2) && t.is_held(3));
+        assert_eq!(t.on_estimate(0), Freshness::Fresh);
+        assert_eq!(t.on_estimate(2), Freshness::Late);
+    }
+
+    #[test]
+    fn the_fingerprint_tells_a_replay_from_other_content() {
+        let m = |d: f64| {
+            protocol::Measurement::new(0, 1, &[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], &[d, 2.0], &[1.0; 3], &[0.0; 3])
+                .unwrap()
+        };
+        let mut replay = m(1.0);
+        replay.header.seq = 99;
+        assert_eq!(fingerprint(&m(1.0)), fingerprint(&replay));
+        assert_ne!(fingerprint(&m(1.0)), fingerprint(&m(1.5)));
     }
 
     #[test]
