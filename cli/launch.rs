@@ -18,9 +18,9 @@
 //!    estimator and planner are then stopped with SIGTERM (SIGKILL after a grace period).
 //! 4. A child that exits before that (a crash, a kill, an error) is restarted: the restart is written to
 //!    the `--log` (`{"event": "restart", "role", "pid", "exit", "attempt", "backoff_ms"}`) and counted in
-//!    `restarts`; the dead node's iceoryx2 resources are removed; after 50 ms · 2^(attempt − 1) the same
-//!    role starts again with the same flags (a monitor with `--resume`: it takes the steps of its log).
-//!    The new process announces itself on the control topic and emitter-sim replays the run to it (see
+//!    `restarts`; the dead node's iceoryx2 resources are removed; after min(50 ms · 2^(attempt − 1), 1.6 s)
+//!    the same role starts again with the same flags (a monitor with `--resume`: it takes the steps of its
+//!    log). The new process announces itself on the control topic and emitter-sim replays the run to it (see
 //!    `emitter_sim::process`), so the run resumes exactly where it was; a restarted emitter-sim starts
 //!    from step 0 and fast-forwards through the answers the estimator and planner kept. A child that exits
 //!    with code 2 (bad input), or crashes more than `--max-restarts` times, stops the others and fails the
@@ -32,10 +32,11 @@
 //! 6. Stale iceoryx2 resources of the domain (a child killed) are removed, and the launcher checks that
 //!    none are left.
 //!
-//! Limits of restarts: a monitor that dies after emitter-sim finished the run cannot be replayed to (the
-//! launch then fails after the grace period); a process SIGKILLed inside iceoryx2's node creation (a window
-//! of microseconds between its details file and its monitoring token) leaves a node directory iceoryx2
-//! cannot list or clean.
+//! Limits of restarts: a monitor that dies after emitter-sim finished the run, or is still being restarted
+//! when it finishes (emitter-sim does not wait for the monitor, and the backoff reaches 1.6 s), cannot be
+//! replayed to (the launch then fails after the grace period); a process SIGKILLed inside iceoryx2's node
+//! creation (a window of microseconds between its details file and its monitoring token) leaves a node
+//! directory iceoryx2 cannot list or clean.
 //!
 //! Every child runs in its own process group (a terminal's Ctrl-C reaches only the launcher, which stops
 //! the children in order) with `PR_SET_PDEATHSIG = SIGTERM`, so none outlives a launcher that dies.
@@ -96,9 +97,9 @@ active planner, rejected messages) unless --headless. At the end the run is prin
 --json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\",
 \"missed_commands\" and \"processes\".
 
-A child that crashes is restarted (at most --max-restarts times, after 50 ms, 100 ms, ...; written to the
---log): emitter-sim replays the run to the new process, which picks up exactly where its predecessor was,
-so the result does not change.
+A child that crashes is restarted (at most --max-restarts times per process role, after 50 ms, 100 ms, ...,
+at most 1.6 s; written to the --log): emitter-sim replays the run to the new process, which picks up
+exactly where its predecessor was, so the result does not change.
 
 Only target = \"chan\" scenarios run in the pipeline (controlled mode needs the truth in the planner).
 Exit codes: 0 success, 1 a process failed or the launch was interrupted, 2 bad input.";
@@ -189,7 +190,8 @@ pub struct LaunchArgs {
     /// emitter-sim replays the run when a step's command is this many milliseconds late.
     #[arg(long, value_name = "MS", default_value_t = 1000)]
     pub retry_interval_ms: u64,
-    /// Restart a crashed process at most this many times (per process), after 50 ms, 100 ms, 200 ms, …
+    /// Restart a crashed process at most this many times (per process role, in total), after 50 ms, 100 ms,
+    /// 200 ms, … (doubling, at most 1.6 s).
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub max_restarts: u32,
 }
@@ -303,8 +305,18 @@ const READY_TIMEOUT: Duration = Duration::from_secs(30);
 const STOP_GRACE: Duration = Duration::from_secs(5);
 /// How often the launcher looks at its children and signals when nothing else happens.
 const TICK: Duration = Duration::from_millis(50);
-/// The wait before the first restart of a crashed process; it doubles with each further restart.
+/// The wait before the first restart of a crashed process; it doubles with each further restart of the
+/// same role, up to [`RESTART_BACKOFF_MAX`].
 const RESTART_BACKOFF: Duration = Duration::from_millis(50);
+/// The longest wait before a restart (reached at the 6th restart of a role), so that a process restarted
+/// many times in a long run is not left out for seconds or minutes.
+const RESTART_BACKOFF_MAX: Duration = Duration::from_millis(1600);
+
+/// The wait before restart number `attempt` (1, 2, …) of a role: min(50 ms · 2^(attempt − 1), 1.6 s).
+fn restart_backoff(attempt: u32) -> Duration {
+    let factor = 2u32.checked_pow(attempt.saturating_sub(1)).unwrap_or(u32::MAX);
+    RESTART_BACKOFF.saturating_mul(factor).min(RESTART_BACKOFF_MAX)
+}
 
 enum Event {
     Line(usize, String),
@@ -329,6 +341,16 @@ impl Proc {
     /// It exited because a newer instance took over (`uavloc swap`): no restart.
     fn handed_over(&self) -> bool {
         self.exit.is_some_and(|s| s.success()) && self.summary.as_ref().is_some_and(|s| !s["handed_over_at"].is_null())
+    }
+
+    /// It exited although it should still run — all but emitter-sim and the monitor after a successful
+    /// end, and one that handed over — and has not been restarted yet.
+    fn needs_restart(&self) -> bool {
+        let Some(status) = self.exit else { return false };
+        if status.success() && !self.closed {
+            return false; // judged once its last lines (its summary) are in
+        }
+        !(self.replaced || self.handed_over() || (matches!(self.role, "emitter-sim" | "monitor") && status.success()))
     }
 
     fn describe_exit(&self) -> String {
@@ -516,9 +538,12 @@ impl Supervisor {
             self.pump()?;
             self.restart_crashed()?;
             let (emitter, monitor) = (self.index("emitter-sim"), self.index("monitor"));
-            if self.procs[emitter].exit.is_some() {
+            // Only a successful exit is the end: one that crashed while another process was being restarted
+            // (after `restart_crashed` went past it) is restarted in the next round.
+            let ended = |i: usize| self.procs[i].exit.is_some_and(|s| s.success());
+            if ended(emitter) {
                 let since = *emitter_done_at.get_or_insert_with(Instant::now);
-                if self.procs[monitor].exit.is_some() {
+                if ended(monitor) {
                     return Ok(());
                 }
                 if since.elapsed() > monitor_grace {
@@ -536,13 +561,7 @@ impl Supervisor {
     fn restart_crashed(&mut self) -> Result<(), CliError> {
         for i in 0..self.procs.len() {
             let p = &self.procs[i];
-            let Some(status) = p.exit else { continue };
-            if status.success() && !p.closed {
-                continue; // judged once its last lines (its summary) are in
-            }
-            if p.replaced || p.handed_over() || (matches!(p.role, "emitter-sim" | "monitor") && status.success()) {
-                continue;
-            }
+            let Some(status) = p.exit.filter(|_| p.needs_restart()) else { continue };
             let role = p.role;
             let attempt = self.procs.iter().filter(|q| q.role == role && q.replaced).count() as u32 + 1;
             if status.code() == Some(2) || attempt > self.max_restarts {
@@ -559,11 +578,14 @@ impl Supervisor {
     }
 
     /// Restarts process `i` (attempt `attempt`): writes the restart to the log, removes the dead node's
-    /// iceoryx2 resources, waits 50 ms · 2^(attempt−1), starts the same role with the same flags (a
-    /// monitor with `--resume`) and waits until it is ready. If the new process fails to get ready, it is
-    /// left exited: the next round restarts it again (and counts the attempt).
+    /// iceoryx2 resources, waits [`restart_backoff`]`(attempt)`, starts the same role with the same flags (a
+    /// monitor with `--resume`) and waits until it is ready — or until another process needs a restart: a
+    /// restarted emitter-sim gets ready only once the whole pipeline is connected, so it would wait in vain
+    /// for a process that died with it (two processes killed at once); the new process then gets ready by
+    /// itself. If the new process fails to get ready, it is left exited: the next round restarts it again
+    /// (and counts the attempt).
     fn restart(&mut self, i: usize, attempt: u32) -> Result<(), CliError> {
-        let backoff = RESTART_BACKOFF * 2u32.pow(attempt - 1);
+        let backoff = restart_backoff(attempt);
         let (role, exit, pid) = (self.procs[i].role, self.procs[i].describe_exit(), self.procs[i].child.id());
         eprintln!(
             "warning: the {role} process (pid {pid}) stopped unexpectedly ({exit}); restarting it in {backoff:?} \
@@ -590,6 +612,9 @@ impl Supervisor {
         let deadline = Instant::now() + READY_TIMEOUT;
         while !self.procs[new].ready && self.procs[new].exit.is_none() {
             self.pump()?;
+            if self.procs.iter().any(Proc::needs_restart) {
+                break;
+            }
             if Instant::now() > deadline {
                 return Err(CliError::Failed(format!(
                     "the restarted {role} did not get ready within {READY_TIMEOUT:?}"
