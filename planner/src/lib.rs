@@ -21,6 +21,7 @@
 pub mod aco;
 pub mod active_mask;
 pub mod constraints;
+pub mod fallback;
 pub mod fitness;
 pub mod formation;
 pub mod ga;

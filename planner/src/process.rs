@@ -6,16 +6,17 @@
 //! headings from the estimate, ẑ and M from the estimate, run seed and step) and publishes the command.
 //! The final step (`step == steps`) is measured and estimated but not planned, as in the in-process loop.
 //!
-//! - A *failed* estimate carries no position (NaN on the wire); the planner then plans with the last
-//!   usable estimate it received, which is exactly the fallback of the estimator library (it keeps its
-//!   previous estimate on failure). A step-0 estimate starts a new run and forgets the previous one.
+//! - A *failed* estimate carries no position (NaN on the wire); the planner then plans with the usable
+//!   estimate of the latest step before it, which is exactly the fallback of the estimator library (it
+//!   keeps its previous estimate on failure). That is the latest in step order, not in arrival order: a
+//!   replay from the middle of the run comes after the estimates of later steps ([`crate::fallback`]).
 //! - Each step's command is kept: an estimate seen again (a replay by emitter-sim, or a restarted
 //!   emitter-sim running the same scenario from step 0) gets the same command again (`resent`), without
 //!   planning. Plans depend only on the estimate, the last usable one, the scenario, the seed and the
 //!   step, so a restarted planner — which announces itself on the control topic
 //!   ([`ControlKind::Hello`], from step 0) and gets the run replayed — plans exactly what its
 //!   predecessor would have.
-//! - With `--checkpoint FILE` it writes its state (the last usable estimate) to FILE every
+//! - With `--checkpoint FILE` it writes its state (the estimate the step planned from) to FILE every
 //!   [`checkpoint::CHECKPOINT_EVERY`] steps, before publishing that step's command; started again with
 //!   the same FILE (a restart) it resumes from it and asks for the replay from that step (planned again
 //!   from the same inputs: the same command) instead of step 0. It keeps its last checkpoints and takes
@@ -65,6 +66,7 @@ use protocol::{
 };
 
 use crate::active_mask;
+use crate::fallback::UsableEstimates;
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError, TargetMode};
 use crate::solver::SolverKind;
@@ -201,7 +203,8 @@ pub const MAX_CACHED_STEPS: usize = HISTORY_STEPS as usize;
 pub struct Checkpoint {
     /// The step it was written at (a restart asks for the replay from it and plans it again).
     pub step: u64,
-    /// The last usable estimate (metres) and its covariance (m²) after that step's estimate.
+    /// The usable estimate (metres) and its covariance (m²) that step was planned from (its own, or the
+    /// latest before it: see [`crate::fallback`]).
     pub usable: Option<([f64; 2], [[f64; 2]; 2])>,
 }
 
@@ -315,7 +318,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let mut last_seq = None;
     // Sequence numbers start at the monotonic clock: a restarted planner continues above its predecessor.
     let mut seq = now_ns();
-    let mut usable: Option<(Vector2<f64>, Matrix2<f64>)> = resumed.and_then(|c| c.usable.as_ref().map(from_wire));
+    let mut usable = UsableEstimates::new(MAX_CACHED_STEPS);
     let mut answers: BTreeMap<u64, (Vec<u64>, Command)> = BTreeMap::new();
     // The swap: the step a newer planner takes over from (this one stops before it), and with
     // --takeover the step this one takes over from (and how often the step before it was seen).
@@ -394,23 +397,12 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
             }
             summary.accepted += 1;
             let step = est.header.step;
-            if step == 0 {
-                usable = None; // a new run
-            }
-            if matches!(est.status(), Some(EstimateStatus::Ok | EstimateStatus::Ambiguous)) {
+            let own = matches!(est.status(), Some(EstimateStatus::Ok | EstimateStatus::Ambiguous)).then(|| {
                 let c = est.covariance;
-                usable = Some((
-                    Vector2::new(est.position[0], est.position[1]),
-                    Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]),
-                ));
-            }
-            // A checkpoint step planned before: whatever came since (e.g. a replay from further back), the
-            // last usable estimate after it is the one checkpointed — the world may have been rewound there.
-            if last_planned.is_some_and(|l| step <= l)
-                && let Some(c) = kept.iter().find(|c| c.step == step)
-            {
-                usable = c.usable.as_ref().map(from_wire);
-            }
+                (Vector2::new(est.position[0], est.position[1]), Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]))
+            });
+            let checkpoints = kept.iter().map(|c| (c.step, c.usable.as_ref().map(from_wire)));
+            let plan_from = usable.record(step, own, checkpoints);
             if let Some(f) = handover
                 && step >= f
             {
@@ -461,7 +453,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 }
                 continue;
             }
-            let key = content_key(&est, usable.as_ref());
+            let key = content_key(&est, plan_from.as_ref());
             if let Some((known, cached)) = answers.get(&step)
                 && *known == key
             {
@@ -474,7 +466,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 last_planned = last_planned.max(Some(step));
                 continue;
             }
-            let Some((z_hat, m)) = usable else {
+            let Some((z_hat, m)) = plan_from else {
                 summary.errors += 1;
                 eprintln!("planner: step {step}: the estimator has no fix yet, nothing to plan from");
                 continue;
@@ -532,7 +524,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 && checkpoint::is_checkpoint_step(step)
                 && kept.last().is_none_or(|c| c.step < step)
             {
-                let state = Checkpoint { step, usable: usable.as_ref().map(to_wire) };
+                let state = Checkpoint { step, usable: plan_from.as_ref().map(to_wire) };
                 checkpoint::push_kept(&mut kept, state, PROCESS_CHECKPOINTS);
                 if let Err(e) = checkpoint::save(path, ROLE, domain.as_str(), &kept) {
                     eprintln!("planner: {e}");
