@@ -820,3 +820,39 @@ pub fn main_with(args: &MonitorArgs) -> ExitCode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn read_log_keeps_a_step_whose_crlb_is_infinite() {
+        // The 100k soak: a step with coincident UAVs (CRLB +∞, logged as null) ended the steps read back.
+        let dir = std::env::temp_dir().join(format!("uavloc-read-log-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.jsonl");
+        let mut log = EventLog::open(Some(&path), false).unwrap();
+        for (k, crlb) in [(0u64, 10.0), (1, f64::INFINITY), (2, 11.0)] {
+            let record = StepRecord {
+                step: k,
+                uavs: vec![[0.0, 0.0], [0.0, 0.0], [1.0, 0.0]],
+                headings_rad: vec![0.0; 3],
+                estimate: [1.0, 2.0],
+                estimate_cov: [[1.0, 0.0], [0.0, 1.0]],
+                estimate_status: "ok".into(),
+                crlb_true_m: crlb,
+                rmse_m: None,
+                objective_value: None,
+                plan_ms: None,
+                active_constraints: vec![],
+                planner: None,
+                criterion_ess: None,
+            };
+            log.write("step", json!({"step": k, "record": record}));
+        }
+        let run = read_log(&path, true);
+        assert_eq!(run.count, 3);
+        assert_eq!(run.steps[1].crlb_true_m, f64::INFINITY);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -22,7 +22,10 @@ pub struct StepRecord {
     pub estimate_cov: [[f64; 2]; 2],
     /// `ok`, `ambiguous` or `failed` (on failure ẑ is the previous estimate).
     pub estimate_status: String,
-    /// Single-point CRLB `sqrt(tr F⁻¹)` at the TRUE emitter for this geometry, metres (paper's Figure 5).
+    /// Single-point CRLB `sqrt(tr F⁻¹)` at the TRUE emitter for this geometry, metres (paper's Figure 5);
+    /// `+∞` for a geometry that cannot localise (e.g. two UAVs on top of each other), written `null` in
+    /// JSON (which has no infinity) and read back as `+∞`.
+    #[serde(deserialize_with = "null_as_infinity")]
     pub crlb_true_m: f64,
     /// RMSE of Chan over R noise resamples at this geometry (paper Section 5.3), metres.
     pub rmse_m: Option<f64>,
@@ -44,6 +47,11 @@ pub struct StepRecord {
     /// `simulate` only; absent otherwise).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub criterion_ess: Option<f64>,
+}
+
+/// An `f64` that serde_json wrote as `null` because it was not finite (only `+∞` is possible here).
+fn null_as_infinity<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
 }
 
 /// A planner process instance, as recorded per step by the monitor.
@@ -78,5 +86,39 @@ impl RunRecord {
     /// CRLB at the truth on the last step, metres.
     pub fn final_crlb_m(&self) -> Option<f64> {
         self.steps.last().map(|s| s.crlb_true_m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(step: u64, crlb: f64) -> StepRecord {
+        StepRecord {
+            step,
+            uavs: vec![[0.0, 0.0], [0.0, 0.0], [1.0, 0.0]],
+            headings_rad: vec![0.0; 3],
+            estimate: [1.0, 2.0],
+            estimate_cov: [[1.0, 0.0], [0.0, 1.0]],
+            estimate_status: "failed".into(),
+            crlb_true_m: crlb,
+            rmse_m: None,
+            objective_value: None,
+            plan_ms: None,
+            active_constraints: vec![],
+            planner: None,
+            criterion_ess: None,
+        }
+    }
+
+    #[test]
+    fn an_infinite_crlb_survives_a_json_round_trip() {
+        // Two coincident UAVs: the CRLB is +∞, which JSON can only write as null.
+        let json = serde_json::to_string(&record(7, f64::INFINITY)).unwrap();
+        assert!(json.contains("\"crlb_true_m\":null"), "{json}");
+        let back: StepRecord = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.crlb_true_m, f64::INFINITY);
+        let finite: StepRecord = serde_json::from_str(&serde_json::to_string(&record(7, 12.5)).unwrap()).unwrap();
+        assert_eq!(finite.crlb_true_m, 12.5);
     }
 }
