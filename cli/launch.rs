@@ -23,7 +23,8 @@
 //!    log). The new process announces itself on the control topic and emitter-sim replays the run to it (see
 //!    `emitter_sim::process`), so the run resumes exactly where it was; a restarted emitter-sim starts
 //!    from step 0 and fast-forwards through the answers the estimator and planner kept. A child that exits
-//!    with code 2 (bad input), or crashes more than `--max-restarts` times, stops the others and fails the
+//!    with code 2 (bad input) or 3 (the run cannot go on: two UAVs collided, so the world cannot measure),
+//!    or crashes more than `--max-restarts` times, stops the others and fails the
 //!    launch. (`tests/crash_restart.rs`.)
 //! 5. At the end (or on an error or a signal), once its children are stopped, the launcher publishes a
 //!    shutdown on the domain's control topic if processes of the domain are still alive — processes
@@ -99,7 +100,8 @@ active planner, rejected messages) unless --headless. At the end the run is prin
 
 A child that crashes is restarted (at most --max-restarts times per process role, after 50 ms, 100 ms, ...,
 at most 1.6 s; written to the --log): emitter-sim replays the run to the new process, which picks up
-exactly where its predecessor was, so the result does not change.
+exactly where its predecessor was, so the result does not change. A child whose run cannot go on (exit
+code 3: two UAVs collided, so the world cannot measure) is not restarted: the launch fails with its error.
 
 Only target = \"chan\" scenarios run in the pipeline (controlled mode needs the truth in the planner).
 Exit codes: 0 success, 1 a process failed or the launch was interrupted, 2 bad input.";
@@ -556,7 +558,8 @@ impl Supervisor {
     }
 
     /// Restarts every current process that exited although it should still run — all but emitter-sim and
-    /// the monitor after a successful end. A process that exits with code 2 (bad input) or has crashed
+    /// the monitor after a successful end. A process that exits with code 2 (bad input) or 3 (the run cannot
+    /// go on, e.g. two UAVs collided), or has crashed
     /// `max_restarts` times fails the launch.
     fn restart_crashed(&mut self) -> Result<(), CliError> {
         for i in 0..self.procs.len() {
@@ -564,9 +567,11 @@ impl Supervisor {
             let Some(status) = p.exit.filter(|_| p.needs_restart()) else { continue };
             let role = p.role;
             let attempt = self.procs.iter().filter(|q| q.role == role && q.replaced).count() as u32 + 1;
-            if status.code() == Some(2) || attempt > self.max_restarts {
-                let why =
-                    if status.code() == Some(2) { String::new() } else { format!(" after {} restart(s)", attempt - 1) };
+            // Bad input (2) and a run that cannot go on (3) would fail again: no restart.
+            let deterministic =
+                matches!(status.code(), Some(c) if c == 2 || c == i32::from(protocol::EXIT_UNRECOVERABLE));
+            if deterministic || attempt > self.max_restarts {
+                let why = if deterministic { String::new() } else { format!(" after {} restart(s)", attempt - 1) };
                 return Err(CliError::Failed(format!(
                     "the {role} process stopped unexpectedly ({}){why}",
                     p.describe_exit()

@@ -737,7 +737,11 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         }
         let before = (args.checkpoint.is_some() && checkpoint::is_checkpoint_step(k))
             .then(|| (sim.world.snapshot(), previous == CommandOutcome::Missed));
-        let meas = sim.world.measure().map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
+        // A geometry the world cannot measure (two UAVs on top of each other: a collision) is where the
+        // run ends; a restart would fly into it again.
+        let meas = sim.world.measure().map_err(|e| {
+            ProcessError::Unrecoverable(format!("step {k}: measurement: {e}; the run cannot go on (exit code 3)"))
+        })?;
         let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
         let mut message = Measurement::new(k, 0, &uavs, meas.range_diffs.as_slice(), &sigmas, sim.world.headings())
             .map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;

@@ -52,6 +52,15 @@ pub enum ConstraintKind {
 }
 
 impl ConstraintKind {
+    /// All four, in [`index`](Self::index) order.
+    pub const ALL: [ConstraintKind; 4] =
+        [ConstraintKind::TurnRadius, ConstraintKind::Spacing, ConstraintKind::Approach, ConstraintKind::HeadingCone];
+
+    /// Position in [`ConstraintKind::ALL`] (0..4).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
     /// The snake-case name used in reports: `turn_radius`, `spacing`, `approach`, `heading_cone`.
     pub fn name(self) -> &'static str {
         match self {
@@ -190,6 +199,20 @@ impl Constraints {
         let mut violation = 0.0;
         self.visit(positions, headings, estimate, new_headings, next, |c| violation += c.violation);
         violation
+    }
+
+    /// The normalised violations summed per kind, indexed by [`ConstraintKind::index`] (no allocation).
+    pub fn violations_by_kind(
+        &self,
+        positions: &[Vector2<f64>],
+        headings: &[f64],
+        estimate: Vector2<f64>,
+        new_headings: &[f64],
+        next: &[Vector2<f64>],
+    ) -> [f64; 4] {
+        let mut by_kind = [0.0; 4];
+        self.visit(positions, headings, estimate, new_headings, next, |c| by_kind[c.kind.index()] += c.violation);
+        by_kind
     }
 
     /// Calls `sink` for every violated or binding constraint.

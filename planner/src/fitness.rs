@@ -12,14 +12,34 @@
 //! 3. among infeasible candidates the smaller violation wins, then the smaller objective.
 //!
 //! NaN never appears: a NaN violation or objective is stored as `+∞`.
+//!
+//! The violation can also be split into [`TIERS`] priority tiers ([`Fitness::tiered`]), compared one
+//! after the other: the planner's standoff search (see [`crate::step`]) ranks collision avoidance above
+//! the approach distance above the heading cone. [`Fitness::new`] puts the whole violation in the first
+//! tier, which is exactly the single-violation order above.
 
 use std::cmp::Ordering;
 
-/// Violation (normalised, ≥ 0, 0 when feasible) and objective (m²) of one candidate; smaller is better.
-#[derive(Debug, Clone, Copy, serde::Serialize)]
+/// Number of violation tiers.
+pub const TIERS: usize = 3;
+
+/// Violation (normalised, ≥ 0, 0 when feasible; by priority tier) and objective (m²) of one candidate;
+/// smaller is better.
+#[derive(Debug, Clone, Copy)]
 pub struct Fitness {
-    violation: f64,
+    tiers: [f64; TIERS],
     objective: f64,
+}
+
+impl serde::Serialize for Fitness {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct as _;
+        let mut st = s.serialize_struct("Fitness", 3)?;
+        st.serialize_field("violation", &self.violation())?;
+        st.serialize_field("violation_tiers", &self.tiers)?;
+        st.serialize_field("objective", &self.objective)?;
+        st.end()
+    }
 }
 
 fn sanitize(x: f64) -> f64 {
@@ -30,7 +50,13 @@ fn sanitize(x: f64) -> f64 {
 impl Fitness {
     /// From a constraint violation (negative values count as 0) and an objective value, m².
     pub fn new(violation: f64, objective: f64) -> Self {
-        Self { violation: sanitize(violation).max(0.0), objective: sanitize(objective) }
+        Self::tiered([violation, 0.0, 0.0], objective)
+    }
+
+    /// From violations by priority tier (first tier first; negative values count as 0) and an objective
+    /// value, m².
+    pub fn tiered(tiers: [f64; TIERS], objective: f64) -> Self {
+        Self { tiers: tiers.map(|v| sanitize(v).max(0.0)), objective: sanitize(objective) }
     }
 
     /// A feasible candidate with this objective, m².
@@ -40,12 +66,17 @@ impl Fitness {
 
     /// The worst possible fitness (infinite violation and objective).
     pub fn worst() -> Self {
-        Self { violation: f64::INFINITY, objective: f64::INFINITY }
+        Self { tiers: [f64::INFINITY; TIERS], objective: f64::INFINITY }
     }
 
     /// Sum of the normalised constraint violations (0 when feasible).
     pub fn violation(&self) -> f64 {
-        self.violation
+        self.tiers.iter().sum()
+    }
+
+    /// The violations by priority tier.
+    pub fn tiers(&self) -> [f64; TIERS] {
+        self.tiers
     }
 
     /// The objective, m² (may be `+∞`, never NaN).
@@ -55,7 +86,7 @@ impl Fitness {
 
     /// Whether every constraint holds.
     pub fn is_feasible(&self) -> bool {
-        self.violation == 0.0
+        self.tiers.iter().all(|v| *v == 0.0)
     }
 }
 
@@ -75,7 +106,13 @@ impl PartialOrd for Fitness {
 
 impl Ord for Fitness {
     fn cmp(&self, other: &Self) -> Ordering {
-        self.violation.total_cmp(&other.violation).then_with(|| self.objective.total_cmp(&other.objective))
+        self.tiers
+            .iter()
+            .zip(&other.tiers)
+            .map(|(a, b)| a.total_cmp(b))
+            .find(|o| o.is_ne())
+            .unwrap_or(Ordering::Equal)
+            .then_with(|| self.objective.total_cmp(&other.objective))
     }
 }
 
@@ -101,11 +138,24 @@ mod tests {
     }
 
     #[test]
+    fn tiers_are_compared_in_priority_order() {
+        // A smaller first tier wins whatever the later tiers and the objective.
+        assert!(Fitness::tiered([0.1, 5.0, 5.0], 1e9) < Fitness::tiered([0.2, 0.0, 0.0], 1.0));
+        assert!(Fitness::tiered([0.0, 0.1, 9.0], 1e9) < Fitness::tiered([0.0, 0.2, 0.0], 1.0));
+        assert!(Fitness::tiered([0.0, 0.0, 0.1], 1e9) < Fitness::tiered([0.0, 0.0, 0.2], 1.0));
+        assert!(Fitness::tiered([0.0; TIERS], 1e9) < Fitness::tiered([0.0, 0.0, 1e-12], 1.0));
+        assert_eq!(Fitness::tiered([0.3, 0.0, 0.0], 2.0), Fitness::new(0.3, 2.0));
+        let f = Fitness::tiered([0.5, 0.25, f64::NAN], 1.0);
+        assert_eq!((f.violation(), f.tiers()), (f64::INFINITY, [0.5, 0.25, f64::INFINITY]));
+        assert!(!f.is_feasible() && Fitness::tiered([0.0, -1.0, 0.0], 1.0).is_feasible());
+    }
+
+    #[test]
     fn nan_is_mapped_to_infinity() {
         let f = Fitness::new(f64::NAN, f64::NAN);
         assert_eq!(f.violation(), f64::INFINITY);
         assert_eq!(f.objective(), f64::INFINITY);
-        assert_eq!(f, Fitness::worst());
+        assert!(f < Fitness::worst() && f == Fitness::new(f64::INFINITY, f64::INFINITY));
         let g = Fitness::feasible(f64::NAN);
         assert!(g.is_feasible());
         assert!(Fitness::feasible(1.0) < g);

@@ -152,7 +152,9 @@ impl EarlyStop {
             return false;
         }
         if !old.is_feasible() {
-            return new.is_feasible() || old.violation() - new.violation() > self.tolerance * old.violation();
+            // The first tier that changed decides (with one tier: the total violation).
+            let (a, b) = old.tiers().into_iter().zip(new.tiers()).find(|(a, b)| a != b).unwrap_or((0.0, 0.0));
+            return b == 0.0 && a > 0.0 || a - b > self.tolerance * a;
         }
         if !old.objective().is_finite() {
             return new.objective().is_finite();

@@ -37,7 +37,7 @@ pub use messages::{
     Command, CommandOutcome, Control, ControlKind, Estimate, EstimateStatus, Fix, Header, Latencies, Measurement,
     Message, MessageKind, Name16, PlanInfo, Stamps, Truth, now_ns,
 };
-pub use process::{EXIT_INTERRUPTED, ProcessError};
+pub use process::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError};
 pub use services::Domain;
 pub use transport::{
     Link, LinkArgs, Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, TransportKind, WaitMode,

@@ -22,6 +22,8 @@ pub enum Purpose {
     OuterRun = 6,
     /// Timing and fixed-geometry draws of an experiment that are not tied to a run's step.
     Experiment = 7,
+    /// The planner's standoff search (the second search of a step whose cone search found no feasible plan).
+    StandoffSolver = 8,
 }
 
 /// SplitMix64 finaliser: a bijective 64-bit mix.
