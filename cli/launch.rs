@@ -14,8 +14,10 @@
 //!    previous one has printed `ready` on its stdout (its subscriptions exist), so no message is published
 //!    before its subscribers are there (the topics keep no history). emitter-sim also checks the topics
 //!    itself (≥ 2 measurement subscribers, a planner) before step 0.
-//! 3. The run ends when emitter-sim (after the last step) and the monitor (after recording it) exit 0; the
-//!    estimator and planner are then stopped with SIGTERM (SIGKILL after a grace period).
+//! 3. The run ends when emitter-sim has published the last step (it prints `finished` and, started with
+//!    `--linger`, stays to replay the run to a monitor that fell behind or was restarted meanwhile) and the
+//!    monitor has recorded it and exited 0; emitter-sim, the estimator and the planner are then stopped
+//!    with SIGTERM (SIGKILL after a grace period).
 //! 4. A child that exits before that (a crash, a kill, an error) is restarted: the restart is written to
 //!    the `--log` (`{"event": "restart", "role", "pid", "exit", "attempt", "backoff_ms"}`) and counted in
 //!    `restarts`; the dead node's iceoryx2 resources are removed; after min(50 ms · 2^(attempt − 1), 1.6 s)
@@ -337,6 +339,8 @@ struct Proc {
     closed: bool,
     exit: Option<std::process::ExitStatus>,
     summary: Option<serde_json::Value>,
+    /// emitter-sim with `--linger`: it published the last step (and stays to serve replays).
+    finished: bool,
 }
 
 impl Proc {
@@ -451,6 +455,7 @@ impl Supervisor {
             closed: false,
             exit: None,
             summary: None,
+            finished: false,
         });
         Ok(())
     }
@@ -461,6 +466,8 @@ impl Supervisor {
                 let p = &mut self.procs[i];
                 if line == "ready" {
                     p.ready = true;
+                } else if line == "finished" {
+                    p.finished = true;
                 } else if let Some(json) = line.strip_prefix("summary ") {
                     p.summary = serde_json::from_str(json).ok();
                 } else if let Some(json) = line.strip_prefix("record ") {
@@ -532,8 +539,9 @@ impl Supervisor {
     }
 
     /// Runs until emitter-sim and the monitor have finished, restarting the processes that crash; the
-    /// monitor gets `monitor_grace` after emitter-sim's end to record the last step (it cannot, if one of
-    /// the last messages never came).
+    /// monitor gets `monitor_grace` after emitter-sim's end (its `finished`, or its exit) to record the
+    /// last step. A lingering emitter-sim (`--linger`) replays the run to a monitor that fell behind or was
+    /// restarted while the run ended, and is stopped with the others afterwards.
     fn wait_for_the_end(&mut self, monitor_grace: Duration) -> Result<(), CliError> {
         let mut emitter_done_at = None;
         loop {
@@ -543,7 +551,7 @@ impl Supervisor {
             // Only a successful exit is the end: one that crashed while another process was being restarted
             // (after `restart_crashed` went past it) is restarted in the next round.
             let ended = |i: usize| self.procs[i].exit.is_some_and(|s| s.success());
-            if ended(emitter) {
+            if ended(emitter) || self.procs[emitter].finished {
                 let since = *emitter_done_at.get_or_insert_with(Instant::now);
                 if ended(monitor) {
                     return Ok(());
@@ -968,6 +976,9 @@ fn start_and_run(
         flags.extend(link.iter().cloned());
         if role != "monitor" {
             flags.extend(["--checkpoint".to_string(), state.path(&format!("{role}.ckpt")).display().to_string()]);
+        }
+        if role == "emitter-sim" {
+            flags.push("--linger".into());
         }
         if role == "emitter-sim" && args.idle_probe_ms > 0 {
             sup.idle_cpu = probe_idle_cpu(sup, Duration::from_millis(args.idle_probe_ms));

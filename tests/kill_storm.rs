@@ -499,16 +499,31 @@ fn ten_kills_per_process_and_pairs() {
 #[test]
 fn a_monitor_restarted_at_a_failed_estimate_records_the_command_flown() {
     let steps = "300";
-    let sim = as_wire_mask(json_of(&["simulate", "--json", "--steps", steps]));
-    let failed = sim["steps"].as_array().unwrap().iter().find(|s| s["estimate_status"] == "failed");
-    let failed = failed.expect("the scenario has a failed estimate in 300 steps")["step"].as_u64().unwrap();
     let d = domain("storm", "failed");
     let dir = scratch("storm-failed");
+    // The nominal scenario with σ = 500 m: Chan fails now and then (first at step 51 with seed 1).
+    let scenario = dir.join("noisy.toml");
+    std::fs::write(&scenario, "sigma = 500.0\n").unwrap();
+    let scenario = scenario.to_str().unwrap();
+    let sim = as_wire_mask(json_of(&["simulate", "--json", "--scenario", scenario, "--steps", steps]));
+    let failed = sim["steps"].as_array().unwrap().iter().find(|s| s["estimate_status"] == "failed");
+    let failed = failed.expect("the scenario has a failed estimate in 300 steps")["step"].as_u64().unwrap();
     let at = failed.to_string();
     let mut launch = Launch::start(
         &d,
         &dir,
-        &["--steps", steps, "--step-delay-ms", "10", "--plan-delay-ms", "300", "--plan-delay-steps", &at],
+        &[
+            "--scenario",
+            scenario,
+            "--steps",
+            steps,
+            "--step-delay-ms",
+            "10",
+            "--plan-delay-ms",
+            "300",
+            "--plan-delay-steps",
+            &at,
+        ],
     );
     let mut guard = StopOnPanic(Some(launch.child.id()));
     let mut tail = LogTail::new(&launch.log);

@@ -220,7 +220,14 @@ pub struct EmitterSimArgs {
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
-    /// Under a launcher: print `ready` on stdout once connected, and `summary {json}` at exit.
+    /// After the last step, stay: replay the run to a process that asks (a monitor that fell behind or
+    /// was restarted while the run ended) until SIGINT/SIGTERM or a shutdown on the control topic, which
+    /// end it normally (exit code 0). `uavloc launch` passes it and stops emitter-sim once the monitor has
+    /// the whole run.
+    #[arg(long)]
+    pub linger: bool,
+    /// Under a launcher: print `ready` on stdout once connected, `finished` after the last step (with
+    /// --linger), and `summary {json}` at exit.
     #[arg(long, hide = true)]
     pub supervised: bool,
 }
@@ -559,6 +566,28 @@ impl Sim<'_> {
         Ok(self.applied.take())
     }
 
+    /// After the last step `last` (`--linger`): replays the run to whoever asks, until SIGINT/SIGTERM or a
+    /// shutdown on the control topic, which end it normally.
+    fn linger(&mut self, last: u64) -> Result<(), ProcessError> {
+        let mut serve = || -> Result<(), ProcessError> {
+            loop {
+                if let Some(from) = self.replay_from.take() {
+                    self.summary.replays += 1;
+                    // A replay that stops early (a command did not come back) is asked for again.
+                    let _ = self.replay(from.min(last), last, None)?;
+                    continue;
+                }
+                self.wait(IDLE_WAKEUP)?;
+                self.drain_control()?;
+                self.drain_commands(last, None)?;
+            }
+        };
+        match serve() {
+            Err(ProcessError::Interrupted) => Ok(()),
+            other => other,
+        }
+    }
+
     /// Waits for (and applies) the command of step `k`, replaying when a process joins or the command is
     /// late; fails after the command timeout.
     fn wait_for_command(&mut self, k: u64, domain: &Domain) -> Result<(Command, u64), ProcessError> {
@@ -802,6 +831,10 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
                 eprintln!("emitter-sim: {e}");
             }
         }
+    }
+    if args.linger {
+        announce(args.supervised, "finished");
+        sim.linger(scenario.steps as u64)?;
     }
     let mut summary = sim.summary;
     if !args.quiet {

@@ -289,12 +289,26 @@ impl Link {
 
     /// Whether SIGINT/SIGTERM has been received (a non-blocking check).
     pub fn interrupted(&self) -> bool {
-        self.node.wait(Duration::ZERO).is_err()
+        matches!(self.node.wait(Duration::ZERO), Err(iceoryx2::node::NodeWaitFailure::TerminationRequest))
     }
 
-    /// Sleeps for `d`; [`TransportError::Interrupted`] at once on SIGINT/SIGTERM.
+    /// Sleeps for `d`; [`TransportError::Interrupted`] at once on SIGINT/SIGTERM. Any other signal that
+    /// cuts the sleep short (EINTR: e.g. SIGCONT after a SIGSTOP, SIGCHLD) does not end it: the rest of
+    /// `d` is slept. (iceoryx2 reports both as a failure of `Node::wait`; only SIGINT/SIGTERM set its
+    /// termination request.)
     pub fn sleep(&self, d: Duration) -> Result<(), TransportError> {
-        self.node.wait(d).map_err(|_| TransportError::Interrupted)
+        let until = Instant::now() + d;
+        loop {
+            match self.node.wait(until.saturating_duration_since(Instant::now())) {
+                Ok(()) => return Ok(()),
+                Err(iceoryx2::node::NodeWaitFailure::TerminationRequest) => return Err(TransportError::Interrupted),
+                Err(iceoryx2::node::NodeWaitFailure::Interrupt) => {
+                    if Instant::now() >= until {
+                        return Ok(());
+                    }
+                }
+            }
+        }
     }
 }
 
