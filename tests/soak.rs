@@ -149,7 +149,7 @@ fn soak_flat_memory_and_no_lost_message() {
 }
 
 #[test]
-#[ignore = "long: 100 000 steps, about a minute; run with --ignored"]
+#[ignore = "long: 100 000 steps, about two minutes; run with --ignored"]
 fn soak_100k_steps() {
     soak(100_000, 5_000);
 }
