@@ -573,8 +573,13 @@ impl Sim<'_> {
             loop {
                 if let Some(from) = self.replay_from.take() {
                     self.summary.replays += 1;
-                    // A replay that stops early (a command did not come back) is asked for again.
-                    let _ = self.replay(from.min(last), last, None)?;
+                    // A replay that stops early (the command of step j did not come back within the retry
+                    // interval: a process is restarting) starts again from the checkpoint step at or
+                    // below j, where every process can answer from (as the lock-step retry does).
+                    if let Some(j) = self.replay(from.min(last), last, None)? {
+                        self.summary.retries += 1;
+                        self.replay_from = Some(checkpoint::checkpoint_step_at_or_below(j).max(self.sent_base));
+                    }
                     continue;
                 }
                 self.wait(IDLE_WAKEUP)?;
