@@ -566,6 +566,12 @@ impl Sim<'_> {
         Ok(self.applied.take())
     }
 
+    /// Where a replay that must reach step `k` starts: the checkpoint step at or below it, where every
+    /// process can answer from (also one restarted from its checkpoint), or the oldest step kept.
+    fn replay_start(&self, k: u64) -> u64 {
+        checkpoint::checkpoint_step_at_or_below(k).max(self.sent_base)
+    }
+
     /// After the last step `last` (`--linger`): replays the run to whoever asks, until SIGINT/SIGTERM or a
     /// shutdown on the control topic, which end it normally.
     fn linger(&mut self, last: u64) -> Result<(), ProcessError> {
@@ -578,7 +584,7 @@ impl Sim<'_> {
                     // below j, where every process can answer from (as the lock-step retry does).
                     if let Some(j) = self.replay(from.min(last), last, None)? {
                         self.summary.retries += 1;
-                        self.replay_from = Some(checkpoint::checkpoint_step_at_or_below(j).max(self.sent_base));
+                        self.replay_from = Some(self.replay_start(j));
                     }
                     continue;
                 }
@@ -614,7 +620,7 @@ impl Sim<'_> {
             if now - published >= retry {
                 // From the checkpoint step at or below k: every process can answer from there, also one
                 // restarted from its checkpoint (see protocol::checkpoint).
-                let from = checkpoint::checkpoint_step_at_or_below(k).max(self.sent_base);
+                let from = self.replay_start(k);
                 eprintln!("emitter-sim: step {k}: no command after {retry:?}; replaying the run from step {from}");
                 self.summary.retries += 1;
                 self.replay_from = Some(from);

@@ -833,21 +833,7 @@ mod tests {
         let path = dir.join("run.jsonl");
         let mut log = EventLog::open(Some(&path), false).unwrap();
         for (k, crlb) in [(0u64, 10.0), (1, f64::INFINITY), (2, 11.0)] {
-            let record = StepRecord {
-                step: k,
-                uavs: vec![[0.0, 0.0], [0.0, 0.0], [1.0, 0.0]],
-                headings_rad: vec![0.0; 3],
-                estimate: [1.0, 2.0],
-                estimate_cov: [[1.0, 0.0], [0.0, 1.0]],
-                estimate_status: "ok".into(),
-                crlb_true_m: crlb,
-                rmse_m: None,
-                objective_value: None,
-                plan_ms: None,
-                active_constraints: vec![],
-                planner: None,
-                criterion_ess: None,
-            };
+            let record = crate::record::tests::record(k, crlb);
             log.write("step", json!({"step": k, "record": record}));
         }
         let run = read_log(&path, true);

@@ -90,10 +90,11 @@ impl RunRecord {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn record(step: u64, crlb: f64) -> StepRecord {
+    /// A record of three UAVs (two on one point) with CRLB `crlb`.
+    pub(crate) fn record(step: u64, crlb: f64) -> StepRecord {
         StepRecord {
             step,
             uavs: vec![[0.0, 0.0], [0.0, 0.0], [1.0, 0.0]],

@@ -397,10 +397,8 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
             }
             summary.accepted += 1;
             let step = est.header.step;
-            let own = matches!(est.status(), Some(EstimateStatus::Ok | EstimateStatus::Ambiguous)).then(|| {
-                let c = est.covariance;
-                (Vector2::new(est.position[0], est.position[1]), Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]))
-            });
+            let own = matches!(est.status(), Some(EstimateStatus::Ok | EstimateStatus::Ambiguous))
+                .then(|| from_wire(&(est.position, est.covariance)));
             let checkpoints = kept.iter().map(|c| (c.step, c.usable.as_ref().map(from_wire)));
             let plan_from = usable.record(step, own, checkpoints);
             if let Some(f) = handover
