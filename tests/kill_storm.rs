@@ -37,6 +37,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use common::{Launch, assert_nothing_left, assert_same_run, domain, is_alive, json_of, kill, pid_of, scratch};
+use protocol::checkpoint::checkpoint_step_at_or_below;
 use serde_json::Value;
 
 const ROLES: [&str; 4] = ["emitter-sim", "estimator", "planner", "monitor"];
@@ -466,9 +467,12 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
         panic!("steps not logged exactly once (step, times): {wrong:?}");
     }
 
-    // One command applied per step by the emitter-sim that finished the run.
+    // One command applied per step by the emitter-sim that finished the run, from the step it started at
+    // (0, or its checkpoint's older snapshot after a restart).
     let emitter = processes.iter().rev().find(|p| p["role"] == "emitter-sim").unwrap();
-    assert_eq!(emitter["summary"]["steps"].as_u64(), Some(steps), "{emitter}");
+    let started_at = emitter["summary"]["started_at"].as_u64().unwrap();
+    assert!(started_at < steps && checkpoint_step_at_or_below(started_at) == started_at, "{emitter}");
+    assert_eq!(emitter["summary"]["steps"].as_u64(), Some(steps - started_at), "{emitter}");
 
     // The run is exactly simulate's (its active constraints as the command's bit mask carries them).
     let sim = as_wire_mask(json_of(&["simulate", "--json", "--steps", &n]));

@@ -226,6 +226,14 @@ pub struct EmitterSimArgs {
     /// the whole run.
     #[arg(long)]
     pub linger: bool,
+    /// Lock-step mode: do not publish step k while the monitor lacks step k − N or an older one (its
+    /// progress comes on the control topic); when it makes no progress for --retry-interval-ms, replay to
+    /// it from the checkpoint step at or below the first step it lacks; give up (exit 1) after
+    /// --command-timeout-s without progress. A monitor restarted again and again then stays within reach
+    /// of a restarted emitter-sim's replays. Must be below 256 (the checkpoint interval). 0: never wait for
+    /// the monitor. No effect before a monitor has announced itself, nor in real-time mode.
+    #[arg(long, value_name = "N", default_value_t = checkpoint::MONITOR_WINDOW)]
+    pub monitor_window: u64,
     /// Under a launcher: print `ready` on stdout once connected, `finished` after the last step (with
     /// --linger), and `summary {json}` at exit.
     #[arg(long, hide = true)]
@@ -340,6 +348,8 @@ struct Sim<'a> {
     replay_next: Option<u64>,
     /// Real-time mode: the steps whose command was missed.
     missed: BTreeSet<u64>,
+    /// The monitor's progress as last heard: its instance's start time and the first step it lacks.
+    monitor: Option<(u64, u64)>,
 }
 
 impl Sim<'_> {
@@ -437,6 +447,9 @@ impl Sim<'_> {
                     continue;
                 }
             };
+            if c.role() == Some("monitor") && matches!(c.kind(), Some(ControlKind::Hello | ControlKind::Progress)) {
+                self.monitor_progress(c.started_ns, c.header.step);
+            }
             match c.kind() {
                 Some(ControlKind::Shutdown) => return Err(ProcessError::Interrupted),
                 Some(ControlKind::Hello) if matches!(c.role(), Some("estimator" | "planner" | "monitor")) => {
@@ -462,9 +475,70 @@ impl Sim<'_> {
         Ok(())
     }
 
-    /// Handles the commands received: applies the first valid one for step `k` (once); returns whether
-    /// one for step `answered` (a replayed step) came.
-    fn drain_commands(&mut self, k: u64, answered: Option<u64>) -> Result<bool, ProcessError> {
+    /// Notes the progress of a monitor instance started at `started_ns`: `next`, the first step it lacks
+    /// (from a newer instance than the one known, or the same one; an older instance's news are old).
+    fn monitor_progress(&mut self, started_ns: u64, next: u64) {
+        if self.monitor.is_none_or(|(known, _)| started_ns >= known) {
+            self.monitor = Some((started_ns, next));
+        }
+    }
+
+    /// Lock-step backpressure (`--monitor-window`): before step `k` is published, waits while a monitor's
+    /// progress is `window` steps or more behind it (a monitor restarted again and again, or starved of
+    /// CPU, would otherwise fall behind without bound, past what a restarted emitter-sim can replay). When
+    /// the monitor makes no progress for the retry interval (it was restarted, or a message to it was
+    /// lost), the steps from the checkpoint step at or below its first missing one are replayed. Fails
+    /// after the command timeout without progress. No monitor heard of: no waiting.
+    fn wait_for_monitor(&mut self, k: u64) -> Result<(), ProcessError> {
+        let window = self.args.monitor_window;
+        let Some(last) = k.checked_sub(1).filter(|_| window > 0) else { return Ok(()) };
+        let timeout = Duration::from_secs_f64(self.args.command_timeout_s);
+        let retry = Duration::from_millis(self.args.retry_interval_ms);
+        let mut seen = None;
+        let mut progressed = Instant::now();
+        let mut replayed = progressed;
+        loop {
+            self.drain_control()?;
+            let Some((_, next)) = self.monitor else { return Ok(()) };
+            if k < next.saturating_add(window) {
+                return Ok(());
+            }
+            let now = Instant::now();
+            if seen != Some(next) {
+                seen = Some(next);
+                progressed = now;
+            }
+            if now - progressed >= timeout {
+                return Err(ProcessError::Failed(format!(
+                    "step {k}: the monitor has lacked step {next} for {} s, and emitter-sim runs at most \
+                     --monitor-window {window} steps ahead of it (is the monitor running? --monitor-window 0 runs \
+                     without it)",
+                    self.args.command_timeout_s
+                )));
+            }
+            if self.replay_from.is_none() && now - progressed.max(replayed) >= retry {
+                self.summary.retries += 1;
+                self.replay_from = Some(self.replay_start(next.min(last)));
+            }
+            if let Some(from) = self.replay_from.take() {
+                self.summary.replays += 1;
+                // A replay that stops early is taken up by the next retry.
+                let _ = self.replay(from.min(last), last, None, None)?;
+                replayed = Instant::now();
+                continue;
+            }
+            let limit =
+                timeout.saturating_sub(now - progressed).min(retry.saturating_sub(now - progressed.max(replayed)));
+            self.wait(limit.min(IDLE_WAKEUP))?;
+            // No command is applied here: step k is not published yet (answers to replays are ignored).
+            self.drain_commands(None, None)?;
+        }
+    }
+
+    /// Handles the commands received: applies the first valid one for step `awaited` (once: the step
+    /// whose command the world waits for, if any); returns whether one for step `answered` (a replayed
+    /// step) came.
+    fn drain_commands(&mut self, awaited: Option<u64>, answered: Option<u64>) -> Result<bool, ProcessError> {
         let batch = self.commands.receive_all()?;
         let received_ns = now_ns();
         let mut answer = false;
@@ -477,10 +551,10 @@ impl Sim<'_> {
             }
             self.summary.accepted += 1;
             let step = cmd.header.step;
-            if step == k && self.applied.is_none() {
+            if Some(step) == awaited && self.applied.is_none() {
                 if let Err(e) = self.world.apply(cmd.headings()) {
                     self.summary.rejected += 1;
-                    eprintln!("emitter-sim: step {k}: refused a command: {e}");
+                    eprintln!("emitter-sim: step {step}: refused a command: {e}");
                     continue;
                 }
                 self.applied = Some((cmd, received_ns));
@@ -492,7 +566,7 @@ impl Sim<'_> {
             } else if self.missed.contains(&step) {
                 self.summary.late_commands += 1;
                 if !self.args.quiet {
-                    eprintln!("emitter-sim: step {k}: ignored a late command for step {step} (missed)");
+                    eprintln!("emitter-sim: ignored a late command for step {step} (missed)");
                 }
             } else {
                 self.summary.ignored += 1;
@@ -501,11 +575,19 @@ impl Sim<'_> {
         Ok(answer)
     }
 
-    /// Replays steps `from..=k` (see the module docs). A step whose command does not come back within the
-    /// retry interval ends the replay early, and so does `deadline` (real-time mode: the next step is due);
-    /// returns the step to go on from then (`None`: the replay is complete). A lock-step caller drops it
-    /// (its next retry starts over from step 0); a real-time caller goes on from there.
-    fn replay(&mut self, from: u64, k: u64, deadline: Option<Instant>) -> Result<Option<u64>, ProcessError> {
+    /// Replays steps `from..=k` (see the module docs); meanwhile a command for step `awaited` (the step the
+    /// world waits for, if any) is applied as it comes, and no other. A step whose command does not come
+    /// back within the retry interval ends the replay early, and so does `deadline` (real-time mode: the
+    /// next step is due); returns the step to go on from then (`None`: the replay is complete). A lock-step
+    /// caller drops it (its next retry starts over from the checkpoint step at or below); a real-time
+    /// caller goes on from there.
+    fn replay(
+        &mut self,
+        from: u64,
+        k: u64,
+        awaited: Option<u64>,
+        deadline: Option<Instant>,
+    ) -> Result<Option<u64>, ProcessError> {
         let retry = Duration::from_millis(self.args.retry_interval_ms);
         let due = |now: Instant| deadline.is_some_and(|d| now >= d);
         for j in from..k {
@@ -529,7 +611,7 @@ impl Sim<'_> {
                     return Ok(Some(j)); // what arrived now belongs to the next step's interval
                 }
                 self.drain_control()?;
-                if self.drain_commands(k, Some(j))? {
+                if self.drain_commands(awaited, Some(j))? {
                     break;
                 }
             }
@@ -553,7 +635,7 @@ impl Sim<'_> {
                 break;
             }
             if let Some(j) = self.replay_next.take() {
-                self.replay_next = self.replay(j.min(k), k, Some(deadline))?;
+                self.replay_next = self.replay(j.min(k), k, Some(k), Some(deadline))?;
                 continue;
             }
             self.wait_until(deadline)?;
@@ -561,7 +643,7 @@ impl Sim<'_> {
                 break; // what arrived now belongs to the next step's interval
             }
             self.drain_control()?;
-            self.drain_commands(k, None)?;
+            self.drain_commands(Some(k), None)?;
         }
         Ok(self.applied.take())
     }
@@ -582,7 +664,7 @@ impl Sim<'_> {
                     // A replay that stops early (the command of step j did not come back within the retry
                     // interval: a process is restarting) starts again from the checkpoint step at or
                     // below j, where every process can answer from (as the lock-step retry does).
-                    if let Some(j) = self.replay(from.min(last), last, None)? {
+                    if let Some(j) = self.replay(from.min(last), last, None, None)? {
                         self.summary.retries += 1;
                         self.replay_from = Some(self.replay_start(j));
                     }
@@ -590,7 +672,7 @@ impl Sim<'_> {
                 }
                 self.wait(IDLE_WAKEUP)?;
                 self.drain_control()?;
-                self.drain_commands(last, None)?;
+                self.drain_commands(None, None)?;
             }
         };
         match serve() {
@@ -628,13 +710,13 @@ impl Sim<'_> {
             if let Some(from) = self.replay_from.take() {
                 self.summary.replays += 1;
                 // A replay that stops early is taken up by the next retry (from step 0).
-                let _ = self.replay(from.min(k), k, None)?;
+                let _ = self.replay(from.min(k), k, Some(k), None)?;
                 published = Instant::now();
                 continue;
             }
             self.wait((timeout - (now - start)).min(retry - (now - published)).min(IDLE_WAKEUP))?;
             self.drain_control()?;
-            self.drain_commands(k, None)?;
+            self.drain_commands(Some(k), None)?;
         }
     }
 }
@@ -662,6 +744,13 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     }
     if !(args.connect_timeout_s >= 0.0 && args.connect_timeout_s.is_finite()) {
         return Err(ProcessError::Input(format!("--connect-timeout-s must be ≥ 0, got {}", args.connect_timeout_s)));
+    }
+    if args.monitor_window >= checkpoint::CHECKPOINT_EVERY {
+        return Err(ProcessError::Input(format!(
+            "--monitor-window must be below {} (the checkpoint interval; 0 turns it off), got {}",
+            checkpoint::CHECKPOINT_EVERY,
+            args.monitor_window
+        )));
     }
     if args.retry_interval_ms == 0 {
         return Err(ProcessError::Input("--retry-interval-ms must be > 0".into()));
@@ -755,6 +844,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         replay_from: None,
         replay_next: None,
         missed: BTreeSet::new(),
+        monitor: None,
     };
     // The processes that were there before us need no replay.
     sim.drain_control()?;
@@ -774,6 +864,9 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     for k in start_step..=scenario.steps as u64 {
         if interval.is_none() && k > start_step && !step_delay.is_zero() && link.sleep(step_delay).is_err() {
             return Err(ProcessError::Interrupted);
+        }
+        if interval.is_none() {
+            sim.wait_for_monitor(k)?;
         }
         let before = (args.checkpoint.is_some() && checkpoint::is_checkpoint_step(k))
             .then(|| (sim.world.snapshot(), previous == CommandOutcome::Missed));

@@ -79,6 +79,11 @@ pub const IDLE_WAKEUP: Duration = Duration::from_secs(1);
 /// its messages was lost: the monitor asks emitter-sim for a replay from it.
 pub const STALL_STEPS: u64 = 3;
 
+/// The monitor reports its progress ([`ControlKind::Progress`]: the first step it lacks) every this many
+/// recorded steps, at least every [`IDLE_WAKEUP`] while it waits, and when an emitter-sim (re)joins: a
+/// lock-step emitter-sim runs at most its `--monitor-window` steps ahead of it.
+pub const PROGRESS_EVERY: u64 = 16;
+
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
 The monitor subscribes to <domain>/measurement, /estimate, /command and /truth and needs the run's
@@ -403,6 +408,8 @@ struct State {
     missing: u64,
     stamps: Option<StampsCsv>,
     replays_requested: u64,
+    /// An emitter-sim (re)joined since the last progress report.
+    emitter_joined: bool,
 }
 
 impl State {
@@ -456,7 +463,10 @@ impl State {
             let role = c.role().unwrap_or("?");
             match kind {
                 ControlKind::Shutdown => shutdown = true,
+                ControlKind::Progress => {}
                 ControlKind::Hello | ControlKind::TakeOver => {
+                    // A (re)started emitter-sim learns where this monitor is (see `Progress`).
+                    self.emitter_joined |= kind == ControlKind::Hello && role == "emitter-sim";
                     self.log.write(
                         kind.name(),
                         json!({"role": role, "instance": c.instance, "detail": c.detail(), "step": c.header.step}),
@@ -652,6 +662,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         missing: 0,
         stamps,
         replays_requested: 0,
+        emitter_joined: false,
     };
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
     let mut interrupted = link.interrupted();
@@ -692,6 +703,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
 
     let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
     let mut replay_asked: Option<u64> = None;
+    let mut progress_sent: Option<(u64, std::time::Instant)> = None;
     while !interrupted && !state.assembler.is_done() {
         let ready = || {
             Ok(truths.has_samples()?
@@ -715,6 +727,12 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         // monitor was starved of CPU) if newer steps are in and it is not: ask emitter-sim to replay
         // from it (once per step), as a restarted monitor would.
         let next = state.assembler.next_step();
+        if std::mem::take(&mut state.emitter_joined)
+            || progress_sent.is_none_or(|(step, at)| next >= step + PROGRESS_EVERY || at.elapsed() >= IDLE_WAKEUP)
+        {
+            control.send(ControlKind::Progress, next, "")?;
+            progress_sent = Some((next, std::time::Instant::now()));
+        }
         if let Some(newest) = state.assembler.newest_pending_step()
             && newest >= next + STALL_STEPS
             && replay_asked != Some(next)

@@ -19,11 +19,16 @@
 //!   checkpoints, the world was rewound there (a restarted emitter-sim): the process rewinds to that
 //!   checkpoint and goes on from it, so its answers stay exactly those of the run.
 //!
+//! - A lock-step emitter-sim does not publish step k while the monitor's progress (the first step it lacks,
+//!   [`crate::ControlKind::Progress`]) is k − [`MONITOR_WINDOW`] or less: a monitor restarted many times
+//!   cannot fall further behind (the window is below [`CHECKPOINT_EVERY`], so the first step it lacks is
+//!   always newer than the older snapshot a restarted emitter-sim flies on from).
+//!
 //! With these orders every request lies within emitter-sim's history and every rewind point within the
-//! checkpoints kept, for any single crash and for two processes crashing at once (as long as the monitor
-//! lags less than [`CHECKPOINT_EVERY`] steps behind the pipeline). A request that is not (a process
-//! restarted without its checkpoint in a run longer than the history) is refused with an error naming the
-//! steps.
+//! checkpoints kept, for any single crash and for two processes crashing at once. A request that is not (a
+//! process restarted without its checkpoint in a run longer than the history, or a monitor left more than
+//! [`CHECKPOINT_EVERY`] steps behind with `--monitor-window 0` or in real-time mode) is refused with an
+//! error naming the steps.
 //!
 //! Files are JSON, written to `FILE.tmp` and renamed over `FILE` (a reader never sees half a file), and
 //! carry the role and domain they belong to; a checkpoint of another role or domain is an error. They
@@ -44,6 +49,13 @@ pub const EMITTER_SNAPSHOTS: usize = 2;
 
 /// Checkpoints the estimator and the planner keep (they rewind to any of them).
 pub const PROCESS_CHECKPOINTS: usize = 3;
+
+/// How many steps a lock-step emitter-sim may run ahead of the monitor's progress (the default of its
+/// `--monitor-window`).
+pub const MONITOR_WINDOW: u64 = 128;
+
+// A monitor within the window lacks no step older than a restarted emitter-sim's older snapshot.
+const _: () = assert!(MONITOR_WINDOW < CHECKPOINT_EVERY);
 
 // Every rewind point and every replay request lie within the history.
 const _: () = assert!((PROCESS_CHECKPOINTS as u64 + 2) * CHECKPOINT_EVERY < HISTORY_STEPS);

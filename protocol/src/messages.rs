@@ -871,6 +871,10 @@ pub enum ControlKind {
     TakeOver = 1,
     /// Every process of the domain stops (the run is over or was interrupted).
     Shutdown = 2,
+    /// How far the sender has got: `header.step` is the first step it lacks (the monitor: the next step to
+    /// record). A lock-step emitter-sim does not run more than `--monitor-window` steps ahead of the
+    /// monitor's progress, and replays from it when it stalls.
+    Progress = 3,
 }
 
 impl ControlKind {
@@ -880,6 +884,7 @@ impl ControlKind {
             0 => Some(ControlKind::Hello),
             1 => Some(ControlKind::TakeOver),
             2 => Some(ControlKind::Shutdown),
+            3 => Some(ControlKind::Progress),
             _ => None,
         }
     }
@@ -890,6 +895,7 @@ impl ControlKind {
             ControlKind::Hello => "hello",
             ControlKind::TakeOver => "take_over",
             ControlKind::Shutdown => "shutdown",
+            ControlKind::Progress => "progress",
         }
     }
 }

@@ -542,8 +542,8 @@ mod tests {
         assert_eq!((plain.validate(None), plain.detail()), (Ok(()), ""));
         assert_eq!(c.validate(Some(5)).unwrap_err().kind(), "stale");
         assert_eq!(
-            with(c, |c| c.kind = 3).validate(None),
-            Err(Rejection::UnknownKind { field: "control kind", kind: 3 })
+            with(c, |c| c.kind = 4).validate(None),
+            Err(Rejection::UnknownKind { field: "control kind", kind: 4 })
         );
         assert_eq!(with(c, |c| c.role.bytes = [0; 16]).validate(None), Err(Rejection::BadName { field: "role" }));
         assert_eq!(with(c, |c| c.detail.bytes[0] = 0x80).validate(None).unwrap_err().kind(), "bad_name");
