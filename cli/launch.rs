@@ -24,7 +24,10 @@
 //!    the same role starts again with the same flags (a monitor with `--resume`: it takes the steps of its
 //!    log). The new process announces itself on the control topic and emitter-sim replays the run to it (see
 //!    `emitter_sim::process`), so the run resumes exactly where it was; a restarted emitter-sim starts
-//!    from step 0 and fast-forwards through the answers the estimator and planner kept. A child that exits
+//!    from the older world snapshot of its checkpoint (step 0 in a run younger than 512 steps) and
+//!    fast-forwards through the answers the estimator and planner kept. In lock-step mode emitter-sim runs
+//!    at most 128 steps ahead of the monitor (its `--monitor-window`), so a monitor restarted many times
+//!    does not fall behind what can be replayed to it. A child that exits
 //!    with code 2 (bad input) or 3 (the run cannot go on: two UAVs collided, so the world cannot measure),
 //!    or crashes more than `--max-restarts` times, stops the others and fails the
 //!    launch. (`tests/crash_restart.rs`.)
@@ -35,11 +38,11 @@
 //! 6. Stale iceoryx2 resources of the domain (a child killed) are removed, and the launcher checks that
 //!    none are left.
 //!
-//! Limits of restarts: a monitor that dies after emitter-sim finished the run, or is still being restarted
-//! when it finishes (emitter-sim does not wait for the monitor, and the backoff reaches 1.6 s), cannot be
-//! replayed to (the launch then fails after the grace period); a process SIGKILLed inside iceoryx2's node
-//! creation (a window of microseconds between its details file and its monitoring token) leaves a node
-//! directory iceoryx2 cannot list or clean.
+//! Limits of restarts: in real-time mode emitter-sim does not wait for the monitor (the world keeps its
+//! clock), so a monitor down for more than 256 steps while emitter-sim is restarted too may ask for a step
+//! no longer kept (the run then stops with an error naming the steps); a process SIGKILLed inside
+//! iceoryx2's node creation (a window of microseconds between its details file and its monitoring token)
+//! leaves a node directory iceoryx2 cannot list or clean.
 //!
 //! Every child runs in its own process group (a terminal's Ctrl-C reaches only the launcher, which stops
 //! the children in order) with `PR_SET_PDEATHSIG = SIGTERM`, so none outlives a launcher that dies.

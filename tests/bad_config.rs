@@ -102,6 +102,7 @@ fn malformed_flags_are_refused() {
         (&["process", "planner", "--objective", "x"], "--objective"),
         (&["process", "estimator", "--transport", "tcp"], "--transport"),
         (&["process", "emitter-sim", "--retry-interval-ms", "0"], "retry-interval-ms"),
+        (&["process", "emitter-sim", "--monitor-window", "256"], "monitor-window"),
         (&["bench", "latency", "--cores", "5000"], "--cores"),
         (&["bench", "planner", "--steps", "0"], "--steps"),
         (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "-1"], "sigma"),

@@ -14,51 +14,33 @@
 mod common;
 
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader, Seek, SeekFrom};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
+use common::{Launch, LineTail, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
 use serde_json::Value;
 
 const ROLES: [&str; 4] = ["emitter-sim", "estimator", "planner", "monitor"];
 
 /// Follows the monitor's log without re-reading it: the newest step logged so far.
 struct LogTail {
-    offset: u64,
-    partial: String,
+    lines: LineTail,
     newest: Option<u64>,
 }
 
 impl LogTail {
-    fn new() -> Self {
-        Self { offset: 0, partial: String::new(), newest: None }
+    fn new(path: &Path) -> Self {
+        Self { lines: LineTail::new(path), newest: None }
     }
 
-    fn poll(&mut self, path: &Path) -> Option<u64> {
-        let Ok(mut f) = std::fs::File::open(path) else { return self.newest };
-        if f.seek(SeekFrom::Start(self.offset)).is_err() {
-            return self.newest;
-        }
-        let mut reader = BufReader::new(f);
-        loop {
-            let mut line = String::new();
-            match reader.read_line(&mut line) {
-                Ok(0) | Err(_) => break,
-                Ok(n) => {
-                    self.offset += n as u64;
-                    if !line.ends_with('\n') {
-                        self.partial.push_str(&line);
-                        break;
-                    }
-                    let whole = std::mem::take(&mut self.partial) + &line;
-                    if whole.contains("\"event\":\"step\"")
-                        && let Ok(e) = serde_json::from_str::<Value>(&whole)
-                        && let Some(k) = e["step"].as_u64()
-                    {
-                        self.newest = self.newest.max(Some(k));
-                    }
-                }
+    fn poll(&mut self) -> Option<u64> {
+        for line in self.lines.poll() {
+            // Only the step events are parsed (the log has a line per message too).
+            if line.contains("\"event\":\"step\"")
+                && let Ok(e) = serde_json::from_str::<Value>(&line)
+                && let Some(k) = e["step"].as_u64()
+            {
+                self.newest = self.newest.max(Some(k));
             }
         }
         self.newest
@@ -67,7 +49,7 @@ impl LogTail {
     /// Waits until step `step` is logged (panics after `timeout` or when the launch ends first).
     fn wait_for(&mut self, launch: &mut Launch, step: u64, timeout: Duration) {
         let deadline = Instant::now() + timeout;
-        while self.poll(&launch.log).is_none_or(|n| n < step) {
+        while self.poll().is_none_or(|n| n < step) {
             if let Ok(Some(status)) = launch.child.try_wait() {
                 panic!("the launch ended ({status}) before step {step}:\n{}", launch.stderr_text());
             }
@@ -96,7 +78,7 @@ fn soak(steps: u64, first_sample: u64) {
     let dir = scratch(&format!("soak-{steps}"));
     let n = steps.to_string();
     let mut launch = Launch::start(&d, &dir, &["--steps", &n]);
-    let mut tail = LogTail::new();
+    let mut tail = LogTail::new(&launch.log);
     let timeout = Duration::from_secs(60 + steps / 200);
     tail.wait_for(&mut launch, first_sample, timeout);
     let start = rss_of_all(&d);
@@ -162,7 +144,7 @@ fn a_crash_after_the_history_wrapped_resumes_from_the_checkpoints() {
     let n = STEPS.to_string();
     // Slow enough to kill at chosen steps (≈ 2 ms per step).
     let mut launch = Launch::start(&d, &dir, &["--steps", &n, "--step-delay-ms", "1"]);
-    let mut tail = LogTail::new();
+    let mut tail = LogTail::new(&launch.log);
     let mut killed = BTreeMap::new();
     for (role, at) in [("monitor", 4_200), ("estimator", 4_350), ("planner", 4_500), ("emitter-sim", 4_650)] {
         tail.wait_for(&mut launch, at, Duration::from_secs(120));

@@ -16,6 +16,12 @@
 //!   the run equals the lock-step one.
 //!
 //! Per step k = 0, 1, …, `steps − 1`:
+//! 0. (lock-step, `--monitor-window N` > 0, once a monitor has reported its progress on the control topic
+//!    — [`ControlKind::Progress`], the first step it lacks) wait while the monitor lacks step k − N or an
+//!    older one, replaying to it from the checkpoint step at or below that step when it makes no progress
+//!    for `--retry-interval-ms` (it is restarting, or lost a message); give up after
+//!    `--command-timeout-s` without progress. So a monitor restarted again and again, or starved of CPU,
+//!    stays within reach of a restarted emitter-sim's replays (see [`protocol::checkpoint`]);
 //! 1. publish the [`Truth`] of step k (monitor only; with the outcome of step k − 1's command), then the
 //!    [`Measurement`] of step k: UAV positions, noisy range differences ([`World::measure`], drawn from
 //!    the stream (seed, k) — the numbers of `uavloc simulate`), range σ and current headings; it carries

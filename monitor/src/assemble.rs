@@ -207,19 +207,22 @@ impl Assembler {
         Some(self.pending.entry(step).or_default())
     }
 
-    /// Adds a (validated) measurement; `false` if it is ignored.
+    /// Adds a (validated) measurement; `false` if it is ignored. A repeat of one already in (a replay: same
+    /// content, new sequence number, no stamps) keeps the first, whose stamps time the step.
     pub fn add_measurement(&mut self, m: Measurement) -> bool {
-        self.slot(m.header.step).map(|p| p.measurement = Some(m)).is_some()
+        self.slot(m.header.step).map(|p| p.measurement.get_or_insert(m)).is_some()
     }
 
-    /// Adds a (validated) estimate; `false` if it is ignored.
+    /// Adds a (validated) estimate; `false` if it is ignored. A repeat keeps the first (see
+    /// [`Assembler::add_measurement`]).
     pub fn add_estimate(&mut self, e: Estimate) -> bool {
-        self.slot(e.header.step).map(|p| p.estimate = Some(e)).is_some()
+        self.slot(e.header.step).map(|p| p.estimate.get_or_insert(e)).is_some()
     }
 
-    /// Adds a (validated) truth; `false` if it is ignored.
+    /// Adds a (validated) truth; `false` if it is ignored. A repeat keeps the first (see
+    /// [`Assembler::add_measurement`]).
     pub fn add_truth(&mut self, t: Truth) -> bool {
-        self.slot(t.header.step).map(|p| p.truth = Some(t)).is_some()
+        self.slot(t.header.step).map(|p| p.truth.get_or_insert(t)).is_some()
     }
 
     /// Adds a (validated) command; `false` if it is ignored (also a command for the last step, which is
@@ -398,7 +401,7 @@ fn usable_of(s: &StepRecord) -> Option<([f64; 2], [[f64; 2]; 2])> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use protocol::{Fix, PlanInfo};
+    use protocol::{Fix, MessageKind, PlanInfo};
 
     const UAVS: [[f64; 2]; 3] = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
 
@@ -544,6 +547,28 @@ mod tests {
         let mut gap = records;
         gap.remove(0);
         assert!(Assembler::resume(scenario(2), gap, None, names).is_none(), "steps must start at 0");
+    }
+
+    #[test]
+    fn a_replayed_message_keeps_the_stamps_of_the_first() {
+        // A lock-step retry (a command late under load) re-publishes a pending step without stamps, and the
+        // estimator answers it again: the last step, timed by its estimate, kept the replay's zero stamps
+        // and lost its emitter→estimator sample.
+        let mut a = Assembler::new(scenario(0));
+        let mut original = measurement(0);
+        original.header.stamps.mark_published(MessageKind::Measurement, 5);
+        let first = Estimate::from_measurement(&original, 10, 1, 7, ok(25000.0)).unwrap();
+        assert_eq!(first.header.stamps.latencies().measurement_hop_ns, Some(5));
+        assert!(a.add_measurement(original) && a.add_truth(truth(0)) && a.add_estimate(first));
+        // The replay: no stamps; the estimator's answer again (received at 30).
+        let replayed = measurement(0);
+        let again = Estimate::from_measurement(&replayed, 30, 2, 7, ok(25000.0)).unwrap();
+        assert_eq!(again.header.stamps.latencies().measurement_hop_ns, None);
+        assert!(a.add_measurement(replayed) && a.add_estimate(again) && a.add_truth(truth(0)));
+        let done = a.complete_ready();
+        assert_eq!(done.len(), 1);
+        assert_eq!(done[0].chain, first.header.stamps);
+        assert_eq!(done[0].latencies.measurement_hop_ns, Some(5));
     }
 
     #[test]
