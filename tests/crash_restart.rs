@@ -6,7 +6,6 @@
 
 mod common;
 
-use std::collections::BTreeMap;
 use std::time::Duration;
 
 use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
@@ -48,11 +47,7 @@ fn kill_once(role: &str) {
     let restarts: Vec<&Value> = events.iter().filter(|e| e["event"] == "restart").collect();
     assert_eq!(restarts.len(), 1, "{role}: {restarts:?}");
     assert_eq!((restarts[0]["role"].as_str(), restarts[0]["attempt"].as_u64()), (Some(role), Some(1)));
-    let mut logged: BTreeMap<u64, usize> = BTreeMap::new();
-    for e in events.iter().filter(|e| e["event"] == "step") {
-        *logged.entry(e["step"].as_u64().unwrap()).or_default() += 1;
-    }
-    assert_eq!(logged, (0..=STEPS).map(|k| (k, 1)).collect::<BTreeMap<_, _>>(), "{role}: steps in the log");
+    common::assert_each_step_logged_once(&events, STEPS, role);
     // The restarted process joined, and (but for emitter-sim itself) the run was replayed to it.
     assert!(
         events.iter().any(|e| e["event"] == "hello" && e["role"] == role)

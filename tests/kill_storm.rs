@@ -399,15 +399,7 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
     }
 
     // Every step exactly once in the log.
-    let mut logged: BTreeMap<u64, usize> = BTreeMap::new();
-    for e in log.iter().filter(|e| e["event"] == "step") {
-        *logged.entry(e["step"].as_u64().unwrap()).or_default() += 1;
-    }
-    let once: BTreeMap<u64, usize> = (0..=steps).map(|k| (k, 1)).collect();
-    if logged != once {
-        let wrong: Vec<_> = (0..=steps).filter(|k| logged.get(k) != Some(&1)).map(|k| (k, logged.get(&k))).collect();
-        panic!("steps not logged exactly once (step, times): {wrong:?}");
-    }
+    common::assert_each_step_logged_once(&log, steps, tag);
 
     // One command applied per step by the emitter-sim that finished the run, from the step it started at
     // (0, or its checkpoint's older snapshot after a restart).

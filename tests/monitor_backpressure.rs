@@ -8,7 +8,6 @@
 
 mod common;
 
-use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
@@ -74,11 +73,7 @@ fn a_frozen_monitor_holds_emitter_sim_within_the_window() {
     // It replayed to the frozen monitor (no progress for the retry interval).
     assert!(emitter["summary"]["retries"].as_u64().unwrap() >= 1, "{emitter}");
     let events = common::read_events(&dir.join("run.jsonl"));
-    let mut once: BTreeMap<u64, usize> = BTreeMap::new();
-    for e in events.iter().filter(|e| e["event"] == "step") {
-        *once.entry(e["step"].as_u64().unwrap()).or_default() += 1;
-    }
-    assert_eq!(once, (0..=STEPS).map(|k| (k, 1)).collect::<BTreeMap<_, _>>(), "steps in the log");
+    common::assert_each_step_logged_once(&events, STEPS, "backpressure");
     let sim = json_of(&["simulate", "--json", "--steps", &steps]);
     assert_same_run(&sim, &run, "backpressure");
     assert_eq!(run["rejected"].as_u64(), Some(0));

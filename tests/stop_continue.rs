@@ -5,7 +5,6 @@
 
 mod common;
 
-use std::collections::BTreeMap;
 use std::time::Duration;
 
 use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
@@ -36,11 +35,7 @@ fn every_process_stopped_and_continued_goes_on_without_a_restart() {
     assert_eq!(run["restarts"].as_u64(), Some(0), "{stderr}");
     assert!(!stderr.contains("stopped by a signal") && !stderr.contains("error:"), "{stderr}");
     let events = common::read_events(&dir.join("run.jsonl"));
-    let mut logged: BTreeMap<u64, usize> = BTreeMap::new();
-    for e in events.iter().filter(|e| e["event"] == "step") {
-        *logged.entry(e["step"].as_u64().unwrap()).or_default() += 1;
-    }
-    assert_eq!(logged, (0..=STEPS).map(|k| (k, 1)).collect::<BTreeMap<_, _>>(), "steps in the log");
+    common::assert_each_step_logged_once(&events, STEPS, "stop/continue");
     let sim = json_of(&["simulate", "--json", "--steps", &steps]);
     assert_same_run(&sim, &run, "stop/continue");
     assert_eq!(run["rejected"].as_u64(), Some(0));

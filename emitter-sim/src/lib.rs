@@ -12,6 +12,7 @@
 //!
 //! Units: metres, seconds, radians.
 
+pub mod backpressure;
 pub mod process;
 
 use nalgebra::Vector2;

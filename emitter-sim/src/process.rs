@@ -90,6 +90,7 @@ use protocol::{
     TopicSubscriber, Truth, now_ns,
 };
 
+use crate::backpressure::MonitorProgress;
 use crate::{Snapshot, World};
 
 /// The role name (node name suffix, `uavloc process emitter-sim`).
@@ -354,8 +355,8 @@ struct Sim<'a> {
     replay_next: Option<u64>,
     /// Real-time mode: the steps whose command was missed.
     missed: BTreeSet<u64>,
-    /// The monitor's progress as last heard: its instance's start time and the first step it lacks.
-    monitor: Option<(u64, u64)>,
+    /// The monitor's progress as last heard.
+    monitor: MonitorProgress,
 }
 
 impl Sim<'_> {
@@ -453,9 +454,7 @@ impl Sim<'_> {
                     continue;
                 }
             };
-            if c.role() == Some("monitor") && matches!(c.kind(), Some(ControlKind::Hello | ControlKind::Progress)) {
-                self.monitor_progress(c.started_ns, c.header.step);
-            }
+            self.monitor.hear(&c);
             match c.kind() {
                 Some(ControlKind::Shutdown) => return Err(ProcessError::Interrupted),
                 Some(ControlKind::Hello) if matches!(c.role(), Some("estimator" | "planner" | "monitor")) => {
@@ -481,14 +480,6 @@ impl Sim<'_> {
         Ok(())
     }
 
-    /// Notes the progress of a monitor instance started at `started_ns`: `next`, the first step it lacks
-    /// (from a newer instance than the one known, or the same one; an older instance's news are old).
-    fn monitor_progress(&mut self, started_ns: u64, next: u64) {
-        if self.monitor.is_none_or(|(known, _)| started_ns >= known) {
-            self.monitor = Some((started_ns, next));
-        }
-    }
-
     /// Lock-step backpressure (`--monitor-window`): before step `k` is published, waits while a monitor's
     /// progress is `window` steps or more behind it (a monitor restarted again and again, or starved of
     /// CPU, would otherwise fall behind without bound, past what a restarted emitter-sim can replay). When
@@ -505,10 +496,7 @@ impl Sim<'_> {
         let mut replayed = progressed;
         loop {
             self.drain_control()?;
-            let Some((_, next)) = self.monitor else { return Ok(()) };
-            if k < next.saturating_add(window) {
-                return Ok(());
-            }
+            let Some(next) = self.monitor.next().filter(|_| self.monitor.holds(k, window)) else { return Ok(()) };
             let now = Instant::now();
             if seen != Some(next) {
                 seen = Some(next);
@@ -850,7 +838,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         replay_from: None,
         replay_next: None,
         missed: BTreeSet::new(),
-        monitor: None,
+        monitor: MonitorProgress::default(),
     };
     // The processes that were there before us need no replay.
     sim.drain_control()?;

@@ -305,3 +305,18 @@ impl LineTail {
         complete[..end].split(|&b| b == b'\n').map(|l| String::from_utf8_lossy(l).into_owned()).collect()
     }
 }
+
+/// Asserts that the `step` events of a launch's log name every step `0..=steps` exactly once (the
+/// wrong ones, with how often they were logged, in the message).
+pub fn assert_each_step_logged_once(events: &[Value], steps: u64, label: &str) {
+    let mut logged: std::collections::BTreeMap<u64, usize> = std::collections::BTreeMap::new();
+    for e in events.iter().filter(|e| e["event"] == "step") {
+        *logged.entry(e["step"].as_u64().expect("a step event without a step")).or_default() += 1;
+    }
+    let wrong: Vec<(u64, usize)> = (0..=steps)
+        .map(|k| (k, logged.get(&k).copied().unwrap_or(0)))
+        .filter(|&(_, n)| n != 1)
+        .chain(logged.range(steps + 1..).map(|(&k, &n)| (k, n)))
+        .collect();
+    assert!(wrong.is_empty(), "{label}: steps not logged exactly once (step, times): {wrong:?}");
+}
