@@ -10,7 +10,7 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
+use common::{Launch, domain, kill, pid_of, scratch};
 use protocol::services::{self, Domain};
 use protocol::{Measurement, Topic, TopicSubscriber};
 
@@ -72,11 +72,6 @@ fn a_frozen_monitor_holds_emitter_sim_within_the_window() {
     let emitter = run["processes"].as_array().unwrap().iter().find(|p| p["role"] == "emitter-sim").unwrap();
     // It replayed to the frozen monitor (no progress for the retry interval).
     assert!(emitter["summary"]["retries"].as_u64().unwrap() >= 1, "{emitter}");
-    let events = common::read_events(&dir.join("run.jsonl"));
-    common::assert_each_step_logged_once(&events, STEPS, "backpressure");
-    let sim = json_of(&["simulate", "--json", "--steps", &steps]);
-    assert_same_run(&sim, &run, "backpressure");
-    assert_eq!(run["rejected"].as_u64(), Some(0));
-    assert_nothing_left(&d);
+    common::assert_complete_run_equals_simulate(&run, &dir, &d, STEPS, "backpressure");
     std::fs::remove_dir_all(&dir).ok();
 }

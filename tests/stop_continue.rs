@@ -7,7 +7,7 @@ mod common;
 
 use std::time::Duration;
 
-use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
+use common::{Launch, domain, kill, pid_of, scratch};
 
 const STEPS: u64 = 300;
 
@@ -34,11 +34,6 @@ fn every_process_stopped_and_continued_goes_on_without_a_restart() {
 
     assert_eq!(run["restarts"].as_u64(), Some(0), "{stderr}");
     assert!(!stderr.contains("stopped by a signal") && !stderr.contains("error:"), "{stderr}");
-    let events = common::read_events(&dir.join("run.jsonl"));
-    common::assert_each_step_logged_once(&events, STEPS, "stop/continue");
-    let sim = json_of(&["simulate", "--json", "--steps", &steps]);
-    assert_same_run(&sim, &run, "stop/continue");
-    assert_eq!(run["rejected"].as_u64(), Some(0));
-    assert_nothing_left(&d);
+    common::assert_complete_run_equals_simulate(&run, &dir, &d, STEPS, "stop/continue");
     std::fs::remove_dir_all(&dir).ok();
 }

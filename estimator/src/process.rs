@@ -177,12 +177,9 @@ impl StepEstimator {
     /// The state of an estimator whose estimate of `step` was `position` with `covariance` (taking over
     /// from it): the next step it estimates is `step + 1`.
     pub fn resume(step: u64, position: [f64; 2], covariance: [[f64; 2]; 2]) -> Self {
-        let c = covariance;
+        let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
         Self {
-            estimator: Estimator::resume(
-                Vector2::new(position[0], position[1]),
-                nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]),
-            ),
+            estimator: Estimator::resume(z, m),
             last_step: Some(step),
             answers: BTreeMap::new(),
             checkpoints: Vec::new(),
@@ -197,8 +194,7 @@ impl StepEstimator {
     /// The state to checkpoint (`None` before the first step).
     pub fn checkpoint(&self) -> Option<Checkpoint> {
         let step = self.last_step?;
-        let previous =
-            self.estimator.previous().map(|(p, c)| ([p.x, p.y], [[c[(0, 0)], c[(0, 1)]], [c[(1, 0)], c[(1, 1)]]]));
+        let previous = self.estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c));
         Some(Checkpoint { step, previous })
     }
 
@@ -237,11 +233,8 @@ impl StepEstimator {
     fn advance_to(&mut self, step: u64, fix: &Fix) {
         match fix {
             Fix::Ok { position, covariance } | Fix::Ambiguous { position, covariance } => {
-                let c = covariance;
-                self.estimator = Estimator::resume(
-                    Vector2::new(position[0], position[1]),
-                    nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]),
-                );
+                let (z, m) = tdoa::estimate_from_arrays(position, covariance);
+                self.estimator = Estimator::resume(z, m);
             }
             Fix::Failed => {}
         }

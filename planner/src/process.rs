@@ -209,13 +209,11 @@ pub struct Checkpoint {
 }
 
 fn to_wire(u: &(Vector2<f64>, Matrix2<f64>)) -> ([f64; 2], [[f64; 2]; 2]) {
-    let (z, m) = u;
-    ([z.x, z.y], [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]])
+    tdoa::estimate_to_arrays(&u.0, &u.1)
 }
 
 fn from_wire(u: &([f64; 2], [[f64; 2]; 2])) -> (Vector2<f64>, Matrix2<f64>) {
-    let (z, c) = u;
-    (Vector2::new(z[0], z[1]), Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]))
+    tdoa::estimate_from_arrays(&u.0, &u.1)
 }
 
 /// Everything a plan depends on besides the step (the estimate's geometry, status, ẑ and M, and the usable

@@ -23,7 +23,7 @@ pub use fim::{Crlb, crlb, fim, fim_derivatives, trace_crlb, trace_derivatives};
 pub use geometry::{NoiseModel, RangeDiffs, SPEED_OF_LIGHT, Sensors};
 pub use global::{GlobalCrlb, GlobalReport, GlobalValue, Method, global_crlb};
 pub use singular::{SingularReport, singular_report};
-pub use support::{DEFAULT_KAPPA, Uncertainty, eq36_side};
+pub use support::{DEFAULT_KAPPA, Uncertainty, eq36_side, estimate_from_arrays, estimate_to_arrays};
 
 /// Largest number of UAVs supported (fixed-capacity messages carry up to this many).
 pub const MAX_UAVS: usize = 8;

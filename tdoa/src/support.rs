@@ -9,6 +9,19 @@ use crate::TdoaError;
 use crate::fim::sym_eigenvalues;
 use crate::geometry::check_finite;
 
+/// ẑ and M from their plain-array form — how messages and checkpoints carry them: `[x, y]` in metres and
+/// the row-major `[[m00, m01], [m10, m11]]` in m².
+pub fn estimate_from_arrays(position: &[f64; 2], covariance: &[[f64; 2]; 2]) -> (Vector2<f64>, Matrix2<f64>) {
+    let c = covariance;
+    (Vector2::new(position[0], position[1]), Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]))
+}
+
+/// The plain-array form of ẑ and M (the inverse of [`estimate_from_arrays`]).
+pub fn estimate_to_arrays(position: &Vector2<f64>, covariance: &Matrix2<f64>) -> ([f64; 2], [[f64; 2]; 2]) {
+    let m = covariance;
+    ([position.x, position.y], [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]])
+}
+
 /// Our choice for the paper's unstated κ of eq. 36 (`A = min(A_max, A_min + κ r_avg)`):
 /// 0.1 grows the support by 100 m per kilometre of mean UAV–target distance.
 pub const DEFAULT_KAPPA: f64 = 0.1;
@@ -110,5 +123,17 @@ impl Uncertainty {
     pub fn bounds(&self) -> (Vector2<f64>, Vector2<f64>) {
         let h = Vector2::new(0.5 * self.side, 0.5 * self.side);
         (self.estimate - h, self.estimate + h)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn estimate_arrays_are_row_major_and_round_trip() {
+        let (z, m) = estimate_from_arrays(&[1.0, 2.0], &[[3.0, 4.0], [5.0, 6.0]]);
+        assert_eq!((z.x, z.y, m[(0, 1)], m[(1, 0)]), (1.0, 2.0, 4.0, 5.0));
+        assert_eq!(estimate_to_arrays(&z, &m), ([1.0, 2.0], [[3.0, 4.0], [5.0, 6.0]]));
     }
 }

@@ -320,3 +320,14 @@ pub fn assert_each_step_logged_once(events: &[Value], steps: u64, label: &str) {
         .collect();
     assert!(wrong.is_empty(), "{label}: steps not logged exactly once (step, times): {wrong:?}");
 }
+
+/// The end of a launch that must have gone right: every step logged once in `DIR/run.jsonl`, the run
+/// equal to `uavloc simulate --steps <steps>` bit for bit, nothing rejected, nothing of the domain left.
+pub fn assert_complete_run_equals_simulate(run: &Value, dir: &Path, domain: &str, steps: u64, label: &str) {
+    let events = read_events(&dir.join("run.jsonl"));
+    assert_each_step_logged_once(&events, steps, label);
+    let sim = json_of(&["simulate", "--json", "--steps", &steps.to_string()]);
+    assert_same_run(&sim, run, label);
+    assert_eq!(run["rejected"].as_u64(), Some(0), "{label}: {}", run["rejected_by"]);
+    assert_nothing_left(domain);
+}
