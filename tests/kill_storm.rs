@@ -37,6 +37,7 @@ use common::{
 };
 use protocol::checkpoint::checkpoint_step_at_or_below;
 use serde_json::Value;
+use tdoa::rng::SplitMix64;
 
 const ROLES: [&str; 4] = ["emitter-sim", "estimator", "planner", "monitor"];
 
@@ -45,21 +46,13 @@ const STEP_TIMEOUT: Duration = Duration::from_secs(180);
 /// How long a killed process may take to be back (restart backoff up to 1.6 s, plus its start).
 const READY_TIMEOUT: Duration = Duration::from_secs(60);
 
-/// splitmix64: a tiny seeded generator (no dependency), enough for a kill schedule.
-struct SplitMix(u64);
+/// The kill schedule's generator (SplitMix64: the same schedule for a seed as before it moved to `tdoa`).
+struct SplitMix(SplitMix64);
 
 impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
     /// Uniform in `0..n` (n > 0; the modulo bias is irrelevant here).
     fn below(&mut self, n: u64) -> u64 {
-        self.next() % n
+        self.0.next_u64() % n
     }
 }
 
@@ -309,7 +302,7 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
     let started = Instant::now();
     let seed = kill_seed();
     eprintln!("kill storm {tag}: UAVLOC_KILL_SEED={seed}");
-    let mut rng = SplitMix(seed);
+    let mut rng = SplitMix(SplitMix64::new(seed));
     let events = schedule(&mut rng, kills_per_role, pairs, steps);
     eprintln!("kill storm {tag}: schedule {events:?}");
 

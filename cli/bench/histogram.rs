@@ -188,28 +188,15 @@ impl LatencyHistogram {
 mod tests {
     use super::*;
 
-    /// A small deterministic generator (SplitMix64), so that the tests need no RNG crate.
-    struct SplitMix(u64);
-
-    impl SplitMix {
-        fn next(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^ (z >> 31)
-        }
-
-        /// A latency-like sample: log-uniform over 100 ns .. ~100 ms, ns.
-        fn latency(&mut self) -> u64 {
-            let u = (self.next() >> 11) as f64 / (1u64 << 53) as f64;
-            (100.0 * 10f64.powf(6.0 * u)) as u64
-        }
-    }
-
+    /// `n` latency-like samples, log-uniform over 100 ns .. ~100 ms (ns), from a seeded SplitMix64.
     fn samples(seed: u64, n: usize) -> Vec<u64> {
-        let mut rng = SplitMix(seed);
-        (0..n).map(|_| rng.latency()).collect()
+        let mut rng = tdoa::rng::SplitMix64::new(seed);
+        (0..n)
+            .map(|_| {
+                let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+                (100.0 * 10f64.powf(6.0 * u)) as u64
+            })
+            .collect()
     }
 
     fn histogram(values: &[u64]) -> LatencyHistogram {
