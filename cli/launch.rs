@@ -65,9 +65,10 @@ use std::time::{Duration, Instant};
 
 use clap::{Args, Subcommand};
 use emitter_sim::process::Mode;
+use estimator::EstimatorKind;
 use monitor::RunRecord;
 use monitor::resources::{self, DomainResources};
-use planner::{ObjectiveKind, SolverKind, TargetMode};
+use planner::{ObjectiveKind, Scenario, SolverKind, TargetMode};
 use protocol::services::{self, DOMAIN_ENV, Domain};
 use serde::Serialize;
 
@@ -140,6 +141,10 @@ pub struct LaunchArgs {
     /// Run seed (default: the scenario's).
     #[arg(long, value_name = "N")]
     pub seed: Option<u64>,
+    /// The estimator: fused (the posterior of every measurement so far) or snapshot (the paper's Chan
+    /// per step); default: the scenario's `estimator` (fused).
+    #[arg(long, value_name = "KIND")]
+    pub estimator: Option<EstimatorKind>,
     /// Pipeline domain, the prefix of every iceoryx2 service name (default: $UAVLOC_DOMAIN, else
     /// `uavloc-<pid>`, unique per launch).
     #[arg(long, value_name = "NAME")]
@@ -761,7 +766,10 @@ fn launch_domain(flag: Option<&str>) -> Result<Domain, CliError> {
 /// Runs `uavloc launch`.
 pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let start = Instant::now();
-    let sc = scenario_from(args.scenario.as_ref(), args.steps, args.seed)?;
+    let mut sc = scenario_from(args.scenario.as_ref(), args.steps, args.seed)?;
+    if let Some(kind) = args.estimator {
+        sc.estimator = kind;
+    }
     if sc.target == TargetMode::Controlled {
         return Err(CliError::Input(
             "scenario key `target`: \"controlled\" is not supported by the process pipeline (the planner never \
@@ -797,7 +805,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let state = StateDir::create(&domain)?;
     let log = args.log.clone().unwrap_or_else(|| state.path("monitor.jsonl"));
     let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts);
-    let result = start_and_run(&mut sup, args, &domain, &state, &log);
+    let result = start_and_run(&mut sup, args, &sc, &domain, &state, &log);
     sup.stop_all();
     // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown
     // message.
@@ -958,6 +966,7 @@ impl Drop for StateDir {
 fn start_and_run(
     sup: &mut Supervisor,
     args: &LaunchArgs,
+    sc: &Scenario,
     domain: &Domain,
     state: &StateDir,
     log: &std::path::Path,
@@ -1016,7 +1025,21 @@ fn start_and_run(
                     }
                 }
             }
-            "estimator" => {}
+            "estimator" => {
+                // `{:?}` keeps every digit (and the value parses back exactly).
+                flags.extend([
+                    "--estimator".to_string(),
+                    sc.estimator.name().to_string(),
+                    "--emitter-model".to_string(),
+                    sc.emitter_model.name().to_string(),
+                    "--process-noise-accel".to_string(),
+                    format!("{:?}", sc.process_noise_accel),
+                    "--velocity-prior-sigma".to_string(),
+                    format!("{:?}", sc.velocity_prior_sigma),
+                    "--interval-s".to_string(),
+                    format!("{:?}", sc.dt),
+                ]);
+            }
             _ => {
                 flags.extend(run_flags.iter().cloned());
                 flags.extend([

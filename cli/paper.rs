@@ -30,7 +30,11 @@ Experiments:
   optimizers   PSO / GA / ACO × formation / single / MC / analytical (Figures 7–8)
   sensitivity  the table2 comparison over the settings the paper does not state (heading cone Δα,
                planner-side error, σ_t, MC sampling scheme), with the MC criterion's effective sample size
-  all          everything above, sharing runs
+  fusion       beyond the paper: sequential fusion vs the paper's per-step Chan, the standoff chance
+               constraint (standoff_confidence 0.99 vs 0) and the posterior criteria, 24 and 60 steps:
+               terminal RMSE vs PCRLB, steps until < 100 m, closest approach to the TRUE emitter, true
+               L_min violations, paired differences (not part of `all`)
+  all          everything above but fusion, sharing runs
 
 Defaults are the paper's: M = 200 outer runs, R = 30 inner TDOA-noise resamples per RMSE point, K = 200
 MC target samples, PSO 40 × 15, the nominal scenario of Table 1 (scenarios/nominal.toml). Settings the
@@ -59,7 +63,7 @@ Timing: `all` with the defaults takes a few minutes on 2 cores; --quick (M = 20)
 #[derive(Args, Debug, Clone, PartialEq)]
 pub struct PaperArgs {
     /// Which experiment: table2 | table4 | table5 | table6 | table7 | table8 | table9 | table10 |
-    /// optimizers | sensitivity | all.
+    /// optimizers | sensitivity | fusion | all.
     pub experiment: ExperimentKind,
     /// Outer Monte Carlo runs M (default 200, the paper's; 20 with --quick).
     #[arg(long, value_name = "M")]

@@ -53,6 +53,10 @@ pub struct SimulateArgs {
     /// (default: the scenario's seed).
     #[arg(long, value_name = "N")]
     pub seed: Option<u64>,
+    /// The estimator: fused (the posterior of every measurement so far) or snapshot (the paper's Chan
+    /// per step); default: the scenario's `estimator` (fused).
+    #[arg(long, value_name = "KIND")]
+    pub estimator: Option<estimator::EstimatorKind>,
     /// Directory to write CSVs, run.json and plots into (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
@@ -78,7 +82,10 @@ pub struct SimulateReport {
 
 /// Runs `uavloc simulate`.
 pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
-    let sc = scenario_from(args.scenario.as_ref(), args.steps, args.seed)?;
+    let mut sc = scenario_from(args.scenario.as_ref(), args.steps, args.seed)?;
+    if let Some(kind) = args.estimator {
+        sc.estimator = kind;
+    }
     let run = experiments::closed_loop::run_closed_loop(&sc, args.objective, args.solver, |_| {})
         .map_err(|e| CliError::Failed(e.to_string()))?;
     let written = match &args.out {
@@ -99,22 +106,30 @@ impl Report for SimulateReport {
         let mut t = Table::new()
             .row("objective / solver", format!("{} / {}", r.objective, r.solver))
             .row("seed", r.seed.to_string())
-            .row("emitter (truth)", format!("({:.1}, {:.1}) m", r.emitter[0], r.emitter[1]))
+            .row("emitter (truth, step 0)", format!("({:.1}, {:.1}) m", r.emitter[0], r.emitter[1]))
+            .row("estimator", format!("{} ({})", r.estimator, r.scenario.emitter_model))
+            .row("rejected snapshots", r.rejected_snapshots.to_string())
+            .row(
+                "(UAV, step) pairs inside L_min of the true emitter",
+                r.true_standoff_violations.map_or("-".into(), |v| v.to_string()),
+            )
             .row(
                 "columns",
-                "CRLB at truth (m) | RMSE (m) | |ẑ − z| (m) | objective sqrt (m) | plan (ms) | active constraints",
+                "CRLB at truth (m) | PCRLB (m) | |ẑ − z| (m) | NEES | closest UAV (m) | objective sqrt (m) | plan (ms) | \
+                 active constraints",
             );
         for s in &r.steps {
-            let err = (s.estimate[0] - r.emitter[0]).hypot(s.estimate[1] - r.emitter[1]);
             let active =
                 if s.active_constraints.is_empty() { "-".to_string() } else { s.active_constraints.join(", ") };
             t = t.row(
                 format!("step {:>3}", s.step),
                 format!(
-                    "{:>9.2} | {:>9} | {:>9.1} | {:>9} | {:>6} | {active}",
+                    "{:>9.2} | {:>9} | {:>9} | {:>6} | {:>8} | {:>9} | {:>6} | {active}",
                     s.crlb_true_m,
-                    opt(s.rmse_m, 2),
-                    err,
+                    opt(s.pcrlb_m, 2),
+                    opt(s.estimate_error_m, 1),
+                    opt(s.nees, 2),
+                    opt(s.min_true_distance_m, 0),
                     opt(s.objective_value, 2),
                     opt(s.plan_ms, 3)
                 ),
@@ -127,11 +142,19 @@ impl Report for SimulateReport {
     }
 
     fn diagnostics(&self) -> Vec<Diagnostic> {
-        let n = self.run.steps.iter().filter(|s| s.estimate_status != "ok").count();
+        let n = self.run.steps.iter().filter(|s| matches!(s.estimate_status.as_str(), "ambiguous" | "failed")).count();
+        let mut out = Vec::new();
         if n > 0 {
-            vec![Diagnostic::Warning(format!("{n} step(s) had an ambiguous or failed estimate (see estimate_status)"))]
-        } else {
-            Vec::new()
+            out.push(Diagnostic::Warning(format!(
+                "{n} step(s) had an ambiguous or failed estimate (see estimate_status)"
+            )));
         }
+        if self.run.rejected_snapshots > 0 {
+            out.push(Diagnostic::Warning(format!(
+                "{} snapshot(s) failed the fused estimator's χ² gate and were not fused (estimate_status \"rejected\")",
+                self.run.rejected_snapshots
+            )));
+        }
+        out
     }
 }

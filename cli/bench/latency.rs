@@ -315,6 +315,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
         solver: planner::SolverKind::Pso,
         steps: Some(config.steps),
         seed: None,
+        estimator: None,
         domain: Some(domain),
         headless: true,
         out: None,

@@ -243,8 +243,9 @@ pub fn collect_inputs(sc: &Scenario, count: usize) -> Result<(Vec<PlanInput>, us
             CliError::Failed(format!("input run {runs} (seed {}): {what}: {e}", run_sc.seed))
         };
         let mut world = emitter_sim::World::from_scenario(&run_sc).map_err(|e| failed("world".into(), &e))?;
-        let mut estimator = estimator::Estimator::new();
-        let truth = world.truth();
+        let dynamics = run_sc.dynamics().map_err(|e| failed("estimator".into(), &e))?;
+        let mut estimator =
+            estimator::Estimator::with_config(estimator::EstimatorConfig::new(run_sc.estimator, dynamics));
         let before = inputs.len();
         for k in 0..run_sc.steps as u64 {
             if inputs.len() == count {
@@ -252,9 +253,9 @@ pub fn collect_inputs(sc: &Scenario, count: usize) -> Result<(Vec<PlanInput>, us
             }
             let meas = world.measure().map_err(|e| failed(format!("step {k}: measurement"), &e))?;
             let est = estimator
-                .estimate(&meas.uavs, &meas.range_diffs, world.noise())
+                .estimate(k, &meas.uavs, &meas.range_diffs, world.noise())
                 .map_err(|e| failed(format!("step {k}: estimate"), &e))?;
-            let target = run_sc.controlled_target(truth);
+            let target = run_sc.controlled_target(world.truth());
             let (estimate, covariance) = target.map_or((est.position, est.covariance), |t| (t.estimate, t.covariance));
             let input = PlanInput {
                 positions: world.positions().to_vec(),

@@ -77,6 +77,7 @@ pub struct Snapshot {
 #[derive(Debug, Clone, PartialEq)]
 pub struct World {
     emitter: Vector2<f64>,
+    velocity: Vector2<f64>,
     positions: Vec<Vector2<f64>>,
     headings: Vec<f64>,
     noise: NoiseModel,
@@ -92,6 +93,7 @@ impl World {
         scenario.validate()?;
         Ok(Self {
             emitter: scenario.emitter_position(),
+            velocity: Vector2::new(scenario.emitter_velocity[0], scenario.emitter_velocity[1]),
             positions: scenario.uav_positions(),
             headings: scenario.initial_headings().into_iter().map(wrap_angle).collect(),
             noise: scenario.noise_model()?,
@@ -102,9 +104,15 @@ impl World {
         })
     }
 
-    /// The true emitter position, metres.
+    /// The true emitter position at the current step, metres: the scenario's `emitter` moved by
+    /// `emitter_velocity · step · dt` (constant velocity; fixed by default).
     pub fn truth(&self) -> Vector2<f64> {
-        self.emitter
+        self.truth_at(self.step)
+    }
+
+    /// The true emitter position at `step`, metres.
+    pub fn truth_at(&self, step: u64) -> Vector2<f64> {
+        self.emitter + self.velocity * (step as f64 * self.dt)
     }
 
     /// Current UAV positions, metres.
@@ -143,7 +151,7 @@ impl World {
     pub fn measure(&self) -> Result<Measurement, WorldError> {
         let sensors = self.sensors()?;
         let mut rng = stream(self.seed, self.step, Purpose::MeasurementNoise);
-        let range_diffs = noisy_range_diffs(&sensors, &self.emitter, &mut rng);
+        let range_diffs = noisy_range_diffs(&sensors, &self.truth(), &mut rng);
         Ok(Measurement { step: self.step, uavs: self.positions.clone(), range_diffs })
     }
 
@@ -323,7 +331,7 @@ mod tests {
             let mut est = Estimator::new();
             for k in 0..sc.steps as u64 {
                 let m = w.measure().unwrap();
-                let e = est.estimate(&m.uavs, &m.range_diffs, w.noise()).unwrap();
+                let e = est.estimate(k, &m.uavs, &m.range_diffs, w.noise()).unwrap();
                 assert_eq!(e.status, EstimateStatus::Ok, "{objective} step {k}");
                 let out = plan_step(&PlanRequest {
                     positions: w.positions(),

@@ -844,7 +844,6 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     sim.drain_control()?;
     sim.replay_from = None;
     let sigmas = scenario.range_sigmas();
-    let truth = sim.world.truth();
     let mut trigger: Option<(Command, u64)> = None;
     let mut previous = match (start_step, start_missed) {
         (0, _) => CommandOutcome::None,
@@ -872,7 +871,8 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
         let mut message = Measurement::new(k, 0, &uavs, meas.range_diffs.as_slice(), &sigmas, sim.world.headings())
             .map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
-        let mut truth = Truth::new(k, 0, [truth.x, truth.y]).with_previous_command(previous);
+        let z = sim.world.truth();
+        let mut truth = Truth::new(k, 0, [z.x, z.y]).with_previous_command(previous);
         if let Some((cmd, received_ns)) = &trigger {
             message = message.carrying(cmd, *received_ns);
             // The monitor learns from the truth when the previous step's command reached the world.

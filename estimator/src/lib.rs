@@ -1,32 +1,65 @@
-//! # uavloc-estimator — Chan's TDOA estimator with memory
+//! # uavloc-estimator — the run's estimator: sequential fusion, or Chan per snapshot
 //!
-//! [`Estimator`] wraps `tdoa::chan` (paper Section 2, eqs. 10–30) for a run: the previous estimate is
-//! the prior that resolves the two-root ambiguity of the three-UAV case, and when a solve fails the
-//! previous estimate is kept and reported as [`EstimateStatus::Failed`]. The output never holds a NaN.
+//! [`Estimator`] turns each step's TDOA snapshot into the estimate the planner and the user see. Two
+//! kinds ([`EstimatorKind`], scenario key `estimator`):
+//!
+//! - `fused` (default): the posterior of the emitter's state given **every** snapshot so far
+//!   ([`tdoa::fusion`]: an iterated EKF on the raw range differences, χ²-gated), started from Chan's fix
+//!   of the first snapshot that has one. A snapshot whose innovation fails the gate is not fused and is
+//!   reported as [`EstimateStatus::Rejected`] (the posterior is then the prediction). Emitter models
+//!   `static` and `constant_velocity` ([`tdoa::motion`]).
+//! - `snapshot` (the paper, Section 2, eqs. 10–30): Chan's fix of each snapshot alone; the previous
+//!   estimate is the prior that resolves the two-root ambiguity of the three-UAV case.
+//!
+//! When a step cannot be estimated the previous estimate is kept and reported as
+//! [`EstimateStatus::Failed`]. The output never holds a NaN.
 //!
 //! [`process`] is the estimator process: measurement in → [`Estimator::estimate`] → estimate out over
 //! iceoryx2.
 //!
-//! Units: metres (positions), m² (covariance).
+//! Units: metres (positions), m² (covariance), m/s (velocity).
 
 pub mod process;
 
 use nalgebra::{Matrix2, Vector2};
-use tdoa::{NoiseModel, RangeDiffs, Sensors, TdoaError, chan};
+use tdoa::fusion::{self, DEFAULT_GATE_PROBABILITY, Outcome, Posterior};
+use tdoa::{Dynamics, NoiseModel, RangeDiffs, Sensors, TdoaError, chan};
 use thiserror::Error;
+
+pub use tdoa::EmitterModel;
+pub use tdoa::fusion::EstimatorKind;
 
 /// How an estimate came about.
 #[derive(Debug, Clone, PartialEq)]
 pub enum EstimateStatus {
-    /// Chan gave a unique solution (or the prior resolved the ambiguity).
+    /// Chan gave a unique solution (or the prior resolved the ambiguity); fused: the snapshot was fused.
     Ok,
     /// Two physically valid solutions and no prior to choose: `position` is the first candidate.
     Ambiguous,
-    /// Chan failed; `position` and `covariance` are the previous estimate.
+    /// Fused only: the snapshot failed the χ² gate and was not fused; the estimate is the prediction.
+    Rejected {
+        /// The snapshot's normalised innovation squared.
+        nis: f64,
+        /// The gate it exceeded, `χ²_{N−1}(p_gate)`.
+        threshold: f64,
+    },
+    /// The step could not be estimated; `position` and `covariance` are the previous estimate.
     Failed {
-        /// Why Chan failed.
+        /// Why.
         reason: String,
     },
+}
+
+impl EstimateStatus {
+    /// `ok`, `ambiguous`, `rejected` or `failed`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            EstimateStatus::Ok => "ok",
+            EstimateStatus::Ambiguous => "ambiguous",
+            EstimateStatus::Rejected { .. } => "rejected",
+            EstimateStatus::Failed { .. } => "failed",
+        }
+    }
 }
 
 /// One estimate of the emitter.
@@ -34,48 +67,119 @@ pub enum EstimateStatus {
 pub struct EstimateOut {
     /// ẑ, metres.
     pub position: Vector2<f64>,
-    /// Its covariance M, m² (Chan's first-order covariance, `F⁻¹(ẑ)` for three UAVs).
+    /// Its covariance M, m² (snapshot: Chan's first-order covariance, `F⁻¹(ẑ)` for three UAVs; fused:
+    /// the posterior's position block).
     pub covariance: Matrix2<f64>,
     /// How it came about.
     pub status: EstimateStatus,
-    /// The physically valid solutions of this solve (two when ambiguous or resolved by the prior;
-    /// empty when the solve failed).
+    /// The physically valid solutions of this step's Chan solve (two when ambiguous or resolved by the
+    /// prior; empty when Chan was not run or failed).
     pub candidates: Vec<Vector2<f64>>,
+    /// Fused: the whole posterior after this step (velocity and cross-covariances included).
+    pub posterior: Option<Posterior>,
 }
 
 /// Why no estimate at all could be given.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum EstimatorError {
-    /// Chan failed and there is no previous estimate to fall back on.
+    /// The step failed and there is no previous estimate to fall back on.
     #[error("no estimate: {0} (and no previous estimate to keep)")]
     NoEstimate(#[source] TdoaError),
 }
 
-/// Chan's estimator with the previous estimate as prior.
-#[derive(Debug, Clone, Default, PartialEq)]
+/// What an [`Estimator`] is: its kind, the motion model and the gate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatorConfig {
+    /// Fused or snapshot.
+    pub kind: EstimatorKind,
+    /// The emitter's motion model (fused only).
+    pub dynamics: Dynamics,
+    /// The χ² gate probability (fused only), in (0, 1]; 1 fuses everything.
+    pub gate_probability: f64,
+}
+
+impl EstimatorConfig {
+    /// The paper's per-step Chan.
+    pub fn snapshot() -> Self {
+        Self { kind: EstimatorKind::Snapshot, dynamics: Dynamics::fixed(), gate_probability: DEFAULT_GATE_PROBABILITY }
+    }
+
+    /// Fusion under `dynamics` with the default gate.
+    pub fn fused(dynamics: Dynamics) -> Self {
+        Self { kind: EstimatorKind::Fused, dynamics, gate_probability: DEFAULT_GATE_PROBABILITY }
+    }
+
+    /// `kind` under `dynamics` with the default gate.
+    pub fn new(kind: EstimatorKind, dynamics: Dynamics) -> Self {
+        Self { kind, dynamics, gate_probability: DEFAULT_GATE_PROBABILITY }
+    }
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        Self::fused(Dynamics::fixed())
+    }
+}
+
+/// The estimator of one run.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Estimator {
+    config: EstimatorConfig,
     prior: Option<Vector2<f64>>,
     previous: Option<(Vector2<f64>, Matrix2<f64>)>,
+    posterior: Option<Posterior>,
+    last_step: Option<u64>,
+}
+
+impl Default for Estimator {
+    fn default() -> Self {
+        Self::snapshot()
+    }
 }
 
 impl Estimator {
-    /// An estimator with no prior: the first three-UAV solve may be ambiguous.
+    /// A fresh estimator of `config`.
+    pub fn with_config(config: EstimatorConfig) -> Self {
+        Self { config, prior: None, previous: None, posterior: None, last_step: None }
+    }
+
+    /// A fresh snapshot (paper) estimator with no prior: the first three-UAV solve may be ambiguous.
+    pub fn snapshot() -> Self {
+        Self::with_config(EstimatorConfig::snapshot())
+    }
+
+    /// A fresh snapshot estimator (the paper's; kept name).
     pub fn new() -> Self {
-        Self::default()
+        Self::snapshot()
     }
 
-    /// An estimator whose first solve uses `prior` (metres) to resolve the three-UAV ambiguity.
+    /// A snapshot estimator whose first solve uses `prior` (metres) to resolve the three-UAV ambiguity.
     pub fn with_prior(prior: Vector2<f64>) -> Self {
-        Self { prior: prior.iter().all(|v| v.is_finite()).then_some(prior), previous: None }
+        let mut e = Self::snapshot();
+        e.prior = prior.iter().all(|v| v.is_finite()).then_some(prior);
+        e
     }
 
-    /// An estimator that continues after an estimate `position` with covariance `covariance` (e.g. one
-    /// taking over from another process): the same state as the estimator that produced it.
-    pub fn resume(position: Vector2<f64>, covariance: Matrix2<f64>) -> Self {
-        Self { prior: None, previous: Some((position, covariance)) }
+    /// An estimator of `config` that continues after its estimate of step `step` (e.g. one taking over
+    /// from another process, or rebuilt from a published estimate): position, covariance and, fused,
+    /// the whole posterior. The same state as the estimator that produced them.
+    pub fn resume(
+        config: EstimatorConfig,
+        step: u64,
+        position: Vector2<f64>,
+        covariance: Matrix2<f64>,
+        posterior: Option<Posterior>,
+    ) -> Self {
+        let posterior = if config.kind == EstimatorKind::Fused { posterior } else { None };
+        Self { config, prior: None, previous: Some((position, covariance)), posterior, last_step: Some(step) }
     }
 
-    /// The prior of the next solve: the previous estimate, else the initial prior.
+    /// The configuration.
+    pub fn config(&self) -> &EstimatorConfig {
+        &self.config
+    }
+
+    /// The prior of the next Chan solve: the previous estimate, else the initial prior.
     pub fn prior(&self) -> Option<Vector2<f64>> {
         self.previous.map(|(p, _)| p).or(self.prior)
     }
@@ -85,45 +189,112 @@ impl Estimator {
         self.previous
     }
 
-    /// Estimates the emitter from range differences `d` (`d_i = r_i − r_0`, metres) measured by UAVs at
-    /// `uavs` (metres, index 0 the reference) with range noise `noise`.
+    /// Fused: the posterior after the last step.
+    pub fn posterior(&self) -> Option<Posterior> {
+        self.posterior
+    }
+
+    /// The last step estimated.
+    pub fn last_step(&self) -> Option<u64> {
+        self.last_step
+    }
+
+    /// Estimates the emitter at `step` from range differences `d` (`d_i = r_i − r_0`, metres) measured
+    /// by UAVs at `uavs` (metres, index 0 the reference) with range noise `noise`. Steps are snapshot
+    /// intervals: the constant-velocity model predicts over `step − last step` of them.
     ///
-    /// On success the estimate becomes the prior of the next call (an ambiguous one too: its first
-    /// candidate). On failure the previous estimate is returned with [`EstimateStatus::Failed`]; only
-    /// when there is none is the result an error.
+    /// On failure the previous estimate is returned with [`EstimateStatus::Failed`]; only when there is
+    /// none is the result an error.
     pub fn estimate(
         &mut self,
+        step: u64,
         uavs: &[Vector2<f64>],
         d: &RangeDiffs,
         noise: &NoiseModel,
     ) -> Result<EstimateOut, EstimatorError> {
-        match self.solve(uavs, d, noise) {
+        let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
+        let result = match (self.config.kind, self.posterior) {
+            (EstimatorKind::Fused, Some(post)) => {
+                self.fuse(&post.predict(&self.config.dynamics, elapsed), uavs, d, noise)
+            }
+            _ => self.solve(uavs, d, noise),
+        };
+        self.last_step = Some(step);
+        match result {
             Ok(out) => {
                 self.previous = Some((out.position, out.covariance));
+                if out.posterior.is_some() {
+                    self.posterior = out.posterior;
+                }
                 Ok(out)
             }
-            Err(e) => match self.previous {
-                Some((position, covariance)) => Ok(EstimateOut {
-                    position,
-                    covariance,
-                    status: EstimateStatus::Failed { reason: e.to_string() },
-                    candidates: Vec::new(),
-                }),
-                None => Err(EstimatorError::NoEstimate(e)),
-            },
+            Err(e) => {
+                // Fused: the state moves on as predicted (unchanged for a static emitter).
+                if let Some(post) = self.posterior {
+                    self.posterior = Some(post.predict(&self.config.dynamics, elapsed));
+                }
+                match self.previous {
+                    Some((position, covariance)) => Ok(EstimateOut {
+                        position,
+                        covariance,
+                        status: EstimateStatus::Failed { reason: e.to_string() },
+                        candidates: Vec::new(),
+                        posterior: None,
+                    }),
+                    None => Err(EstimatorError::NoEstimate(e)),
+                }
+            }
         }
     }
 
-    fn solve(&self, uavs: &[Vector2<f64>], d: &RangeDiffs, noise: &NoiseModel) -> Result<EstimateOut, TdoaError> {
+    fn sensors(uavs: &[Vector2<f64>], noise: &NoiseModel) -> Result<Sensors, TdoaError> {
         let pts: Vec<[f64; 2]> = uavs.iter().map(|p| [p.x, p.y]).collect();
-        let sensors = Sensors::new(&pts, noise.clone())?;
+        Sensors::new(&pts, noise.clone())
+    }
+
+    fn fuse(
+        &self,
+        predicted: &Posterior,
+        uavs: &[Vector2<f64>],
+        d: &RangeDiffs,
+        noise: &NoiseModel,
+    ) -> Result<EstimateOut, TdoaError> {
+        let sensors = Self::sensors(uavs, noise)?;
+        let gate = fusion::gate_threshold(sensors.len() - 1, self.config.gate_probability);
+        let up = fusion::fuse(predicted, &sensors, d, gate)?;
+        let status = match up.outcome {
+            Outcome::Fused { .. } => EstimateStatus::Ok,
+            Outcome::Rejected { nis, threshold } => EstimateStatus::Rejected { nis, threshold },
+        };
+        let post = up.posterior;
+        Ok(EstimateOut {
+            position: post.position(),
+            covariance: post.position_cov(),
+            status,
+            candidates: Vec::new(),
+            posterior: Some(post),
+        })
+    }
+
+    fn solve(&self, uavs: &[Vector2<f64>], d: &RangeDiffs, noise: &NoiseModel) -> Result<EstimateOut, TdoaError> {
+        let sensors = Self::sensors(uavs, noise)?;
         let sol = chan(&sensors, d, self.prior())?;
         let finite = sol.position.iter().chain(sol.covariance.iter()).all(|v| v.is_finite());
         if !finite {
             return Err(TdoaError::Degenerate("Chan returned a non-finite estimate or covariance".into()));
         }
         let status = if sol.ambiguous { EstimateStatus::Ambiguous } else { EstimateStatus::Ok };
-        Ok(EstimateOut { position: sol.position, covariance: sol.covariance, status, candidates: sol.candidates })
+        let posterior = match self.config.kind {
+            EstimatorKind::Fused => Some(Posterior::from_chan(&sol, &self.config.dynamics)?),
+            EstimatorKind::Snapshot => None,
+        };
+        Ok(EstimateOut {
+            position: sol.position,
+            covariance: sol.covariance,
+            status,
+            candidates: sol.candidates,
+            posterior,
+        })
     }
 }
 
@@ -149,13 +320,13 @@ mod tests {
         let z = Vector2::new(25000.0, 15000.0);
         let uavs = nominal();
         let mut est = Estimator::with_prior(Vector2::new(20000.0, 20000.0));
-        let out = est.estimate(&uavs, &diffs(&uavs, z), &noise(3)).unwrap();
+        let out = est.estimate(0, &uavs, &diffs(&uavs, z), &noise(3)).unwrap();
         assert!((out.position - z).norm() < 1e-6, "{}", (out.position - z).norm());
         assert_eq!(out.status, EstimateStatus::Ok);
         assert!(out.covariance.iter().all(|v| v.is_finite()));
         let mut uavs4 = uavs.clone();
         uavs4.push(Vector2::new(0.0, 9000.0));
-        let out = Estimator::new().estimate(&uavs4, &diffs(&uavs4, z), &noise(4)).unwrap();
+        let out = Estimator::new().estimate(0, &uavs4, &diffs(&uavs4, z), &noise(4)).unwrap();
         assert!((out.position - z).norm() < 1e-6, "{}", (out.position - z).norm());
         assert_eq!(out.status, EstimateStatus::Ok);
     }
@@ -187,21 +358,21 @@ mod tests {
         let (uavs, z, other) = ambiguous_case();
         let d = diffs(&uavs, z);
         // No prior: ambiguous, both roots offered.
-        let out = Estimator::new().estimate(&uavs, &d, &noise(3)).unwrap();
+        let out = Estimator::new().estimate(0, &uavs, &d, &noise(3)).unwrap();
         assert_eq!(out.status, EstimateStatus::Ambiguous);
         assert_eq!(out.candidates.len(), 2);
         assert!(out.candidates.iter().any(|c| (c - z).norm() < 1e-6));
         // A prior near the truth picks the truth; one near the other root picks that root.
         let near = |p: Vector2<f64>| p + Vector2::new(150.0, -90.0);
-        let out = Estimator::with_prior(near(z)).estimate(&uavs, &d, &noise(3)).unwrap();
+        let out = Estimator::with_prior(near(z)).estimate(0, &uavs, &d, &noise(3)).unwrap();
         assert_eq!(out.status, EstimateStatus::Ok);
         assert!((out.position - z).norm() < 1e-6);
-        let out = Estimator::with_prior(near(other)).estimate(&uavs, &d, &noise(3)).unwrap();
+        let out = Estimator::with_prior(near(other)).estimate(0, &uavs, &d, &noise(3)).unwrap();
         assert!((out.position - other).norm() < 1e-6);
         // The previous estimate is the prior of the next solve.
         let mut est = Estimator::with_prior(near(z));
-        est.estimate(&uavs, &d, &noise(3)).unwrap();
-        let again = est.estimate(&uavs, &d, &noise(3)).unwrap();
+        est.estimate(0, &uavs, &d, &noise(3)).unwrap();
+        let again = est.estimate(0, &uavs, &d, &noise(3)).unwrap();
         assert_eq!(again.status, EstimateStatus::Ok);
         assert!((again.position - z).norm() < 1e-6);
     }
@@ -211,10 +382,10 @@ mod tests {
         let z = Vector2::new(25000.0, 15000.0);
         let uavs = nominal();
         let mut est = Estimator::new();
-        let first = est.estimate(&uavs, &diffs(&uavs, z), &noise(3)).unwrap();
+        let first = est.estimate(0, &uavs, &diffs(&uavs, z), &noise(3)).unwrap();
         // Collinear UAVs: Chan cannot solve.
         let line = vec![Vector2::new(0.0, 0.0), Vector2::new(1000.0, 0.0), Vector2::new(2000.0, 0.0)];
-        let out = est.estimate(&line, &diffs(&line, z), &noise(3)).unwrap();
+        let out = est.estimate(1, &line, &diffs(&line, z), &noise(3)).unwrap();
         assert!(matches!(out.status, EstimateStatus::Failed { ref reason } if !reason.is_empty()));
         assert_eq!(out.position, first.position);
         assert_eq!(out.covariance, first.covariance);
@@ -222,16 +393,16 @@ mod tests {
         // Coincident UAVs and a wrong count fail the same way.
         let twin = vec![uavs[0], uavs[0], uavs[2]];
         assert!(matches!(
-            est.estimate(&twin, &diffs(&uavs, z), &noise(3)).unwrap().status,
+            est.estimate(2, &twin, &diffs(&uavs, z), &noise(3)).unwrap().status,
             EstimateStatus::Failed { .. }
         ));
         assert!(matches!(
-            est.estimate(&uavs[..2], &diffs(&uavs, z), &noise(3)).unwrap().status,
+            est.estimate(0, &uavs[..2], &diffs(&uavs, z), &noise(3)).unwrap().status,
             EstimateStatus::Failed { .. }
         ));
         // With no previous estimate the failure is an error.
         assert!(matches!(
-            Estimator::new().estimate(&line, &diffs(&line, z), &noise(3)),
+            Estimator::new().estimate(0, &line, &diffs(&line, z), &noise(3)),
             Err(EstimatorError::NoEstimate(_))
         ));
     }

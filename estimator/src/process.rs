@@ -46,17 +46,17 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Args;
-use nalgebra::Vector2;
+use nalgebra::{Matrix4, Vector2, Vector4};
 use protocol::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
-    ControlChannel, ControlKind, Estimate, EstimateStatus as WireStatus, Fix, Measurement, RejectionCounter, Topic,
-    TopicSubscriber, TransportError, now_ns,
+    ControlChannel, ControlKind, Estimate, EstimateStatus as WireStatus, Fix, Measurement, PosteriorExtra,
+    RejectionCounter, Topic, TopicSubscriber, TransportError, now_ns,
 };
-use tdoa::{NoiseModel, RangeDiffs};
+use tdoa::{Dynamics, NoiseModel, Posterior, RangeDiffs};
 
-use crate::{EstimateStatus, Estimator};
+use crate::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig, EstimatorKind};
 
 /// The role name (node name suffix, `uavloc process estimator`).
 pub const ROLE: &str = "estimator";
@@ -86,6 +86,22 @@ pub struct EstimatorArgs {
     /// Take over from the running estimator at the next step (see `uavloc swap estimator`).
     #[arg(long)]
     pub takeover: bool,
+    /// The estimator: fused (the posterior of every measurement so far, χ²-gated) or snapshot (the
+    /// paper's Chan fix of each measurement alone).
+    #[arg(long, value_name = "KIND", default_value = "fused")]
+    pub estimator: EstimatorKind,
+    /// The fused estimator's emitter model: static or constant_velocity.
+    #[arg(long, value_name = "MODEL", default_value = "static")]
+    pub emitter_model: EmitterModel,
+    /// constant_velocity: white-acceleration process noise σ_a, m/s² (≥ 0).
+    #[arg(long, value_name = "M/S2", default_value_t = 0.05)]
+    pub process_noise_accel: f64,
+    /// constant_velocity: σ per axis of the initial velocity (0 ± this), m/s (> 0).
+    #[arg(long, value_name = "M/S", default_value_t = 20.0)]
+    pub velocity_prior_sigma: f64,
+    /// constant_velocity: the time between two steps' measurements, s (the scenario's dt).
+    #[arg(long, value_name = "S", default_value_t = 10.0)]
+    pub interval_s: f64,
     /// Checkpoint file: the state is written there every 256 steps, and a start that finds it (a restart
     /// in the same run) resumes from it instead of having the run replayed from step 0. Remove it before
     /// a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
@@ -138,6 +154,57 @@ pub struct Checkpoint {
     pub step: u64,
     /// The previous usable estimate (metres) and its covariance (m²), the prior of the next solve.
     pub previous: Option<([f64; 2], [[f64; 2]; 2])>,
+    /// The fused posterior beyond the position (velocity block), as in the estimate.
+    #[serde(default)]
+    pub extra: PosteriorExtra,
+}
+
+impl EstimatorArgs {
+    /// The estimator configuration of the flags; errors name the flag.
+    pub fn config(&self) -> Result<EstimatorConfig, ProcessError> {
+        let dynamics =
+            Dynamics::new(self.emitter_model, self.interval_s, self.process_noise_accel, self.velocity_prior_sigma)
+                .map_err(|e| {
+                    let flag = match &e {
+                        e if e.to_string().contains("process_noise_accel") => "--process-noise-accel",
+                        e if e.to_string().contains("velocity_prior") => "--velocity-prior-sigma",
+                        _ => "--interval-s",
+                    };
+                    ProcessError::Input(format!("{flag}: {e}"))
+                })?;
+        Ok(EstimatorConfig::new(self.estimator, dynamics))
+    }
+}
+
+/// The wire form of the fused posterior beyond the position.
+pub fn extra_of(posterior: Option<&Posterior>) -> PosteriorExtra {
+    let Some(p) = posterior else { return PosteriorExtra::default() };
+    let mut extra = PosteriorExtra { estimator: 1, model: p.model().code(), ..PosteriorExtra::default() };
+    if p.model() == EmitterModel::ConstantVelocity {
+        let (m, c) = (p.mean(), p.cov());
+        extra.velocity = [m[2], m[3]];
+        extra.cross_cov = [[c[(0, 2)], c[(0, 3)]], [c[(1, 2)], c[(1, 3)]]];
+        extra.velocity_cov = [[c[(2, 2)], c[(2, 3)]], [c[(3, 2)], c[(3, 3)]]];
+    }
+    extra
+}
+
+/// The fused posterior of a usable estimate (`position`, `covariance`, `extra`); `None` for a snapshot
+/// estimate or numbers that do not form a posterior.
+pub fn posterior_of(position: &[f64; 2], covariance: &[[f64; 2]; 2], extra: &PosteriorExtra) -> Option<Posterior> {
+    if extra.estimator != 1 {
+        return None;
+    }
+    let model = EmitterModel::from_code(extra.model)?;
+    let mean = Vector4::new(position[0], position[1], extra.velocity[0], extra.velocity[1]);
+    let (c, x, v) = (covariance, extra.cross_cov, extra.velocity_cov);
+    let cov = Matrix4::new(
+        c[0][0], c[0][1], x[0][0], x[0][1], //
+        c[1][0], c[1][1], x[1][0], x[1][1], //
+        x[0][0], x[1][0], v[0][0], v[0][1], //
+        x[0][1], x[1][1], v[1][0], v[1][1],
+    );
+    Posterior::new(model, mean, cov).ok()
 }
 
 /// The content of a measurement (everything but header and stamps), bit for bit.
@@ -153,7 +220,7 @@ fn content_key(m: &Measurement) -> Vec<u64> {
 pub struct StepEstimator {
     estimator: Estimator,
     last_step: Option<u64>,
-    answers: BTreeMap<u64, (Vec<u64>, Fix)>,
+    answers: BTreeMap<u64, (Vec<u64>, Fix, PosteriorExtra)>,
     checkpoints: Vec<Checkpoint>,
 }
 
@@ -161,25 +228,37 @@ pub struct StepEstimator {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Answer {
     /// Estimated now.
-    New(Fix),
+    New(Fix, PosteriorExtra),
     /// The answer given before to the same measurement.
-    Again(Fix),
+    Again(Fix, PosteriorExtra),
     /// Not estimated: the step before it was not (see the module docs).
     OutOfChain,
 }
 
 impl StepEstimator {
-    /// A fresh state.
+    /// A fresh state of a snapshot estimator.
     pub fn new() -> Self {
         Self::default()
     }
 
-    /// The state of an estimator whose estimate of `step` was `position` with `covariance` (taking over
-    /// from it): the next step it estimates is `step + 1`.
-    pub fn resume(step: u64, position: [f64; 2], covariance: [[f64; 2]; 2]) -> Self {
+    /// A fresh state of an estimator of `config`.
+    pub fn with_config(config: EstimatorConfig) -> Self {
+        Self { estimator: Estimator::with_config(config), ..Self::default() }
+    }
+
+    /// The state of an estimator of `config` whose estimate of `step` was `position` with `covariance`
+    /// and the fused state `extra` (taking over from it): the next step it estimates is `step + 1`.
+    pub fn resume(
+        config: EstimatorConfig,
+        step: u64,
+        position: [f64; 2],
+        covariance: [[f64; 2]; 2],
+        extra: &PosteriorExtra,
+    ) -> Self {
         let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
+        let posterior = posterior_of(&position, &covariance, extra);
         Self {
-            estimator: Estimator::resume(z, m),
+            estimator: Estimator::resume(config, step, z, m, posterior),
             last_step: Some(step),
             answers: BTreeMap::new(),
             checkpoints: Vec::new(),
@@ -195,20 +274,21 @@ impl StepEstimator {
     pub fn checkpoint(&self) -> Option<Checkpoint> {
         let step = self.last_step?;
         let previous = self.estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c));
-        Some(Checkpoint { step, previous })
+        let extra = extra_of(self.estimator.posterior().as_ref());
+        Some(Checkpoint { step, previous, extra })
     }
 
     /// The state a checkpoint was written from (no answers kept: a replay from `step + 1` follows).
-    pub fn from_checkpoint(c: &Checkpoint) -> Self {
+    pub fn from_checkpoint(config: EstimatorConfig, c: &Checkpoint) -> Self {
         match c.previous {
-            Some((position, covariance)) => Self::resume(c.step, position, covariance),
-            None => Self { last_step: Some(c.step), ..Self::default() },
+            Some((position, covariance)) => Self::resume(config, c.step, position, covariance, &c.extra),
+            None => Self { last_step: Some(c.step), ..Self::with_config(config) },
         }
     }
 
     /// The state of the newest of `kept` checkpoints (oldest first), keeping them all as rewind points.
-    pub fn from_checkpoints(kept: Vec<Checkpoint>) -> Self {
-        let mut s = kept.last().map_or_else(Self::new, Self::from_checkpoint);
+    pub fn from_checkpoints(config: EstimatorConfig, kept: Vec<Checkpoint>) -> Self {
+        let mut s = kept.last().map_or_else(|| Self::with_config(config), |c| Self::from_checkpoint(config, c));
         s.checkpoints = kept;
         s
     }
@@ -230,13 +310,11 @@ impl StepEstimator {
 
     /// Moves the state on to the one after step `step` (the next step) whose answer was `fix`: a usable
     /// fix is the next prior (exactly [`Estimator::estimate`]'s update), a failed one leaves it.
-    fn advance_to(&mut self, step: u64, fix: &Fix) {
-        match fix {
-            Fix::Ok { position, covariance } | Fix::Ambiguous { position, covariance } => {
-                let (z, m) = tdoa::estimate_from_arrays(position, covariance);
-                self.estimator = Estimator::resume(z, m);
-            }
-            Fix::Failed => {}
+    fn advance_to(&mut self, step: u64, fix: &Fix, extra: &PosteriorExtra) {
+        if let Some((position, covariance)) = fix.usable() {
+            let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
+            let posterior = posterior_of(&position, &covariance, extra);
+            self.estimator = Estimator::resume(*self.estimator.config(), step, z, m, posterior);
         }
         self.last_step = Some(step);
     }
@@ -245,39 +323,40 @@ impl StepEstimator {
     pub fn handle(&mut self, m: &Measurement) -> Answer {
         let step = m.header.step;
         let key = content_key(m);
-        if let Some((known, fix)) = self.answers.get(&step)
+        if let Some((known, fix, extra)) = self.answers.get(&step)
             && *known == key
         {
-            let fix = *fix;
+            let (fix, extra) = (*fix, *extra);
             // The answer is known, but the state may be behind it (rewound to an older checkpoint, then
             // replayed up to answers kept from before): the answer *is* the state after its step.
             if self.last_step.is_some_and(|last| step == last + 1) {
-                self.advance_to(step, &fix);
+                self.advance_to(step, &fix, &extra);
             }
-            return Answer::Again(fix);
+            return Answer::Again(fix, extra);
         }
+        let config = *self.estimator.config();
         if step == 0 {
-            *self = Self::new(); // a new run
+            *self = Self::with_config(config); // a new run
         } else if self.last_step.is_none_or(|last| step != last + 1) {
             // A checkpoint step we have the state before, but no answer for: the world was rewound there.
             match self.checkpoints.iter().rev().find(|c| c.step + 1 == step).copied() {
                 Some(c) if self.last_step.is_some_and(|last| step <= last) => {
                     let kept = std::mem::take(&mut self.checkpoints);
                     let answers = std::mem::take(&mut self.answers);
-                    *self = Self::from_checkpoint(&c);
+                    *self = Self::from_checkpoint(config, &c);
                     self.checkpoints = kept;
                     self.answers = answers;
                 }
                 _ => return Answer::OutOfChain,
             }
         }
-        let fix = estimate_measurement(&mut self.estimator, m);
+        let (fix, extra) = estimate_measurement(&mut self.estimator, m);
         self.last_step = Some(step);
-        self.answers.insert(step, (key, fix));
+        self.answers.insert(step, (key, fix, extra));
         if self.answers.len() > MAX_CACHED_STEPS {
             self.answers.pop_first();
         }
-        Answer::New(fix)
+        Answer::New(fix, extra)
     }
 }
 
@@ -289,25 +368,26 @@ fn announce(supervised: bool, line: &str) {
     }
 }
 
-/// The estimate of one measurement as a wire [`Fix`] (`Fix::Failed` when Chan failed, whether or not the
-/// library had a previous estimate to keep).
-pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Fix {
+/// The estimate of one measurement as a wire [`Fix`] and the fused state beyond the position
+/// (`Fix::Failed` when the step could not be estimated, whether or not the library had a previous
+/// estimate to keep).
+pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> (Fix, PosteriorExtra) {
     let uavs: Vec<Vector2<f64>> = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
     let (Ok(noise), Ok(diffs)) = (NoiseModel::from_range_sigmas(m.sigmas()), RangeDiffs::from_slice(m.diffs())) else {
-        return Fix::Failed;
+        return (Fix::Failed, PosteriorExtra::default());
     };
-    match estimator.estimate(&uavs, &diffs, &noise) {
+    match estimator.estimate(m.header.step, &uavs, &diffs, &noise) {
         Ok(out) => {
-            let position = [out.position.x, out.position.y];
-            let c = out.covariance;
-            let covariance = [[c[(0, 0)], c[(0, 1)]], [c[(1, 0)], c[(1, 1)]]];
-            match out.status {
+            let (position, covariance) = tdoa::estimate_to_arrays(&out.position, &out.covariance);
+            let fix = match out.status {
                 EstimateStatus::Ok => Fix::Ok { position, covariance },
                 EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
+                EstimateStatus::Rejected { .. } => Fix::Rejected { position, covariance },
                 EstimateStatus::Failed { .. } => Fix::Failed,
-            }
+            };
+            (fix, extra_of(out.posterior.as_ref()))
         }
-        Err(_) => Fix::Failed,
+        Err(_) => (Fix::Failed, PosteriorExtra::default()),
     }
 }
 
@@ -344,8 +424,9 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
             .unwrap_or_default(),
         _ => Vec::new(),
     };
+    let config = args.config()?;
     let resumed = kept.last().copied();
-    let mut state = StepEstimator::from_checkpoints(kept);
+    let mut state = StepEstimator::from_checkpoints(config, kept);
     if !args.takeover {
         // "Replay the run for me from the step after my checkpoint, else from step 0" (a no-op at the start
         // of a launch: emitter-sim is not there).
@@ -411,10 +492,10 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
                     eprintln!("estimator: rejected an estimate of the running estimator: {r}");
                     continue;
                 }
-                if matches!(e.status(), Some(WireStatus::Ok | WireStatus::Ambiguous)) {
+                if e.status().is_some_and(WireStatus::is_usable) {
                     // Its state after this step; take over from the next one.
                     let f = e.header.step + 1;
-                    state = StepEstimator::resume(e.header.step, e.position, e.covariance);
+                    state = StepEstimator::resume(config, e.header.step, e.position, e.covariance, &e.extra());
                     from_step = Some(f);
                     summary.took_over_at = Some(f);
                     control.send(ControlKind::TakeOver, f, "")?;
@@ -458,11 +539,11 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
             {
                 eprintln!("estimator: {e}");
             }
-            let fix = match state.handle(&m) {
-                Answer::New(fix) => fix,
-                Answer::Again(fix) => {
+            let (fix, extra) = match state.handle(&m) {
+                Answer::New(fix, extra) => (fix, extra),
+                Answer::Again(fix, extra) => {
                     summary.resent += 1;
-                    fix
+                    (fix, extra)
                 }
                 Answer::OutOfChain => {
                     summary.out_of_chain += 1;
@@ -481,7 +562,8 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
 
             seq += 1;
             let estimate = Estimate::from_measurement(&m, received_ns, seq, instance, fix)
-                .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;
+                .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?
+                .with_extra(&extra);
             estimates.send(&estimate)?;
             summary.published += 1;
         }
@@ -537,18 +619,29 @@ mod tests {
 
     fn fix(a: Answer) -> Fix {
         match a {
-            Answer::New(f) | Answer::Again(f) => f,
+            Answer::New(f, _) | Answer::Again(f, _) => f,
             Answer::OutOfChain => panic!("out of chain"),
         }
     }
 
     #[test]
     fn a_rewind_to_an_older_checkpoint_goes_on_past_the_answers_kept() {
+        let cv = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 0.05, 20.0).unwrap();
+        for config in
+            [EstimatorConfig::snapshot(), EstimatorConfig::fused(Dynamics::fixed()), EstimatorConfig::fused(cv)]
+        {
+            rewind_case(config);
+        }
+    }
+
+    /// The checkpoint, restart and rewind of one estimator configuration give the undisturbed answers
+    /// bit for bit (fused: the posterior, velocity block included, rides the checkpoint).
+    fn rewind_case(config: EstimatorConfig) {
         // The long kill storm: an estimator restarted from its newest checkpoint, then rewound to an older
         // one by a restarted emitter-sim, answered the replay up to the steps it had answered since its
         // restart from those answers — but its state stayed at the step before them, so the first new
         // step was "out of chain" and the run stalled.
-        let mut straight = StepEstimator::new();
+        let mut straight = StepEstimator::with_config(config);
         let mut kept = Vec::new();
         let mut reference = Vec::new();
         for k in 0..=12 {
@@ -556,21 +649,25 @@ mod tests {
                 assert!(straight.take_checkpoint());
                 kept = straight.checkpoints().to_vec();
             }
-            reference.push(fix(straight.handle(&measurement(k))));
+            let answer = straight.handle(&measurement(k));
+            if config.kind == EstimatorKind::Fused && k > 0 {
+                assert!(matches!(answer, Answer::New(_, extra) if extra.estimator == 1), "step {k}: {answer:?}");
+            }
+            reference.push(fix(answer));
         }
         assert_eq!(kept.iter().map(|c| c.step).collect::<Vec<_>>(), vec![3, 7]);
 
         // Restarted from the newest checkpoint (after step 7); the run is replayed to it from step 8.
-        let mut restarted = StepEstimator::from_checkpoints(kept);
+        let mut restarted = StepEstimator::from_checkpoints(config, kept);
         for k in 8..=9 {
-            assert!(matches!(restarted.handle(&measurement(k)), Answer::New(f) if f == reference[k as usize]));
+            assert!(matches!(restarted.handle(&measurement(k)), Answer::New(f, _) if f == reference[k as usize]));
         }
         // The world is rewound to step 4 (an older emitter-sim snapshot) and flies on past step 9.
         for k in 4..=12 {
             let answer = restarted.handle(&measurement(k));
             assert_eq!(fix(answer), reference[k as usize], "step {k}");
             if (8..=9).contains(&k) {
-                assert!(matches!(answer, Answer::Again(_)), "step {k} is answered from what was kept");
+                assert!(matches!(answer, Answer::Again(..)), "step {k} is answered from what was kept");
             }
         }
         assert_eq!(restarted.last_step(), Some(12));

@@ -37,19 +37,19 @@ pub fn run_closed_loop(
 ) -> Result<RunRecord, LoopError> {
     let failed = |stage: String, e: &dyn std::fmt::Display| LoopError { stage, message: e.to_string() };
     let mut world = emitter_sim::World::from_scenario(scenario).map_err(|e| failed("world".into(), &e))?;
-    let mut estimator = estimator::Estimator::new();
-    let truth = world.truth();
+    let dynamics = scenario.dynamics().map_err(|e| failed("estimator".into(), &e))?;
+    let mut estimator =
+        estimator::Estimator::with_config(estimator::EstimatorConfig::new(scenario.estimator, dynamics));
+    let start = world.truth();
     let mut steps = Vec::with_capacity(scenario.steps + 1);
     for k in 0..=scenario.steps as u64 {
+        let truth = world.truth();
         let meas = world.measure().map_err(|e| failed(format!("step {k}: measurement"), &e))?;
         let est = estimator
-            .estimate(&meas.uavs, &meas.range_diffs, world.noise())
+            .estimate(k, &meas.uavs, &meas.range_diffs, world.noise())
             .map_err(|e| failed(format!("step {k}: estimate"), &e))?;
-        let status = match &est.status {
-            estimator::EstimateStatus::Ok => "ok",
-            estimator::EstimateStatus::Ambiguous => "ambiguous",
-            estimator::EstimateStatus::Failed { .. } => "failed",
-        };
+        let status = est.status.name();
+        let velocity = est.posterior.and_then(|p| p.velocity());
         let sensors = world.sensors().map_err(|e| failed(format!("step {k}: geometry"), &e))?;
         let metrics = step_metrics(&sensors, &truth, scenario.rmse_resamples, scenario.seed, k, Some(est.position));
         // The planner sees the live estimate, or in controlled mode the truth plus a fixed error.
@@ -62,6 +62,13 @@ pub fn run_closed_loop(
             estimate: pair(&est.position),
             estimate_cov: rows(&est.covariance),
             estimate_status: status.to_string(),
+            estimate_velocity: velocity.map(|(v, _)| pair(&v)),
+            estimate_velocity_cov: velocity.map(|(_, c)| rows(&c)),
+            truth: Some(pair(&truth)),
+            estimate_error_m: None,
+            nees: None,
+            pcrlb_m: None,
+            min_true_distance_m: None,
             crlb_true_m: metrics.crlb_true_m,
             rmse_m: metrics.rmse_m,
             objective_value: None,
@@ -93,12 +100,17 @@ pub fn run_closed_loop(
         on_step(&record);
         steps.push(record);
     }
-    Ok(RunRecord {
+    let mut run = RunRecord {
         scenario: scenario.clone(),
         objective: objective.name().to_string(),
         solver: solver.name().to_string(),
         seed: scenario.seed,
-        emitter: pair(&truth),
+        emitter: pair(&start),
+        estimator: scenario.estimator.name().to_string(),
+        rejected_snapshots: 0,
+        true_standoff_violations: None,
         steps,
-    })
+    };
+    monitor::annotate(&mut run);
+    Ok(run)
 }

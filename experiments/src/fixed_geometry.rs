@@ -61,7 +61,7 @@ struct Case {
 }
 
 fn case(engine: &Engine, nodes: usize, scale: f64, index: u64) -> Result<Case, ExperimentError> {
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     let sigma = sc.range_sigmas()[0] * scale;
     let s = sensors(nodes, sigma)?;
     let z = sc.emitter_position();
@@ -91,7 +91,7 @@ fn case(engine: &Engine, nodes: usize, scale: f64, index: u64) -> Result<Case, E
 
 /// Runs Table 8.
 pub fn run_table8(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     let z = sc.emitter_position();
     let k = engine.settings().samples;
     let mut grid = Grid::new(
@@ -188,7 +188,7 @@ pub fn run_table8(engine: &Engine) -> Result<ExperimentReport, ExperimentError> 
 
 /// Runs Table 9.
 pub fn run_table9(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     let bar = engine.bar((NOISE_SCALES.len() * NODES.len()) as u64, "table9 noise × nodes");
     // cases[scale][node]
     let mut cases = Vec::new();

@@ -17,6 +17,7 @@ pub mod batch;
 pub mod closed_loop;
 pub mod figures;
 pub mod fixed_geometry;
+pub mod fusion;
 pub mod grid;
 pub mod optimizers;
 pub mod paper;
@@ -132,6 +133,7 @@ pub enum ExperimentKind {
     Table10,
     Optimizers,
     Sensitivity,
+    Fusion,
     All,
 }
 
@@ -163,6 +165,7 @@ impl ExperimentKind {
             ExperimentKind::Table10 => "table10",
             ExperimentKind::Optimizers => "optimizers",
             ExperimentKind::Sensitivity => "sensitivity",
+            ExperimentKind::Fusion => "fusion",
             ExperimentKind::All => "all",
         }
     }
@@ -180,6 +183,7 @@ impl ExperimentKind {
             ExperimentKind::Table10 => table10::run(engine),
             ExperimentKind::Optimizers => optimizers::run(engine),
             ExperimentKind::Sensitivity => sensitivity::run(engine),
+            ExperimentKind::Fusion => fusion::run(engine),
             ExperimentKind::All => Err(ExperimentError::Input("`all` is not a single experiment".into())),
         }
     }
@@ -214,10 +218,10 @@ impl fmt::Display for ExperimentKind {
 impl FromStr for ExperimentKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::EACH.into_iter().chain([Self::All]).find(|k| k.name() == s).ok_or_else(|| {
+        Self::EACH.into_iter().chain([Self::Fusion, Self::All]).find(|k| k.name() == s).ok_or_else(|| {
             format!(
                 "unknown experiment '{s}' (expected one of: table2, table4, table5, table6, table7, table8, table9, \
-                 table10, optimizers, sensitivity, all)"
+                 table10, optimizers, sensitivity, fusion, all)"
             )
         })
     }

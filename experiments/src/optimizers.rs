@@ -13,7 +13,7 @@ use crate::{ExperimentError, ExperimentReport, paper, settings_json};
 
 /// Runs the optimizer comparison.
 pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     let mut grid = Grid::new(
         "optimizers",
         "Optimizer comparison — terminal CRLB and RMSE (m) per solver and objective; Δ = ours − paper",

@@ -31,7 +31,7 @@ pub const METHODS: [ObjectiveKind; 3] = [ObjectiveKind::Single, ObjectiveKind::M
 
 /// (setting, value label, scenario) of every case, the default first.
 pub fn cases() -> Vec<(&'static str, String, Scenario)> {
-    let d = Scenario::default();
+    let d = Scenario::paper();
     let mut v = vec![("default", "chan, Δα = 25°".to_string(), d.clone())];
     for deg in [15.0f64, 45.0, 90.0] {
         v.push(("delta_alpha_deg", format!("{deg}"), Scenario { delta_alpha: deg.to_radians(), ..d.clone() }));
@@ -172,7 +172,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
         title: "uncertainty-aware vs single-point planning over the settings the paper does not state".into(),
         settings: settings_json(
             engine,
-            &Scenario::default(),
+            &Scenario::paper(),
             &[
                 ("cases", json!(cases().iter().map(|(s, v, _)| format!("{s}={v}")).collect::<Vec<_>>())),
                 ("solver", json!("pso")),

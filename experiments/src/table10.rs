@@ -42,7 +42,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
     let mut rows = Vec::new();
     let mut groups = Vec::new();
     for (name, uavs) in geometries() {
-        let sc = Scenario { uavs: uavs.clone(), ..Scenario::default() };
+        let sc = Scenario { uavs: uavs.clone(), ..Scenario::paper() };
         sc.validate().map_err(|e| ExperimentError::Input(format!("table10 geometry {name}: {e}")))?;
         let noise = sc.noise_model().map_err(|e| ExperimentError::Input(e.to_string()))?;
         let sensors = Sensors::new(&uavs, noise).map_err(|e| ExperimentError::Input(e.to_string()))?;
@@ -98,7 +98,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
         groups,
         log_y: true,
     }];
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     Ok(ExperimentReport {
         experiment: "table10".into(),
         title: "initial-geometry sensitivity, analytical vs MC planning (paper Table 10, Figure 17)".into(),

@@ -125,7 +125,7 @@ pub fn batches(
 
 /// Runs Table 2.
 pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     let b = batches(engine, "table2", &sc, SolverKind::Pso, &METHODS)?;
     let single = &b[1];
     let stats: Vec<MethodStats> = b.iter().map(|x| MethodStats::of(x, Some(single))).collect();

@@ -71,7 +71,7 @@ fn objective_values(batch: &Batch, runs: usize) -> Vec<Vec<[f64; 3]>> {
 
 /// Runs Table 4.
 pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     let mc = engine.batch("table2", &sc, ObjectiveKind::Mc, SolverKind::Pso)?;
     let an = engine.batch("table2", &sc, ObjectiveKind::Analytical, SolverKind::Pso)?;
     let curve_diff = |metric: Metric| -> Vec<f64> {

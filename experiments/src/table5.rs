@@ -36,7 +36,7 @@ fn eval_time(method: &dyn GlobalCrlb, unc: &tdoa::Uncertainty, sensors: &Sensors
 
 /// Runs Table 5.
 pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     let an = engine.batch("table2", &sc, ObjectiveKind::Analytical, SolverKind::Pso)?;
     let bsc = &an.scenario;
     let noise = bsc.noise_model().map_err(|e| ExperimentError::Input(e.to_string()))?;

@@ -21,7 +21,7 @@ pub const METHODS: [ObjectiveKind; 3] = [ObjectiveKind::Single, ObjectiveKind::M
 
 /// The nominal scenario in controlled mode at scale `s`.
 pub fn controlled(s: f64) -> Scenario {
-    Scenario { target: TargetMode::Controlled, scale: s, ..Scenario::default() }
+    Scenario { target: TargetMode::Controlled, scale: s, ..Scenario::paper() }
 }
 
 /// Runs Table 6.

@@ -48,7 +48,7 @@ fn timings(engine: &Engine, sc: &Scenario, method: ObjectiveKind) -> Result<Vec<
 
 /// Runs Table 7.
 pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
-    let sc = Scenario::default();
+    let sc = Scenario::paper();
     let bar = engine.bar(METHODS.len() as u64, "table7 serial timing");
     let mut grid = Grid::new(
         "table7",

@@ -99,6 +99,8 @@ pub struct Assembler {
     next: u64,
     pending: BTreeMap<u64, Pending>,
     usable: Option<([f64; 2], [[f64; 2]; 2])>,
+    /// The estimator's kind, from the first estimate (`fused` / `snapshot`).
+    estimator: Option<&'static str>,
     steps: Vec<StepRecord>,
     /// Whether completed records are kept in `steps` (else the caller keeps them, e.g. in a log).
     keep: bool,
@@ -115,6 +117,7 @@ impl Assembler {
             next: 0,
             pending: BTreeMap::new(),
             usable: None,
+            estimator: None,
             steps: Vec::new(),
             keep: true,
             emitter: None,
@@ -295,6 +298,8 @@ impl Assembler {
         if status != EstimateStatus::Failed {
             self.usable = Some((e.position, e.covariance));
         }
+        self.estimator.get_or_insert(if e.estimator == 1 { "fused" } else { "snapshot" });
+        let velocity = (status.is_usable() && e.model == 1).then_some((e.velocity, e.velocity_cov));
         let (position, covariance) = self.usable.unwrap_or(([f64::NAN; 2], [[f64::NAN; 2]; 2]));
         let truth = Vector2::new(t.position[0], t.position[1]);
         self.emitter.get_or_insert(t.position);
@@ -320,6 +325,13 @@ impl Assembler {
             estimate: position,
             estimate_cov: covariance,
             estimate_status: status.name().to_string(),
+            estimate_velocity: velocity.map(|v| v.0),
+            estimate_velocity_cov: velocity.map(|v| v.1),
+            truth: Some(t.position),
+            estimate_error_m: None,
+            nees: None,
+            pcrlb_m: None,
+            min_true_distance_m: None,
             crlb_true_m,
             rmse_m,
             objective_value: None,
@@ -383,6 +395,9 @@ impl Assembler {
             solver,
             seed: self.scenario.seed,
             emitter: self.emitter.unwrap_or(self.scenario.emitter),
+            estimator: self.estimator.unwrap_or(self.scenario.estimator.name()).to_string(),
+            rejected_snapshots: 0,
+            true_standoff_violations: None,
             steps: self.steps.clone(),
         }
     }

@@ -54,17 +54,20 @@ pub fn write_trajectory_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
 }
 
 /// Writes one row per step: `step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,
-/// objective_value_m,plan_ms,active_constraints` (the active constraints joined with `;`).
+/// objective_value_m,plan_ms,active_constraints,pcrlb_m,estimate_error_m,nees,min_true_distance_m,
+/// estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2` (the active constraints joined with `;`;
+/// the truth-based columns empty without a truth).
 pub fn write_steps_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
     let mut out = BufWriter::new(File::create(path)?);
     writeln!(
         out,
-        "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints"
+        "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints,\
+         pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2"
     )?;
     for s in &run.steps {
         writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             s.step,
             s.crlb_true_m,
             opt(s.rmse_m),
@@ -74,6 +77,13 @@ pub fn write_steps_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
             opt(s.objective_value),
             opt(s.plan_ms),
             csv_text(&s.active_constraints.join(";")),
+            opt(s.pcrlb_m),
+            opt(s.estimate_error_m),
+            opt(s.nees),
+            opt(s.min_true_distance_m),
+            s.estimate_cov[0][0],
+            s.estimate_cov[0][1],
+            s.estimate_cov[1][1],
         )?;
     }
     out.flush()

@@ -764,6 +764,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             )));
         }
     }
+    crate::metrics::annotate(&mut run);
     let summary = MonitorSummary {
         role: ROLE,
         complete: state.assembler.is_done(),

@@ -20,8 +20,33 @@ pub struct StepRecord {
     pub estimate: [f64; 2],
     /// The covariance M of ẑ, m² (`[[xx, xy], [yx, yy]]`).
     pub estimate_cov: [[f64; 2]; 2],
-    /// `ok`, `ambiguous` or `failed` (on failure ẑ is the previous estimate).
+    /// `ok`, `ambiguous`, `rejected` (fused: the snapshot failed the χ² gate and was not fused; ẑ is
+    /// the prediction) or `failed` (on failure ẑ is the previous estimate).
     pub estimate_status: String,
+    /// Fused, constant-velocity model: the velocity estimate, m/s (absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate_velocity: Option<[f64; 2]>,
+    /// Fused, constant-velocity model: the velocity's covariance, m²/s² (absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate_velocity_cov: Option<[[f64; 2]; 2]>,
+    /// The true emitter position at this step, metres (`null` without a truth).
+    #[serde(default)]
+    pub truth: Option<[f64; 2]>,
+    /// `|ẑ − z|`, metres (`null` without a truth).
+    #[serde(default)]
+    pub estimate_error_m: Option<f64>,
+    /// Normalised estimation error squared `(ẑ − z)ᵀ M⁻¹ (ẑ − z)` of the reported position covariance
+    /// (2 degrees of freedom; mean 2 for a consistent estimator; `null` without a truth).
+    #[serde(default)]
+    pub nees: Option<f64>,
+    /// Posterior CRLB at the truth from every snapshot so far, metres: `sqrt(tr (Σ F_k)⁻¹)` for a
+    /// static emitter, Tichavský's recursion for `constant_velocity` (`null` without a truth, or while
+    /// the information is singular).
+    #[serde(default)]
+    pub pcrlb_m: Option<f64>,
+    /// The smallest distance of a UAV to the true emitter at this step, metres (`null` without a truth).
+    #[serde(default)]
+    pub min_true_distance_m: Option<f64>,
     /// Single-point CRLB `sqrt(tr F⁻¹)` at the TRUE emitter for this geometry, metres (paper's Figure 5);
     /// `+∞` for a geometry that cannot localise (e.g. two UAVs on top of each other), written `null` in
     /// JSON (which has no infinity) and read back as `+∞`.
@@ -76,8 +101,18 @@ pub struct RunRecord {
     pub solver: String,
     /// Run seed.
     pub seed: u64,
-    /// True emitter position, metres.
+    /// True emitter position (at step 0), metres.
     pub emitter: [f64; 2],
+    /// The estimator (`fused` or `snapshot`).
+    #[serde(default)]
+    pub estimator: String,
+    /// Snapshots the fused estimator did not fuse because they failed its χ² gate (steps with
+    /// `estimate_status` `rejected`).
+    #[serde(default)]
+    pub rejected_snapshots: u64,
+    /// (UAV, step) pairs closer than `L_min` to the TRUE emitter (`null` without a truth).
+    #[serde(default)]
+    pub true_standoff_violations: Option<u64>,
     /// Step 0 (initial geometry) to the final step.
     pub steps: Vec<StepRecord>,
 }
@@ -102,6 +137,13 @@ pub(crate) mod tests {
             estimate: [1.0, 2.0],
             estimate_cov: [[1.0, 0.0], [0.0, 1.0]],
             estimate_status: "failed".into(),
+            estimate_velocity: None,
+            estimate_velocity_cov: None,
+            truth: None,
+            estimate_error_m: None,
+            nees: None,
+            pcrlb_m: None,
+            min_true_distance_m: None,
             crlb_true_m: crlb,
             rmse_m: None,
             objective_value: None,

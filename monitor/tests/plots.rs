@@ -54,6 +54,13 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
                 estimate: [emitter[0] + wobble, emitter[1] - 0.5 * wobble],
                 estimate_cov: [[crlb * crlb, 0.0], [0.0, crlb * crlb]],
                 estimate_status: "ok".to_owned(),
+                estimate_velocity: None,
+                estimate_velocity_cov: None,
+                truth: None,
+                estimate_error_m: None,
+                nees: None,
+                pcrlb_m: None,
+                min_true_distance_m: None,
                 crlb_true_m: crlb,
                 rmse_m: (k != 2).then_some(1.2 * crlb + 5.0 * (k as f64).cos()),
                 objective_value: (k != 1 && k + 1 != n).then_some(0.9 * crlb),
@@ -73,7 +80,17 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
             step
         })
         .collect();
-    RunRecord { scenario, objective: objective.to_owned(), solver: solver.to_owned(), seed, emitter, steps }
+    RunRecord {
+        scenario,
+        objective: objective.to_owned(),
+        solver: solver.to_owned(),
+        seed,
+        emitter,
+        estimator: "snapshot".into(),
+        rejected_snapshots: 0,
+        true_standoff_violations: None,
+        steps,
+    }
 }
 
 fn read(path: &Path) -> String {
@@ -296,11 +313,14 @@ fn csv_tables_have_one_row_per_step_and_empty_cells_for_none() {
     let lines: Vec<&str> = steps.lines().collect();
     assert_eq!(
         lines[0],
-        "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints"
+        "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints,\
+         pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2"
     );
     assert_eq!(lines.len(), 1 + 5);
     let rows: Vec<Vec<String>> = lines[1..].iter().map(|l| cells(l)).collect();
-    assert!(rows.iter().all(|r| r.len() == 9), "{rows:?}");
+    assert!(rows.iter().all(|r| r.len() == 16), "{rows:?}");
+    // No truth in these records: the truth-based columns are empty, not zero.
+    assert!(rows.iter().all(|r| r[9..13].iter().all(String::is_empty)), "{rows:?}");
     assert_eq!(rows[2][2], "", "rmse None at step 2");
     assert_ne!(rows[3][2], "");
     assert_eq!(rows[1][6], "", "objective None at step 1");
@@ -309,7 +329,7 @@ fn csv_tables_have_one_row_per_step_and_empty_cells_for_none() {
     assert_eq!(rows[0][8], "");
     assert_eq!(rows[2][8], "d_min;l_min");
     assert_eq!(rows[3][8], "d_min;l_min;turn, UAV1");
-    assert!(lines[4].ends_with("\"d_min;l_min;turn, UAV1\""), "{}", lines[4]);
+    assert!(lines[4].contains(",\"d_min;l_min;turn, UAV1\","), "{}", lines[4]);
     assert_eq!(rows[4][5], "ok");
     done(&dir);
 }

@@ -6,10 +6,27 @@
 //! |---|---|---|---|
 //! | `turn_radius` | `R_i = L/|θ_i| ≥ R_min`, i.e. `|θ_i| ≤ L/R_min` | eqs. 54, 55 | `(|θ_i| − θ_max)/θ_max` |
 //! | `spacing` | `|w_i^{t+1} − w_j^{t+1}| ≥ D_min` for every pair | eq. 56 | `(D_min − D_ij)/D_min` |
-//! | `approach` | `|w_i^{t+1} − ẑ| ≥ L_min` | eq. 57 | `(L_min − L_i)/L_min` |
+//! | `approach` | `|w_i^{t+1} − ẑ| ≥ L_min + k·σ_i` | eq. 57 (k = 0) | `(B_i − L_i)/B_i`, `B_i = L_min + k·σ_i` |
 //! | `heading_cone` | `|wrap(φ_i − α_i)| ≤ Δα`, `α_i` the bearing from `w_i^t` to ẑ | eqs. 58, 59 | `(|φ_i − α_i| − Δα)/Δα` |
 //!
 //! The approach and cone constraints use the planner's estimate ẑ: the true emitter is unknown to it.
+//!
+//! **The standoff under uncertainty.** `L_min` is about the *true* emitter `z ~ N(ẑ, M)`. With
+//! `u_i = (w_i − ẑ)/|w_i − ẑ|` the line of sight from ẑ to the waypoint, Cauchy–Schwarz gives
+//! `|w_i − z| ≥ u_iᵀ(w_i − z) = |w_i − ẑ| − u_iᵀ(z − ẑ)`, and `u_iᵀ(z − ẑ) ~ N(0, σ_i²)` with
+//! `σ_i² = u_iᵀ M u_i`. Hence, exactly (no linearisation) under the Gaussian posterior,
+//! `P(|w_i − z| < L_min) ≤ Φ((L_min − |w_i − ẑ|)/σ_i)`, and the chance constraint
+//! `P(|w_i − z| < L_min) ≤ 1 − c` holds whenever `|w_i − ẑ| ≥ L_min + k(c)·σ_i` with `k(c) = Φ⁻¹(c)`
+//! (c = `standoff_confidence`; 0.99 → k = 2.326). `c = 0` is the paper's constraint at ẑ (k = 0).
+//!
+//! With `c > 0` the constraint is also *turn-aware*: a one-step planner that only checks the next
+//! waypoint lets a UAV fly straight at the ring and then find that its turn radius carries it inside
+//! (the 60-step runs went ~540 m inside `L_min`). The constrained distance is therefore the distance of
+//! the UAV's escape orbit: of its two minimum-radius turning circles at the waypoint (centres
+//! `w ± R_min·n`, `n` normal to the heading), the one farther from ẑ, minus `R_min` —
+//! `L_esc = max_± |w ± R_min n − ẑ| − R_min ≤ |w − ẑ|`. If `L_esc ≥ L_min + k·σ`, the UAV can circle on
+//! that orbit forever without coming closer than the bound, so every later step has a feasible
+//! standoff (viability); heading tangentially `L_esc = |w − ẑ|`, heading straight in it is smaller.
 //! The paper writes strict inequalities; the bounds are treated as closed here so that a plan on a
 //! bound is feasible. A bound of 0 (for `R_min`, `D_min`, `L_min`) switches that constraint off.
 //!
@@ -17,7 +34,7 @@
 
 use std::fmt;
 
-use nalgebra::Vector2;
+use nalgebra::{Matrix2, Vector2};
 
 use crate::kinematics::{bearing, max_turn, turn_angle, turn_radius, wrap_angle};
 use crate::scenario::Scenario;
@@ -142,6 +159,15 @@ pub struct Constraints {
     pub l_min: f64,
     /// Half-width `Δα` of the heading cone around the bearing to ẑ, radians.
     pub delta_alpha: f64,
+    /// `k(c) = Φ⁻¹(c)` of the standoff chance constraint (0: the paper's constraint at ẑ).
+    pub standoff_k: f64,
+    /// The covariance M of ẑ, m² (used by the standoff chance constraint only).
+    pub covariance: Matrix2<f64>,
+}
+
+/// `k(c) = Φ⁻¹(c)` for a standoff confidence `c` in [0, 1); `c = 0` gives 0 (the paper's constraint).
+pub fn standoff_k(confidence: f64) -> f64 {
+    if confidence > 0.0 { tdoa::dist::normal_quantile(confidence) } else { 0.0 }
 }
 
 impl Constraints {
@@ -153,7 +179,46 @@ impl Constraints {
             d_min: scenario.d_min,
             l_min: scenario.l_min,
             delta_alpha: scenario.delta_alpha,
+            standoff_k: standoff_k(scenario.standoff_confidence),
+            covariance: Matrix2::zeros(),
         }
+    }
+
+    /// These constraints for an estimate with covariance `m` (m²): the standoff chance constraint's σ.
+    pub fn with_covariance(self, m: Matrix2<f64>) -> Self {
+        Self { covariance: m, ..self }
+    }
+
+    /// The constrained distance of a UAV at waypoint `next` with heading `heading` to `estimate`:
+    /// `|next − ẑ|` for the paper's constraint (k = 0, or no turn limit); with the chance constraint the
+    /// escape-orbit distance `max_± |next ± R_min n − ẑ| − R_min` (see the module docs), metres.
+    pub fn standoff_distance(&self, next: Vector2<f64>, heading: f64, estimate: Vector2<f64>) -> f64 {
+        let direct = (next - estimate).norm();
+        if self.standoff_k == 0.0 || self.r_min <= 0.0 {
+            return direct;
+        }
+        let n = Vector2::new(-heading.sin(), heading.cos()) * self.r_min;
+        let left = (next + n - estimate).norm();
+        let right = (next - n - estimate).norm();
+        (left.max(right) - self.r_min).min(direct)
+    }
+
+    /// The approach bound `L_min + k·sqrt(uᵀ M u)` of a waypoint at `next` (m), `u` the unit line of sight
+    /// from `estimate` to it (see the module docs); `L_min` when k = 0 or the bound is off.
+    pub fn approach_bound(&self, next: Vector2<f64>, estimate: Vector2<f64>) -> f64 {
+        if self.l_min <= 0.0 || self.standoff_k == 0.0 {
+            return self.l_min;
+        }
+        let d = next - estimate;
+        let r = d.norm();
+        if !(r > 0.0) {
+            // On ẑ: every direction; take the largest spread.
+            let (_, hi) = tdoa::fim::sym_eigenvalues(&self.covariance);
+            return self.l_min + self.standoff_k * hi.max(0.0).sqrt();
+        }
+        let u = d / r;
+        let var = u.dot(&(self.covariance * u));
+        self.l_min + self.standoff_k * var.max(0.0).sqrt()
     }
 
     /// Largest turn per step that keeps `R ≥ R_min`: `min(π, L/R_min)`, radians.
@@ -263,7 +328,9 @@ impl Constraints {
                 });
             }
             // Approach distance of the next waypoint to ẑ.
-            if let Some(c) = lower_bound(ConstraintKind::Approach, i, None, (next[i] - estimate).norm(), self.l_min) {
+            let approach = self.approach_bound(next[i], estimate);
+            let distance = self.standoff_distance(next[i], new_headings[i], estimate);
+            if let Some(c) = lower_bound(ConstraintKind::Approach, i, None, distance, approach) {
                 sink(c);
             }
             // Spacing of the next waypoints.
@@ -281,11 +348,60 @@ impl Constraints {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_standoff_chance_constraint_is_calibrated() {
+        // A waypoint exactly on the bound L_min + k σ_u: the probability that the true emitter
+        // z ~ N(ẑ, M) lies within L_min of it is at most 1 − c (Monte Carlo, 200 000 draws), and close
+        // to it when L_min ≫ σ (the bound is tight along the line of sight).
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let z_hat = Vector2::new(25_000.0, 15_000.0);
+        for (scale, c) in [(1.0, 0.9), (1.0, 0.99), (0.01, 0.9), (0.01, 0.99)] {
+            let m = Matrix2::new(250_000.0, 120_000.0, 120_000.0, 90_000.0) * scale;
+            let chol = m.cholesky().unwrap().l();
+            let cons = Constraints { standoff_k: standoff_k(c), covariance: m, ..constraints() };
+            for dir in [0.3_f64, 1.9, 4.0] {
+                let u = Vector2::new(dir.cos(), dir.sin());
+                let sigma = u.dot(&(m * u)).sqrt();
+                let bound = cons.approach_bound(z_hat + u * 4000.0, z_hat);
+                assert!((bound - (3000.0 + standoff_k(c) * sigma)).abs() < 1e-9);
+                let w = z_hat + u * bound;
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+                let draws = 200_000;
+                let inside = (0..draws)
+                    .filter(|_| {
+                        let e = Vector2::new(StandardNormal.sample(&mut rng), StandardNormal.sample(&mut rng));
+                        (w - (z_hat + chol * e)).norm() < 3000.0
+                    })
+                    .count() as f64
+                    / draws as f64;
+                let eps = 1.0 - c;
+                assert!(inside <= eps * 1.05 + 3.0 * (eps / draws as f64).sqrt(), "c {c}, dir {dir}: {inside}");
+                // With σ ≪ L_min the lateral spread hardly matters: the bound is tight.
+                if scale < 1.0 {
+                    assert!(inside >= 0.8 * eps, "c {c}, dir {dir}: {inside} (too conservative)");
+                }
+            }
+        }
+        // c = 0: the paper's constraint at ẑ.
+        assert_eq!(standoff_k(0.0), 0.0);
+        let paper = Constraints { standoff_k: 0.0, covariance: Matrix2::identity() * 1e6, ..constraints() };
+        assert_eq!(paper.approach_bound(z_hat + Vector2::new(5000.0, 0.0), z_hat), 3000.0);
+    }
     use crate::fitness::Fitness;
     use crate::kinematics::next_position;
 
     fn constraints() -> Constraints {
-        Constraints { arc_len: 500.0, r_min: 1000.0, d_min: 500.0, l_min: 3000.0, delta_alpha: 25f64.to_radians() }
+        Constraints {
+            arc_len: 500.0,
+            r_min: 1000.0,
+            d_min: 500.0,
+            l_min: 3000.0,
+            delta_alpha: 25f64.to_radians(),
+            standoff_k: 0.0,
+            covariance: Matrix2::zeros(),
+        }
     }
 
     /// Three UAVs far apart, west of ẑ, all heading straight at it.

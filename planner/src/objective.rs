@@ -6,9 +6,16 @@
 //! | `mc` | eq. 60 with K uniform points in the support, drawn once per step | MC method |
 //! | `analytical` | `tr F⁻¹(ẑ) + ½ tr(M H(ẑ))` | eq. 74 |
 //! | `cubature` | 25-point Gauss–Hermite rule (beyond the paper) | — |
+//! | `posterior` | `tr((M⁻¹ + F(ẑ))⁻¹)`: A-optimal on the posterior after the next snapshot | — |
+//! | `posterior-cubature` | `E[tr((M⁻¹ + F(z))⁻¹)]` over N(ẑ, M), the `cubature` nodes | — |
 //! | `formation` | no criterion: the fixed-formation baseline of [`crate::formation`] | traditional method |
 //!
-//! All criteria are the one adapter [`CrlbObjective`] over `tdoa`'s [`GlobalCrlb`] methods: prepared
+//! The posterior criteria plan for a sequential (fused) estimator: the information the next snapshot
+//! *adds* to what is known (`M⁻¹`), not the snapshot alone. They are finite everywhere (M⁻¹ is positive
+//! definite), so a candidate on the singular locus is merely uninformative, not infeasible.
+//! [`PosteriorObjective`] is their adapter; [`prepare`] builds any criterion.
+//!
+//! The paper's criteria are the one adapter [`CrlbObjective`] over `tdoa`'s [`GlobalCrlb`] methods: prepared
 //! once per planning step for the uncertainty `(ẑ, M, A)`, then evaluated for every candidate. The `mc`
 //! samples come from `derive_seed(run_seed, step, Purpose::ObjectiveSamples)`, so every candidate of a
 //! step sees the same points (common random numbers).
@@ -36,16 +43,23 @@ pub enum ObjectiveKind {
     Cubature,
     /// The fixed-formation baseline (no optimisation).
     Formation,
+    /// A-optimal on the posterior after the next snapshot, at ẑ.
+    Posterior,
+    /// The posterior criterion averaged over N(ẑ, M) with the cubature nodes.
+    #[serde(rename = "posterior-cubature")]
+    PosteriorCubature,
 }
 
 impl ObjectiveKind {
     /// All planning choices.
-    pub const ALL: [ObjectiveKind; 5] = [
+    pub const ALL: [ObjectiveKind; 7] = [
         ObjectiveKind::Single,
         ObjectiveKind::Mc,
         ObjectiveKind::Analytical,
         ObjectiveKind::Cubature,
         ObjectiveKind::Formation,
+        ObjectiveKind::Posterior,
+        ObjectiveKind::PosteriorCubature,
     ];
 
     /// The lower-case name.
@@ -56,14 +70,18 @@ impl ObjectiveKind {
             ObjectiveKind::Analytical => "analytical",
             ObjectiveKind::Cubature => "cubature",
             ObjectiveKind::Formation => "formation",
+            ObjectiveKind::Posterior => "posterior",
+            ObjectiveKind::PosteriorCubature => "posterior-cubature",
         }
     }
 
     /// The global-CRLB method this choice optimises; `formation` optimises nothing and reports the
-    /// single-point criterion `tr F⁻¹(ẑ)` of its plan.
+    /// single-point criterion `tr F⁻¹(ẑ)` of its plan. The posterior criteria average over the nodes of
+    /// `single` (ẑ) and `cubature`.
     pub fn criterion(self) -> Method {
         match self {
-            ObjectiveKind::Single | ObjectiveKind::Formation => Method::Single,
+            ObjectiveKind::Single | ObjectiveKind::Formation | ObjectiveKind::Posterior => Method::Single,
+            ObjectiveKind::PosteriorCubature => Method::Cubature,
             ObjectiveKind::Mc => Method::Mc,
             ObjectiveKind::Analytical => Method::Analytical,
             ObjectiveKind::Cubature => Method::Cubature,
@@ -86,8 +104,101 @@ impl FromStr for ObjectiveKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         ObjectiveKind::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| {
-            format!("unknown objective '{s}' (expected one of: single, mc, analytical, cubature, formation)")
+            format!(
+                "unknown objective '{s}' (expected one of: single, mc, analytical, cubature, formation, posterior, \
+                 posterior-cubature)"
+            )
         })
+    }
+}
+
+/// Any criterion of `kind`, prepared for one planning step (see [`CrlbObjective::prepare`] for the
+/// arguments).
+pub fn prepare(
+    kind: ObjectiveKind,
+    unc: &Uncertainty,
+    noise: NoiseModel,
+    mc_samples: usize,
+    mc_scheme: McScheme,
+    run_seed: u64,
+    step: u64,
+) -> Result<Box<dyn StepObjective>, TdoaError> {
+    Ok(match kind {
+        ObjectiveKind::Posterior | ObjectiveKind::PosteriorCubature => {
+            Box::new(PosteriorObjective::prepare(kind, unc, noise)?)
+        }
+        _ => Box::new(CrlbObjective::prepare(kind.criterion(), unc, noise, mc_samples, mc_scheme, run_seed, step)?),
+    })
+}
+
+/// A prepared criterion of a planning step with what the step reports about it.
+pub trait StepObjective: PlanObjective {
+    /// Kish's effective sample size of a sampled criterion's points (`None` otherwise).
+    fn effective_samples(&self) -> Option<f64> {
+        None
+    }
+}
+
+/// The posterior criteria: `Σ_k ω_k tr((M⁻¹ + F(p_k))⁻¹)` over nodes `p_k` (ẑ alone for `posterior`, the
+/// 25-point cubature of N(ẑ, M) for `posterior-cubature`), m².
+pub struct PosteriorObjective {
+    points: Vec<Vector2<f64>>,
+    weights: Vec<f64>,
+    prior_info: nalgebra::Matrix2<f64>,
+    noise: NoiseModel,
+}
+
+impl fmt::Debug for PosteriorObjective {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("PosteriorObjective").field("nodes", &self.points.len()).finish_non_exhaustive()
+    }
+}
+
+impl PosteriorObjective {
+    /// Prepares `kind` (`posterior` or `posterior-cubature`) for the uncertainty `unc`.
+    pub fn prepare(kind: ObjectiveKind, unc: &Uncertainty, noise: NoiseModel) -> Result<Self, TdoaError> {
+        let m = unc.cov();
+        let prior_info = m.try_inverse().ok_or(TdoaError::CovarianceNotPositiveDefinite {
+            xx: m[(0, 0)],
+            xy: m[(0, 1)],
+            yy: m[(1, 1)],
+        })?;
+        let (points, weights) = match kind {
+            ObjectiveKind::PosteriorCubature => {
+                let rule = tdoa::global::Cubature::rule(unc);
+                (rule.points().to_vec(), rule.weights().to_vec())
+            }
+            _ => (vec![unc.estimate()], vec![1.0]),
+        };
+        Ok(Self { points, weights, prior_info, noise })
+    }
+}
+
+impl PlanObjective for PosteriorObjective {
+    fn evaluate(&self, next: &[Vector2<f64>]) -> f64 {
+        if next.len() > MAX_UAVS {
+            return f64::INFINITY;
+        }
+        let mut uavs = [[0.0; 2]; MAX_UAVS];
+        for (u, p) in uavs.iter_mut().zip(next) {
+            *u = [p.x, p.y];
+        }
+        let Ok(sensors) = Sensors::new(&uavs[..next.len()], self.noise.clone()) else { return f64::INFINITY };
+        let mut sum = 0.0;
+        for (p, w) in self.points.iter().zip(&self.weights) {
+            let info = self.prior_info + tdoa::fim(&sensors, p).unwrap_or_else(nalgebra::Matrix2::zeros);
+            let Some(post) = info.try_inverse() else { return f64::INFINITY };
+            sum += w * post.trace();
+        }
+        sum
+    }
+}
+
+impl StepObjective for PosteriorObjective {}
+
+impl StepObjective for CrlbObjective {
+    fn effective_samples(&self) -> Option<f64> {
+        CrlbObjective::effective_samples(self)
     }
 }
 
@@ -253,6 +364,48 @@ mod tests {
             let fine = [v(0.0, 5000.0), v(10000.0, 4000.0), v(5000.0, -6000.0)];
             assert!(obj.evaluate(&fine).is_finite(), "{kind}");
         }
+    }
+
+    #[test]
+    fn posterior_criteria_against_direct_formulas() {
+        let (unc, noise, uavs) = setup();
+        let pts: Vec<[f64; 2]> = uavs.iter().map(|p| [p.x, p.y]).collect();
+        let sensors = Sensors::new(&pts, noise.clone()).unwrap();
+        let z = unc.estimate();
+        let m = unc.cov();
+        let direct = (m.try_inverse().unwrap() + tdoa::fim(&sensors, &z).unwrap()).try_inverse().unwrap().trace();
+        let post =
+            prepare(ObjectiveKind::Posterior, &unc, noise.clone(), 200, McScheme::UniformWeighted, 1, 0).unwrap();
+        assert!((post.evaluate(&uavs) - direct).abs() <= 1e-12 * direct);
+        // Adding information can only shrink the posterior: below both M's trace and tr F⁻¹(ẑ).
+        assert!(direct < m.trace() && direct < tdoa::trace_crlb(&sensors, &z));
+        // A vague prior (M → ∞·I) gives back the single-point criterion tr F⁻¹(ẑ).
+        let vague = Uncertainty::new(z, Matrix2::identity() * 1e14, 1e6).unwrap();
+        let v = prepare(ObjectiveKind::Posterior, &vague, noise.clone(), 200, McScheme::UniformWeighted, 1, 0).unwrap();
+        let single = tdoa::trace_crlb(&sensors, &z);
+        assert!((v.evaluate(&uavs) - single).abs() < 1e-6 * single);
+        // The cubature form: a weighted mean over the 25 nodes, each by the same formula.
+        let rule = tdoa::global::Cubature::rule(&unc);
+        let mean: f64 = rule
+            .points()
+            .iter()
+            .zip(rule.weights())
+            .map(|(p, w)| {
+                w * (m.try_inverse().unwrap() + tdoa::fim(&sensors, p).unwrap()).try_inverse().unwrap().trace()
+            })
+            .sum();
+        let pc = prepare(ObjectiveKind::PosteriorCubature, &unc, noise.clone(), 200, McScheme::UniformWeighted, 1, 0)
+            .unwrap();
+        assert!((pc.evaluate(&uavs) - mean).abs() <= 1e-12 * mean);
+        // Finite even on the singular locus (collinear UAVs through ẑ), infinite for coincident UAVs.
+        let v2 = |x: f64, y: f64| Vector2::new(x, y);
+        let line = [
+            v2(0.0, 15000.0 - 25000.0 * 0.6),
+            v2(10000.0, 15000.0 - 15000.0 * 0.6),
+            v2(20000.0, 15000.0 - 5000.0 * 0.6),
+        ];
+        assert!(post.evaluate(&line).is_finite());
+        assert_eq!(post.evaluate(&[uavs[0], uavs[0], uavs[2]]), f64::INFINITY);
     }
 
     #[test]

@@ -16,9 +16,10 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix2, Vector2};
+use tdoa::fusion::EstimatorKind;
 use tdoa::geometry::COINCIDENCE_TOLERANCE_M;
 use tdoa::global::McScheme;
-use tdoa::{DEFAULT_KAPPA, MAX_UAVS, NoiseModel};
+use tdoa::{DEFAULT_KAPPA, Dynamics, EmitterModel, MAX_UAVS, NoiseModel};
 use thiserror::Error;
 
 use crate::aco::AcoConfig;
@@ -167,6 +168,22 @@ pub struct Scenario {
     pub e0: [f64; 2],
     /// Controlled mode: the scale s ≥ 0 (error s·e0, covariance s²·σ_t²·I). Default 1.
     pub scale: f64,
+    /// The estimator: `fused` (the posterior of every snapshot so far; default) or `snapshot` (the
+    /// paper's per-step Chan, with the previous estimate as prior).
+    pub estimator: EstimatorKind,
+    /// The fused estimator's emitter model: `static` (default; the paper) or `constant_velocity`.
+    pub emitter_model: EmitterModel,
+    /// Process noise σ_a of the `constant_velocity` model, m/s² (white acceleration) — our choice 0.05.
+    pub process_noise_accel: f64,
+    /// Standard deviation per axis of the `constant_velocity` model's initial velocity (0 ± this), m/s
+    /// — our choice 20.
+    pub velocity_prior_sigma: f64,
+    /// The true emitter's velocity, m/s (the truth moves at constant velocity) — default [0, 0].
+    pub emitter_velocity: [f64; 2],
+    /// Confidence c of the standoff chance constraint `P(|w − z| < L_min) ≤ 1 − c` under N(ẑ, M), in
+    /// [0, 1) — our choice 0.99; 0 is the paper's constraint `|w − ẑ| ≥ L_min` (see
+    /// `planner::constraints`).
+    pub standoff_confidence: f64,
     /// Early stopping shared by the solvers (`[early_stop]`).
     pub early_stop: EarlyStop,
     /// PSO settings (`[pso]`).
@@ -200,6 +217,12 @@ impl Default for Scenario {
             target: TargetMode::Chan,
             e0: [300.0, -400.0],
             scale: 1.0,
+            estimator: EstimatorKind::Fused,
+            emitter_model: EmitterModel::Static,
+            process_noise_accel: 0.05,
+            velocity_prior_sigma: 20.0,
+            emitter_velocity: [0.0, 0.0],
+            standoff_confidence: 0.99,
             early_stop: EarlyStop::default(),
             pso: PsoConfig::default(),
             ga: GaConfig::default(),
@@ -209,6 +232,27 @@ impl Default for Scenario {
 }
 
 impl Scenario {
+    /// The paper's method on the nominal case: [`Scenario::default`] with the per-step Chan estimator
+    /// (`snapshot`) and the approach constraint at ẑ (`standoff_confidence = 0`). `uavloc paper` runs it.
+    pub fn paper() -> Self {
+        Self { estimator: EstimatorKind::Snapshot, standoff_confidence: 0.0, ..Self::default() }
+    }
+
+    /// The fused estimator's motion model (validated parameters).
+    pub fn dynamics(&self) -> Result<Dynamics, ScenarioError> {
+        Dynamics::new(self.emitter_model, self.dt, self.process_noise_accel, self.velocity_prior_sigma).map_err(|e| {
+            let key =
+                if e.to_string().contains("velocity_prior") { "velocity_prior_sigma" } else { "process_noise_accel" };
+            invalid(key, e.to_string())
+        })
+    }
+
+    /// The true emitter position at `step`, metres: `emitter + step·dt·emitter_velocity`.
+    pub fn emitter_at(&self, step: u64) -> Vector2<f64> {
+        let t = step as f64 * self.dt;
+        Vector2::new(self.emitter[0] + t * self.emitter_velocity[0], self.emitter[1] + t * self.emitter_velocity[1])
+    }
+
     /// Parses TOML and validates.
     pub fn from_toml_str(text: &str) -> Result<Self, ScenarioError> {
         let scenario: Scenario = toml::from_str(text).map_err(|e| parse_error(text, &e))?;
@@ -290,6 +334,19 @@ impl Scenario {
         nonzero("rmse_resamples", self.rmse_resamples)?;
         finite_all("e0", &self.e0)?;
         non_negative("scale", self.scale)?;
+        non_negative("process_noise_accel", self.process_noise_accel)?;
+        positive("velocity_prior_sigma", self.velocity_prior_sigma)?;
+        finite_all("emitter_velocity", &self.emitter_velocity)?;
+        finite("standoff_confidence", self.standoff_confidence)?;
+        if !(0.0..1.0).contains(&self.standoff_confidence) {
+            return Err(invalid(
+                "standoff_confidence",
+                format!(
+                    "must be in [0, 1) (0: the paper's constraint at the estimate), got {}",
+                    self.standoff_confidence
+                ),
+            ));
+        }
         non_negative("early_stop.tolerance", self.early_stop.tolerance)?;
         nonzero("pso.particles", self.pso.particles)?;
         nonzero("pso.iterations", self.pso.iterations)?;

@@ -39,7 +39,7 @@ use crate::constraints::{ActiveConstraint, ConstraintKind, Constraints};
 use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
 use crate::kinematics::{next_position, turn_angle, wrap_angle};
-use crate::objective::{CrlbObjective, ObjectiveKind, PlanObjective};
+use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError};
 use crate::solver::{SearchSpace, SearchSpaceError, SolverKind};
 
@@ -119,7 +119,7 @@ pub struct PlanOutput {
     /// Wall-clock time of the whole step, milliseconds.
     pub plan_time_ms: f64,
     /// Kish's effective sample size of the `mc` criterion's weighted points this step (`None` for the
-    /// other criteria); see [`CrlbObjective::effective_samples`].
+    /// other criteria); see [`crate::objective::CrlbObjective::effective_samples`].
     pub criterion_ess: Option<f64>,
 }
 
@@ -168,11 +168,11 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         check_finite(|| format!("heading of UAV {i}"), req.headings[i])?;
     }
     let (pos, psi, z) = (req.positions, req.headings, req.estimate);
-    let constraints = Constraints::from_scenario(sc);
+    let constraints = Constraints::from_scenario(sc).with_covariance(req.covariance);
     let r_avg = pos.iter().map(|p| (p - z).norm()).sum::<f64>() / n as f64;
     let unc = Uncertainty::with_eq36_side(z, req.covariance, r_avg, sc.kappa)?;
-    let objective = CrlbObjective::prepare(
-        req.objective.criterion(),
+    let objective = crate::objective::prepare(
+        req.objective,
         &unc,
         sc.noise_model()?,
         sc.mc_samples,
@@ -343,16 +343,9 @@ mod tests {
                     assert!((w - out.waypoints[i]).norm() < 1e-6);
                 }
                 if objective.is_optimised() {
-                    let obj = CrlbObjective::prepare(
-                        objective.criterion(),
-                        &unc,
-                        noise.clone(),
-                        sc.mc_samples,
-                        sc.mc_scheme,
-                        42,
-                        3,
-                    )
-                    .unwrap();
+                    let obj =
+                        crate::objective::prepare(objective, &unc, noise.clone(), sc.mc_samples, sc.mc_scheme, 42, 3)
+                            .unwrap();
                     let keep = obj.evaluate(&straight);
                     assert!(out.objective_value < keep, "{label}: planned {} vs straight {keep}", out.objective_value);
                     assert!(out.iterations >= 1 && out.evaluations > 0);

@@ -35,7 +35,7 @@ use thiserror::Error;
 pub use control::{ControlChannel, instance_id};
 pub use messages::{
     Command, CommandOutcome, Control, ControlKind, Estimate, EstimateStatus, Fix, Header, Latencies, Measurement,
-    Message, MessageKind, Name16, PlanInfo, Stamps, Truth, now_ns,
+    Message, MessageKind, Name16, PlanInfo, PosteriorExtra, Stamps, Truth, now_ns,
 };
 pub use process::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError};
 pub use services::Domain;

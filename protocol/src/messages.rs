@@ -468,6 +468,9 @@ pub enum EstimateStatus {
     Ambiguous = 1,
     /// No fix; position and covariance are meaningless (NaN).
     Failed = 2,
+    /// A usable estimate whose snapshot failed the fused estimator's χ² gate and was not fused: the
+    /// position and covariance are the posterior predicted to this step.
+    Rejected = 3,
 }
 
 impl EstimateStatus {
@@ -477,6 +480,7 @@ impl EstimateStatus {
             0 => Some(EstimateStatus::Ok),
             1 => Some(EstimateStatus::Ambiguous),
             2 => Some(EstimateStatus::Failed),
+            3 => Some(EstimateStatus::Rejected),
             _ => None,
         }
     }
@@ -487,7 +491,13 @@ impl EstimateStatus {
             EstimateStatus::Ok => "ok",
             EstimateStatus::Ambiguous => "ambiguous",
             EstimateStatus::Failed => "failed",
+            EstimateStatus::Rejected => "rejected",
         }
+    }
+
+    /// Whether the position and covariance are usable (every status but `failed`).
+    pub fn is_usable(self) -> bool {
+        self != EstimateStatus::Failed
     }
 }
 
@@ -510,6 +520,13 @@ pub enum Fix {
     },
     /// No fix.
     Failed,
+    /// The fused estimator's prediction: the snapshot failed its χ² gate.
+    Rejected {
+        /// Predicted emitter position, metres.
+        position: [f64; 2],
+        /// Its covariance, m².
+        covariance: [[f64; 2]; 2],
+    },
 }
 
 impl Fix {
@@ -519,13 +536,41 @@ impl Fix {
             Fix::Ok { .. } => EstimateStatus::Ok,
             Fix::Ambiguous { .. } => EstimateStatus::Ambiguous,
             Fix::Failed => EstimateStatus::Failed,
+            Fix::Rejected { .. } => EstimateStatus::Rejected,
+        }
+    }
+
+    /// The position and covariance of a usable fix.
+    pub fn usable(&self) -> Option<([f64; 2], [[f64; 2]; 2])> {
+        match *self {
+            Fix::Ok { position, covariance }
+            | Fix::Ambiguous { position, covariance }
+            | Fix::Rejected { position, covariance } => Some((position, covariance)),
+            Fix::Failed => None,
         }
     }
 }
 
+/// The fused estimator's state beyond the position, as carried in an [`Estimate`]: the velocity block
+/// of the constant-velocity model (zeros for `static`). With the position and its covariance it is the
+/// whole posterior, so any process can rebuild the estimator from the last estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct PosteriorExtra {
+    /// 0 snapshot (no posterior), 1 fused.
+    pub estimator: u8,
+    /// 0 static, 1 constant velocity.
+    pub model: u8,
+    /// Velocity estimate, m/s.
+    pub velocity: [f64; 2],
+    /// Position–velocity cross-covariance (rows: x, y; columns: vx, vy), m²/s.
+    pub cross_cov: [[f64; 2]; 2],
+    /// Velocity covariance, m²/s².
+    pub velocity_cov: [[f64; 2]; 2],
+}
+
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v1")]
+#[type_name("uavloc::Estimate/v2")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -534,10 +579,14 @@ pub struct Estimate {
     pub instance: u64,
     /// Number of UAVs N (3..=8).
     pub count: u32,
-    /// [`EstimateStatus`] as `u8` (0 ok, 1 ambiguous, 2 failed).
+    /// [`EstimateStatus`] as `u8` (0 ok, 1 ambiguous, 2 failed, 3 rejected).
     pub status: u8,
+    /// The estimator: 0 snapshot (Chan per step), 1 fused (the posterior of every snapshot so far).
+    pub estimator: u8,
+    /// The fused estimator's emitter model: 0 static, 1 constant velocity (0 for snapshot).
+    pub model: u8,
     /// Explicit padding; 0 when sent.
-    pub reserved: [u8; 3],
+    pub reserved: u8,
     /// Estimated emitter position, metres (NaN when failed).
     pub position: [f64; 2],
     /// Its covariance, m², row-major (NaN when failed).
@@ -546,9 +595,15 @@ pub struct Estimate {
     pub uavs: [[f64; 2]; MAX_UAVS],
     /// UAV headings at that time, radians.
     pub headings: [f64; MAX_UAVS],
+    /// Fused, constant velocity: the velocity estimate, m/s (0 otherwise).
+    pub velocity: [f64; 2],
+    /// Fused, constant velocity: position–velocity cross-covariance, m²/s (0 otherwise).
+    pub cross_cov: [[f64; 2]; 2],
+    /// Fused, constant velocity: velocity covariance, m²/s² (0 otherwise).
+    pub velocity_cov: [[f64; 2]; 2],
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 1, "uavloc::Estimate/v1");
+impl_message!(Estimate, MessageKind::Estimate, 2, "uavloc::Estimate/v2");
 
 impl Estimate {
     /// An estimate for `uavs.len()` UAVs (`headings` one per UAV).
@@ -562,20 +617,22 @@ impl Estimate {
     ) -> Result<Self, ProtocolError> {
         let n = check_count(uavs.len())?;
         check_len("headings", n, headings.len())?;
-        let (position, covariance) = match fix {
-            Fix::Ok { position, covariance } | Fix::Ambiguous { position, covariance } => (position, covariance),
-            Fix::Failed => ([f64::NAN; 2], [[f64::NAN; 2]; 2]),
-        };
+        let (position, covariance) = fix.usable().unwrap_or(([f64::NAN; 2], [[f64::NAN; 2]; 2]));
         let mut e = Estimate {
             header: Header::new(Self::VERSION, step, seq),
             instance,
             count: n as u32,
             status: fix.status() as u8,
-            reserved: [0; 3],
+            estimator: 0,
+            model: 0,
+            reserved: 0,
             position,
             covariance,
             uavs: [[0.0; 2]; MAX_UAVS],
             headings: [0.0; MAX_UAVS],
+            velocity: [0.0; 2],
+            cross_cov: [[0.0; 2]; 2],
+            velocity_cov: [[0.0; 2]; 2],
         };
         e.uavs[..n].copy_from_slice(uavs);
         e.headings[..n].copy_from_slice(headings);
@@ -593,6 +650,27 @@ impl Estimate {
     ) -> Result<Self, ProtocolError> {
         Ok(Estimate::new(measurement.header.step, seq, instance, measurement.uavs(), measurement.headings(), fix)?
             .carrying(measurement, received_ns))
+    }
+
+    /// This estimate with the fused estimator's state beyond the position.
+    pub fn with_extra(mut self, extra: &PosteriorExtra) -> Self {
+        self.estimator = extra.estimator;
+        self.model = extra.model;
+        self.velocity = extra.velocity;
+        self.cross_cov = extra.cross_cov;
+        self.velocity_cov = extra.velocity_cov;
+        self
+    }
+
+    /// The fused estimator's state beyond the position.
+    pub fn extra(&self) -> PosteriorExtra {
+        PosteriorExtra {
+            estimator: self.estimator,
+            model: self.model,
+            velocity: self.velocity,
+            cross_cov: self.cross_cov,
+            velocity_cov: self.velocity_cov,
+        }
     }
 
     /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
@@ -627,6 +705,7 @@ impl Estimate {
             EstimateStatus::Ok => Fix::Ok { position, covariance },
             EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
             EstimateStatus::Failed => Fix::Failed,
+            EstimateStatus::Rejected => Fix::Rejected { position, covariance },
         })
     }
 }
@@ -976,7 +1055,7 @@ mod tests {
         assert_eq!((size_of::<Header>(), align_of::<Header>()), (88, 8));
         assert_eq!((size_of::<Name16>(), align_of::<Name16>()), (16, 1));
         assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (408, 8));
-        assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (344, 8));
+        assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (424, 8));
         assert_eq!((size_of::<Command>(), align_of::<Command>()), (352, 8));
         assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
         assert_eq!((size_of::<Control>(), align_of::<Control>()), (144, 8));
@@ -991,7 +1070,9 @@ mod tests {
         assert_eq!(offset_of!(Measurement, headings) + 8 * MAX_UAVS, size_of::<Measurement>());
         assert_eq!(offset_of!(Measurement, uavs), 96);
         assert_eq!(offset_of!(Estimate, position), 88 + 8 + 8);
-        assert_eq!(offset_of!(Estimate, headings) + 8 * MAX_UAVS, size_of::<Estimate>());
+        assert_eq!(offset_of!(Estimate, headings) + 8 * MAX_UAVS, offset_of!(Estimate, velocity));
+        assert_eq!(offset_of!(Estimate, velocity_cov) + 32, size_of::<Estimate>());
+        assert_eq!(offset_of!(Estimate, reserved) + 1, offset_of!(Estimate, position));
         assert_eq!(offset_of!(Command, objective), 88 + 32);
         assert_eq!(offset_of!(Command, objective_name) + 16, size_of::<Command>());
         assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));

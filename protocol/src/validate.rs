@@ -65,7 +65,7 @@ pub enum Rejection {
     /// The covariance is not symmetric positive definite.
     #[error("covariance is not symmetric positive definite")]
     NotPositiveDefinite,
-    /// The estimate status is not 0, 1 or 2.
+    /// The estimate status is not 0, 1, 2 or 3.
     #[error("unknown estimate status {status}")]
     UnknownStatus {
         /// The wire value.
@@ -195,6 +195,17 @@ impl Estimate {
             if !is_symmetric_positive_definite(&self.covariance) {
                 return Err(Rejection::NotPositiveDefinite);
             }
+        }
+        if self.estimator > 1 {
+            return Err(Rejection::UnknownKind { field: "estimator", kind: u32::from(self.estimator) });
+        }
+        if self.model > 1 {
+            return Err(Rejection::UnknownKind { field: "model", kind: u32::from(self.model) });
+        }
+        if self.model == 1 {
+            check_finite("velocity", &self.velocity)?;
+            check_finite("cross_cov", self.cross_cov.iter().flatten())?;
+            check_finite("velocity_cov", self.velocity_cov.iter().flatten())?;
         }
         check_seq(self.header.seq, last_seq)
     }
@@ -499,8 +510,35 @@ mod tests {
     }
 
     #[test]
+    fn checks_the_fused_state_fields() {
+        assert_eq!(with(estimate(), |e| e.status = 3).fix().map(|f| f.status()), Some(EstimateStatus::Rejected));
+        assert_eq!(with(estimate(), |e| e.status = 3).validate(None), Ok(()));
+        assert_eq!(
+            with(estimate(), |e| e.estimator = 2).validate(None),
+            Err(Rejection::UnknownKind { field: "estimator", kind: 2 })
+        );
+        assert_eq!(
+            with(estimate(), |e| e.model = 7).validate(None),
+            Err(Rejection::UnknownKind { field: "model", kind: 7 })
+        );
+        let cv = |e: &mut Estimate| {
+            e.estimator = 1;
+            e.model = 1;
+        };
+        assert_eq!(with(estimate(), cv).validate(None), Ok(()));
+        assert_eq!(
+            with(estimate(), |e| {
+                cv(e);
+                e.velocity[1] = f64::NAN;
+            })
+            .validate(None),
+            Err(Rejection::NotFinite { field: "velocity" })
+        );
+    }
+
+    #[test]
     fn rejects_unknown_status() {
-        for status in [3u8, 4, 128, 255] {
+        for status in [4u8, 5, 128, 255] {
             let e = with(estimate(), |e| e.status = status);
             assert_eq!(e.validate(None), Err(Rejection::UnknownStatus { status }));
             assert_eq!(e.fix(), None);

@@ -8,11 +8,15 @@
 //! `uavs[0]` is the reference UAV; range differences are `d_i = r_i − r_0`, i = 1..N−1; 3 ≤ N ≤ 8.
 
 pub mod chan;
+pub mod dist;
 mod error;
 pub mod fim;
+pub mod fusion;
 pub mod geometry;
 pub mod global;
 pub mod montecarlo;
+pub mod motion;
+pub mod pcrlb;
 pub mod rng;
 pub mod singular;
 pub mod support;
@@ -20,8 +24,11 @@ pub mod support;
 pub use chan::{ChanSolution, chan};
 pub use error::TdoaError;
 pub use fim::{Crlb, crlb, fim, fim_derivatives, trace_crlb, trace_derivatives};
+pub use fusion::{Outcome as FusionOutcome, Posterior, fuse, nees};
 pub use geometry::{NoiseModel, RangeDiffs, SPEED_OF_LIGHT, Sensors};
 pub use global::{GlobalCrlb, GlobalReport, GlobalValue, Method, global_crlb};
+pub use motion::{Dynamics, EmitterModel};
+pub use pcrlb::InformationBound;
 pub use singular::{SingularReport, singular_report};
 pub use support::{DEFAULT_KAPPA, Uncertainty, eq36_side, estimate_from_arrays, estimate_to_arrays};
 
