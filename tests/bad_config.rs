@@ -20,7 +20,7 @@ fn refused(args: &[&str], needle: &str) {
 }
 
 /// (scenario file content, what the error must name).
-const BAD_SCENARIOS: [(&str, &str); 28] = [
+const BAD_SCENARIOS: [(&str, &str); 35] = [
     ("speeed = 10.0", "speeed"),                                                // unknown key
     ("[pso]\nparticle = 40", "particle"),                                       // unknown key in a table
     ("speed = \"fast\"", "speed"),                                              // wrong type
@@ -48,6 +48,13 @@ const BAD_SCENARIOS: [(&str, &str); 28] = [
     ("[pso]\nparticles = 0", "pso.particles"),
     ("[ga]\nmutation_rate = 2.0", "ga.mutation_rate"),
     ("l_min = -1", "l_min"),
+    ("standoff_confidence = 1.0", "standoff_confidence"),
+    ("standoff_confidence = -0.1", "standoff_confidence"),
+    ("process_noise_accel = -0.5", "process_noise_accel"),
+    ("velocity_prior_sigma = 0", "velocity_prior_sigma"),
+    ("emitter_velocity = [1.0, nan]", "emitter_velocity"),
+    ("estimator = \"kalman\"", "estimator"),
+    ("emitter_model = \"zigzag\"", "emitter_model"),
     ("speed = ", "speed"), // syntax error
 ];
 
@@ -87,6 +94,10 @@ fn malformed_flags_are_refused() {
         (&["launch", "--steps", "many"], "--steps"),
         (&["launch", "--seed", "abc"], "--seed"),
         (&["launch", "--objective", "nonsense"], "--objective"),
+        (&["launch", "--estimator", "kalman"], "--estimator"),
+        (&["simulate", "--estimator", "kalman"], "--estimator"),
+        (&["process", "estimator", "--process-noise-accel=-1"], "--process-noise-accel"),
+        (&["process", "estimator", "--velocity-prior-sigma", "0"], "--velocity-prior-sigma"),
         (&["launch", "--solver", "simplex"], "--solver"),
         (&["launch", "--transport", "pigeon"], "--transport"),
         (&["launch", "--wait", "sometimes"], "--wait"),

@@ -118,7 +118,7 @@ pub fn consistency(runs: &[RunRecord]) -> Consistency {
 
 /// The first step from which `curve` stays below `level` (`None` if it never does).
 pub fn settles_below(curve: &[f64], level: f64) -> Option<usize> {
-    let last_above = curve.iter().rposition(|v| !(*v < level));
+    let last_above = curve.iter().rposition(|v| v.is_nan() || *v >= level);
     match last_above {
         None => Some(0),
         Some(k) if k + 1 < curve.len() => Some(k + 1),

@@ -211,7 +211,7 @@ impl Constraints {
         }
         let d = next - estimate;
         let r = d.norm();
-        if !(r > 0.0) {
+        if r.is_nan() || r <= 0.0 {
             // On ẑ: every direction; take the largest spread.
             let (_, hi) = tdoa::fim::sym_eigenvalues(&self.covariance);
             return self.l_min + self.standoff_k * hi.max(0.0).sqrt();

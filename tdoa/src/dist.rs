@@ -10,6 +10,9 @@
 //! n = 9). Quantiles are found by a safeguarded Newton iteration on the CDF (bisection where Newton
 //! would leave the bracket), so they invert the CDF to its own precision.
 
+// Negated comparisons are deliberate here: `!(a > b)` also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 /// `ln Γ(x)` for `x > 0` (Lanczos, g = 7, n = 9; ~1e-15 relative).
 pub fn ln_gamma(x: f64) -> f64 {
     const G: f64 = 7.0;
@@ -116,7 +119,7 @@ pub fn chi2_cdf(dof: f64, x: f64) -> f64 {
 /// The `p`-quantile of the χ² distribution with `dof > 0` degrees of freedom (`p` in [0, 1]; 0 → 0,
 /// 1 → +∞, NaN outside).
 pub fn chi2_quantile(dof: f64, p: f64) -> f64 {
-    if !(dof > 0.0) || !(0.0..=1.0).contains(&p) {
+    if dof.is_nan() || dof <= 0.0 || !(0.0..=1.0).contains(&p) {
         return f64::NAN;
     }
     if p == 0.0 {
@@ -141,7 +144,7 @@ pub fn chi2_quantile(dof: f64, p: f64) -> f64 {
         }
         let density = ((0.5 * dof - 1.0) * x.ln() - 0.5 * x - ln_norm).exp();
         let mut next = x - f / density;
-        if !(next > lo && next < hi) || !next.is_finite() {
+        if !(next > lo && next < hi && next.is_finite()) {
             next = if hi.is_finite() { 0.5 * (lo + hi) } else { 2.0 * x.max(lo) + 1.0 };
         }
         if (next - x).abs() <= 1e-15 * x.abs().max(1e-300) {
