@@ -361,13 +361,22 @@ fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
         .planner
         .as_ref()
         .map_or("-".to_string(), |p| format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
+    // The 95 % ellipse of the reported covariance: semi-axes sqrt(χ²₂(0.95) λ) = sqrt(5.991 λ).
+    let c = &r.estimate_cov;
+    let (lo, hi) = tdoa::fim::sym_eigenvalues(&nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]));
+    let k95 = tdoa::dist::chi2_quantile(2.0, 0.95);
+    let closest =
+        r.uavs.iter().map(|w| (w[0] - done.truth[0]).hypot(w[1] - done.truth[1])).fold(f64::INFINITY, f64::min);
     format!(
-        "step {:>3}/{last}  CRLB {:>8.1} m  RMSE {:>8} m  |ẑ−z| {:>8.1} m  meas→est {:>7}  est→plan {:>7}  plan {:>8}  \
-         cycle {:>8}  planner {planner}  rejected {rejected}{}",
+        "step {:>3}/{last}  CRLB {:>8.1} m  RMSE {:>8} m  |ẑ−z| {:>8.1} m  95% ellipse {:.0}×{:.0} m  closest UAV {:.0} m  \
+         meas→est {:>7}  est→plan {:>7}  plan {:>8}  cycle {:>8}  planner {planner}  rejected {rejected}{}",
         r.step,
         r.crlb_true_m,
         fmt_m(r.rmse_m),
         done.error_m,
+        (k95 * hi.max(0.0)).sqrt(),
+        (k95 * lo.max(0.0)).sqrt(),
+        closest,
         fmt_us(l.measurement_hop_ns),
         fmt_us(l.estimate_hop_ns),
         r.plan_ms.map_or("-".into(), |ms| format!("{ms:.3} ms")),
