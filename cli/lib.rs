@@ -13,6 +13,7 @@ pub mod args;
 pub mod bench;
 pub mod crlb;
 pub mod error;
+pub mod fuse;
 pub mod global;
 pub mod launch;
 pub mod locate;
@@ -77,7 +78,11 @@ pub enum Command {
     /// Emitter position and its covariance from measured range differences (Chan)
     #[command(
         long_about = locate::LONG_ABOUT,
-        after_help = locate::AFTER_HELP
+        after_help = locate::AFTER_HELP,
+        // --fuse FILE brings its own UAVs and noise: the geometry flags are required only without it.
+        mut_arg("uavs", |a| a.required(false).required_unless_present("fuse")),
+        mut_group("SigmaArgs", |g| g.required(false)),
+        group(clap::ArgGroup::new("noise_or_fuse").args(["sigma", "sigma_ns", "fuse"]).required(true))
     )]
     Locate(locate::LocateArgs),
     /// Monte Carlo RMSE of Chan's estimator compared with the CRLB

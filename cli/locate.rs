@@ -33,7 +33,18 @@ Examples:
   uavloc locate --uav -1500,200 --uav 0,0 --uav 800,-900 --uav 300,700 --range-diff 939.2,1178.5,1612 \\
       --sigma-ns 30 --json
 
-Exit codes: 0 success; 2 bad input, collinear UAVs, or range differences no emitter can produce.";
+Fusing recorded snapshots (--fuse FILE): one snapshot per line, in time order, either CSV
+  x0,y0,x1,y1,...,x{N-1},y{N-1},d1,...,d{N-1},sigma        (a header line starting with a letter is skipped)
+or JSON lines
+  {\"uavs\": [[x0,y0],..], \"range_diffs\": [d1,..], \"sigma\": s}   (sigma: one value or one per UAV)
+(N = 3..8 may change between lines; metres). The first snapshot Chan can solve starts the posterior
+(--prior resolves its 3-UAV ambiguity); every later one is fused by the χ²-gated iterated EKF of the
+`fused` estimator (static emitter); a snapshot failing the gate is reported and not fused. Output:
+the fused position and its covariance, the steps fused and rejected, and the estimate after each line.
+  uavloc locate --fuse recorded.csv --prior 20000,20000 --json
+
+Exit codes: 0 success; 2 bad input (a malformed line names its number), collinear UAVs, or range
+differences no emitter can produce.";
 
 /// Arguments of `uavloc locate`.
 #[derive(Args, Debug, Clone, PartialEq)]
@@ -46,9 +57,14 @@ pub struct LocateArgs {
         value_name = "D1,D2,..",
         allow_hyphen_values = true,
         value_parser = parse_list,
+        required_unless_present = "fuse",
         help_heading = "Measurements"
     )]
-    pub range_diff: NumList,
+    pub range_diff: Option<NumList>,
+    /// Fuse recorded snapshots instead: a CSV or JSON-lines FILE, one snapshot per line (see below),
+    /// giving the posterior of the emitter position from all of them (the `fused` estimator).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["range_diff", "uavs", "sigma", "sigma_ns"], help_heading = "Measurements")]
+    pub fuse: Option<std::path::PathBuf>,
     /// Rough emitter position X,Y in metres that picks between the two 3-UAV solutions.
     #[arg(long, value_name = "X,Y", allow_hyphen_values = true, value_parser = parse_point, help_heading = "Measurements")]
     pub prior: Option<Point>,
@@ -90,9 +106,40 @@ pub fn compute(sensors: &Sensors, d: &[f64], prior: Option<Vector2<f64>>) -> Res
     })
 }
 
+/// What `uavloc locate` prints: one Chan fix, or the fused posterior of a file of snapshots.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum LocateOutput {
+    /// One snapshot, Chan.
+    Snapshot(LocateReport),
+    /// `--fuse FILE`.
+    Fused(crate::fuse::FuseReport),
+}
+
 /// Runs `uavloc locate`.
-pub fn run(args: &LocateArgs) -> Result<LocateReport, CliError> {
-    compute(&args.sensors.sensors()?, &args.range_diff.0, args.prior.map(|p| p.vector()))
+pub fn run(args: &LocateArgs) -> Result<LocateOutput, CliError> {
+    if let Some(path) = &args.fuse {
+        return crate::fuse::run(path, args.prior.map(|p| p.vector())).map(LocateOutput::Fused);
+    }
+    // Without --fuse, clap requires --uav, --range-diff and one of --sigma/--sigma-ns (see `cli::Command`).
+    let d = args.range_diff.as_ref().ok_or_else(|| CliError::Input("--range-diff is required".into()))?;
+    compute(&args.sensors.sensors()?, &d.0, args.prior.map(|p| p.vector())).map(LocateOutput::Snapshot)
+}
+
+impl Report for LocateOutput {
+    fn table(&self) -> Table {
+        match self {
+            LocateOutput::Snapshot(r) => r.table(),
+            LocateOutput::Fused(r) => r.table(),
+        }
+    }
+
+    fn diagnostics(&self) -> Vec<Diagnostic> {
+        match self {
+            LocateOutput::Snapshot(r) => r.diagnostics(),
+            LocateOutput::Fused(r) => r.diagnostics(),
+        }
+    }
 }
 
 impl Report for LocateReport {

@@ -618,3 +618,60 @@ fn help_answers_the_usual_questions() {
     }
     assert!(uavloc(&["locate", "--help"]).stdout.contains("d_i = r_i − r_0"));
 }
+
+/// `locate --fuse FILE`: recorded snapshots of UAVs flying past the nominal emitter, with noise, as CSV
+/// and as JSON lines. The fused estimate is far closer to the truth than each line's Chan fix, CSV and
+/// JSON agree exactly, and a malformed line is refused naming its number.
+#[test]
+fn locate_fuses_recorded_snapshots() {
+    let dir = std::env::temp_dir().join(format!("uavloc-fuse-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let z = NOMINAL_TARGET;
+    let r = |p: [f64; 2]| (p[0] - z[0]).hypot(p[1] - z[1]);
+    // A deterministic "noise" of a few σ per snapshot.
+    let e = |k: usize, i: usize| 28.7712 * (((k * 7 + i * 3) % 11) as f64 - 5.0) / 3.0;
+    let (mut csv, mut jsonl) = (String::from("x0,y0,x1,y1,x2,y2,d1,d2,sigma_m\n"), String::new());
+    let mut chan_errors = Vec::new();
+    for k in 0..20 {
+        let t = 500.0 * k as f64;
+        let uavs = [[1500.0 + t, 500.0], [10_000.0 + t, 1500.0 + 0.5 * t], [5000.0, 8500.0 + t]];
+        let d = [r(uavs[1]) - r(uavs[0]) + e(k, 1), r(uavs[2]) - r(uavs[0]) + e(k, 2)];
+        csv += &format!(
+            "{},{},{},{},{},{},{:?},{:?},28.7712\n",
+            uavs[0][0], uavs[0][1], uavs[1][0], uavs[1][1], uavs[2][0], uavs[2][1], d[0], d[1]
+        );
+        jsonl += &format!("{{\"uavs\": {uavs:?}, \"range_diffs\": [{:?}, {:?}], \"sigma\": 28.7712}}\n", d[0], d[1]);
+        let mut args: Vec<String> = vec!["locate".into(), "--json".into(), "--sigma".into(), NOMINAL_SIGMA.into()];
+        for u in uavs {
+            args.extend(["--uav".into(), format!("{},{}", u[0], u[1])]);
+        }
+        args.extend(["--range-diff".into(), format!("{:?},{:?}", d[0], d[1]), "--prior".into(), "20000,20000".into()]);
+        let fix = uavloc(&args).json();
+        chan_errors.push((fix["x"].as_f64().unwrap() - z[0]).hypot(fix["y"].as_f64().unwrap() - z[1]));
+    }
+    std::fs::write(dir.join("s.csv"), &csv).unwrap();
+    std::fs::write(dir.join("s.jsonl"), &jsonl).unwrap();
+    let a =
+        uavloc(&["locate", "--json", "--prior", "20000,20000", "--fuse", dir.join("s.csv").to_str().unwrap()]).json();
+    let b =
+        uavloc(&["locate", "--json", "--prior", "20000,20000", "--fuse", dir.join("s.jsonl").to_str().unwrap()]).json();
+    for key in ["x", "y", "cov", "fused", "rejected_snapshots"] {
+        assert_eq!(a[key], b[key], "CSV and JSON lines give the same fused {key}");
+    }
+    let est = |v: &Value| v["steps"].as_array().unwrap().iter().map(|s| s["estimate"].clone()).collect::<Vec<_>>();
+    assert_eq!(est(&a), est(&b));
+    assert_eq!(a["snapshots"].as_u64(), Some(20));
+    assert_eq!(a["fused"].as_u64(), Some(20));
+    assert_eq!(a["steps"].as_array().unwrap().len(), 20);
+    let fused_error = (a["x"].as_f64().unwrap() - z[0]).hypot(a["y"].as_f64().unwrap() - z[1]);
+    let mean_chan = chan_errors.iter().sum::<f64>() / chan_errors.len() as f64;
+    assert!(fused_error < 0.5 * mean_chan, "fused {fused_error:.1} m vs Chan per line {mean_chan:.1} m on average");
+    let sd = a["cov"][0][0].as_f64().unwrap().sqrt();
+    assert!(fused_error < 5.0 * sd.max(1.0), "error {fused_error:.1} m vs std {sd:.1} m");
+    // A malformed line: exit 2, the line named.
+    std::fs::write(dir.join("bad.csv"), csv.replacen("28.7712\n", "28.7712,9\n", 3)).unwrap();
+    let bad = uavloc(&["locate", "--fuse", dir.join("bad.csv").to_str().unwrap()]);
+    assert_eq!(bad.code, 2, "{}", bad.stderr);
+    assert!(bad.stderr.contains("line 2") && bad.stderr.lines().count() == 1, "{}", bad.stderr);
+    let _ = std::fs::remove_dir_all(&dir);
+}

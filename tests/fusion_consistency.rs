@@ -1,7 +1,7 @@
 //! The fused estimator (issue 14): Monte Carlo consistency over closed-loop runs of the default scenario
 //! through the same library calls as `uavloc simulate`, and the constant-velocity model against a moving
-//! emitter. The fast checks run in `cargo test`; the full 200-run checks are `--ignored` and in
-//! `uavloc paper fusion`.
+//! emitter, and the standoff chance constraint against the TRUE emitter. 200 runs of the closed loop
+//! take about a second in release; `uavloc paper fusion` is the full study.
 
 use experiments::fusion::consistency;
 use experiments::{Engine, Settings};
@@ -56,7 +56,6 @@ fn fused_default_scenario_is_efficient_and_consistent_quick() {
 }
 
 #[test]
-#[ignore = "200 closed-loop runs (~10 s in release); also `uavloc paper fusion`"]
 fn fused_default_scenario_is_efficient_and_consistent() {
     let runs = batch(200, &Scenario::default());
     assert_consistent("fused, 200 runs", &runs, (0.9, 1.2), 0.9, 100.0);
@@ -76,4 +75,27 @@ fn constant_velocity_model_tracks_a_moving_emitter_and_the_static_model_shows_it
     let c = consistency(&fixed);
     let late = c.mean_nees[12..].iter().sum::<f64>() / c.mean_nees[12..].len() as f64;
     assert!(late > 3.0 * c.band.1, "static model on a moving emitter: late mean NEES {late:.2} (band {:?})", c.band);
+}
+
+/// Fraction of (UAV, step) pairs inside `L_min` of the TRUE emitter, and the deepest one (m inside).
+fn true_violations(runs: &[monitor::RunRecord]) -> (f64, f64) {
+    let pairs: u64 = runs.iter().map(|r| r.true_standoff_violations.unwrap()).sum();
+    let total: usize = runs.iter().map(|r| r.steps.len() * r.scenario.uav_count()).sum();
+    let l_min = runs[0].scenario.l_min;
+    let closest =
+        runs.iter().flat_map(|r| r.steps.iter().filter_map(|s| s.min_true_distance_m)).fold(f64::INFINITY, f64::min);
+    (pairs as f64 / total as f64, l_min - closest)
+}
+
+#[test]
+fn the_standoff_chance_constraint_is_calibrated_on_60_step_runs() {
+    // 200 runs of 60 steps: the UAVs reach the L_min ring at about step 38 and orbit it.
+    let long = Scenario { steps: 60, ..Scenario::default() };
+    let (inside, depth) = true_violations(&batch(200, &long));
+    assert!(inside <= 1.0 - long.standoff_confidence, "c = 0.99: {:.3} % of the pairs inside L_min", 100.0 * inside);
+    assert!(depth < 100.0, "c = 0.99: the deepest violation is {depth:.1} m inside L_min");
+    // The paper's constraint at ẑ (c = 0) lets the UAVs well inside the true standoff.
+    let paper = Scenario { standoff_confidence: 0.0, ..long };
+    let (inside0, depth0) = true_violations(&batch(200, &paper));
+    assert!(inside0 > 0.05 && depth0 > 300.0, "c = 0: {:.2} % inside, {depth0:.0} m deep", 100.0 * inside0);
 }

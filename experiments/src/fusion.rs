@@ -47,6 +47,15 @@ impl Config {
         format!("{what} + {}, c = {}", self.objective, self.confidence)
     }
 
+    /// A short legend label: `paper c=0`, `fused analytical c=.99`.
+    pub fn short(&self) -> String {
+        let c = if self.confidence > 0.0 { "c=.99" } else { "c=0" };
+        match self.estimator {
+            EstimatorKind::Snapshot => format!("paper {c}"),
+            EstimatorKind::Fused => format!("{} {c}", self.objective),
+        }
+    }
+
     /// The scenario of this row on `base`.
     pub fn scenario(&self, base: &Scenario, steps: usize) -> Scenario {
         Scenario { estimator: self.estimator, standoff_confidence: self.confidence, steps, ..base.clone() }
@@ -221,11 +230,12 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
                 "pcrlb_per_step_m": cons.pcrlb,
                 "mean_nees_per_step": cons.mean_nees,
             }));
-            if c.confidence > 0.0 {
+            // The paper's method as published (c = 0) and the fused rows at c = 0.99.
+            if (c.estimator == EstimatorKind::Snapshot) != (c.confidence > 0.0) {
                 let x: Vec<f64> = (0..cons.rmse.len()).map(|k| k as f64).collect();
-                rmse_series.push(line_series(&format!("RMSE {}", c.label()), x.clone(), cons.rmse.clone()));
+                rmse_series.push(line_series(&c.short(), x.clone(), cons.rmse.clone()));
                 if c.estimator == EstimatorKind::Fused && c.objective == ObjectiveKind::Analytical {
-                    rmse_series.push(line_series("PCRLB fused + analytical", x, cons.pcrlb.clone()));
+                    rmse_series.push(line_series("PCRLB", x, cons.pcrlb.clone()));
                 }
             }
             if steps == HORIZONS[0]
@@ -242,12 +252,17 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
                     100.0 * cons.nees_inside(5)
                 );
                 conclusions.push(cons_note);
-                if let Some(run) = b.runs.first() {
-                    figures.push(Figure::Trajectories {
-                        name: format!("trajectory-fused-{steps}"),
-                        run: Box::new(run.clone()),
-                    });
-                }
+            }
+            if c.estimator == EstimatorKind::Fused
+                && c.objective == ObjectiveKind::Analytical
+                && c.confidence > 0.0
+                && let Some(run) = b.runs.first()
+            {
+                // The UAV paths with the fused estimate's track and 95 % ellipses (first run).
+                figures.push(Figure::Trajectories {
+                    name: format!("trajectory-fused-{steps}"),
+                    run: Box::new(run.clone()),
+                });
             }
         }
         let p = &rows[rows.len() - configs.len() + 1];
@@ -260,7 +275,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
         ));
         figures.push(Figure::Curves {
             name: format!("rmse-{steps}"),
-            title: format!("RMSE of the estimate and the PCRLB per step, {steps} steps"),
+            title: format!("RMSE of ẑ (200 runs) and the PCRLB, {steps} steps"),
             x_label: "step".into(),
             y_label: "m".into(),
             series: rmse_series,

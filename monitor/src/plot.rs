@@ -114,6 +114,10 @@ pub enum Metric {
     CrlbTrue,
     /// RMSE of Chan over the noise resamples, `StepRecord::rmse_m`.
     Rmse,
+    /// Posterior CRLB at the truth from every snapshot so far, `StepRecord::pcrlb_m`.
+    Pcrlb,
+    /// The run's estimate error `|ẑ − z|`, `StepRecord::estimate_error_m`.
+    EstimateError,
 }
 
 impl Metric {
@@ -122,6 +126,8 @@ impl Metric {
         match self {
             Metric::CrlbTrue => Some(step.crlb_true_m),
             Metric::Rmse => step.rmse_m,
+            Metric::Pcrlb => step.pcrlb_m,
+            Metric::EstimateError => step.estimate_error_m,
         }
     }
 
@@ -130,6 +136,8 @@ impl Metric {
         match self {
             Metric::CrlbTrue => "CRLB at the truth",
             Metric::Rmse => "RMSE",
+            Metric::Pcrlb => "PCRLB at the truth",
+            Metric::EstimateError => "estimate error |ẑ − z|",
         }
     }
 }
@@ -182,16 +190,20 @@ pub fn plot_trajectories(run: &RunRecord, path: &Path) -> Result<(), PlotError> 
     render(path, &Trajectories { run })
 }
 
-/// Plots the CRLB at the truth and the RMSE of each step of `run` into `path` (`.svg` or `.png`).
+/// Plots the CRLB at the truth, the RMSE of a Chan snapshot, the run's estimate error `|ẑ − z|` and the
+/// posterior CRLB (the bound on that error from every snapshot so far) of each step of `run` into `path`
+/// (`.svg` or `.png`).
 ///
 /// The y axis is logarithmic when the positive values span more than a factor 10, linear from 0
-/// otherwise. Steps without an RMSE break the RMSE line.
+/// otherwise. Steps without a value (no RMSE, no truth) break the line.
 pub fn plot_metrics(run: &RunRecord, path: &Path) -> Result<(), PlotError> {
     let lines = vec![
-        MetricLine::of(run, Metric::CrlbTrue, "CRLB at the truth".to_owned(), palette(0)),
+        MetricLine::of(run, Metric::CrlbTrue, "CRLB (snapshot)".to_owned(), palette(0)),
         MetricLine::of(run, Metric::Rmse, "RMSE (Chan)".to_owned(), palette(1)),
+        MetricLine::of(run, Metric::EstimateError, format!("|ẑ−z| {}", run.estimator), palette(2)),
+        MetricLine::of(run, Metric::Pcrlb, "PCRLB".to_owned(), palette(3)),
     ];
-    let mut title = format!("CRLB and RMSE per step: {} / {}, seed {}", run.objective, run.solver, run.seed);
+    let mut title = format!("Errors and bounds per step: {} / {}, seed {}", run.objective, run.solver, run.seed);
     if run.steps.is_empty() {
         title.push_str(" (no steps)");
     }
@@ -373,6 +385,36 @@ struct Trajectories<'a> {
     run: &'a RunRecord,
 }
 
+/// The colour of the estimate's confidence ellipses.
+const ELLIPSE_COLOR: RGBColor = RGBColor(0x9a, 0x40, 0xc0);
+
+/// The 95 % confidence ellipse `{ẑ + sqrt(χ²₂(0.95)) M^{1/2} u : |u| = 1}` of an estimate (72 points,
+/// closed), or `None` for a covariance that is not positive definite or numbers that are not finite.
+pub fn ellipse95(center: [f64; 2], cov: [[f64; 2]; 2]) -> Option<Vec<(f64, f64)>> {
+    let m = nalgebra::Matrix2::new(cov[0][0], cov[0][1], cov[1][0], cov[1][1]);
+    if center.iter().chain(m.iter()).any(|v| !v.is_finite()) {
+        return None;
+    }
+    let eig = nalgebra::SymmetricEigen::new(0.5 * (m + m.transpose()));
+    if eig.eigenvalues.iter().any(|l| l.is_nan() || *l <= 0.0) {
+        return None;
+    }
+    let k = tdoa::dist::chi2_quantile(2.0, 0.95).sqrt();
+    let axes = [
+        eig.eigenvectors.column(0) * (k * eig.eigenvalues[0].sqrt()),
+        eig.eigenvectors.column(1) * (k * eig.eigenvalues[1].sqrt()),
+    ];
+    Some(
+        (0..=72)
+            .map(|i| {
+                let t = i as f64 * std::f64::consts::TAU / 72.0;
+                let p = axes[0] * t.cos() + axes[1] * t.sin();
+                (center[0] + p.x, center[1] + p.y)
+            })
+            .collect(),
+    )
+}
+
 fn finite_point(p: [f64; 2]) -> Option<(f64, f64)> {
     (p[0].is_finite() && p[1].is_finite()).then_some((p[0], p[1]))
 }
@@ -478,6 +520,25 @@ impl Figure for Trajectories<'_> {
             .draw()?;
 
         chart.draw_series(on_chart.iter().map(|&&p| Circle::new(p, 2, ESTIMATE_GREY.filled())))?;
+        // The estimate track and its 95 % ellipses every few steps (about eight per run).
+        let track: Vec<(f64, f64)> = estimates.iter().copied().filter(|&p| range.contains(p)).collect();
+        if track.len() >= 2 {
+            chart.draw_series(LineSeries::new(track, ESTIMATE_GREY.stroke_width(1)))?;
+        }
+        let every = run.steps.len().div_ceil(8).max(1);
+        let limit = 2.0 * range.span();
+        let ellipses: Vec<Vec<(f64, f64)>> = run
+            .steps
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| k % every == 0 || *k + 1 == run.steps.len())
+            .filter_map(|(_, s)| ellipse95(s.estimate, s.estimate_cov))
+            .filter(|e| e.iter().all(|p| (p.0 - e[0].0).abs() < limit && (p.1 - e[0].1).abs() < limit))
+            .filter(|e| e.iter().any(|&p| range.contains(p)))
+            .collect();
+        for e in &ellipses {
+            chart.draw_series(std::iter::once(PathElement::new(e.clone(), ELLIPSE_COLOR.stroke_width(1))))?;
+        }
         for (i, path) in paths.iter().enumerate() {
             if path.len() >= 2 {
                 chart.draw_series(LineSeries::new(path.iter().copied(), palette(i).stroke_width(2)))?;
@@ -504,6 +565,9 @@ impl Figure for Trajectories<'_> {
         }
         if emitter.is_some() {
             entries.push(LegendEntry { glyph: Glyph::Star, label: "true emitter".to_owned() });
+        }
+        if !ellipses.is_empty() {
+            entries.push(LegendEntry { glyph: Glyph::Line(ELLIPSE_COLOR), label: "95 % ellipse".to_owned() });
         }
         if !estimates.is_empty() {
             let label = if off_chart.is_empty() {
@@ -674,6 +738,20 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_95_ellipse_holds_95_percent_of_gaussian_draws() {
+        // Points on the ellipse have Mahalanobis distance² = χ²₂(0.95) = 5.991; draws inside it are 95 %.
+        let cov = [[4.0e4, 1.5e4], [1.5e4, 1.0e4]];
+        let e = ellipse95([100.0, -50.0], cov).unwrap();
+        let inv = nalgebra::Matrix2::new(cov[0][0], cov[0][1], cov[1][0], cov[1][1]).try_inverse().unwrap();
+        for (x, y) in &e {
+            let d = nalgebra::Vector2::new(x - 100.0, y + 50.0);
+            assert!((d.dot(&(inv * d)) - 5.991_464_547_107_979).abs() < 1e-6);
+        }
+        assert!(ellipse95([0.0, 0.0], [[1.0, 2.0], [2.0, 1.0]]).is_none(), "indefinite");
+        assert!(ellipse95([f64::NAN, 0.0], cov).is_none());
+    }
 
     #[test]
     fn axis_labels_are_compact() {
