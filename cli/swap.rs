@@ -119,6 +119,8 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
             "no {role} is running in domain {domain}; start a pipeline first (e.g. uavloc launch --domain {domain})"
         )));
     }
+    // The processes to see gone: a node is released a moment before its process exits.
+    let old_pids = resources::list(&domain).map_err(CliError::Failed)?.alive_pids(&node_name);
     flags.extend(["--domain".into(), domain.to_string(), "--takeover".into(), "--supervised".into()]);
 
     let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("cannot find this executable: {e}")))?;
@@ -170,8 +172,8 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
             }
         }
     };
-    // … and the old one exits once it has handled the steps before.
-    while running(&domain)? > 1 {
+    // … and the old one exits once it has handled the steps before (its node, then its process).
+    while running(&domain)? > 1 || old_pids.iter().any(|p| process_runs(*p)) {
         if Instant::now() > deadline {
             return Err(CliError::Failed(format!(
                 "the new {role} (pid {pid}) took over from step {from_step}, but the old one is still running after \
@@ -183,6 +185,14 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     // The new process runs on by itself (its later `summary` line goes nowhere).
     drop(child);
     Ok(SwapReport { role: role.into(), domain: domain.to_string(), pid, from_step, planner })
+}
+
+/// Whether process `pid` runs (exists and is not a zombie waiting to be reaped).
+fn process_runs(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| s.rsplit_once(") ").map(|(_, rest)| !rest.starts_with('Z')))
+        .unwrap_or(false)
 }
 
 impl Report for SwapReport {

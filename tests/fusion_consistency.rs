@@ -39,11 +39,9 @@ fn assert_consistent(label: &str, runs: &[monitor::RunRecord], ratio: (f64, f64)
 }
 
 #[test]
-fn fused_default_scenario_is_efficient_and_consistent_quick() {
-    // 60 runs (a few seconds): looser bands than the 200-run check, for the smaller sample.
+fn fusion_beats_the_per_step_chan_of_the_paper() {
     let runs = batch(60, &Scenario::default());
     assert!(runs.iter().all(|r| r.estimator == "fused"));
-    assert_consistent("fused, 60 runs", &runs, (0.8, 1.3), 0.8, 110.0);
     // The paper's per-step Chan on the same seeds is far from the bound at the end.
     let snap = batch(60, &Scenario { estimator: EstimatorKind::Snapshot, ..Scenario::default() });
     let (f, s) = (consistency(&runs), consistency(&snap));
@@ -64,14 +62,26 @@ fn fused_default_scenario_is_efficient_and_consistent() {
 #[test]
 fn constant_velocity_model_tracks_a_moving_emitter_and_the_static_model_shows_its_lag() {
     let moving = Scenario { emitter_velocity: [10.0, 0.0], ..Scenario::default() };
-    let cv = batch(60, &Scenario { emitter_model: EmitterModel::ConstantVelocity, ..moving.clone() });
-    assert_consistent("constant velocity, 60 runs", &cv, (0.75, 1.35), 0.75, 200.0);
+    // The model matched to the truth: a 10 m/s emitter flying straight, prior σ_v = 10 m/s per axis and a
+    // small process noise. (With the defaults, σ_v = 20 m/s and σ_a = 0.05 m/s², the model is looser than
+    // this truth and the filter is conservative: RMSE 0.86–1.06 × PCRLB, mean NEES below the band at some
+    // steps — measured, see EXPERIMENTS.md.)
+    let cv = batch(
+        200,
+        &Scenario {
+            emitter_model: EmitterModel::ConstantVelocity,
+            velocity_prior_sigma: 10.0,
+            process_noise_accel: 0.01,
+            ..moving.clone()
+        },
+    );
+    assert_consistent("constant velocity, 200 runs", &cv, (0.9, 1.2), 0.9, 200.0);
     // Velocity estimates are reported, and converge to the truth (10, 0) m/s.
     let v: Vec<[f64; 2]> = cv.iter().map(|r| r.steps.last().unwrap().estimate_velocity.unwrap()).collect();
     let mean_vx = v.iter().map(|v| v[0]).sum::<f64>() / v.len() as f64;
     assert!((mean_vx - 10.0).abs() < 2.0, "mean vx {mean_vx}");
     // The static model on the same moving emitter: the mismatch is visible, NEES far above the band.
-    let fixed = batch(60, &moving);
+    let fixed = batch(200, &moving);
     let c = consistency(&fixed);
     let late = c.mean_nees[12..].iter().sum::<f64>() / c.mean_nees[12..].len() as f64;
     assert!(late > 3.0 * c.band.1, "static model on a moving emitter: late mean NEES {late:.2} (band {:?})", c.band);

@@ -5,7 +5,10 @@
 //!
 //! - `fused` (default): the posterior of the emitter's state given **every** snapshot so far
 //!   ([`tdoa::fusion`]: an iterated EKF on the raw range differences, χ²-gated), started from Chan's fix
-//!   of the first snapshot that has one. A snapshot whose innovation fails the gate is not fused and is
+//!   of the first snapshot that has one. When that fix is ambiguous (three UAVs, two physical roots, no
+//!   prior), both roots are carried to the next snapshot, fused into each, and the root with the smaller
+//!   innovation is kept (the first snapshots together decide; a process that takes over from the
+//!   published estimate in between continues with the root reported). A snapshot whose innovation fails the gate is not fused and is
 //!   reported as [`EstimateStatus::Rejected`] (the posterior is then the prediction). Emitter models
 //!   `static` and `constant_velocity` ([`tdoa::motion`]).
 //! - `snapshot` (the paper, Section 2, eqs. 10–30): Chan's fix of each snapshot alone; the previous
@@ -28,6 +31,11 @@ use thiserror::Error;
 
 pub use tdoa::EmitterModel;
 pub use tdoa::fusion::EstimatorKind;
+
+/// The fused estimator restarts from Chan's fix of the current snapshot after this many snapshots
+/// rejected in a row by its χ² gate: the posterior has lost the emitter (a wrong root, a jump), and
+/// gating alone would keep it lost forever.
+pub const REJECTED_RUN_RESTART: u8 = 3;
 
 /// How an estimate came about.
 #[derive(Debug, Clone, PartialEq)]
@@ -77,6 +85,10 @@ pub struct EstimateOut {
     pub candidates: Vec<Vector2<f64>>,
     /// Fused: the whole posterior after this step (velocity and cross-covariances included).
     pub posterior: Option<Posterior>,
+    /// Fused: the snapshot's normalised innovation squared at the prediction (`None` for a Chan fix).
+    pub nis: Option<f64>,
+    /// Fused: snapshots rejected in a row up to this one (0 after a fused one or a restart).
+    pub rejected_run: u8,
 }
 
 /// Why no estimate at all could be given.
@@ -128,6 +140,11 @@ pub struct Estimator {
     prior: Option<Vector2<f64>>,
     previous: Option<(Vector2<f64>, Matrix2<f64>)>,
     posterior: Option<Posterior>,
+    /// Fused, after an ambiguous start: the posterior of Chan's other root, until the next snapshot
+    /// decides between the two.
+    alternative: Option<Posterior>,
+    /// Fused: snapshots rejected in a row.
+    rejected_run: u8,
     last_step: Option<u64>,
 }
 
@@ -140,7 +157,15 @@ impl Default for Estimator {
 impl Estimator {
     /// A fresh estimator of `config`.
     pub fn with_config(config: EstimatorConfig) -> Self {
-        Self { config, prior: None, previous: None, posterior: None, last_step: None }
+        Self {
+            config,
+            prior: None,
+            previous: None,
+            posterior: None,
+            alternative: None,
+            rejected_run: 0,
+            last_step: None,
+        }
     }
 
     /// A fresh snapshot (paper) estimator with no prior: the first three-UAV solve may be ambiguous.
@@ -171,7 +196,22 @@ impl Estimator {
         posterior: Option<Posterior>,
     ) -> Self {
         let posterior = if config.kind == EstimatorKind::Fused { posterior } else { None };
-        Self { config, prior: None, previous: Some((position, covariance)), posterior, last_step: Some(step) }
+        Self {
+            config,
+            prior: None,
+            previous: Some((position, covariance)),
+            posterior,
+            alternative: None,
+            rejected_run: 0,
+            last_step: Some(step),
+        }
+    }
+
+    /// This estimator with `n` snapshots rejected in a row behind it (the state of an estimate's
+    /// `rejected_run`).
+    pub fn with_rejected_run(mut self, n: u8) -> Self {
+        self.rejected_run = n;
+        self
     }
 
     /// The configuration.
@@ -194,6 +234,11 @@ impl Estimator {
         self.posterior
     }
 
+    /// Fused: snapshots rejected in a row.
+    pub fn rejected_run(&self) -> u8 {
+        self.rejected_run
+    }
+
     /// The last step estimated.
     pub fn last_step(&self) -> Option<u64> {
         self.last_step
@@ -213,13 +258,48 @@ impl Estimator {
         noise: &NoiseModel,
     ) -> Result<EstimateOut, EstimatorError> {
         let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
-        let result = match (self.config.kind, self.posterior) {
-            (EstimatorKind::Fused, Some(post)) => {
-                self.fuse(&post.predict(&self.config.dynamics, elapsed), uavs, d, noise)
+        let dynamics = self.config.dynamics;
+        let result = match (self.config.kind, self.posterior, self.alternative.take()) {
+            (EstimatorKind::Fused, Some(post), Some(other)) => {
+                self.resolve(&post.predict(&dynamics, elapsed), &other.predict(&dynamics, elapsed), uavs, d, noise)
             }
-            _ => self.solve(uavs, d, noise),
+            (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), uavs, d, noise),
+            _ => self.solve(uavs, d, noise).map(|(out, other)| {
+                self.alternative = other;
+                out
+            }),
         };
         self.last_step = Some(step);
+        // Too many rejections in a row: the posterior has lost the emitter; start again from Chan (its
+        // ambiguity resolved by the lost posterior's position, then by the next snapshot as at the start).
+        let result = match result {
+            Ok(out) if matches!(out.status, EstimateStatus::Rejected { .. }) => {
+                self.rejected_run = self.rejected_run.saturating_add(1);
+                if self.rejected_run >= REJECTED_RUN_RESTART {
+                    self.prior = Some(out.position);
+                    self.previous = None;
+                    match self.solve(uavs, d, noise) {
+                        Ok((fresh, other)) => {
+                            self.alternative = other;
+                            self.rejected_run = 0;
+                            Ok(fresh)
+                        }
+                        Err(_) => Ok(out),
+                    }
+                } else {
+                    Ok(out)
+                }
+            }
+            Ok(out) if out.posterior.is_some() => {
+                self.rejected_run = 0;
+                Ok(out)
+            }
+            other => other,
+        }
+        .map(|mut out| {
+            out.rejected_run = self.rejected_run;
+            out
+        });
         match result {
             Ok(out) => {
                 self.previous = Some((out.position, out.covariance));
@@ -240,6 +320,8 @@ impl Estimator {
                         status: EstimateStatus::Failed { reason: e.to_string() },
                         candidates: Vec::new(),
                         posterior: None,
+                        nis: None,
+                        rejected_run: self.rejected_run,
                     }),
                     None => Err(EstimatorError::NoEstimate(e)),
                 }
@@ -262,9 +344,9 @@ impl Estimator {
         let sensors = Self::sensors(uavs, noise)?;
         let gate = fusion::gate_threshold(sensors.len() - 1, self.config.gate_probability);
         let up = fusion::fuse(predicted, &sensors, d, gate)?;
-        let status = match up.outcome {
-            Outcome::Fused { .. } => EstimateStatus::Ok,
-            Outcome::Rejected { nis, threshold } => EstimateStatus::Rejected { nis, threshold },
+        let (status, nis) = match up.outcome {
+            Outcome::Fused { nis, .. } => (EstimateStatus::Ok, nis),
+            Outcome::Rejected { nis, threshold } => (EstimateStatus::Rejected { nis, threshold }, nis),
         };
         let post = up.posterior;
         Ok(EstimateOut {
@@ -273,10 +355,41 @@ impl Estimator {
             status,
             candidates: Vec::new(),
             posterior: Some(post),
+            nis: Some(nis),
+            rejected_run: 0,
         })
     }
 
-    fn solve(&self, uavs: &[Vector2<f64>], d: &RangeDiffs, noise: &NoiseModel) -> Result<EstimateOut, TdoaError> {
+    /// After an ambiguous start: fuses the snapshot into both roots' posteriors and keeps the one whose
+    /// innovation is smaller (the likelier root given both snapshots). The status is that of the
+    /// update of the root kept.
+    fn resolve(
+        &self,
+        first: &Posterior,
+        other: &Posterior,
+        uavs: &[Vector2<f64>],
+        d: &RangeDiffs,
+        noise: &NoiseModel,
+    ) -> Result<EstimateOut, TdoaError> {
+        let nis = |o: &EstimateOut| match o.status {
+            EstimateStatus::Rejected { nis, .. } => nis,
+            _ => o.nis.unwrap_or(f64::INFINITY),
+        };
+        match (self.fuse(first, uavs, d, noise), self.fuse(other, uavs, d, noise)) {
+            (Ok(a), Ok(b)) => Ok(if nis(&b) < nis(&a) { b } else { a }),
+            (Ok(a), Err(_)) => Ok(a),
+            (Err(_), Ok(b)) => Ok(b),
+            (Err(e), Err(_)) => Err(e),
+        }
+    }
+
+    /// Chan's fix; fused and ambiguous, also the posterior of the other root.
+    fn solve(
+        &self,
+        uavs: &[Vector2<f64>],
+        d: &RangeDiffs,
+        noise: &NoiseModel,
+    ) -> Result<(EstimateOut, Option<Posterior>), TdoaError> {
         let sensors = Self::sensors(uavs, noise)?;
         let sol = chan(&sensors, d, self.prior())?;
         let finite = sol.position.iter().chain(sol.covariance.iter()).all(|v| v.is_finite());
@@ -284,17 +397,29 @@ impl Estimator {
             return Err(TdoaError::Degenerate("Chan returned a non-finite estimate or covariance".into()));
         }
         let status = if sol.ambiguous { EstimateStatus::Ambiguous } else { EstimateStatus::Ok };
-        let posterior = match self.config.kind {
-            EstimatorKind::Fused => Some(Posterior::from_chan(&sol, &self.config.dynamics)?),
-            EstimatorKind::Snapshot => None,
+        let (posterior, other) = match self.config.kind {
+            EstimatorKind::Fused => {
+                let other = match (sol.ambiguous, sol.candidates.as_slice()) {
+                    (true, [_, second]) => tdoa::crlb(&sensors, second).ok().and_then(|c| {
+                        let alt = tdoa::ChanSolution { position: *second, covariance: c.bound, ..sol.clone() };
+                        Posterior::from_chan(&alt, &self.config.dynamics).ok()
+                    }),
+                    _ => None,
+                };
+                (Some(Posterior::from_chan(&sol, &self.config.dynamics)?), other)
+            }
+            EstimatorKind::Snapshot => (None, None),
         };
-        Ok(EstimateOut {
+        let out = EstimateOut {
             position: sol.position,
             covariance: sol.covariance,
             status,
             candidates: sol.candidates,
             posterior,
-        })
+            nis: None,
+            rejected_run: 0,
+        };
+        Ok((out, other))
     }
 }
 
@@ -375,6 +500,71 @@ mod tests {
         let again = est.estimate(0, &uavs, &d, &noise(3)).unwrap();
         assert_eq!(again.status, EstimateStatus::Ok);
         assert!((again.position - z).norm() < 1e-6);
+    }
+
+    #[test]
+    fn fused_start_resolves_the_ambiguity_with_the_next_snapshot() {
+        let (uavs, z, other) = ambiguous_case();
+        let d = diffs(&uavs, z);
+        // A second geometry, noise-free: it agrees with the truth, not with the other root.
+        let moved: Vec<Vector2<f64>> = uavs.iter().map(|p| p + Vector2::new(500.0, 300.0)).collect();
+        let d2 = diffs(&moved, z);
+        let mut est = Estimator::with_config(EstimatorConfig::fused(Dynamics::fixed()));
+        let first = est.estimate(0, &uavs, &d, &noise(3)).unwrap();
+        assert_eq!(first.status, EstimateStatus::Ambiguous);
+        assert!(est.alternative.is_some());
+        let second = est.estimate(1, &moved, &d2, &noise(3)).unwrap();
+        assert!((second.position - z).norm() < 1e-3, "picked {:?}, truth {z:?}, other {other:?}", second.position);
+        assert_eq!(second.status, EstimateStatus::Ok);
+        assert!(est.alternative.is_none());
+    }
+
+    #[test]
+    fn a_lost_posterior_restarts_from_chan_after_three_rejections() {
+        // A posterior 5 km off with a tight covariance (e.g. a jump of the emitter): noise-free snapshots
+        // of the truth are rejected twice, the third rejection in a row restarts from Chan (4 UAVs: unique).
+        let z = Vector2::new(25000.0, 15000.0);
+        let mut uavs = nominal();
+        uavs.push(Vector2::new(0.0, 9000.0));
+        let wrong = z + Vector2::new(5000.0, -3000.0);
+        let post = tdoa::Posterior::new(
+            EmitterModel::Static,
+            nalgebra::Vector4::new(wrong.x, wrong.y, 0.0, 0.0),
+            nalgebra::Matrix4::identity() * 100.0,
+        )
+        .unwrap();
+        let mut est = Estimator::resume(
+            EstimatorConfig::fused(Dynamics::fixed()),
+            0,
+            wrong,
+            Matrix2::identity() * 100.0,
+            Some(post),
+        );
+        let d = diffs(&uavs, z);
+        for k in 1..=2u8 {
+            let out = est.estimate(u64::from(k), &uavs, &d, &noise(4)).unwrap();
+            assert!(matches!(out.status, EstimateStatus::Rejected { .. }), "{:?}", out.status);
+            assert_eq!(out.rejected_run, k);
+            assert_eq!(out.position, wrong, "a rejected snapshot leaves the posterior");
+        }
+        let restart = est.estimate(3, &uavs, &d, &noise(4)).unwrap();
+        assert_eq!(restart.status, EstimateStatus::Ok);
+        assert_eq!(restart.rejected_run, 0);
+        assert!((restart.position - z).norm() < 1e-6);
+        // And it fuses from there.
+        let next = est.estimate(4, &uavs, &d, &noise(4)).unwrap();
+        assert_eq!((next.status, next.rejected_run), (EstimateStatus::Ok, 0));
+        assert!((next.position - z).norm() < 1e-6);
+        // The count rides the state: an estimator resumed with 2 rejections behind it restarts at the next.
+        let mut resumed = Estimator::resume(
+            EstimatorConfig::fused(Dynamics::fixed()),
+            0,
+            wrong,
+            Matrix2::identity() * 100.0,
+            Some(post),
+        )
+        .with_rejected_run(2);
+        assert_eq!(resumed.estimate(1, &uavs, &d, &noise(4)).unwrap().rejected_run, 0);
     }
 
     #[test]

@@ -177,9 +177,9 @@ impl EstimatorArgs {
 }
 
 /// The wire form of the fused posterior beyond the position.
-pub fn extra_of(posterior: Option<&Posterior>) -> PosteriorExtra {
+pub fn extra_of(posterior: Option<&Posterior>, rejected_run: u8) -> PosteriorExtra {
     let Some(p) = posterior else { return PosteriorExtra::default() };
-    let mut extra = PosteriorExtra { estimator: 1, model: p.model().code(), ..PosteriorExtra::default() };
+    let mut extra = PosteriorExtra { estimator: 1, model: p.model().code(), rejected_run, ..PosteriorExtra::default() };
     if p.model() == EmitterModel::ConstantVelocity {
         let (m, c) = (p.mean(), p.cov());
         extra.velocity = [m[2], m[3]];
@@ -258,7 +258,7 @@ impl StepEstimator {
         let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
         let posterior = posterior_of(&position, &covariance, extra);
         Self {
-            estimator: Estimator::resume(config, step, z, m, posterior),
+            estimator: Estimator::resume(config, step, z, m, posterior).with_rejected_run(extra.rejected_run),
             last_step: Some(step),
             answers: BTreeMap::new(),
             checkpoints: Vec::new(),
@@ -274,7 +274,7 @@ impl StepEstimator {
     pub fn checkpoint(&self) -> Option<Checkpoint> {
         let step = self.last_step?;
         let previous = self.estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c));
-        let extra = extra_of(self.estimator.posterior().as_ref());
+        let extra = extra_of(self.estimator.posterior().as_ref(), self.estimator.rejected_run());
         Some(Checkpoint { step, previous, extra })
     }
 
@@ -314,7 +314,8 @@ impl StepEstimator {
         if let Some((position, covariance)) = fix.usable() {
             let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
             let posterior = posterior_of(&position, &covariance, extra);
-            self.estimator = Estimator::resume(*self.estimator.config(), step, z, m, posterior);
+            self.estimator = Estimator::resume(*self.estimator.config(), step, z, m, posterior)
+                .with_rejected_run(extra.rejected_run);
         }
         self.last_step = Some(step);
     }
@@ -385,7 +386,7 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> (Fix,
                 EstimateStatus::Rejected { .. } => Fix::Rejected { position, covariance },
                 EstimateStatus::Failed { .. } => Fix::Failed,
             };
-            (fix, extra_of(out.posterior.as_ref()))
+            (fix, extra_of(out.posterior.as_ref(), out.rejected_run))
         }
         Err(_) => (Fix::Failed, PosteriorExtra::default()),
     }

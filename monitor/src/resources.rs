@@ -19,6 +19,9 @@ pub struct DomainNode {
     pub name: String,
     /// `alive` or `dead` (dead: its process is gone without cleaning up).
     pub state: String,
+    /// The process that created the node, when iceoryx2 can tell.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pid: Option<u32>,
 }
 
 /// What is left of a domain.
@@ -36,6 +39,11 @@ impl DomainResources {
         self.nodes.is_empty() && self.services.is_empty()
     }
 
+    /// The processes of the alive nodes named `name`.
+    pub fn alive_pids(&self, name: &str) -> Vec<u32> {
+        self.nodes.iter().filter(|n| n.state == "alive" && n.name == name).filter_map(|n| n.pid).collect()
+    }
+
     /// Nodes whose process is still running.
     pub fn alive_nodes(&self) -> impl Iterator<Item = &str> {
         self.nodes.iter().filter(|n| n.state == "alive").map(|n| n.name.as_str())
@@ -51,15 +59,16 @@ pub fn list(domain: &Domain) -> Result<DomainResources, String> {
     let config = Config::global_config();
     let mut out = DomainResources::default();
     Node::<ipc::Service>::list(config, |state| {
-        let (details, label) = match &state {
-            NodeState::Alive(view) => (view.details().clone(), "alive"),
-            NodeState::Dead(view) => (view.details().clone(), "dead"),
-            NodeState::Inaccessible(_) | NodeState::Undefined(_) => (None, ""),
+        let (details, label, id) = match &state {
+            NodeState::Alive(view) => (view.details().clone(), "alive", Some(*view.id())),
+            NodeState::Dead(view) => (view.details().clone(), "dead", Some(*view.id())),
+            NodeState::Inaccessible(_) | NodeState::Undefined(_) => (None, "", None),
         };
         if let Some(d) = details {
             let name = d.name().as_str().to_string();
             if in_domain(&name, domain) {
-                out.nodes.push(DomainNode { name, state: label.to_string() });
+                let pid = id.and_then(|id| id.pid::<ipc::Service>().ok()).map(|p| p.value() as u32);
+                out.nodes.push(DomainNode { name, state: label.to_string(), pid });
             }
         }
         CallbackProgression::Continue

@@ -252,7 +252,7 @@ fn metrics_axis_is_log_only_for_a_wide_range() {
     plot_metrics(&wide, &dir.join("wide.svg")).unwrap();
     let svg = read(&dir.join("wide.svg"));
     assert!(svg.contains("log scale"), "a factor > 10 gets a log axis");
-    assert!(svg.contains("CRLB at the truth") && svg.contains("RMSE"));
+    assert!(svg.contains("CRLB (snapshot)") && svg.contains("RMSE") && svg.contains("PCRLB"));
     assert!(svg.contains("step") && svg.contains("error (m)"));
     // Two lines, the RMSE broken at step 2 (its None): 1 CRLB polyline + 2 RMSE polylines.
     assert_eq!(data_line_strokes(&svg).len(), 3);

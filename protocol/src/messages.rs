@@ -560,6 +560,9 @@ pub struct PosteriorExtra {
     pub estimator: u8,
     /// 0 static, 1 constant velocity.
     pub model: u8,
+    /// Snapshots rejected in a row up to this estimate.
+    #[serde(default)]
+    pub rejected_run: u8,
     /// Velocity estimate, m/s.
     pub velocity: [f64; 2],
     /// Position–velocity cross-covariance (rows: x, y; columns: vx, vy), m²/s.
@@ -585,8 +588,9 @@ pub struct Estimate {
     pub estimator: u8,
     /// The fused estimator's emitter model: 0 static, 1 constant velocity (0 for snapshot).
     pub model: u8,
-    /// Explicit padding; 0 when sent.
-    pub reserved: u8,
+    /// Fused: snapshots rejected in a row up to this one (the estimator restarts from Chan after a few,
+    /// see `uavloc-estimator`); 0 otherwise.
+    pub rejected_run: u8,
     /// Estimated emitter position, metres (NaN when failed).
     pub position: [f64; 2],
     /// Its covariance, m², row-major (NaN when failed).
@@ -625,7 +629,7 @@ impl Estimate {
             status: fix.status() as u8,
             estimator: 0,
             model: 0,
-            reserved: 0,
+            rejected_run: 0,
             position,
             covariance,
             uavs: [[0.0; 2]; MAX_UAVS],
@@ -656,6 +660,7 @@ impl Estimate {
     pub fn with_extra(mut self, extra: &PosteriorExtra) -> Self {
         self.estimator = extra.estimator;
         self.model = extra.model;
+        self.rejected_run = extra.rejected_run;
         self.velocity = extra.velocity;
         self.cross_cov = extra.cross_cov;
         self.velocity_cov = extra.velocity_cov;
@@ -667,6 +672,7 @@ impl Estimate {
         PosteriorExtra {
             estimator: self.estimator,
             model: self.model,
+            rejected_run: self.rejected_run,
             velocity: self.velocity,
             cross_cov: self.cross_cov,
             velocity_cov: self.velocity_cov,
@@ -1072,7 +1078,7 @@ mod tests {
         assert_eq!(offset_of!(Estimate, position), 88 + 8 + 8);
         assert_eq!(offset_of!(Estimate, headings) + 8 * MAX_UAVS, offset_of!(Estimate, velocity));
         assert_eq!(offset_of!(Estimate, velocity_cov) + 32, size_of::<Estimate>());
-        assert_eq!(offset_of!(Estimate, reserved) + 1, offset_of!(Estimate, position));
+        assert_eq!(offset_of!(Estimate, rejected_run) + 1, offset_of!(Estimate, position));
         assert_eq!(offset_of!(Command, objective), 88 + 32);
         assert_eq!(offset_of!(Command, objective_name) + 16, size_of::<Command>());
         assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));
