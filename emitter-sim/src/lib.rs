@@ -15,10 +15,10 @@
 pub mod backpressure;
 pub mod process;
 
+use model::Scenario;
+use model::ScenarioError;
+use model::kinematics::{next_position, wrap_angle};
 use nalgebra::Vector2;
-use planner::Scenario;
-use planner::kinematics::{next_position, wrap_angle};
-use planner::scenario::ScenarioError;
 use tdoa::montecarlo::noisy_range_diffs;
 use tdoa::rng::{Purpose, stream};
 use tdoa::{NoiseModel, RangeDiffs, Sensors, TdoaError};
@@ -317,43 +317,6 @@ mod tests {
         assert!(matches!(w.apply(&[0.0, f64::NAN, 0.0]), Err(WorldError::HeadingNotFinite { uav: 1, .. })));
         assert!(matches!(w.apply(&[0.0, 0.0, f64::INFINITY]), Err(WorldError::HeadingNotFinite { uav: 2, .. })));
         assert_eq!(w, before);
-    }
-
-    /// Measure → estimate → plan → move for the nominal 24 steps: every plan is feasible, and planning
-    /// on the analytical global CRLB ends with a smaller CRLB at the truth than the fixed formation.
-    #[test]
-    fn closed_loop_nominal_run() {
-        use estimator::{EstimateStatus, Estimator};
-        use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
-        let sc = Scenario::default();
-        let run = |objective: ObjectiveKind| -> f64 {
-            let mut w = World::from_scenario(&sc).unwrap();
-            let mut est = Estimator::new();
-            for k in 0..sc.steps as u64 {
-                let m = w.measure().unwrap();
-                let e = est.estimate(k, &m.uavs, &m.range_diffs, w.noise()).unwrap();
-                assert_eq!(e.status, EstimateStatus::Ok, "{objective} step {k}");
-                let out = plan_step(&PlanRequest {
-                    positions: w.positions(),
-                    headings: w.headings(),
-                    estimate: e.position,
-                    covariance: e.covariance,
-                    scenario: &sc,
-                    objective,
-                    solver: SolverKind::Pso,
-                    run_seed: sc.seed,
-                    step: k,
-                })
-                .unwrap();
-                assert!(out.fitness.is_feasible(), "{objective} step {k}: {:?}", out.active_constraints);
-                w.apply(&out.headings).unwrap();
-            }
-            assert_eq!(w.step(), sc.steps as u64);
-            tdoa::crlb(&w.sensors().unwrap(), &w.truth()).unwrap().crlb_m
-        };
-        let formation = run(ObjectiveKind::Formation);
-        let analytical = run(ObjectiveKind::Analytical);
-        assert!(analytical < 0.9 * formation, "analytical {analytical:.1} m vs formation {formation:.1} m");
     }
 
     #[test]

@@ -80,7 +80,7 @@ use std::time::{Duration, Instant};
 
 use clap::{Args, ValueEnum};
 use iceoryx2::prelude::*;
-use planner::process::load_scenario;
+use model::load_scenario;
 use protocol::checkpoint::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};

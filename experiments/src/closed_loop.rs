@@ -114,3 +114,45 @@ pub fn run_closed_loop(
     monitor::annotate(&mut run);
     Ok(run)
 }
+
+#[cfg(test)]
+mod tests {
+    /// Measure → estimate → plan → move for the nominal 24 steps: every plan is feasible, and planning
+    /// on the analytical global CRLB ends with a smaller CRLB at the truth than the fixed formation.
+    #[test]
+    fn closed_loop_nominal_run() {
+        use emitter_sim::World;
+        use estimator::{EstimateStatus, Estimator};
+        use planner::Scenario;
+        use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+        let sc = Scenario::default();
+        let run = |objective: ObjectiveKind| -> f64 {
+            let mut w = World::from_scenario(&sc).unwrap();
+            let mut est = Estimator::new();
+            for k in 0..sc.steps as u64 {
+                let m = w.measure().unwrap();
+                let e = est.estimate(k, &m.uavs, &m.range_diffs, w.noise()).unwrap();
+                assert_eq!(e.status, EstimateStatus::Ok, "{objective} step {k}");
+                let out = plan_step(&PlanRequest {
+                    positions: w.positions(),
+                    headings: w.headings(),
+                    estimate: e.position,
+                    covariance: e.covariance,
+                    scenario: &sc,
+                    objective,
+                    solver: SolverKind::Pso,
+                    run_seed: sc.seed,
+                    step: k,
+                })
+                .unwrap();
+                assert!(out.fitness.is_feasible(), "{objective} step {k}: {:?}", out.active_constraints);
+                w.apply(&out.headings).unwrap();
+            }
+            assert_eq!(w.step(), sc.steps as u64);
+            tdoa::crlb(&w.sensors().unwrap(), &w.truth()).unwrap().crlb_m
+        };
+        let formation = run(ObjectiveKind::Formation);
+        let analytical = run(ObjectiveKind::Analytical);
+        assert!(analytical < 0.9 * formation, "analytical {analytical:.1} m vs formation {formation:.1} m");
+    }
+}

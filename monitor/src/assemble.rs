@@ -17,7 +17,7 @@
 //!   scenario's R and seed, and the estimate as prior;
 //! - `objective_value` = √(the command's criterion) (`None` when the planner sent the "not finite" marker,
 //!   a negative value), `plan_ms` from the command's microseconds (so rounded to 1 µs);
-//! - `active_constraints` decoded from the command's bitmask ([`planner::active_mask::decode`]: the same
+//! - `active_constraints` decoded from the command's bitmask ([`model::active_mask::decode`]: the same
 //!   strings as `simulate`, except that a violated constraint has no magnitude).
 //!
 //! A step whose command was *missed* (emitter-sim's real-time mode: no command before the next step was
@@ -34,9 +34,9 @@
 
 use std::collections::BTreeMap;
 
+use model::Scenario;
+use model::active_mask;
 use nalgebra::Vector2;
-use planner::Scenario;
-use planner::active_mask;
 use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Measurement, Stamps, Truth};
 use tdoa::{NoiseModel, Sensors};
 

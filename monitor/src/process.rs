@@ -51,7 +51,7 @@ use std::time::Duration;
 
 use clap::Args;
 use hdrhistogram::Histogram;
-use planner::process::load_scenario;
+use model::load_scenario;
 use protocol::checkpoint::checkpoint_step_at_or_below;
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};

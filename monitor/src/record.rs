@@ -3,7 +3,7 @@
 //!
 //! Units: metres, m², radians, milliseconds.
 
-use planner::Scenario;
+use model::Scenario;
 use serde::{Deserialize, Serialize};
 
 /// One planning step. Step 0 is the initial geometry; the last step has no plan.

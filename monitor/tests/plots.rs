@@ -32,7 +32,7 @@ fn done(dir: &Path) {
 /// CRLB falling from ~2 km, estimates converging to the truth, the RMSE missing at step 2, the objective
 /// value missing at step 1 and on the last step (nothing planned).
 fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
-    let scenario = planner::Scenario::default();
+    let scenario = model::Scenario::default();
     let emitter = scenario.emitter;
     let mut uavs = scenario.uavs.clone();
     let steps = (0..n)

@@ -15,34 +15,13 @@
 //! independently (without the rotated basis of the original paper — our choice, the 3–8 headings are
 //! weakly coupled). Stops after `iterations` or by the shared [`EarlyStop`] rule.
 
+pub use model::solver_config::AcoConfig;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 use crate::fitness::Fitness;
-use crate::solver::{Counted, EarlyStop, SearchSpace, Solver, SolverKind, SolverResult};
-
-/// ACO_R sizes and parameters (paper Table 3).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct AcoConfig {
-    /// Archive size k — our choice, 40 (equal to the ant count).
-    pub archive: usize,
-    /// Ants per iteration (paper: 40).
-    pub ants: usize,
-    /// Iterations after the initial archive (paper: 15).
-    pub iterations: usize,
-    /// ξ, the width of the Gaussian kernels relative to the archive spread (paper: "evaporation" 0.35).
-    pub evaporation: f64,
-    /// q, the locality of the rank weights (paper: "elite fraction" 0.25).
-    pub elite_fraction: f64,
-}
-
-impl Default for AcoConfig {
-    fn default() -> Self {
-        Self { archive: 40, ants: 40, iterations: 15, evaporation: 0.35, elite_fraction: 0.25 }
-    }
-}
+use crate::solver::{Counted, EarlyStop, SearchSpace, Solver, SolverKind, SolverResult, StopRule};
 
 /// ACO_R.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -12,49 +12,13 @@
 //! Initialisation: the start point plus uniform draws. Stops after `generations` or by the shared
 //! [`EarlyStop`] rule.
 
+pub use model::solver_config::GaConfig;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 use crate::fitness::Fitness;
-use crate::solver::{Counted, EarlyStop, SearchSpace, Solver, SolverKind, SolverResult, argmin};
-
-/// GA sizes (paper Table 3: 40 individuals × 15 generations) and operator settings (our choice).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct GaConfig {
-    /// Population size (paper: 40).
-    pub population: usize,
-    /// Generations after the initial population (paper: 15).
-    pub generations: usize,
-    /// Tournament size — our choice, 2.
-    pub tournament: usize,
-    /// Probability that a pair of parents is recombined — our choice, 0.9.
-    pub crossover_rate: f64,
-    /// α of BLX-α — our choice, 0.5.
-    pub blx_alpha: f64,
-    /// Per-gene mutation probability — our choice, 0.2.
-    pub mutation_rate: f64,
-    /// Mutation standard deviation as a fraction of the interval width — our choice, 0.1.
-    pub mutation_scale: f64,
-    /// Individuals copied unchanged into the next generation — our choice, 2.
-    pub elites: usize,
-}
-
-impl Default for GaConfig {
-    fn default() -> Self {
-        Self {
-            population: 40,
-            generations: 15,
-            tournament: 2,
-            crossover_rate: 0.9,
-            blx_alpha: 0.5,
-            mutation_rate: 0.2,
-            mutation_scale: 0.1,
-            elites: 2,
-        }
-    }
-}
+use crate::solver::{Counted, EarlyStop, SearchSpace, Solver, SolverKind, SolverResult, StopRule, argmin};
 
 /// The genetic algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

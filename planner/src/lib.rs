@@ -5,31 +5,29 @@
 //! Monte Carlo or analytical global CRLB, or a 25-point cubature) under four motion constraints, with
 //! PSO, GA or ACO_R. The fixed-formation baseline needs no solver.
 //!
-//! - [`scenario`]: the run's settings from TOML ([`Scenario`]; default = the paper's Table 1 case);
-//! - [`kinematics`]: fixed-speed circular-arc motion (eq. 54);
+//! - [`scenario`], [`kinematics`], [`active_mask`]: re-exported from `uavloc-model` (shared with the
+//!   world and the monitor);
 //! - [`constraints`]: turn radius, spacing, approach distance, heading cone (eqs. 55–59);
 //! - [`fitness`]: the lexicographic penalised fitness (eq. 78);
 //! - [`objective`]: the criteria, one adapter over `tdoa`'s global CRLB methods;
 //! - [`formation`]: the traditional fixed-formation baseline;
 //! - [`solver`], [`pso`], [`ga`], [`aco`]: one solver trait, three solvers;
 //! - [`step`]: one planning step, [`plan_step`];
-//! - [`active_mask`]: the active constraints as the wire bitmask of a `protocol::Command`;
 //! - [`process`]: the planner process (estimate in → `plan_step` → command out over iceoryx2).
 //!
 //! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
 
 pub mod aco;
-pub mod active_mask;
+// The shared model, re-exported under the planner's historical paths.
+pub use model::{active_mask, kinematics, scenario};
 pub mod constraints;
 pub mod fallback;
 pub mod fitness;
 pub mod formation;
 pub mod ga;
-pub mod kinematics;
 pub mod objective;
 pub mod process;
 pub mod pso;
-pub mod scenario;
 pub mod solver;
 pub mod staleness;
 pub mod step;
@@ -43,5 +41,5 @@ pub use kinematics::{bearing, next_position, turn_angle, turn_radius, wrap_angle
 pub use objective::{CrlbObjective, ObjectiveKind, PlanObjective};
 pub use pso::{Pso, PsoConfig};
 pub use scenario::{PlannerTarget, RangeSigma, Scenario, ScenarioError, TargetMode};
-pub use solver::{EarlyStop, SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult};
+pub use solver::{EarlyStop, SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult, StopRule};
 pub use step::{PlanError, PlanOutput, PlanRequest, plan_step};

@@ -51,7 +51,7 @@
 
 use std::collections::BTreeMap;
 use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -68,7 +68,7 @@ use protocol::{
 use crate::active_mask;
 use crate::fallback::UsableEstimates;
 use crate::objective::ObjectiveKind;
-use crate::scenario::{Scenario, ScenarioError, TargetMode};
+use crate::scenario::{Scenario, TargetMode};
 use crate::solver::SolverKind;
 use crate::staleness::{self, DueStep, Freshness, HoldTracker, hold_plan};
 use crate::step::{PlanRequest, plan_step};
@@ -149,22 +149,7 @@ pub struct PlannerArgs {
 
 pub use protocol::process::ProcessError;
 
-/// The scenario of a process: `path` (or the default) with `--steps` / `--seed` applied, validated —
-/// the same rule as `uavloc simulate`, so every process of a run agrees on it.
-pub fn load_scenario(path: Option<&Path>, steps: Option<usize>, seed: Option<u64>) -> Result<Scenario, ScenarioError> {
-    let mut sc = match path {
-        Some(p) => Scenario::from_file(p)?,
-        None => Scenario::default(),
-    };
-    if let Some(n) = steps {
-        sc.steps = n;
-    }
-    if let Some(s) = seed {
-        sc.seed = s;
-    }
-    sc.validate()?;
-    Ok(sc)
-}
+pub use model::scenario::load_scenario;
 
 /// What the planner did, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]

@@ -17,29 +17,12 @@
 //! The search stops after `k_max` iterations or by the shared [`EarlyStop`] rule, so it spends
 //! `particles · (1 + iterations)` evaluations at most.
 
+pub use model::solver_config::PsoConfig;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::fitness::Fitness;
-use crate::solver::{Counted, EarlyStop, SearchSpace, Solver, SolverKind, SolverResult, argmin};
-
-/// PSO sizes (paper Table 1/3: 40 particles × 15 iterations) and the velocity clamp.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct PsoConfig {
-    /// Swarm size N (paper: 40).
-    pub particles: usize,
-    /// Maximum iterations k_max after initialisation (paper: 15).
-    pub iterations: usize,
-    /// `v_max` as a fraction of each interval's width — our choice, 0.2.
-    pub v_max_fraction: f64,
-}
-
-impl Default for PsoConfig {
-    fn default() -> Self {
-        Self { particles: 40, iterations: 15, v_max_fraction: 0.2 }
-    }
-}
+use crate::solver::{Counted, EarlyStop, SearchSpace, Solver, SolverKind, SolverResult, StopRule, argmin};
 
 /// The paper's PSO.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

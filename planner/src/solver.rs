@@ -126,28 +126,18 @@ pub struct SolverResult {
     pub evaluations: usize,
 }
 
-/// The paper's stopping rule (Section 4.3), shared by all solvers: stop when the best fitness has
-/// improved by less than a threshold over `window` consecutive iterations (or at the iteration limit).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct EarlyStop {
-    /// Consecutive insignificant iterations that stop the search (the paper's 5).
-    pub window: usize,
-    /// Relative improvement of the best objective below which an iteration is insignificant — our
-    /// choice, 1e-4 (the paper calls it "a predefined threshold"). A drop in violation by more than
-    /// this fraction, or the first feasible best, always counts as significant.
-    pub tolerance: f64,
-}
+pub use model::solver_config::EarlyStop;
 
-impl Default for EarlyStop {
-    fn default() -> Self {
-        Self { window: 5, tolerance: 1e-4 }
-    }
-}
-
-impl EarlyStop {
+/// The stopping rule applied to fitness values (the rule's settings are plain data in `model`).
+pub trait StopRule {
     /// Whether going from `old` to `new` best is a significant improvement.
-    pub fn significant(&self, old: Fitness, new: Fitness) -> bool {
+    fn significant(&self, old: Fitness, new: Fitness) -> bool;
+    /// A fresh tracker starting from the best fitness of the initial population.
+    fn tracker(&self, initial_best: Fitness) -> StallTracker;
+}
+
+impl StopRule for EarlyStop {
+    fn significant(&self, old: Fitness, new: Fitness) -> bool {
         if new >= old {
             return false;
         }
@@ -162,8 +152,7 @@ impl EarlyStop {
         old.objective() - new.objective() > self.tolerance * old.objective().abs()
     }
 
-    /// A fresh tracker starting from the best fitness of the initial population.
-    pub fn tracker(&self, initial_best: Fitness) -> StallTracker {
+    fn tracker(&self, initial_best: Fitness) -> StallTracker {
         StallTracker { rule: *self, best: initial_best, stalled: 0 }
     }
 }

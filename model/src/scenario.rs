@@ -22,11 +22,8 @@ use tdoa::global::McScheme;
 use tdoa::{DEFAULT_KAPPA, Dynamics, EmitterModel, MAX_UAVS, NoiseModel};
 use thiserror::Error;
 
-use crate::aco::AcoConfig;
-use crate::ga::GaConfig;
 use crate::kinematics::bearing;
-use crate::pso::PsoConfig;
-use crate::solver::EarlyStop;
+use crate::solver_config::{AcoConfig, EarlyStop, GaConfig, PsoConfig};
 
 /// Smallest covariance (m², times the identity) handed to the planner in controlled mode: at scale
 /// s = 0 the covariance `s² σ_t² I` would be zero, which no [`tdoa::Uncertainty`] accepts. (1 cm)² makes
@@ -427,6 +424,23 @@ impl Scenario {
             }
         })
     }
+}
+
+/// The scenario of a process: `path` (or the default) with `--steps` / `--seed` applied, validated —
+/// the same rule as `uavloc simulate`, so every process of a run agrees on it.
+pub fn load_scenario(path: Option<&Path>, steps: Option<usize>, seed: Option<u64>) -> Result<Scenario, ScenarioError> {
+    let mut sc = match path {
+        Some(p) => Scenario::from_file(p)?,
+        None => Scenario::default(),
+    };
+    if let Some(n) = steps {
+        sc.steps = n;
+    }
+    if let Some(s) = seed {
+        sc.seed = s;
+    }
+    sc.validate()?;
+    Ok(sc)
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {

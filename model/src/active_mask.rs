@@ -18,7 +18,7 @@
 //! instance every active instance of that kind reads `violated` (plans are feasible in practice: a
 //! violation only happens when no candidate satisfies every constraint).
 
-use crate::constraints::{ActiveConstraint, ConstraintKind};
+use crate::constraint::{ActiveConstraint, ConstraintKind};
 use tdoa::MAX_UAVS;
 
 const TURN_BASE: u32 = 0;

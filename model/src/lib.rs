@@ -1,0 +1,24 @@
+//! # uavloc-model — what every uavloc process shares about a run
+//!
+//! Plain data and pure functions that the world (emitter-sim), the planner and the monitor all need, so
+//! that none of them depends on another (the crates point down to this one and to `tdoa`):
+//!
+//! - [`scenario`]: the run's settings from TOML ([`Scenario`]; default = the paper's Table 1 case) and
+//!   the rule every process applies to `--scenario` / `--steps` / `--seed` ([`load_scenario`]);
+//! - [`kinematics`]: fixed-speed circular-arc motion (eq. 54);
+//! - [`solver_config`]: the solvers' settings as the scenario carries them;
+//! - [`constraint`]: the four motion constraints by name and one active instance;
+//! - [`active_mask`]: the active constraints as the wire bitmask of a `protocol::Command`.
+//!
+//! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
+
+pub mod active_mask;
+pub mod constraint;
+pub mod kinematics;
+pub mod scenario;
+pub mod solver_config;
+
+pub use constraint::{ActiveConstraint, ConstraintKind};
+pub use kinematics::{bearing, next_position, turn_angle, turn_radius, wrap_angle};
+pub use scenario::{PlannerTarget, RangeSigma, Scenario, ScenarioError, TargetMode, load_scenario};
+pub use solver_config::{AcoConfig, EarlyStop, GaConfig, PsoConfig};
