@@ -156,11 +156,8 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     let from_step = loop {
         match rx.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
             Ok(line) => {
-                if let Some(json) = line.strip_prefix("takeover ") {
-                    let v: serde_json::Value = serde_json::from_str(json).unwrap_or_default();
-                    if let Some(f) = v["from_step"].as_u64() {
-                        break f;
-                    }
+                if let Some(runtime::SupervisorLine::TakeOver { from_step }) = runtime::SupervisorLine::parse(&line) {
+                    break from_step;
                 }
             }
             Err(_) => {

@@ -35,7 +35,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use common::{
     Launch, LineTail, assert_nothing_left, assert_same_run, domain, is_alive, json_of, kill, pid_of, scratch,
 };
-use protocol::checkpoint::checkpoint_step_at_or_below;
+use runtime::checkpoint::checkpoint_step_at_or_below;
 use serde_json::Value;
 use tdoa::rng::SplitMix64;
 

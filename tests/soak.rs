@@ -1,5 +1,5 @@
 //! Long runs through the four processes: memory stays flat, nothing is lost, and a crash after the replay
-//! history has wrapped is recovered from the checkpoints (see `protocol::checkpoint`).
+//! history has wrapped is recovered from the checkpoints (see `runtime::checkpoint`).
 //!
 //! - `soak_flat_memory_and_no_lost_message` (in `cargo test`): 12 000 lock-step steps (≈ 6 s), three
 //!   times the replay history (4 096 steps), RSS of every process sampled at step 5 000 (after the

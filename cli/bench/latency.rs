@@ -26,7 +26,8 @@ use std::time::Instant;
 
 use clap::Args;
 use planner::ObjectiveKind;
-use protocol::{LinkArgs, TransportKind, WaitMode};
+use protocol::{TransportKind, WaitMode};
+use runtime::LinkArgs;
 use serde::Serialize;
 
 use super::histogram::{LatencyHistogram, Percentiles};
@@ -81,7 +82,7 @@ pub struct RunFlags {
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
     /// Busy-poll budget of --wait spin-then-block, µs.
-    #[arg(long, value_name = "US", default_value_t = protocol::transport::DEFAULT_SPIN_US)]
+    #[arg(long, value_name = "US", default_value_t = runtime::DEFAULT_SPIN_US)]
     pub spin_us: u64,
     /// Measure the idle CPU of the waiting monitor, planner and estimator over this many ms before each
     /// run (0: skip).

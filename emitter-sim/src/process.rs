@@ -21,7 +21,7 @@
 //!    older one, replaying to it from the checkpoint step at or below that step when it makes no progress
 //!    for `--retry-interval-ms` (it is restarting, or lost a message); give up after
 //!    `--command-timeout-s` without progress. So a monitor restarted again and again, or starved of CPU,
-//!    stays within reach of a restarted emitter-sim's replays (see [`protocol::checkpoint`]);
+//!    stays within reach of a restarted emitter-sim's replays (see [`runtime::checkpoint`]);
 //! 1. publish the [`Truth`] of step k (monitor only; with the outcome of step k − 1's command), then the
 //!    [`Measurement`] of step k: UAV positions, noisy range differences ([`World::measure`], drawn from
 //!    the stream (seed, k) — the numbers of `uavloc simulate`), range σ and current headings; it carries
@@ -61,7 +61,7 @@
 //!
 //! A restarted emitter-sim starts from the older of the two world snapshots in its `--checkpoint` file
 //! (the world before a checkpoint step c, written once the command of step c came back; see
-//! [`protocol::checkpoint`]; with fewer than two, the run is young and it starts from step 0), else from
+//! [`runtime::checkpoint`]; with fewer than two, the run is young and it starts from step 0), else from
 //! step 0: the world is deterministic, so it publishes exactly the
 //! measurements of its predecessor, the estimator and planner answer them from what they kept, and the run
 //! fast-forwards to where it was. (In real-time mode it starts the schedule again at that step: the steps
@@ -73,7 +73,6 @@
 //! [`ControlKind::Shutdown`], stop it cleanly (exit code 130).
 
 use std::collections::{BTreeSet, VecDeque};
-use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -81,7 +80,6 @@ use std::time::{Duration, Instant};
 use clap::{Args, ValueEnum};
 use iceoryx2::prelude::*;
 use model::load_scenario;
-use protocol::checkpoint::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::transport::{Link, TopicPublisher, WaitMode, wait_any};
@@ -89,6 +87,8 @@ use protocol::{
     Command, CommandOutcome, ControlChannel, ControlKind, Measurement, Message, RejectionCounter, Stamps, Topic,
     TopicSubscriber, Truth, now_ns,
 };
+use runtime::SupervisorLine;
+use runtime::checkpoint::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 
 use crate::backpressure::MonitorProgress;
 use crate::{Snapshot, World};
@@ -97,7 +97,7 @@ use crate::{Snapshot, World};
 pub const ROLE: &str = "emitter-sim";
 
 /// Exit code when SIGINT/SIGTERM stopped the run before its end.
-pub use protocol::process::EXIT_INTERRUPTED;
+pub use runtime::EXIT_INTERRUPTED;
 
 /// How long one blocking wait lasts at most before the loop re-checks for a termination request that
 /// arrived between two waits (a signal during a wait interrupts it at once).
@@ -146,6 +146,31 @@ impl Mode {
             Mode::Lockstep => "lockstep",
             Mode::Realtime => "realtime",
         }
+    }
+}
+
+impl EmitterSimArgs {
+    /// The command line of these flags (see [`runtime::flags`]).
+    pub fn to_flags(&self) -> Vec<String> {
+        runtime::Flags::new()
+            .opt("--domain", self.domain.as_deref())
+            .path("--scenario", self.scenario.as_deref())
+            .opt("--steps", self.steps)
+            .opt("--seed", self.seed)
+            .float("--command-timeout-s", self.command_timeout_s)
+            .value("--retry-interval-ms", self.retry_interval_ms)
+            .float("--connect-timeout-s", self.connect_timeout_s)
+            .value("--min-subscribers", self.min_subscribers)
+            .extend(self.link.to_flags())
+            .value("--step-delay-ms", self.step_delay_ms)
+            .value("--mode", self.mode.name())
+            .float("--time-scale", self.time_scale)
+            .path("--checkpoint", self.checkpoint.as_deref())
+            .switch("--quiet", self.quiet)
+            .switch("--linger", self.linger)
+            .value("--monitor-window", self.monitor_window)
+            .switch("--supervised", self.supervised)
+            .into_vec()
     }
 }
 
@@ -205,7 +230,7 @@ pub struct EmitterSimArgs {
     pub min_subscribers: usize,
     /// Transport and waiting.
     #[command(flatten)]
-    pub link: protocol::LinkArgs,
+    pub link: runtime::LinkArgs,
     /// Wait this many milliseconds before each step after step 0 (slows a lock-step run down for a demo or
     /// a test; the results do not change). 0: lock-step at full speed. Lock-step mode only.
     #[arg(long, value_name = "MS", default_value_t = 0)]
@@ -247,7 +272,7 @@ pub struct EmitterSimArgs {
     pub supervised: bool,
 }
 
-pub use protocol::process::ProcessError;
+pub use runtime::ProcessError;
 
 /// What emitter-sim did, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -290,14 +315,6 @@ pub struct EmitterSummary {
 pub struct Saved {
     /// At most [`EMITTER_SNAPSHOTS`], one every [`checkpoint::CHECKPOINT_EVERY`] steps.
     pub snapshots: Vec<(Snapshot, bool)>,
-}
-
-fn announce(supervised: bool, line: &str) {
-    if supervised {
-        let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "{line}");
-        let _ = out.flush();
-    }
 }
 
 /// Waits until the measurement topic has `min_subscribers` subscribers and the command topic a
@@ -695,7 +712,7 @@ impl Sim<'_> {
             }
             if now - published >= retry {
                 // From the checkpoint step at or below k: every process can answer from there, also one
-                // restarted from its checkpoint (see protocol::checkpoint).
+                // restarted from its checkpoint (see runtime::checkpoint).
                 let from = self.replay_start(k);
                 eprintln!("emitter-sim: step {k}: no command after {retry:?}; replaying the run from step {from}");
                 self.summary.retries += 1;
@@ -756,7 +773,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         None => None,
     };
     let mut snapshots: Vec<(Snapshot, bool)> = saved.map(|s| s.snapshots).unwrap_or_default();
-    // Only a full set goes far enough back for every other process's checkpoint (see protocol::checkpoint).
+    // Only a full set goes far enough back for every other process's checkpoint (see runtime::checkpoint).
     let oldest = snapshots.first().filter(|_| snapshots.len() >= EMITTER_SNAPSHOTS);
     let (world, start_step, start_missed) = match oldest {
         Some((snapshot, missed)) => (
@@ -793,7 +810,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     ];
     wait_for_pipeline(&link, &measurements, &commands, &domain, args)?;
     control.send(ControlKind::Hello, 0, "")?;
-    announce(args.supervised, "ready");
+    runtime::tell(args.supervised, &SupervisorLine::Ready);
     if !args.quiet && start_step > 0 {
         eprintln!("emitter-sim: resumed from the checkpoint's snapshot of step {start_step}");
     }
@@ -931,7 +948,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         }
     }
     if args.linger {
-        announce(args.supervised, "finished");
+        runtime::tell(args.supervised, &SupervisorLine::Finished);
         sim.linger(scenario.steps as u64)?;
     }
     let mut summary = sim.summary;
@@ -948,25 +965,12 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             );
         }
     }
-    summary.cpu_s = protocol::process::cpu_seconds();
+    summary.cpu_s = runtime::cpu_seconds();
     Ok(summary)
 }
 
 /// Runs emitter-sim and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &EmitterSimArgs) -> ExitCode {
-    match run(args) {
-        Ok(summary) => {
-            announce(args.supervised, &format!("summary {}", serde_json::to_string(&summary).unwrap_or_default()));
-            ExitCode::SUCCESS
-        }
-        Err(ProcessError::Interrupted) => {
-            eprintln!("emitter-sim: stopped by a signal before the end of the run");
-            ExitCode::from(EXIT_INTERRUPTED)
-        }
-        Err(e) => {
-            eprintln!("error: emitter-sim: {e}");
-            ExitCode::from(e.code())
-        }
-    }
+    runtime::exit_with(ROLE, args.supervised, run(args))
 }

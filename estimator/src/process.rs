@@ -21,7 +21,7 @@
 //! - With `--checkpoint FILE` it writes its state (the last step estimated and the previous estimate) to
 //!   FILE every [`checkpoint::CHECKPOINT_EVERY`] steps, right before it estimates such a step; started
 //!   again with the same FILE (a restart) it resumes from it and asks for the replay from that step
-//!   instead of step 0 (see [`protocol::checkpoint`]). It keeps its last checkpoints and rewinds to one
+//!   instead of step 0 (see [`runtime::checkpoint`]). It keeps its last checkpoints and rewinds to one
 //!   when the world was rewound there (a restarted emitter-sim re-publishing a checkpoint step it has no
 //!   answer for). Answers are kept for the last [`MAX_CACHED_STEPS`] steps, so
 //!   its memory does not grow with the run.
@@ -40,20 +40,20 @@
 //! estimates from k + 1 on — exactly what the old one would have.
 
 use std::collections::{BTreeMap, HashMap};
-use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Args;
 use nalgebra::{Matrix4, Vector2, Vector4};
-use protocol::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
     ControlChannel, ControlKind, Estimate, EstimateStatus as WireStatus, Fix, Measurement, PosteriorExtra,
     RejectionCounter, Topic, TopicSubscriber, TransportError, now_ns,
 };
+use runtime::SupervisorLine;
+use runtime::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 use tdoa::{Dynamics, NoiseModel, Posterior, RangeDiffs};
 
 use crate::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig, EstimatorKind};
@@ -82,7 +82,7 @@ pub struct EstimatorArgs {
     pub domain: Option<String>,
     /// Transport and waiting.
     #[command(flatten)]
-    pub link: protocol::LinkArgs,
+    pub link: runtime::LinkArgs,
     /// Take over from the running estimator at the next step (see `uavloc swap estimator`).
     #[arg(long)]
     pub takeover: bool,
@@ -115,7 +115,7 @@ pub struct EstimatorArgs {
     pub supervised: bool,
 }
 
-pub use protocol::process::ProcessError;
+pub use runtime::ProcessError;
 
 /// What the estimator did, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -160,6 +160,23 @@ pub struct Checkpoint {
 }
 
 impl EstimatorArgs {
+    /// The command line of these flags (see [`runtime::flags`]).
+    pub fn to_flags(&self) -> Vec<String> {
+        runtime::Flags::new()
+            .opt("--domain", self.domain.as_deref())
+            .extend(self.link.to_flags())
+            .switch("--takeover", self.takeover)
+            .value("--estimator", self.estimator)
+            .value("--emitter-model", self.emitter_model)
+            .float("--process-noise-accel", self.process_noise_accel)
+            .float("--velocity-prior-sigma", self.velocity_prior_sigma)
+            .float("--interval-s", self.interval_s)
+            .path("--checkpoint", self.checkpoint.as_deref())
+            .switch("--quiet", self.quiet)
+            .switch("--supervised", self.supervised)
+            .into_vec()
+    }
+
     /// The estimator configuration of the flags; errors name the flag.
     pub fn config(&self) -> Result<EstimatorConfig, ProcessError> {
         let dynamics =
@@ -361,14 +378,6 @@ impl StepEstimator {
     }
 }
 
-fn announce(supervised: bool, line: &str) {
-    if supervised {
-        let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "{line}");
-        let _ = out.flush();
-    }
-}
-
 /// The estimate of one measurement as a wire [`Fix`] and the fused state beyond the position
 /// (`Fix::Failed` when the step could not be estimated, whether or not the library had a previous
 /// estimate to keep).
@@ -434,7 +443,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         control.send(ControlKind::Hello, resumed.map_or(0, |c| c.step + 1), "")?;
     }
     let mut summary = EstimatorSummary { role: ROLE, instance, ..EstimatorSummary::default() };
-    announce(args.supervised, "ready");
+    runtime::tell(args.supervised, &SupervisorLine::Ready);
     if !args.quiet {
         eprintln!("estimator: domain {domain}, instance {instance:#x}");
         if let Some(c) = &resumed {
@@ -500,7 +509,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
                     from_step = Some(f);
                     summary.took_over_at = Some(f);
                     control.send(ControlKind::TakeOver, f, "")?;
-                    announce(args.supervised, &format!("takeover {}", serde_json::json!({"from_step": f})));
+                    runtime::tell(args.supervised, &SupervisorLine::TakeOver { from_step: f });
                     if !args.quiet {
                         eprintln!("estimator: taking over from step {f}");
                     }
@@ -583,23 +592,14 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
             summary.published, summary.resent, summary.out_of_chain
         );
     }
-    summary.cpu_s = protocol::process::cpu_seconds();
+    summary.cpu_s = runtime::cpu_seconds();
     Ok(summary)
 }
 
 /// Runs the estimator and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &EstimatorArgs) -> ExitCode {
-    match run(args) {
-        Ok(summary) => {
-            announce(args.supervised, &format!("summary {}", serde_json::to_string(&summary).unwrap_or_default()));
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("error: estimator: {e}");
-            ExitCode::from(e.code())
-        }
-    }
+    runtime::exit_with(ROLE, args.supervised, run(args))
 }
 
 #[cfg(test)]
@@ -623,6 +623,31 @@ mod tests {
             Answer::New(f, _) | Answer::Again(f, _) => f,
             Answer::OutOfChain => panic!("out of chain"),
         }
+    }
+
+    #[test]
+    fn flags_round_trip() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            args: EstimatorArgs,
+        }
+        use clap::Parser as _;
+        let a = EstimatorArgs {
+            domain: Some("lab".into()),
+            link: runtime::LinkArgs::default(),
+            takeover: true,
+            estimator: EstimatorKind::Snapshot,
+            emitter_model: EmitterModel::ConstantVelocity,
+            process_noise_accel: 0.1 + 0.2,
+            velocity_prior_sigma: 7.5,
+            interval_s: 1.0 / 3.0,
+            checkpoint: Some("/tmp/e.ckpt".into()),
+            quiet: true,
+            supervised: false,
+        };
+        let back = Cli::try_parse_from(std::iter::once("estimator".to_string()).chain(a.to_flags())).unwrap().args;
+        assert_eq!(back, EstimatorArgs { link: a.link.normalized(), ..a.clone() });
     }
 
     #[test]

@@ -52,7 +52,6 @@ use std::time::Duration;
 use clap::Args;
 use hdrhistogram::Histogram;
 use model::load_scenario;
-use protocol::checkpoint::checkpoint_step_at_or_below;
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::transport::wait_any;
@@ -60,6 +59,7 @@ use protocol::{
     Command, ControlChannel, ControlKind, Estimate, Latencies, Measurement, Message, MessageKind, RejectionCounter,
     Stamps, Topic, TopicSubscriber, TransportError, Truth, now_ns,
 };
+use runtime::checkpoint::checkpoint_step_at_or_below;
 use serde_json::json;
 
 use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
@@ -102,7 +102,7 @@ pub struct MonitorArgs {
     pub domain: Option<String>,
     /// Transport and waiting.
     #[command(flatten)]
-    pub link: protocol::LinkArgs,
+    pub link: runtime::LinkArgs,
     /// Write the raw stamps of every recorded step to FILE as CSV (one row per step, CLOCK_MONOTONIC
     /// nanoseconds; 0 = missing): the chain's publish/receive stamps, when emitter-sim received the step's
     /// command (from the next step's messages) and when the monitor received each of the step's messages.
@@ -143,7 +143,7 @@ pub struct MonitorArgs {
     pub supervised: bool,
 }
 
-pub use protocol::process::ProcessError;
+pub use runtime::ProcessError;
 
 /// Median and maximum of a latency, microseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -353,6 +353,27 @@ fn fmt_m(v: Option<f64>) -> String {
     v.map_or("-".into(), |x| format!("{x:.1}"))
 }
 
+impl MonitorArgs {
+    /// The command line of these flags (see [`runtime::flags`]).
+    pub fn to_flags(&self) -> Vec<String> {
+        runtime::Flags::new()
+            .opt("--domain", self.domain.as_deref())
+            .extend(self.link.to_flags())
+            .path("--stamps", self.stamps.as_deref())
+            .path("--scenario", self.scenario.as_deref())
+            .opt("--steps", self.steps)
+            .opt("--seed", self.seed)
+            .path("--log", self.log.as_deref())
+            .path("--record", self.record.as_deref())
+            .path("--out", self.out.as_deref())
+            .switch("--print-record", self.print_record)
+            .switch("--resume", self.resume)
+            .switch("--quiet", self.quiet)
+            .switch("--supervised", self.supervised)
+            .into_vec()
+    }
+}
+
 /// One status line of a completed step.
 fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
     let r = &done.record;
@@ -389,14 +410,6 @@ fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
             ""
         },
     )
-}
-
-fn announce(supervised: bool, line: &str) {
-    if supervised {
-        let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "{line}");
-        let _ = out.flush();
-    }
 }
 
 /// Everything the loop keeps between wake-ups.
@@ -698,9 +711,9 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     }
     // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
     // (From the checkpoint step at or below it: the estimator and planner can answer from there even when
-    // they were restarted; see protocol::checkpoint.)
+    // they were restarted; see runtime::checkpoint.)
     control.send(ControlKind::Hello, checkpoint_step_at_or_below(state.assembler.next_step()), "")?;
-    announce(args.supervised, "ready");
+    runtime::tell(args.supervised, &runtime::SupervisorLine::Ready);
     if !args.quiet {
         match resumed {
             None => {
@@ -787,7 +800,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         latency: state.samples.summary(),
         missing_messages: state.missing,
         replays_requested: state.replays_requested,
-        cpu_s: protocol::process::cpu_seconds(),
+        cpu_s: runtime::cpu_seconds(),
     };
     if let Some(csv) = state.stamps.take() {
         csv.finish()?;
@@ -830,8 +843,9 @@ pub fn main_with(args: &MonitorArgs) -> ExitCode {
     match run(args) {
         Ok((run, summary)) => {
             let record = serde_json::to_string(&run).unwrap_or_default();
-            announce(args.supervised, &format!("record {record}"));
-            announce(args.supervised, &format!("summary {}", serde_json::to_string(&summary).unwrap_or_default()));
+            runtime::tell(args.supervised, &runtime::SupervisorLine::Record(record));
+            let summary_json = serde_json::to_value(&summary).unwrap_or_default();
+            runtime::tell(args.supervised, &runtime::SupervisorLine::Summary(summary_json));
             if args.print_record {
                 println!("{}", serde_json::to_string_pretty(&run).unwrap_or_default());
             }

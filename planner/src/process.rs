@@ -20,7 +20,7 @@
 //!   [`checkpoint::CHECKPOINT_EVERY`] steps, before publishing that step's command; started again with
 //!   the same FILE (a restart) it resumes from it and asks for the replay from that step (planned again
 //!   from the same inputs: the same command) instead of step 0. It keeps its last checkpoints and takes
-//!   one up again when the world was rewound to its step (a restarted emitter-sim) (see [`protocol::checkpoint`]). Commands are kept for the last [`MAX_CACHED_STEPS`] steps, so
+//!   one up again when the world was rewound to its step (a restarted emitter-sim) (see [`runtime::checkpoint`]). Commands are kept for the last [`MAX_CACHED_STEPS`] steps, so
 //!   its memory does not grow with the run.
 //! - Only `target = "chan"` is supported: `controlled` mode needs the true emitter, which the pipeline
 //!   never shows the planner (use `uavloc simulate` for it).
@@ -50,20 +50,20 @@
 //! new planner plans it. A planner that sees a take-over by a newer planner behaves as the old one.
 
 use std::collections::BTreeMap;
-use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::Args;
 use nalgebra::{Matrix2, Vector2};
-use protocol::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 use protocol::control::instance_id_at;
 use protocol::services::{self, Domain};
 use protocol::{
     Command, ControlChannel, ControlKind, Estimate, EstimateStatus, Measurement, Message, PlanInfo, RejectionCounter,
     Topic, TopicSubscriber, TransportError, now_ns,
 };
+use runtime::SupervisorLine;
+use runtime::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 
 use crate::active_mask;
 use crate::fallback::UsableEstimates;
@@ -116,7 +116,7 @@ pub struct PlannerArgs {
     pub seed: Option<u64>,
     /// Transport and waiting.
     #[command(flatten)]
-    pub link: protocol::LinkArgs,
+    pub link: runtime::LinkArgs,
     /// Take over from the running planner at the next step (see `uavloc swap planner`).
     #[arg(long)]
     pub takeover: bool,
@@ -147,7 +147,29 @@ pub struct PlannerArgs {
     pub supervised: bool,
 }
 
-pub use protocol::process::ProcessError;
+pub use runtime::ProcessError;
+
+impl PlannerArgs {
+    /// The command line of these flags (see [`runtime::flags`]).
+    pub fn to_flags(&self) -> Vec<String> {
+        runtime::Flags::new()
+            .opt("--domain", self.domain.as_deref())
+            .path("--scenario", self.scenario.as_deref())
+            .value("--objective", self.objective)
+            .value("--solver", self.solver)
+            .opt("--steps", self.steps)
+            .opt("--seed", self.seed)
+            .extend(self.link.to_flags())
+            .switch("--takeover", self.takeover)
+            .path("--checkpoint", self.checkpoint.as_deref())
+            .value("--estimate-deadline-ms", self.estimate_deadline_ms)
+            .value("--plan-delay-ms", self.plan_delay_ms)
+            .list("--plan-delay-steps", &self.plan_delay_steps)
+            .switch("--quiet", self.quiet)
+            .switch("--supervised", self.supervised)
+            .into_vec()
+    }
+}
 
 pub use model::scenario::load_scenario;
 
@@ -220,15 +242,6 @@ fn content_key(e: &Estimate, usable: Option<&(Vector2<f64>, Matrix2<f64>)>) -> V
     key
 }
 
-/// Prints one line on stdout for a supervising launcher.
-fn announce(supervised: bool, line: &str) {
-    if supervised {
-        let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "{line}");
-        let _ = out.flush();
-    }
-}
-
 /// Runs the planner until SIGINT/SIGTERM.
 pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     protocol::transport::quiet_logs();
@@ -282,7 +295,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         control.send(ControlKind::Hello, resumed.map_or(0, |c| c.step), &detail)?;
     }
     let mut summary = PlannerSummary { role: ROLE, instance, ..PlannerSummary::default() };
-    announce(args.supervised, "ready");
+    runtime::tell(args.supervised, &SupervisorLine::Ready);
     if !args.quiet {
         eprintln!(
             "planner: domain {domain}, {} / {}, {} steps, seed {}, instance {instance:#x}",
@@ -398,7 +411,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                         from_step = Some(f);
                         summary.took_over_at = Some(f);
                         control.send(ControlKind::TakeOver, f, &detail)?;
-                        announce(args.supervised, &format!("takeover {}", serde_json::json!({"from_step": f})));
+                        runtime::tell(args.supervised, &SupervisorLine::TakeOver { from_step: f });
                         if !args.quiet {
                             eprintln!("planner: taking over from step {f}");
                         }
@@ -555,7 +568,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         }
         eprintln!("planner: stopped after {} commands ({} estimates, {counter})", summary.published, summary.accepted);
     }
-    summary.cpu_s = protocol::process::cpu_seconds();
+    summary.cpu_s = runtime::cpu_seconds();
     Ok(summary)
 }
 
@@ -591,14 +604,5 @@ fn hold_command(
 /// Runs the planner and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &PlannerArgs) -> ExitCode {
-    match run(args) {
-        Ok(summary) => {
-            announce(args.supervised, &format!("summary {}", serde_json::to_string(&summary).unwrap_or_default()));
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("error: planner: {e}");
-            ExitCode::from(e.code())
-        }
-    }
+    runtime::exit_with(ROLE, args.supervised, run(args))
 }

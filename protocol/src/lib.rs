@@ -16,13 +16,14 @@
 //!   `WaitSet`) or, as the benchmark baseline, Unix-domain datagram sockets ([`TransportKind`]), behind
 //!   the same port traits; a process's [`Link`] (its node and transport) and [`WaitMode`]s.
 //!
+//! What a process does with them — its flags, exit codes, supervisor lines, checkpoints — is
+//! `uavloc-runtime`'s; this crate has no command-line parser and writes no files.
+//!
 //! Conventions follow `uavloc-tdoa`: 2-D positions in metres, angles in radians, `uavs[0]` is the reference
 //! UAV, range differences `d_i = r_i − r_0` for i = 1..N−1, 3 ≤ N ≤ [`MAX_UAVS`].
 
-pub mod checkpoint;
 pub mod control;
 pub mod messages;
-pub mod process;
 pub mod services;
 pub mod transport;
 pub mod validate;
@@ -37,10 +38,9 @@ pub use messages::{
     Command, CommandOutcome, Control, ControlKind, Estimate, EstimateStatus, Fix, Header, Latencies, Measurement,
     Message, MessageKind, Name16, PlanInfo, PosteriorExtra, Stamps, Truth, now_ns,
 };
-pub use process::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError};
 pub use services::Domain;
 pub use transport::{
-    Link, LinkArgs, Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, TransportKind, WaitMode,
+    Link, Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, TransportKind, WaitMode,
     WaitPolicy, node,
 };
 pub use validate::{Rejection, RejectionCounter};

@@ -20,7 +20,7 @@
 //!   checkpoint and goes on from it, so its answers stay exactly those of the run.
 //!
 //! - A lock-step emitter-sim does not publish step k while the monitor's progress (the first step it lacks,
-//!   [`crate::ControlKind::Progress`]) is k − [`MONITOR_WINDOW`] or less: a monitor restarted many times
+//!   [`protocol::ControlKind::Progress`]) is k − [`MONITOR_WINDOW`] or less: a monitor restarted many times
 //!   cannot fall further behind (the window is below [`CHECKPOINT_EVERY`], so the first step it lacks is
 //!   always newer than the older snapshot a restarted emitter-sim flies on from).
 //!

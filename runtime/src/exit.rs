@@ -1,6 +1,6 @@
 //! How a uavloc process (emitter-sim, estimator, planner, monitor) ends with an error, and its exit code.
 
-use crate::transport::TransportError;
+use protocol::TransportError;
 
 /// Exit code of a process stopped by SIGINT/SIGTERM before the end of its run.
 pub const EXIT_INTERRUPTED: u8 = 130;

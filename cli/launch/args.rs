@@ -1,0 +1,150 @@
+//! The flags of `uavloc launch` and its help text.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use emitter_sim::process::Mode;
+use estimator::EstimatorKind;
+use planner::{ObjectiveKind, SolverKind};
+
+pub const LONG_ABOUT: &str = "\
+Run the closed loop as the four processes of the uavloc pipeline, exchanging zero-copy messages over
+iceoryx2: emitter-sim (the world: true emitter, UAV motion, noisy TDOA) → estimator (Chan) → planner
+(objective × solver under the motion constraints) → back to emitter-sim, with the monitor listening to
+everything. The children are `uavloc` itself (`uavloc process <role>`), so no other binary is needed.
+
+Two modes (--mode):
+  lockstep (default)  the world advances as soon as the planner's command for a step arrives. For
+                      benchmarks and tests, and the exact reproduction of `uavloc simulate`: for the same
+                      scenario, objective, solver, steps and seed the trajectory, the estimates and the
+                      metrics equal simulate's (only the planning times differ).
+  realtime            the world flies at a rate: step k at t0 + k*dt/X, X = --time-scale (simulated
+                      seconds per real second; the paper's 10 s step takes 0.1 s at --time-scale 100).
+                      A command that is not there when the next step is due is missed: the UAVs fly
+                      straight on at their headings, the step is recorded with objective_value null and
+                      active_constraints [\"command_missed\"], and \"missed_commands\" counts it. With
+                      every command in time the run still equals simulate.
+
+Staleness (--estimate-deadline-ms D, off by default): when a step's estimate has not reached the planner D
+ms after the step's measurement, the planner holds course (commands the current headings; the UAVs fly
+straight on); the step is recorded with active_constraints [\"estimate_stale\"] and counted in
+\"stale_steps\". Meant for realtime runs; a lock-step run with a deadline depends on timing.
+
+The monitor shows one line per step on stderr (CRLB and RMSE at the truth, estimate error, hop latencies,
+active planner, rejected messages) unless --headless. At the end the run is printed as a table, or with
+--json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\",
+\"missed_commands\" and \"processes\".
+
+A child that crashes is restarted (at most --max-restarts times per process role, after 50 ms, 100 ms, ...,
+at most 1.6 s; written to the --log): emitter-sim replays the run to the new process, which picks up
+exactly where its predecessor was, so the result does not change. A child whose run cannot go on (exit
+code 3: two UAVs collided, so the world cannot measure) is not restarted: the launch fails with its error.
+
+Only target = \"chan\" scenarios run in the pipeline (controlled mode needs the truth in the planner).
+Exit codes: 0 success, 1 a process failed or the launch was interrupted, 2 bad input.";
+
+pub const AFTER_HELP: &str = "\
+Examples:
+  uavloc launch
+  uavloc launch --headless --json --steps 6 --objective mc
+  uavloc launch --mode realtime --time-scale 100
+  uavloc launch --scenario scenarios/nominal.toml --solver ga --domain lab1 --log run.jsonl --out runs/lab1
+
+Each process also runs on its own, e.g. in four terminals (or systemd units) with one --domain:
+  monitor --domain lab1 --log run.jsonl;  planner --domain lab1;  estimator --domain lab1
+  emitter-sim --domain lab1 --min-subscribers 2";
+
+/// Flags of `uavloc launch`.
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct LaunchArgs {
+    /// Scenario TOML file (default: the paper's nominal case; see scenarios/nominal.toml).
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Planning objective: single | mc | analytical | cubature | formation.
+    #[arg(long, default_value = "analytical")]
+    pub objective: ObjectiveKind,
+    /// Solver: pso | ga | aco (ignored by formation).
+    #[arg(long, default_value = "pso")]
+    pub solver: SolverKind,
+    /// Number of planning steps (default: the scenario's, 24 for the paper).
+    #[arg(long, value_name = "N")]
+    pub steps: Option<usize>,
+    /// Run seed (default: the scenario's).
+    #[arg(long, value_name = "N")]
+    pub seed: Option<u64>,
+    /// The estimator: fused (the posterior of every measurement so far) or snapshot (the paper's Chan
+    /// per step); default: the scenario's `estimator` (fused).
+    #[arg(long, value_name = "KIND")]
+    pub estimator: Option<EstimatorKind>,
+    /// Pipeline domain, the prefix of every iceoryx2 service name (default: $UAVLOC_DOMAIN, else
+    /// `uavloc-<pid>`, unique per launch).
+    #[arg(long, value_name = "NAME")]
+    pub domain: Option<String>,
+    /// No live view: the monitor and the other processes print only errors.
+    #[arg(long)]
+    pub headless: bool,
+    /// Directory for the monitor's CSVs, run.json and plots (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// The monitor's JSON-lines event log (default: a file in the launch's private state directory,
+    /// removed at the end). The step records are kept there during the run, not in memory.
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// emitter-sim gives up when a step's command has not arrived after this many seconds.
+    #[arg(long, value_name = "S", default_value_t = 10.0)]
+    pub command_timeout_s: f64,
+    /// Transport and waiting of every process.
+    #[command(flatten)]
+    pub link: runtime::LinkArgs,
+    /// Write the raw stamps of every step as CSV (the monitor's --stamps; what `uavloc bench` reads).
+    #[arg(long, value_name = "FILE")]
+    pub stamps: Option<PathBuf>,
+    /// For `uavloc bench`: before starting emitter-sim, measure the CPU use of the waiting monitor,
+    /// planner and estimator over this many milliseconds (0: no probe).
+    #[arg(skip)]
+    pub idle_probe_ms: u64,
+    /// Pacing of emitter-sim: lockstep (the next step as soon as the command arrives; for benchmarks and
+    /// tests, and the exact reproduction of `uavloc simulate`) or realtime (fly at a rate set by
+    /// --time-scale; a command that comes after the next step is due is missed and the UAVs keep their
+    /// headings).
+    #[arg(long, value_enum, value_name = "MODE", default_value_t = Mode::Lockstep)]
+    pub mode: Mode,
+    /// Realtime mode: simulated seconds per real second, > 0; a step lasts dt/X real seconds
+    /// (--time-scale 100 runs the paper's 10 s step in 0.1 s, 1 is true real time). Ignored in lockstep.
+    #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
+    pub time_scale: f64,
+    /// The planner's staleness deadline: a step whose estimate has not arrived this many milliseconds
+    /// after its measurement is held (the current headings commanded, recorded as "estimate_stale").
+    /// 0: no deadline.
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub estimate_deadline_ms: u64,
+    /// emitter-sim waits this many milliseconds before each step after step 0 (a slow lock-step run for
+    /// a demo, or to swap or kill a process mid-run; the results do not change). 0: full speed. Lockstep
+    /// mode only (realtime: --time-scale).
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub step_delay_ms: u64,
+    /// Test / fault-injection aid: the planner sleeps this many milliseconds before planning a step
+    /// (those of --plan-delay-steps), like a slow planner; in realtime mode its commands then miss steps.
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub plan_delay_ms: u64,
+    /// Test / fault-injection aid: the steps --plan-delay-ms applies to, comma-separated (default: all).
+    #[arg(long, value_name = "K,..", value_delimiter = ',')]
+    pub plan_delay_steps: Vec<u64>,
+    /// emitter-sim replays the run when a step's command is this many milliseconds late.
+    #[arg(long, value_name = "MS", default_value_t = 1000)]
+    pub retry_interval_ms: u64,
+    /// Restart a crashed process at most this many times (per process role, in total), after 50 ms, 100 ms,
+    /// 200 ms, … (doubling, at most 1.6 s).
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub max_restarts: u32,
+}
+
+impl LaunchArgs {
+    /// The flags' defaults (for tests: `uavloc launch` with no flag).
+    #[cfg(test)]
+    pub(crate) fn try_parse_from_defaults() -> Self {
+        use clap::FromArgMatches as _;
+        let cmd = <Self as Args>::augment_args(clap::Command::new("launch"));
+        Self::from_arg_matches(&cmd.get_matches_from(["launch"])).expect("defaults")
+    }
+}

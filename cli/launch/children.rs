@@ -1,0 +1,206 @@
+//! The children of a launch: their flags, built from the launch's, and their start in order.
+
+use std::time::Duration;
+
+use planner::Scenario;
+use protocol::services::Domain;
+
+use super::args::LaunchArgs;
+use super::role::Role;
+use super::state_dir::StateDir;
+use super::supervisor::{Supervisor, probe_idle_cpu};
+use crate::error::CliError;
+
+/// The default value of every flag of a process's argument type (what its parser gives for no flags).
+fn defaults<T: clap::Args + clap::FromArgMatches>() -> T {
+    let cmd = T::augment_args(clap::Command::new("defaults"));
+    let matches = cmd.get_matches_from(["defaults"]);
+    T::from_arg_matches(&matches).expect("every flag of a process has a default or is optional")
+}
+
+/// The command line of `role` in this launch, built from the role's own argument type.
+pub(super) fn child_flags(
+    role: Role,
+    args: &LaunchArgs,
+    sc: &Scenario,
+    domain: &Domain,
+    state: &StateDir,
+    log: &std::path::Path,
+) -> Vec<String> {
+    let domain = Some(domain.to_string());
+    let checkpoint = role.checkpoints().then(|| state.path(&format!("{role}.ckpt")));
+    match role {
+        Role::Monitor => monitor::process::MonitorArgs {
+            domain,
+            link: args.link,
+            stamps: args.stamps.clone(),
+            scenario: args.scenario.clone(),
+            steps: args.steps,
+            seed: args.seed,
+            log: Some(log.to_path_buf()),
+            out: args.out.clone(),
+            quiet: args.headless,
+            ..defaults()
+        }
+        .to_flags(),
+        Role::Planner => planner::process::PlannerArgs {
+            domain,
+            scenario: args.scenario.clone(),
+            objective: args.objective,
+            solver: args.solver,
+            steps: args.steps,
+            seed: args.seed,
+            link: args.link,
+            checkpoint,
+            estimate_deadline_ms: args.estimate_deadline_ms,
+            plan_delay_ms: args.plan_delay_ms,
+            plan_delay_steps: if args.plan_delay_ms > 0 { args.plan_delay_steps.clone() } else { Vec::new() },
+            quiet: true,
+            ..defaults()
+        }
+        .to_flags(),
+        Role::Estimator => estimator::process::EstimatorArgs {
+            domain,
+            link: args.link,
+            estimator: sc.estimator,
+            emitter_model: sc.emitter_model,
+            process_noise_accel: sc.process_noise_accel,
+            velocity_prior_sigma: sc.velocity_prior_sigma,
+            interval_s: sc.dt,
+            checkpoint,
+            quiet: true,
+            ..defaults()
+        }
+        .to_flags(),
+        Role::EmitterSim => emitter_sim::process::EmitterSimArgs {
+            domain,
+            scenario: args.scenario.clone(),
+            steps: args.steps,
+            seed: args.seed,
+            command_timeout_s: args.command_timeout_s,
+            retry_interval_ms: args.retry_interval_ms,
+            // The estimator and the monitor.
+            min_subscribers: 2,
+            link: args.link,
+            step_delay_ms: args.step_delay_ms,
+            mode: args.mode,
+            time_scale: args.time_scale,
+            checkpoint,
+            quiet: true,
+            // Stays after the last step to replay it to a monitor behind.
+            linger: true,
+            ..defaults()
+        }
+        .to_flags(),
+    }
+}
+
+/// Starts the children in order, each after the previous one is ready, and waits for the end of the run.
+pub(super) fn start_and_run(
+    sup: &mut Supervisor,
+    args: &LaunchArgs,
+    sc: &Scenario,
+    domain: &Domain,
+    state: &StateDir,
+    log: &std::path::Path,
+) -> Result<(), CliError> {
+    for role in Role::START_ORDER {
+        if role == Role::EmitterSim && args.idle_probe_ms > 0 {
+            sup.idle_cpu = probe_idle_cpu(sup, Duration::from_millis(args.idle_probe_ms));
+        }
+        sup.spawn(role, child_flags(role, args, sc, domain, state, log))?;
+        sup.wait_ready(role)?;
+    }
+    sup.wait_for_the_end(Duration::from_secs_f64(args.command_timeout_s))
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::{FromArgMatches, Parser};
+
+    use super::*;
+
+    /// `parse(to_flags(a)) == a` (the link with its policy spelled out): the type that parses a
+    /// process's flags writes them, and loses nothing on the way.
+    fn round_trip<T>(a: T, normalized: T, to_flags: impl Fn(&T) -> Vec<String>)
+    where
+        T: clap::Args + FromArgMatches + PartialEq + std::fmt::Debug,
+    {
+        let cmd = T::augment_args(clap::Command::new("p"));
+        let matches = cmd.try_get_matches_from(std::iter::once("p".to_string()).chain(to_flags(&a))).unwrap();
+        assert_eq!(T::from_arg_matches(&matches).unwrap(), normalized);
+    }
+
+    #[test]
+    fn every_process_writes_its_own_flags_back() {
+        let link = runtime::LinkArgs { transport: protocol::TransportKind::Uds, wait: None, spin_us: Some(30) };
+        let m = monitor::process::MonitorArgs {
+            domain: Some("d".into()),
+            link,
+            stamps: Some("s.csv".into()),
+            scenario: Some("a b.toml".into()),
+            steps: Some(7),
+            seed: Some(9),
+            log: Some("l.jsonl".into()),
+            record: Some("r.json".into()),
+            out: Some("o".into()),
+            print_record: true,
+            resume: true,
+            quiet: true,
+            supervised: true,
+        };
+        round_trip(m.clone(), monitor::process::MonitorArgs { link: link.normalized(), ..m }, |a| a.to_flags());
+        let p = planner::process::PlannerArgs {
+            domain: Some("d".into()),
+            scenario: None,
+            objective: planner::ObjectiveKind::PosteriorCubature,
+            solver: planner::SolverKind::Aco,
+            steps: Some(3),
+            seed: None,
+            link,
+            takeover: true,
+            checkpoint: Some("p.ckpt".into()),
+            estimate_deadline_ms: 12,
+            plan_delay_ms: 5,
+            plan_delay_steps: vec![1, 4],
+            quiet: false,
+            supervised: true,
+        };
+        round_trip(p.clone(), planner::process::PlannerArgs { link: link.normalized(), ..p }, |a| a.to_flags());
+        let e = emitter_sim::process::EmitterSimArgs {
+            domain: Some("d".into()),
+            scenario: Some("x.toml".into()),
+            steps: Some(2),
+            seed: Some(1),
+            command_timeout_s: 0.1 + 0.2,
+            retry_interval_ms: 77,
+            connect_timeout_s: 3.5,
+            min_subscribers: 2,
+            link,
+            step_delay_ms: 4,
+            mode: emitter_sim::process::Mode::Realtime,
+            time_scale: 1.0 / 3.0,
+            checkpoint: None,
+            quiet: true,
+            linger: true,
+            monitor_window: 17,
+            supervised: false,
+        };
+        round_trip(e.clone(), emitter_sim::process::EmitterSimArgs { link: link.normalized(), ..e }, |a| a.to_flags());
+        // The launch's children: every one parses its command line (no flag it does not know).
+        #[derive(Parser)]
+        struct Cli {
+            #[command(subcommand)]
+            process: super::super::ProcessRole,
+        }
+        let args = LaunchArgs::try_parse_from_defaults();
+        let sc = Scenario::default();
+        let domain = Domain::new("t").unwrap();
+        let state = StateDir::create(&domain).unwrap();
+        for role in Role::START_ORDER {
+            let flags = child_flags(role, &args, &sc, &domain, &state, std::path::Path::new("log.jsonl"));
+            let line = ["uavloc".to_string(), role.name().to_string()].into_iter().chain(flags.clone());
+            assert!(Cli::try_parse_from(line).is_ok(), "{role}: {flags:?}");
+        }
+    }
+}

@@ -1,0 +1,77 @@
+//! `uavloc process <role>`: one pipeline process in this binary (what `uavloc launch` spawns), and
+//! `uavloc process resources`.
+
+use std::process::ExitCode;
+
+use clap::{Args, Subcommand};
+use monitor::resources;
+use protocol::services::Domain;
+
+use crate::error::CliError;
+
+/// `uavloc process <role>`: runs one pipeline process in this binary (what `uavloc launch` spawns).
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct ProcessArgs {
+    #[command(subcommand)]
+    pub role: ProcessRole,
+}
+
+/// The processes `uavloc` can be.
+#[derive(Subcommand, Debug, Clone, PartialEq)]
+pub enum ProcessRole {
+    /// The world: truth and a noisy measurement per step, flies each command (lock-step or real time).
+    #[command(after_help = emitter_sim::process::AFTER_HELP)]
+    EmitterSim(emitter_sim::process::EmitterSimArgs),
+    /// Chan's estimator: an estimate per measurement.
+    #[command(after_help = estimator::process::AFTER_HELP)]
+    Estimator(estimator::process::EstimatorArgs),
+    /// The planner: a command per estimate.
+    #[command(after_help = planner::process::AFTER_HELP)]
+    Planner(planner::process::PlannerArgs),
+    /// The monitor: live view, event log, run record, plots.
+    #[command(after_help = monitor::process::AFTER_HELP)]
+    Monitor(monitor::process::MonitorArgs),
+    /// Lists the iceoryx2 nodes and services of a domain as JSON (optionally removing dead nodes first).
+    Resources(ResourcesArgs),
+}
+
+/// Flags of `uavloc process resources`.
+#[derive(Args, Debug, Clone, PartialEq)]
+pub struct ResourcesArgs {
+    /// The domain (default: $UAVLOC_DOMAIN, else "uavloc").
+    #[arg(long, value_name = "NAME")]
+    pub domain: Option<String>,
+    /// Remove the stale resources of the domain's dead nodes before listing.
+    #[arg(long)]
+    pub remove_dead: bool,
+}
+
+/// Runs `uavloc process <role>`.
+pub fn run_process(args: &ProcessArgs) -> ExitCode {
+    match &args.role {
+        ProcessRole::EmitterSim(a) => emitter_sim::process::main_with(a),
+        ProcessRole::Estimator(a) => estimator::process::main_with(a),
+        ProcessRole::Planner(a) => planner::process::main_with(a),
+        ProcessRole::Monitor(a) => monitor::process::main_with(a),
+        ProcessRole::Resources(a) => {
+            protocol::transport::quiet_logs();
+            let listed =
+                Domain::resolve(a.domain.as_deref()).map_err(|e| CliError::Input(e.to_string())).and_then(|domain| {
+                    if a.remove_dead {
+                        resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
+                    }
+                    resources::list(&domain).map_err(CliError::Failed)
+                });
+            match listed {
+                Ok(r) => {
+                    println!("{}", serde_json::to_string_pretty(&r).unwrap_or_default());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    e.exit_code()
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,150 @@
+//! The four roles of a launch and their restart policy, as data: which roles end the run by exiting 0,
+//! which exits a restart would only repeat, and what a restarted instance is given.
+
+use std::fmt;
+use std::process::ExitStatus;
+
+/// A child role of `uavloc launch` (the subcommand of `uavloc process`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Role {
+    /// Records the run; exits 0 once it has the last step.
+    Monitor,
+    /// Plans each step; runs until stopped.
+    Planner,
+    /// Estimates each step; runs until stopped.
+    Estimator,
+    /// The world; prints `finished` after the last step (and lingers for replays).
+    EmitterSim,
+}
+
+/// What to do with a child that exited.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum RestartDecision {
+    /// Its part of the run is done (or another instance took over): nothing to do.
+    Done,
+    /// A crash: start the role again (attempt n, from 1).
+    Restart {
+        /// The attempt number.
+        attempt: u32,
+    },
+    /// A restart would only repeat the failure (bad input, an unrecoverable run) or the restarts are used
+    /// up: the launch fails with this message.
+    Fail(String),
+}
+
+impl Role {
+    /// The start order: each role's subscriptions exist before the next one publishes.
+    pub const START_ORDER: [Role; 4] = [Role::Monitor, Role::Planner, Role::Estimator, Role::EmitterSim];
+
+    /// The `uavloc process` subcommand and node-name suffix.
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::Monitor => "monitor",
+            Role::Planner => "planner",
+            Role::Estimator => "estimator",
+            Role::EmitterSim => "emitter-sim",
+        }
+    }
+
+    /// Whether an exit with code 0 is this role's normal end (the monitor with the whole record,
+    /// emitter-sim after the last step); the planner and the estimator run until stopped.
+    pub fn ends_by_itself(self) -> bool {
+        matches!(self, Role::Monitor | Role::EmitterSim)
+    }
+
+    /// Whether the role keeps a checkpoint file in the launch's state directory.
+    pub fn checkpoints(self) -> bool {
+        self != Role::Monitor
+    }
+
+    /// The flag a restarted instance gets on top of the first one's (the monitor resumes its log).
+    pub fn restart_flag(self) -> Option<&'static str> {
+        (self == Role::Monitor).then_some("--resume")
+    }
+
+    /// The decision for an instance of this role that exited with `status` after `restarts_so_far`
+    /// restarts of the role; `handed_over`: it left because a swapped-in instance took over.
+    pub fn on_exit(
+        self,
+        status: ExitStatus,
+        handed_over: bool,
+        restarts_so_far: u32,
+        max_restarts: u32,
+    ) -> RestartDecision {
+        if handed_over || (status.success() && self.ends_by_itself()) {
+            return RestartDecision::Done;
+        }
+        let what = describe(status);
+        // Bad input (2) and a run that cannot go on (3) would fail again the same way.
+        if matches!(status.code(), Some(c) if c == 2 || c == i32::from(runtime::EXIT_UNRECOVERABLE)) {
+            return RestartDecision::Fail(format!("the {self} process stopped unexpectedly ({what})"));
+        }
+        let attempt = restarts_so_far + 1;
+        if attempt > max_restarts {
+            return RestartDecision::Fail(format!(
+                "the {self} process stopped unexpectedly ({what}) after {restarts_so_far} restart(s)"
+            ));
+        }
+        RestartDecision::Restart { attempt }
+    }
+}
+
+impl fmt::Display for Role {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// `exit code N`, `signal N`.
+pub fn describe(status: ExitStatus) -> String {
+    match (status.code(), std::os::unix::process::ExitStatusExt::signal(&status)) {
+        (Some(c), _) => format!("exit code {c}"),
+        (None, Some(sig)) => format!("signal {sig}"),
+        _ => "an unknown status".into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::os::unix::process::ExitStatusExt as _;
+
+    use super::*;
+
+    fn code(c: i32) -> ExitStatus {
+        ExitStatus::from_raw(c << 8)
+    }
+
+    fn signal(s: i32) -> ExitStatus {
+        ExitStatus::from_raw(s)
+    }
+
+    #[test]
+    fn restart_policy() {
+        // A normal end.
+        assert_eq!(Role::Monitor.on_exit(code(0), false, 0, 5), RestartDecision::Done);
+        assert_eq!(Role::EmitterSim.on_exit(code(0), false, 0, 5), RestartDecision::Done);
+        // The planner and the estimator do not end by themselves: exit 0 is a crash…
+        assert_eq!(Role::Planner.on_exit(code(0), false, 0, 5), RestartDecision::Restart { attempt: 1 });
+        // … unless a swapped-in instance took over.
+        assert_eq!(Role::Estimator.on_exit(code(0), true, 0, 5), RestartDecision::Done);
+        // Crashes restart, up to the limit.
+        assert_eq!(Role::Estimator.on_exit(signal(9), false, 2, 5), RestartDecision::Restart { attempt: 3 });
+        assert_eq!(Role::Monitor.on_exit(code(1), false, 4, 5), RestartDecision::Restart { attempt: 5 });
+        assert!(
+            matches!(Role::Monitor.on_exit(code(1), false, 5, 5), RestartDecision::Fail(m) if m.contains("after 5 restart(s)"))
+        );
+        // Failures that would repeat are not restarted.
+        for c in [2, i32::from(runtime::EXIT_UNRECOVERABLE)] {
+            assert!(
+                matches!(Role::EmitterSim.on_exit(code(c), false, 0, 5), RestartDecision::Fail(m) if m.contains(&format!("exit code {c}")))
+            );
+        }
+    }
+
+    #[test]
+    fn names_and_order() {
+        assert_eq!(Role::START_ORDER.map(Role::name), ["monitor", "planner", "estimator", "emitter-sim"]);
+        assert_eq!(Role::Monitor.restart_flag(), Some("--resume"));
+        assert!(Role::START_ORDER.iter().filter(|r| r.checkpoints()).all(|r| *r != Role::Monitor));
+    }
+}

@@ -1,0 +1,432 @@
+//! The supervisor of a launch's children: spawning `uavloc process <role>`, reading their typed stdout
+//! lines, restarting the ones that crash (by their [`Role`]'s policy), stopping them all.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader};
+use std::os::unix::process::CommandExt as _;
+use std::path::PathBuf;
+use std::process::{Child, Stdio};
+use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
+use std::time::{Duration, Instant};
+
+use monitor::resources;
+use protocol::services::Domain;
+use runtime::SupervisorLine;
+
+use super::role::{RestartDecision, Role, describe};
+use crate::error::CliError;
+
+// ---------------------------------------------------------------------------------------------------------
+// Signals
+// ---------------------------------------------------------------------------------------------------------
+
+/// The last SIGINT/SIGTERM the launcher received (0: none).
+static SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+extern "C" fn on_signal(signal: libc::c_int) {
+    SIGNAL.store(signal, Ordering::SeqCst);
+}
+
+/// Routes SIGINT and SIGTERM to [`SIGNAL`] (instead of killing the launcher before it stops its children).
+pub(super) fn catch_termination_signals() {
+    for signal in [libc::SIGINT, libc::SIGTERM] {
+        // SAFETY: `on_signal` only performs an atomic store, which is async-signal-safe; the sigaction struct
+        // is fully initialised (zeroed, then handler and an empty mask set) before the call.
+        unsafe {
+            let mut action: libc::sigaction = std::mem::zeroed();
+            action.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            libc::sigemptyset(&mut action.sa_mask);
+            libc::sigaction(signal, &action, std::ptr::null_mut());
+        }
+    }
+}
+
+fn signal_name(signal: i32) -> &'static str {
+    if signal == libc::SIGINT { "SIGINT" } else { "SIGTERM" }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Children
+// ---------------------------------------------------------------------------------------------------------
+
+/// How long a child may take to print `ready`.
+const READY_TIMEOUT: Duration = Duration::from_secs(30);
+/// How long the estimator and planner get to exit after SIGTERM before SIGKILL.
+pub(super) const STOP_GRACE: Duration = Duration::from_secs(5);
+/// How often the launcher looks at its children and signals when nothing else happens.
+pub(super) const TICK: Duration = Duration::from_millis(50);
+/// The wait before the first restart of a crashed process; it doubles with each further restart of the
+/// same role, up to [`RESTART_BACKOFF_MAX`].
+const RESTART_BACKOFF: Duration = Duration::from_millis(50);
+/// The longest wait before a restart (reached at the 6th restart of a role), so that a process restarted
+/// many times in a long run is not left out for seconds or minutes.
+const RESTART_BACKOFF_MAX: Duration = Duration::from_millis(1600);
+
+/// The wait before restart number `attempt` (1, 2, …) of a role: min(50 ms · 2^(attempt − 1), 1.6 s).
+fn restart_backoff(attempt: u32) -> Duration {
+    let factor = 2u32.checked_pow(attempt.saturating_sub(1)).unwrap_or(u32::MAX);
+    RESTART_BACKOFF.saturating_mul(factor).min(RESTART_BACKOFF_MAX)
+}
+
+enum Event {
+    Line(usize, String),
+    Closed(usize),
+}
+
+pub(super) struct Proc {
+    pub(super) role: Role,
+    /// Its flags (a restart uses them again).
+    pub(super) flags: Vec<String>,
+    /// It crashed and was restarted (a newer entry of the same role took its place).
+    pub(super) replaced: bool,
+    pub(super) child: Child,
+    ready: bool,
+    /// Its stdout reached end of file (every line it printed has been handled).
+    closed: bool,
+    exit: Option<std::process::ExitStatus>,
+    pub(super) summary: Option<serde_json::Value>,
+    /// emitter-sim with `--linger`: it published the last step (and stays to serve replays).
+    finished: bool,
+}
+
+impl Proc {
+    /// It exited because a newer instance took over (`uavloc swap`): no restart.
+    fn handed_over(&self) -> bool {
+        self.exit.is_some_and(|s| s.success()) && self.summary.as_ref().is_some_and(|s| !s["handed_over_at"].is_null())
+    }
+
+    /// Its role's decision on its exit (`None` while it runs, once it was replaced, and for a successful
+    /// exit whose last lines — its summary — are not all in yet), given the role's `restarts` so far.
+    fn decision(&self, restarts: u32, max_restarts: u32) -> Option<RestartDecision> {
+        let status = self.exit?;
+        if self.replaced || (status.success() && !self.closed) {
+            return None;
+        }
+        Some(self.role.on_exit(status, self.handed_over(), restarts, max_restarts))
+    }
+
+    fn needs_restart(&self) -> bool {
+        matches!(self.decision(0, u32::MAX), Some(RestartDecision::Restart { .. }))
+    }
+
+    pub(super) fn describe_exit(&self) -> String {
+        self.exit.map_or_else(|| "still running".into(), describe)
+    }
+}
+
+/// The running children and the lines they print on stdout.
+pub(super) struct Supervisor {
+    pub(super) procs: Vec<Proc>,
+    tx: Sender<Event>,
+    rx: Receiver<Event>,
+    pub(super) record: Option<String>,
+    domain: Domain,
+    /// The monitor's JSON-lines log, where restarts are written too.
+    log: Option<PathBuf>,
+    max_restarts: u32,
+    pub(super) restarts: u64,
+    /// CPU use of the idle children before the run (see [`LaunchArgs::idle_probe_ms`]).
+    pub(super) idle_cpu: BTreeMap<String, f64>,
+}
+
+impl Supervisor {
+    pub(super) fn new(domain: Domain, log: Option<PathBuf>, max_restarts: u32) -> Self {
+        let (tx, rx) = mpsc::channel();
+        Self {
+            procs: Vec::new(),
+            tx,
+            rx,
+            record: None,
+            domain,
+            log,
+            max_restarts,
+            restarts: 0,
+            idle_cpu: BTreeMap::new(),
+        }
+    }
+
+    /// The current instance of `role`.
+    pub(super) fn index(&self, role: Role) -> usize {
+        self.procs.iter().rposition(|p| p.role == role).expect("a started role")
+    }
+
+    /// Starts `uavloc process <role> <flags> --supervised` with stdout piped to a reader thread.
+    pub(super) fn spawn(&mut self, role: Role, flags: Vec<String>) -> Result<(), CliError> {
+        let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("cannot find this executable: {e}")))?;
+        let mut command = std::process::Command::new(exe);
+        command
+            .arg("process")
+            .arg(role.name())
+            .args(flags.iter())
+            .arg("--supervised")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .process_group(0);
+        // SAFETY: the closure runs in the forked child before exec and only makes async-signal-safe system
+        // calls (prctl, getppid, kill on itself); it allocates nothing and touches no lock.
+        #[cfg(target_os = "linux")]
+        unsafe {
+            let parent = libc::getpid();
+            command.pre_exec(move || {
+                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+                if libc::getppid() != parent {
+                    // The launcher died between fork and prctl.
+                    libc::kill(libc::getpid(), libc::SIGTERM);
+                }
+                Ok(())
+            });
+        }
+        let mut child = command.spawn().map_err(|e| CliError::Failed(format!("cannot start the {role}: {e}")))?;
+        let stdout = child.stdout.take().expect("piped stdout");
+        let index = self.procs.len();
+        let tx = self.tx.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(Event::Line(index, line)).is_err() {
+                    return;
+                }
+            }
+            let _ = tx.send(Event::Closed(index));
+        });
+        self.procs.push(Proc {
+            role,
+            flags,
+            replaced: false,
+            child,
+            ready: false,
+            closed: false,
+            exit: None,
+            summary: None,
+            finished: false,
+        });
+        Ok(())
+    }
+
+    fn handle(&mut self, event: Event) {
+        match event {
+            Event::Line(i, line) => {
+                let p = &mut self.procs[i];
+                match SupervisorLine::parse(&line) {
+                    Some(SupervisorLine::Ready) => p.ready = true,
+                    Some(SupervisorLine::Finished) => p.finished = true,
+                    Some(SupervisorLine::Summary(v)) => p.summary = Some(v),
+                    Some(SupervisorLine::Record(json)) => self.record = Some(json),
+                    Some(SupervisorLine::TakeOver { .. }) | None => {}
+                }
+            }
+            Event::Closed(i) => {
+                // stdout closed: the child is exiting; reap it.
+                self.procs[i].closed = true;
+                if let Ok(status) = self.procs[i].child.wait() {
+                    self.procs[i].exit = Some(status);
+                }
+            }
+        }
+    }
+
+    /// Handles events for up to [`TICK`], reaps exited children, and reports a pending signal.
+    fn pump(&mut self) -> Result<(), CliError> {
+        match self.rx.recv_timeout(TICK) {
+            Ok(event) => {
+                self.handle(event);
+                while let Ok(event) = self.rx.try_recv() {
+                    self.handle(event);
+                }
+            }
+            Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => {}
+        }
+        for p in &mut self.procs {
+            if p.exit.is_none()
+                && let Ok(Some(status)) = p.child.try_wait()
+            {
+                p.exit = Some(status);
+            }
+        }
+        match SIGNAL.load(Ordering::SeqCst) {
+            0 => Ok(()),
+            s => Err(CliError::Failed(format!("interrupted by {}; stopped every process", signal_name(s)))),
+        }
+    }
+
+    /// Fails if a child has exited although it should still run (`expected` lists the roles allowed to
+    /// have finished, with exit code 0).
+    fn check_exits(&self, finished_ok: &[Role]) -> Result<(), CliError> {
+        for p in self.procs.iter().filter(|p| !p.replaced) {
+            if let Some(status) = p.exit
+                && !(finished_ok.contains(&p.role) && status.success())
+            {
+                return Err(CliError::Failed(format!(
+                    "the {} process stopped unexpectedly ({})",
+                    p.role,
+                    p.describe_exit()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn wait_ready(&mut self, role: Role) -> Result<(), CliError> {
+        let i = self.index(role);
+        let deadline = Instant::now() + READY_TIMEOUT;
+        while !self.procs[i].ready {
+            self.pump()?;
+            self.check_exits(&[])?;
+            if Instant::now() > deadline {
+                return Err(CliError::Failed(format!("the {role} process did not get ready within {READY_TIMEOUT:?}")));
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs until emitter-sim and the monitor have finished, restarting the processes that crash; the
+    /// monitor gets `monitor_grace` after emitter-sim's end (its `finished`, or its exit) to record the
+    /// last step. A lingering emitter-sim (`--linger`) replays the run to a monitor that fell behind or was
+    /// restarted while the run ended, and is stopped with the others afterwards.
+    pub(super) fn wait_for_the_end(&mut self, monitor_grace: Duration) -> Result<(), CliError> {
+        let mut emitter_done_at = None;
+        loop {
+            self.pump()?;
+            self.restart_crashed()?;
+            let (emitter, monitor) = (self.index(Role::EmitterSim), self.index(Role::Monitor));
+            // Only a successful exit is the end: one that crashed while another process was being restarted
+            // (after `restart_crashed` went past it) is restarted in the next round.
+            let ended = |i: usize| self.procs[i].exit.is_some_and(|s| s.success());
+            if ended(emitter) || self.procs[emitter].finished {
+                let since = *emitter_done_at.get_or_insert_with(Instant::now);
+                if ended(monitor) {
+                    return Ok(());
+                }
+                if since.elapsed() > monitor_grace {
+                    return Err(CliError::Failed(format!(
+                        "the monitor did not record the last step within {monitor_grace:?} of the end of the run"
+                    )));
+                }
+            }
+        }
+    }
+
+    /// Restarts every current process that exited although it should still run — all but emitter-sim and
+    /// the monitor after a successful end. A process that exits with code 2 (bad input) or 3 (the run cannot
+    /// go on, e.g. two UAVs collided), or has crashed
+    /// `max_restarts` times fails the launch.
+    fn restart_crashed(&mut self) -> Result<(), CliError> {
+        for i in 0..self.procs.len() {
+            let role = self.procs[i].role;
+            let restarts = self.procs.iter().filter(|q| q.role == role && q.replaced).count() as u32;
+            match self.procs[i].decision(restarts, self.max_restarts) {
+                None | Some(RestartDecision::Done) => {}
+                Some(RestartDecision::Restart { attempt }) => self.restart(i, attempt)?,
+                Some(RestartDecision::Fail(why)) => return Err(CliError::Failed(why)),
+            }
+        }
+        Ok(())
+    }
+
+    /// Restarts process `i` (attempt `attempt`): writes the restart to the log, removes the dead node's
+    /// iceoryx2 resources, waits [`restart_backoff`]`(attempt)`, starts the same role with the same flags (a
+    /// monitor with `--resume`) and waits until it is ready — or until another process needs a restart: a
+    /// restarted emitter-sim gets ready only once the whole pipeline is connected, so it would wait in vain
+    /// for a process that died with it (two processes killed at once); the new process then gets ready by
+    /// itself. If the new process fails to get ready, it is left exited: the next round restarts it again
+    /// (and counts the attempt).
+    fn restart(&mut self, i: usize, attempt: u32) -> Result<(), CliError> {
+        let backoff = restart_backoff(attempt);
+        let (role, exit, pid) = (self.procs[i].role, self.procs[i].describe_exit(), self.procs[i].child.id());
+        eprintln!(
+            "warning: the {role} process (pid {pid}) stopped unexpectedly ({exit}); restarting it in {backoff:?} \
+             (attempt {attempt} of {})",
+            self.max_restarts
+        );
+        self.write_log(serde_json::json!({
+            "event": "restart", "t_ns": protocol::now_ns(), "role": role.name(), "pid": pid, "exit": exit,
+            "attempt": attempt, "backoff_ms": backoff.as_millis() as u64,
+        }));
+        self.procs[i].replaced = true;
+        self.restarts += 1;
+        resources::remove_dead_nodes(&self.domain).map_err(CliError::Failed)?;
+        let until = Instant::now() + backoff;
+        while Instant::now() < until {
+            self.pump()?;
+        }
+        let mut flags = self.procs[i].flags.clone();
+        if let Some(flag) = role.restart_flag()
+            && !flags.iter().any(|f| f == flag)
+        {
+            flags.push(flag.into());
+        }
+        self.spawn(role, flags)?;
+        let new = self.procs.len() - 1;
+        let deadline = Instant::now() + READY_TIMEOUT;
+        while !self.procs[new].ready && self.procs[new].exit.is_none() {
+            self.pump()?;
+            if self.procs.iter().any(Proc::needs_restart) {
+                break;
+            }
+            if Instant::now() > deadline {
+                return Err(CliError::Failed(format!(
+                    "the restarted {role} did not get ready within {READY_TIMEOUT:?}"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Appends one event to the monitor's JSON-lines log (one `write`, like the monitor's own lines).
+    fn write_log(&self, event: serde_json::Value) {
+        use std::io::Write as _;
+        if let Some(path) = &self.log
+            && let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(path)
+        {
+            let _ = f.write_all(format!("{event}\n").as_bytes());
+        }
+    }
+
+    /// SIGTERM to every running child, then SIGKILL to those still running after [`STOP_GRACE`]; drains
+    /// their last lines (summaries).
+    pub(super) fn stop_all(&mut self) {
+        for p in &self.procs {
+            if p.exit.is_none() {
+                // SAFETY: kill(2) on a child we spawned and have not reaped (its pid cannot have been reused).
+                unsafe { libc::kill(p.child.id() as libc::pid_t, libc::SIGTERM) };
+            }
+        }
+        let deadline = Instant::now() + STOP_GRACE;
+        while self.procs.iter().any(|p| p.exit.is_none()) && Instant::now() < deadline {
+            let _ = self.pump();
+        }
+        for p in &mut self.procs {
+            if p.exit.is_none() {
+                eprintln!("warning: the {} process ignored SIGTERM; killing it", p.role);
+                let _ = p.child.kill();
+                p.exit = p.child.wait().ok();
+            }
+        }
+        // Every child has exited: its reader thread forwards the last lines (summaries) and the end of
+        // its pipe.
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while self.procs.iter().any(|p| !p.closed) && Instant::now() < deadline {
+            match self.rx.recv_timeout(TICK) {
+                Ok(event) => self.handle(event),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+        }
+    }
+}
+
+/// CPU use (% of one core) of each running child over `window`, from /proc (the children are idle: they
+/// wait for messages that do not come yet).
+pub(super) fn probe_idle_cpu(sup: &Supervisor, window: Duration) -> BTreeMap<String, f64> {
+    use crate::bench::sys::process_cpu_seconds;
+    let before: Vec<(String, u32, Option<f64>)> =
+        sup.procs.iter().map(|p| (p.role.to_string(), p.child.id(), process_cpu_seconds(p.child.id()).ok())).collect();
+    let start = Instant::now();
+    std::thread::sleep(window);
+    let elapsed = start.elapsed().as_secs_f64();
+    before
+        .into_iter()
+        .filter_map(|(role, pid, t0)| Some((role, 100.0 * (process_cpu_seconds(pid).ok()? - t0?) / elapsed)))
+        .collect()
+}

@@ -1,0 +1,68 @@
+//! The flags every process takes for its link (and `uavloc launch` passes on): transport and waiting.
+
+use protocol::{TransportKind, WaitMode, WaitPolicy};
+
+/// Default busy-poll budget of `--wait spin-then-block` when `--spin-us` is not given, µs.
+pub const DEFAULT_SPIN_US: u64 = 100;
+
+/// The transport and wait flags every process (and `uavloc launch`, which passes them on) takes.
+#[derive(clap::Args, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LinkArgs {
+    /// Transport of the topics: iceoryx2 (zero-copy shared memory) | uds (Unix-domain datagram sockets,
+    /// the benchmark baseline). Every process of a domain must use the same one.
+    #[arg(long, value_name = "KIND", default_value = "iceoryx2")]
+    pub transport: TransportKind,
+    /// How to wait for the next message: block (no CPU while idle) | spin (busy-poll, yielding the CPU;
+    /// never blocks) | spin-then-block (busy-poll --spin-us, then block). Default: block, or
+    /// spin-then-block when --spin-us is given.
+    #[arg(long, value_name = "MODE")]
+    pub wait: Option<WaitMode>,
+    /// Busy-poll budget of spin-then-block, microseconds (default 100 with --wait spin-then-block).
+    #[arg(long, value_name = "US")]
+    pub spin_us: Option<u64>,
+}
+
+impl LinkArgs {
+    /// The wait policy of the flags (see [`LinkArgs::wait`]).
+    pub fn policy(&self) -> WaitPolicy {
+        let mode = self.wait.unwrap_or(match self.spin_us {
+            Some(us) if us > 0 => WaitMode::SpinThenBlock,
+            _ => WaitMode::Block,
+        });
+        WaitPolicy::new(mode, self.spin_us.unwrap_or(DEFAULT_SPIN_US))
+    }
+
+    /// The same settings with the policy spelled out (what [`to_flags`](Self::to_flags) parses back to).
+    pub fn normalized(&self) -> Self {
+        let policy = self.policy();
+        LinkArgs { transport: self.transport, wait: Some(policy.mode), spin_us: Some(policy.spin.as_micros() as u64) }
+    }
+
+    /// The flags that reproduce these settings on a child process's command line (the policy spelled
+    /// out: `--wait` and `--spin-us` always).
+    pub fn to_flags(&self) -> Vec<String> {
+        let policy = self.policy();
+        let mut flags = vec!["--transport".to_string(), self.transport.name().into(), "--wait".into()];
+        flags.push(policy.mode.name().into());
+        flags.extend(["--spin-us".to_string(), policy.spin.as_micros().to_string()]);
+        flags
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    #[test]
+    fn link_args_policy_and_flags() {
+        let a = LinkArgs::default();
+        assert_eq!(a.policy().mode, WaitMode::Block);
+        let a = LinkArgs { spin_us: Some(50), ..LinkArgs::default() };
+        assert_eq!(a.policy(), WaitPolicy::new(WaitMode::SpinThenBlock, 50));
+        let a = LinkArgs { wait: Some(WaitMode::SpinThenBlock), ..LinkArgs::default() };
+        assert_eq!(a.policy().spin, Duration::from_micros(DEFAULT_SPIN_US));
+        let a = LinkArgs { transport: TransportKind::Uds, wait: Some(WaitMode::Spin), spin_us: None };
+        assert_eq!(a.to_flags(), ["--transport", "uds", "--wait", "spin", "--spin-us", "100"]);
+    }
+}

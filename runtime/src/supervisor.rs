@@ -1,0 +1,122 @@
+//! What a supervised process tells its supervisor (`uavloc launch`, `uavloc swap`) on stdout: one typed
+//! line per event, written by the process with [`tell`] and read by the supervisor with
+//! [`SupervisorLine::parse`] — one definition for both sides.
+//!
+//! | line | when |
+//! |---|---|
+//! | `ready` | subscribed and attached: the next process may start |
+//! | `takeover {"from_step": k}` | a swapped-in process takes over from step k |
+//! | `finished` | emitter-sim published the last step (it lingers for replays) |
+//! | `record {json}` | the monitor's run record, at its end |
+//! | `summary {json}` | the process's summary, at its end |
+
+use std::io::Write as _;
+use std::process::ExitCode;
+
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::exit::{EXIT_INTERRUPTED, ProcessError};
+
+/// One line from a supervised process.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SupervisorLine {
+    /// Ready: subscribed and attached.
+    Ready,
+    /// A swapped-in process takes over from this step.
+    TakeOver {
+        /// The first step it handles.
+        from_step: u64,
+    },
+    /// emitter-sim published the last step.
+    Finished,
+    /// The monitor's run record (JSON text, kept verbatim: the launcher re-reads its floats exactly).
+    Record(String),
+    /// The process's summary.
+    Summary(Value),
+}
+
+impl SupervisorLine {
+    /// The line as written.
+    pub fn to_line(&self) -> String {
+        match self {
+            SupervisorLine::Ready => "ready".into(),
+            SupervisorLine::TakeOver { from_step } => {
+                format!("takeover {}", serde_json::json!({"from_step": from_step}))
+            }
+            SupervisorLine::Finished => "finished".into(),
+            SupervisorLine::Record(json) => format!("record {json}"),
+            SupervisorLine::Summary(v) => format!("summary {v}"),
+        }
+    }
+
+    /// Reads a line (`None`: not a supervisor line, e.g. other output).
+    pub fn parse(line: &str) -> Option<Self> {
+        match line {
+            "ready" => return Some(SupervisorLine::Ready),
+            "finished" => return Some(SupervisorLine::Finished),
+            _ => {}
+        }
+        if let Some(json) = line.strip_prefix("takeover ") {
+            let v: Value = serde_json::from_str(json).ok()?;
+            return Some(SupervisorLine::TakeOver { from_step: v["from_step"].as_u64()? });
+        }
+        if let Some(json) = line.strip_prefix("record ") {
+            return Some(SupervisorLine::Record(json.to_string()));
+        }
+        if let Some(json) = line.strip_prefix("summary ") {
+            return serde_json::from_str(json).ok().map(SupervisorLine::Summary);
+        }
+        None
+    }
+}
+
+/// Writes `line` to stdout (and flushes) when `supervised`.
+pub fn tell(supervised: bool, line: &SupervisorLine) {
+    if supervised {
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{}", line.to_line());
+        let _ = out.flush();
+    }
+}
+
+/// Ends a process's `main`: on success the summary goes to the supervisor (`summary {json}`) and the
+/// exit code is 0; on an error one `error: <role>: …` line goes to stderr and the exit code is the
+/// error's (2 bad input, 1 failure, 3 unrecoverable, 130 interrupted).
+pub fn exit_with<S: Serialize>(role: &str, supervised: bool, result: Result<S, ProcessError>) -> ExitCode {
+    match result {
+        Ok(summary) => {
+            tell(supervised, &SupervisorLine::Summary(serde_json::to_value(&summary).unwrap_or(Value::Null)));
+            ExitCode::SUCCESS
+        }
+        Err(ProcessError::Interrupted) => {
+            eprintln!("{role}: stopped by a signal before the end of the run");
+            ExitCode::from(EXIT_INTERRUPTED)
+        }
+        Err(e) => {
+            eprintln!("error: {role}: {e}");
+            ExitCode::from(e.code())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_round_trip() {
+        for line in [
+            SupervisorLine::Ready,
+            SupervisorLine::TakeOver { from_step: 41 },
+            SupervisorLine::Finished,
+            SupervisorLine::Record("{\"steps\":[1.0000000000000002]}".into()),
+            SupervisorLine::Summary(serde_json::json!({"role": "planner", "published": 3})),
+        ] {
+            assert_eq!(SupervisorLine::parse(&line.to_line()), Some(line.clone()), "{}", line.to_line());
+        }
+        for other in ["", "readyish", "takeover {}", "summary not json", "estimator: hello"] {
+            assert_eq!(SupervisorLine::parse(other), None, "{other}");
+        }
+    }
+}
