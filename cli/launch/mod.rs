@@ -115,6 +115,8 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         emitter_sim::process::step_interval(sc.dt, args.time_scale, sc.steps).map_err(CliError::Input)?;
     }
     let domain = launch_domain(args.domain.as_deref())?;
+    // Held until the launch returns: a second launch into this domain is refused here, atomically.
+    let _lock = state_dir::DomainLock::acquire(&domain)?;
     protocol::transport::quiet_logs();
     resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
     let existing = resources::list(&domain).map_err(CliError::Failed)?;

@@ -1,36 +1,113 @@
-//! The private directory of one launch.
+//! The launcher's files: the per-user state root `$TMPDIR/uavloc-<uid>` (mode 0700), the lock of a
+//! domain held for a launch's lifetime ([`DomainLock`]), and the private directory of one launch
+//! ([`StateDir`]); state directories of launchers that died (SIGKILL) are removed by the next launch.
 
-use std::path::PathBuf;
+use std::fs::File;
+use std::os::fd::AsRawFd as _;
+use std::path::{Path, PathBuf};
 
 use protocol::services::Domain;
 
 use crate::error::CliError;
 
+fn failed(what: &Path, e: std::io::Error) -> CliError {
+    CliError::Failed(format!("the launch's state directory {}: {e}", what.display()))
+}
+
+/// `$TMPDIR/uavloc-<uid>`, created with mode 0700 if missing; refused if it is not this user's 0700
+/// directory.
+pub(super) fn state_root() -> Result<PathBuf, CliError> {
+    use std::os::unix::fs::{DirBuilderExt as _, MetadataExt as _};
+    // SAFETY: getuid has no preconditions and cannot fail.
+    let uid = unsafe { libc::getuid() };
+    let parent = std::env::temp_dir().join(format!("uavloc-{uid}"));
+    match std::fs::DirBuilder::new().mode(0o700).create(&parent) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+        Err(e) => return Err(failed(&parent, e)),
+    }
+    let meta = std::fs::symlink_metadata(&parent).map_err(|e| failed(&parent, e))?;
+    if !meta.is_dir() || meta.uid() != uid || meta.mode() & 0o077 != 0 {
+        return Err(CliError::Failed(format!(
+            "the launch's state directory {} is not a directory of this user with mode 0700; remove it",
+            parent.display()
+        )));
+    }
+    Ok(parent)
+}
+
+/// The exclusive lock of a domain, held while a launch runs in it: `domain-<name>.lock` in the state
+/// root, `flock(LOCK_EX | LOCK_NB)`. The kernel releases it when the launcher exits, however it exits
+/// (SIGKILL included), so a lock is never stale. Two launches into one domain at the same instant: one
+/// gets it, the other is refused (exit 2) before it touches the domain.
+pub(super) struct DomainLock {
+    _file: File,
+}
+
+impl DomainLock {
+    pub(super) fn acquire(domain: &Domain) -> Result<Self, CliError> {
+        let path = state_root()?.join(format!("domain-{domain}.lock"));
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(|e| failed(&path, e))?;
+        // SAFETY: flock on a file descriptor we own, valid for the call.
+        let rc = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+        if rc != 0 {
+            let e = std::io::Error::last_os_error();
+            if e.raw_os_error() == Some(libc::EWOULDBLOCK) {
+                return Err(CliError::Input(format!(
+                    "domain {domain} is in use (another launch holds {}); choose another --domain",
+                    path.display()
+                )));
+            }
+            return Err(failed(&path, e));
+        }
+        Ok(Self { _file: file })
+    }
+}
+
+/// Whether process `pid` exists (a zombie counts as gone).
+fn pid_alive(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| s.rsplit_once(") ").map(|(_, rest)| !rest.starts_with('Z')))
+        .unwrap_or(false)
+}
+
+/// Removes the state directories `launch-<pid>-<domain>` in `root` whose launcher is gone (it was killed
+/// and could not clean up); returns how many.
+pub(super) fn remove_stale_state_dirs(root: &Path) -> usize {
+    let Ok(entries) = std::fs::read_dir(root) else { return 0 };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix("launch-"))
+            .and_then(|rest| rest.split('-').next())
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !pid_alive(pid) && std::fs::remove_dir_all(entry.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
 /// The private directory of one launch (checkpoints, and the monitor's log when `--log` is not given):
-/// `$TMPDIR/uavloc-<uid>/launch-<pid>`, mode 0700 (as its parent), removed when dropped.
+/// `$TMPDIR/uavloc-<uid>/launch-<pid>-<domain>`, mode 0700 (as its parent), removed when dropped.
 pub(super) struct StateDir(PathBuf);
 
 impl StateDir {
     pub(super) fn create(domain: &Domain) -> Result<Self, CliError> {
-        use std::os::unix::fs::{DirBuilderExt as _, MetadataExt as _};
-        // SAFETY: getuid has no preconditions and cannot fail.
-        let uid = unsafe { libc::getuid() };
-        let parent = std::env::temp_dir().join(format!("uavloc-{uid}"));
-        let failed = |what: &PathBuf, e: std::io::Error| {
-            CliError::Failed(format!("the launch's state directory {}: {e}", what.display()))
-        };
-        match std::fs::DirBuilder::new().mode(0o700).create(&parent) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
-            Err(e) => return Err(failed(&parent, e)),
-        }
-        let meta = std::fs::symlink_metadata(&parent).map_err(|e| failed(&parent, e))?;
-        if !meta.is_dir() || meta.uid() != uid || meta.mode() & 0o077 != 0 {
-            return Err(CliError::Failed(format!(
-                "the launch's state directory {} is not a directory of this user with mode 0700; remove it",
-                parent.display()
-            )));
-        }
+        use std::os::unix::fs::DirBuilderExt as _;
+        let parent = state_root()?;
+        remove_stale_state_dirs(&parent);
         let dir = parent.join(format!("launch-{}-{domain}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir); // a leftover of an earlier launch with the same pid
         std::fs::DirBuilder::new().mode(0o700).create(&dir).map_err(|e| failed(&dir, e))?;

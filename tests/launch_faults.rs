@@ -1,0 +1,72 @@
+//! The faults an adversarial user found in `uavloc launch` (issue 16), each reproduced here first: two
+//! launches into one domain at the same instant; state directories left by a SIGKILLed launcher.
+
+mod common;
+
+use std::process::{Command, Stdio};
+
+use common::{UAVLOC, assert_nothing_left, assert_same_run, domain, json_of};
+use serde_json::Value;
+
+/// Two launches into one domain started at the same instant: exactly one is refused (exit 2, one line
+/// naming the domain), the other completes with exactly its own seed's result (before, in 4 of 5 tries
+/// one launch exited 0 with a trajectory that was neither seed's).
+#[test]
+fn two_launches_into_one_domain_at_once_refuse_one_and_keep_the_other_exact() {
+    for attempt in 0..3 {
+        let d = domain("race", &attempt.to_string());
+        let start = |seed: &str| {
+            Command::new(UAVLOC)
+                .args(["launch", "--headless", "--json", "--steps", "20", "--seed", seed, "--domain", &d])
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("start uavloc launch")
+        };
+        let (a, b) = (start("7"), start("8"));
+        let (a, b) = (a.wait_with_output().unwrap(), b.wait_with_output().unwrap());
+        let codes = (a.status.code(), b.status.code());
+        assert!(
+            codes == (Some(0), Some(2)) || codes == (Some(2), Some(0)),
+            "attempt {attempt}: exit codes {codes:?}\nA: {}\nB: {}",
+            String::from_utf8_lossy(&a.stderr),
+            String::from_utf8_lossy(&b.stderr)
+        );
+        let (won, lost, seed) = if codes.0 == Some(0) { (&a, &b, "7") } else { (&b, &a, "8") };
+        let err = String::from_utf8_lossy(&lost.stderr);
+        assert!(err.contains("in use") && err.contains(&d) && err.lines().count() == 1, "{err}");
+        assert!(lost.stdout.is_empty());
+        let run: Value = serde_json::from_slice(&won.stdout).expect("the winner's JSON");
+        let sim = json_of(&["simulate", "--json", "--steps", "20", "--seed", seed]);
+        assert_same_run(&sim, &run, &format!("attempt {attempt}, seed {seed}"));
+        assert_eq!(run["rejected"].as_u64(), Some(0), "no foreign message was seen");
+        assert_nothing_left(&d);
+    }
+}
+
+/// A state directory whose launcher died (SIGKILL) is removed by the next launch (before, it stayed
+/// forever, with the monitor's log in it).
+#[test]
+fn a_dead_launchers_state_directory_is_removed_by_the_next_launch() {
+    // SAFETY: getuid has no preconditions.
+    let uid = unsafe { libc::getuid() };
+    let root = std::env::temp_dir().join(format!("uavloc-{uid}"));
+    std::fs::create_dir_all(&root).unwrap();
+    // A pid that no longer exists: a child that has exited and been reaped.
+    let mut gone = Command::new("true").spawn().unwrap();
+    let dead_pid = gone.id();
+    gone.wait().unwrap();
+    let stale = root.join(format!("launch-{dead_pid}-stale-{}", std::process::id()));
+    std::fs::create_dir_all(&stale).unwrap();
+    std::fs::write(stale.join("monitor.jsonl"), "{}\n").unwrap();
+    // A directory of a live process stays.
+    let live = root.join(format!("launch-{}-live", std::process::id()));
+    std::fs::create_dir_all(&live).unwrap();
+    let d = domain("stale", "dirs");
+    let out =
+        Command::new(UAVLOC).args(["launch", "--headless", "--json", "--steps", "2", "--domain", &d]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!stale.exists(), "the dead launcher's directory is still there");
+    assert!(live.exists(), "a live process's directory was removed");
+    std::fs::remove_dir_all(&live).unwrap();
+}
