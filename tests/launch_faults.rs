@@ -70,3 +70,36 @@ fn a_dead_launchers_state_directory_is_removed_by_the_next_launch() {
     assert!(live.exists(), "a live process's directory was removed");
     std::fs::remove_dir_all(&live).unwrap();
 }
+
+/// A scenario whose start cannot be localised (three collinear UAVs; a σ so large no fix means anything)
+/// is refused up front by `simulate` and `launch`: exit 2, one line naming the key (before, `launch`
+/// ground for a minute through five emitter-sim restarts and ended with a misleading "no command").
+#[test]
+fn a_start_that_cannot_be_localised_is_refused_up_front() {
+    let dir = common::scratch("unlocalisable");
+    for (name, text, key) in [
+        ("collinear", "uavs = [[0.0, 0.0], [5000.0, 0.0], [10000.0, 0.0]]\n", "uavs"),
+        ("noisy", "sigma = 1e9\n", "sigma"),
+    ] {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let path = path.to_str().unwrap();
+        let d = domain("unloc", name);
+        for args in [
+            vec!["simulate", "--scenario", path],
+            vec!["launch", "--headless", "--json", "--steps", "50", "--scenario", path, "--domain", &d],
+        ] {
+            let started = std::time::Instant::now();
+            let out = Command::new(UAVLOC).args(&args).output().unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+            assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+            assert!(err.contains(&format!("key `{key}`")) && err.contains("cannot be localised"), "{err}");
+            assert!(out.stdout.is_empty());
+            // Refused before anything starts: no restarts, no minute of grinding (generous bound).
+            assert!(started.elapsed() < std::time::Duration::from_secs(10), "{args:?} took {:?}", started.elapsed());
+        }
+        assert_nothing_left(&d);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -440,7 +440,50 @@ pub fn load_scenario(path: Option<&Path>, steps: Option<usize>, seed: Option<u64
         sc.seed = s;
     }
     sc.validate()?;
+    sc.check_start()?;
     Ok(sc)
+}
+
+/// The factor of [`Scenario::check_start`]: a start whose CRLB at the truth is this many times the UAVs'
+/// mean distance to the emitter or more is refused.
+pub const START_CRLB_FACTOR: f64 = 100.0;
+
+impl Scenario {
+    /// Whether the run can localise the emitter from its start: Chan must solve the noise-free step 0
+    /// (it refuses three collinear UAVs, for one), and the CRLB at the true emitter must be below
+    /// [`START_CRLB_FACTOR`] = 100 times the UAVs' mean distance to it. The bound of n fused snapshots of
+    /// one geometry shrinks like 1/√n, so beyond that factor not even 10 000 snapshots would bring it
+    /// below the range: no fix can mean anything, and Chan has no physical root for most draws. A run that fails here would fail at step 0 every time: it is refused up front,
+    /// naming the key to change (`uavloc simulate` and `launch`, and every process, through
+    /// [`load_scenario`]).
+    pub fn check_start(&self) -> Result<(), ScenarioError> {
+        let noise = self.noise_model()?;
+        let sensors = tdoa::Sensors::new(&self.uavs, noise).map_err(|e| invalid("uavs", e.to_string()))?;
+        let z = self.emitter_position();
+        let d = sensors.range_differences(&z);
+        let why = |what: String| {
+            invalid(
+                "uavs",
+                format!(
+                    "the emitter cannot be localised from the start of the run: {what}; move the UAVs (or the emitter)"
+                ),
+            )
+        };
+        tdoa::chan(&sensors, &d, Some(z)).map_err(|e| why(e.to_string()))?;
+        let bound = tdoa::crlb(&sensors, &z).map_err(|e| why(e.to_string()))?.crlb_m;
+        let range = sensors.mean_range(&z);
+        if bound.is_nan() || bound >= START_CRLB_FACTOR * range {
+            return Err(invalid(
+                "sigma",
+                format!(
+                    "the emitter cannot be localised from the start of the run: the CRLB at the true emitter \
+                     ({bound:.3e} m) is not below {START_CRLB_FACTOR} times the UAVs' mean distance to it \
+                     ({range:.0} m); lower sigma"
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -548,6 +591,16 @@ mod tests {
     use super::*;
 
     const NOMINAL: &str = include_str!("../../scenarios/nominal.toml");
+
+    #[test]
+    fn a_start_that_cannot_be_localised_is_refused() {
+        Scenario::default().check_start().unwrap();
+        Scenario { sigma: RangeSigma::Uniform(500.0), ..Scenario::default() }.check_start().unwrap();
+        let collinear = Scenario { uavs: vec![[0.0, 0.0], [5000.0, 0.0], [10000.0, 0.0]], ..Scenario::default() };
+        assert_eq!(collinear.check_start().unwrap_err().key(), Some("uavs"));
+        let noisy = Scenario { sigma: RangeSigma::Uniform(1e9), ..Scenario::default() };
+        assert_eq!(noisy.check_start().unwrap_err().key(), Some("sigma"));
+    }
 
     #[test]
     fn nominal_file_is_the_default() {
