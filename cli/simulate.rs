@@ -86,6 +86,9 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     if let Some(kind) = args.estimator {
         sc.estimator = kind;
     }
+    if let Some(dir) = &args.out {
+        crate::output::check_out_dir("--out", dir)?;
+    }
     let run = experiments::closed_loop::run_closed_loop(&sc, args.objective, args.solver, |_| {})
         .map_err(|e| CliError::Failed(e.to_string()))?;
     let written = match &args.out {

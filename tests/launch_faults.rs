@@ -103,3 +103,41 @@ fn a_start_that_cannot_be_localised_is_refused_up_front() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--out` is checked before the run (before, a 2 000-step launch was computed, then the monitor failed
+/// on the path, was restarted five times and the run's JSON was lost), and a failure to write the files
+/// at the end no longer loses the run: the JSON is printed, the exit code is 1, the error names the path.
+#[test]
+fn out_is_checked_before_the_run_and_a_late_failure_keeps_the_json() {
+    let dir = common::scratch("out-checks");
+    let file = dir.join("f");
+    std::fs::write(&file, "not a directory").unwrap();
+    let f = file.to_str().unwrap();
+    for args in [
+        vec!["launch", "--headless", "--json", "--steps", "2000", "--out", f],
+        vec!["simulate", "--json", "--steps", "2000", "--out", f],
+    ] {
+        let started = std::time::Instant::now();
+        let out = Command::new(UAVLOC).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("--out") && err.contains("not a directory") && err.lines().count() == 1, "{err}");
+        assert!(started.elapsed() < std::time::Duration::from_secs(5), "{args:?}: the run was computed first");
+    }
+    // The directory is fine at the start and replaced by a file during the run.
+    let late = dir.join("late");
+    let d = domain("out", "late");
+    let mut launch =
+        common::Launch::start(&d, &dir, &["--steps", "40", "--step-delay-ms", "20", "--out", late.to_str().unwrap()]);
+    launch.wait_for_step(3, std::time::Duration::from_secs(30));
+    std::fs::remove_dir_all(&late).unwrap();
+    std::fs::write(&late, "in the way").unwrap();
+    let (status, stdout, stderr) = launch.finish();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    let run: Value = serde_json::from_str(&stdout).expect("the run's JSON is printed");
+    assert_eq!(run["steps"].as_array().unwrap().len(), 41);
+    assert_eq!(run["restarts"].as_u64(), Some(0), "the monitor is not restarted for it");
+    assert!(stderr.contains("the run completed, but") && stderr.contains(late.to_str().unwrap()), "{stderr}");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -114,6 +114,9 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         }
         emitter_sim::process::step_interval(sc.dt, args.time_scale, sc.steps).map_err(CliError::Input)?;
     }
+    if let Some(dir) = &args.out {
+        crate::output::check_out_dir("--out", dir)?;
+    }
     let domain = launch_domain(args.domain.as_deref())?;
     // Held until the launch returns: a second launch into this domain is refused here, atomically.
     let _lock = state_dir::DomainLock::acquire(&domain)?;

@@ -112,6 +112,13 @@ impl Report for LaunchReport {
 
     fn diagnostics(&self) -> Vec<Diagnostic> {
         let mut out = Vec::new();
+        // Writing the monitor's files failed at the end: the run's record is still printed, the exit
+        // code says the outputs are missing.
+        for c in self.children.iter().filter(|c| c.role == "monitor") {
+            if let Some(e) = c.summary.as_ref().and_then(|s| s["output_error"].as_str()) {
+                out.push(Diagnostic::Failure(format!("the run completed, but {e}")));
+            }
+        }
         if !self.leftovers.is_empty() {
             out.push(Diagnostic::Warning(format!(
                 "iceoryx2 resources of domain {} are left: nodes {:?}, services {:?}",

@@ -231,6 +231,9 @@ impl LatencySamples {
 pub struct MonitorSummary {
     /// `"monitor"`.
     pub role: &'static str,
+    /// Writing `--record` or `--out` at the end failed (the record itself still went to the supervisor).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub output_error: Option<String>,
     /// Whether every step up to the last one was recorded.
     pub complete: bool,
     /// Steps recorded.
@@ -787,8 +790,9 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         }
     }
     crate::metrics::annotate(&mut run);
-    let summary = MonitorSummary {
+    let mut summary = MonitorSummary {
         role: ROLE,
+        output_error: None,
         complete: state.assembler.is_done(),
         steps: run.steps.len() as u64,
         accepted: accepted_total(&state.counter),
@@ -813,7 +817,12 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             "stale_steps": summary.stale_steps,
         }),
     );
-    write_outputs(args, &run)?;
+    // The record is the run's result: a failure to write files from it does not lose it (it still goes
+    // to the supervisor), it is reported.
+    if let Err(e) = write_outputs(args, &run) {
+        eprintln!("error: monitor: {e}");
+        summary.output_error = Some(e.to_string());
+    }
     if !args.quiet {
         let l = &summary.latency;
         let p50 = |s: &Option<LatencyStat>| s.map_or("-".into(), |s| format!("{:.0} µs", s.p50_us));
