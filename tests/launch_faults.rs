@@ -141,3 +141,46 @@ fn out_is_checked_before_the_run_and_a_late_failure_keeps_the_json() {
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A disk that fills under `--log` or `--stamps` (here `/dev/full`, whose writes fail with ENOSPC) ends
+/// the run when it happens, naming the file, without restarting the monitor (before: silence, then a
+/// misleading "the log has 10 of 201 steps" after five restarts; for the stamps, exit 0 with a short file).
+#[test]
+fn a_full_disk_under_the_log_or_the_stamps_is_reported_naming_the_file() {
+    for (flag, needle) in [("--log", "--log /dev/full"), ("--stamps", "--stamps /dev/full")] {
+        let d = domain("full", &flag[2..]);
+        let out = Command::new(UAVLOC)
+            .args(["launch", "--headless", "--json", "--steps", "200", "--domain", &d, flag, "/dev/full"])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{flag}: {err}");
+        assert!(err.contains(needle) && err.contains("No space left on device"), "{flag}: {err}");
+        assert!(!err.contains("restarting"), "{flag}: a full disk is not worth a restart: {err}");
+        assert_nothing_left(&d);
+    }
+}
+
+/// Stamps written before a monitor restart are kept (before, the restarted monitor truncated the file:
+/// a SIGKILL at 0.6 s left steps 90–200 only, and the run exited 0): one row per step, in order.
+#[test]
+fn a_monitor_restart_keeps_the_stamps_written_before_it() {
+    let dir = common::scratch("stamps-restart");
+    let d = domain("stamps", "restart");
+    let stamps = dir.join("s.csv");
+    let mut launch = common::Launch::start(
+        &d,
+        &dir,
+        &["--steps", "120", "--step-delay-ms", "5", "--stamps", stamps.to_str().unwrap()],
+    );
+    launch.wait_for_step(40, std::time::Duration::from_secs(30));
+    let monitor = common::pid_of(&d, "monitor").expect("a monitor");
+    common::kill(monitor, libc::SIGKILL);
+    let run = launch.finish_json();
+    assert_eq!(run["restarts"].as_u64(), Some(1));
+    let text = std::fs::read_to_string(&stamps).unwrap();
+    let steps: Vec<u64> = text.lines().skip(1).map(|l| l.split(',').next().unwrap().parse().unwrap()).collect();
+    assert_eq!(steps, (0..=120).collect::<Vec<u64>>(), "one row per step, in order");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}

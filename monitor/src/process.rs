@@ -263,26 +263,47 @@ pub struct MonitorSummary {
 
 /// The JSON-lines run log (a no-op without `--log`), opened for appending: each line goes out in one
 /// `write`, so lines of other writers (the launcher's `restart` events) never land inside one.
-struct EventLog(Option<File>);
+struct EventLog {
+    file: Option<(File, PathBuf)>,
+    /// The first write error, reported when it happened; the run cannot go on without its log.
+    error: Option<String>,
+}
 
 impl EventLog {
     /// Opens `path` for appending; truncates it first unless `append`.
     fn open(path: Option<&Path>, append: bool) -> Result<Self, ProcessError> {
-        let Some(p) = path else { return Ok(EventLog(None)) };
-        let failed = |e: std::io::Error| ProcessError::Failed(format!("--log {}: {e}", p.display()));
+        let Some(p) = path else { return Ok(EventLog { file: None, error: None }) };
+        // Cannot be opened: a bad flag (exit 2), not worth a restart.
+        let failed = |e: std::io::Error| ProcessError::Input(format!("--log {}: {e}", p.display()));
         if !append {
             File::create(p).map_err(failed)?;
         }
-        std::fs::OpenOptions::new().create(true).append(true).open(p).map(|f| EventLog(Some(f))).map_err(failed)
+        let file = std::fs::OpenOptions::new().create(true).append(true).open(p).map_err(failed)?;
+        Ok(EventLog { file: Some((file, p.to_path_buf())), error: None })
     }
 
     fn write(&mut self, event: &str, mut fields: serde_json::Value) {
-        if let Some(out) = &mut self.0 {
+        if let Some((out, path)) = &mut self.file {
             if let Some(map) = fields.as_object_mut() {
                 map.insert("t_ns".into(), json!(now_ns()));
                 map.insert("event".into(), json!(event));
             }
-            let _ = out.write_all(format!("{fields}\n").as_bytes());
+            if let Err(e) = out.write_all(format!("{fields}\n").as_bytes())
+                && self.error.is_none()
+            {
+                self.error = Some(format!(
+                    "--log {}: {e} (the step records live in the log: the run cannot be recorded)",
+                    path.display()
+                ));
+            }
+        }
+    }
+
+    /// The first write error, as the unrecoverable end of the run (a restart would hit it again).
+    fn check(&self) -> Result<(), ProcessError> {
+        match &self.error {
+            Some(e) => Err(ProcessError::Unrecoverable(e.clone())),
+            None => Ok(()),
         }
     }
 }
@@ -586,11 +607,12 @@ impl State {
     }
 }
 
-/// The `--stamps` CSV file.
+/// The `--stamps` CSV file: one row per recorded step, written (one `write`) before the step's log line.
 struct StampsCsv {
-    out: std::io::BufWriter<File>,
+    out: File,
     path: PathBuf,
-    failed: bool,
+    /// The first write error, reported when it happened.
+    error: Option<String>,
 }
 
 /// Header of the `--stamps` CSV (see [`MonitorArgs::stamps`]).
@@ -598,20 +620,38 @@ pub const STAMPS_HEADER: &str = "step,trigger_command_published_ns,trigger_comma
 measurement_published_ns,measurement_received_ns,estimate_published_ns,estimate_received_ns,command_published_ns,\
 command_received_ns,monitor_measurement_ns,monitor_estimate_ns,monitor_command_ns,monitor_truth_ns";
 
+/// The rows of an existing stamps file for steps before `next` (header first); a restarted monitor keeps
+/// them — and drops a row its predecessor wrote for a step it did not log, which it records again.
+fn stamps_kept(text: &str, next: u64) -> String {
+    let mut out = String::from(STAMPS_HEADER);
+    out.push('\n');
+    for line in text.lines().skip(1) {
+        if line.split(',').next().and_then(|s| s.parse::<u64>().ok()).is_some_and(|k| k < next) {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
 impl StampsCsv {
-    fn create(path: &Path) -> Result<Self, ProcessError> {
-        let mut out = std::io::BufWriter::new(
-            File::create(path).map_err(|e| ProcessError::Failed(format!("--stamps {}: {e}", path.display())))?,
-        );
-        writeln!(out, "{STAMPS_HEADER}")
-            .map_err(|e| ProcessError::Failed(format!("--stamps {}: {e}", path.display())))?;
-        Ok(StampsCsv { out, path: path.to_owned(), failed: false })
+    /// A new file (header only), or with `resume_at` the rows of an existing one for steps before it.
+    fn create(path: &Path, resume_at: Option<u64>) -> Result<Self, ProcessError> {
+        // A file that cannot be opened is a bad flag (exit 2); one that cannot be written, a run that
+        // cannot be measured (exit 3): neither is worth a restart.
+        let msg = |e: std::io::Error| format!("--stamps {}: {e}", path.display());
+        let start = match resume_at {
+            Some(next) => stamps_kept(&std::fs::read_to_string(path).unwrap_or_default(), next),
+            None => format!("{STAMPS_HEADER}\n"),
+        };
+        let mut out = File::create(path).map_err(|e| ProcessError::Input(msg(e)))?;
+        out.write_all(start.as_bytes()).map_err(|e| ProcessError::Unrecoverable(msg(e)))?;
+        Ok(StampsCsv { out, path: path.to_owned(), error: None })
     }
 
     fn row(&mut self, step: u64, s: &Stamps, command_received_ns: u64, rx: [u64; 4]) {
-        let r = writeln!(
-            self.out,
-            "{step},{},{},{},{},{},{},{},{command_received_ns},{},{},{},{}",
+        let line = format!(
+            "{step},{},{},{},{},{},{},{},{command_received_ns},{},{},{},{}\n",
             s.trigger_command_published_ns,
             s.trigger_command_received_ns,
             s.measurement_published_ns,
@@ -624,16 +664,23 @@ impl StampsCsv {
             rx[2],
             rx[3]
         );
-        if let Err(e) = r
-            && !self.failed
+        if let Err(e) = self.out.write_all(line.as_bytes())
+            && self.error.is_none()
         {
-            self.failed = true;
-            eprintln!("monitor: --stamps {}: {e}", self.path.display());
+            self.error = Some(format!("--stamps {}: {e}", self.path.display()));
         }
     }
 
-    fn finish(mut self) -> Result<(), ProcessError> {
-        self.out.flush().map_err(|e| ProcessError::Failed(format!("--stamps {}: {e}", self.path.display())))
+    /// The first write error, as the unrecoverable end of the run.
+    fn check(&self) -> Result<(), ProcessError> {
+        match &self.error {
+            Some(e) => Err(ProcessError::Unrecoverable(e.clone())),
+            None => Ok(()),
+        }
+    }
+
+    fn finish(self) -> Result<(), ProcessError> {
+        self.check()
     }
 }
 
@@ -671,7 +718,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         (None, _) => (Assembler::new(scenario.clone()), None),
     };
     let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
-    let stamps = args.stamps.as_deref().map(StampsCsv::create).transpose()?;
+    let stamps = args.stamps.as_deref().map(|p| StampsCsv::create(p, resumed)).transpose()?;
     let mut state = State {
         assembler,
         counter: RejectionCounter::new(),
@@ -748,6 +795,11 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         state.drain(&estimates, Assembler::add_estimate)?;
         state.drain(&commands, Assembler::add_command)?;
         state.complete_steps();
+        // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
+        state.log.check()?;
+        if let Some(stamps) = &state.stamps {
+            stamps.check()?;
+        }
         // A message of the step we wait for was lost (e.g. overwritten in a full buffer while this
         // monitor was starved of CPU) if newer steps are in and it is not: ask emitter-sim to replay
         // from it (once per step), as a restarted monitor would.

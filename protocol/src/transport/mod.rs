@@ -236,13 +236,51 @@ fn make_node(name: &str, signals: SignalHandlingMode) -> Result<IpcNode, Transpo
         name: name.to_owned(),
         detail: format!("{e:?}"),
     })?;
+    // SIGINT/SIGTERM are held back while the node is created and until iceoryx2's handler is installed
+    // (at the node's first wait): a supervisor stopping a process that is just starting would otherwise
+    // kill it inside the node's creation and leave a half-created node that iceoryx2 can neither list nor
+    // clean. A signal that came meanwhile is delivered on unblocking, to the handler: the process then
+    // ends cleanly at its first check.
+    let handled = signals == SignalHandlingMode::HandleTerminationRequests;
+    let _held = handled.then(TerminationSignalsHeld::new);
     let node = NodeBuilder::new()
         .name(&node_name)
         .signal_handling_mode(signals)
         .create::<ipc::Service>()
         .map_err(|e| failed("creating node", name, e))?;
+    if handled {
+        let _ = node.wait(Duration::ZERO);
+    }
     cleanup_dead_nodes(&node);
     Ok(node)
+}
+
+/// SIGINT and SIGTERM blocked for this thread while it lives (the previous mask restored on drop).
+struct TerminationSignalsHeld(libc::sigset_t);
+
+impl TerminationSignalsHeld {
+    fn new() -> Self {
+        // SAFETY: sigset_t is plain data, initialised by sigemptyset before use; pthread_sigmask gets valid
+        // pointers to sets that live through the call.
+        unsafe {
+            let mut set: libc::sigset_t = core::mem::zeroed();
+            let mut old: libc::sigset_t = core::mem::zeroed();
+            libc::sigemptyset(&mut set);
+            libc::sigaddset(&mut set, libc::SIGINT);
+            libc::sigaddset(&mut set, libc::SIGTERM);
+            libc::pthread_sigmask(libc::SIG_BLOCK, &set, &mut old);
+            Self(old)
+        }
+    }
+}
+
+impl Drop for TerminationSignalsHeld {
+    fn drop(&mut self) {
+        // SAFETY: restores the mask saved in `new`; the pointer is valid for the call.
+        unsafe {
+            libc::pthread_sigmask(libc::SIG_SETMASK, &self.0, core::ptr::null_mut());
+        }
+    }
 }
 
 /// Sets iceoryx2's log level from `IOX2_LOG_LEVEL`, else to `Error`: hides the "No config file was loaded"
