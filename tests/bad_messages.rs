@@ -37,6 +37,7 @@ fn command() -> Command {
         objective_name: "analytical",
         plan_time_us: 100,
         active_constraints: 0,
+        violated_constraints: 0,
     };
     Command::new(STEP, SEQ, 7, &plan).unwrap()
 }

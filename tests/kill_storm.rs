@@ -266,28 +266,6 @@ fn wait_ready(
     }
 }
 
-/// `simulate`'s run with its active constraints as the launch's monitor decodes them from the command's
-/// bit mask (`planner::active_mask`): without the violation magnitude, and every active constraint of a
-/// kind that has a violated one reads `violated`. (The runs of the other pipeline tests are too short to
-/// violate a constraint; this one is not, kills or not.)
-fn as_wire_mask(mut sim: Value) -> Value {
-    for step in sim["steps"].as_array_mut().unwrap() {
-        let Some(list) = step["active_constraints"].as_array() else { continue };
-        let list: Vec<&str> = list.iter().map(|c| c.as_str().unwrap()).collect();
-        let kind = |c: &str| c.split('(').next().unwrap().to_string();
-        let violated: BTreeSet<String> = list.iter().filter(|c| c.contains(") violated")).map(|c| kind(c)).collect();
-        let decoded: Vec<Value> = list
-            .iter()
-            .map(|c| match c.rsplit_once(") ") {
-                Some((head, _)) if violated.contains(&kind(c)) => Value::from(format!("{head}) violated")),
-                _ => Value::from(*c),
-            })
-            .collect();
-        step["active_constraints"] = Value::Array(decoded);
-    }
-    sim
-}
-
 /// What was killed: (role, pid, the newest step published then).
 type Kill = (&'static str, u32, u64);
 
@@ -402,7 +380,7 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
     assert_eq!(emitter["summary"]["steps"].as_u64(), Some(steps - started_at), "{emitter}");
 
     // The run is exactly simulate's (its active constraints as the command's bit mask carries them).
-    let sim = as_wire_mask(json_of(&["simulate", "--json", "--steps", &n]));
+    let sim = json_of(&["simulate", "--json", "--steps", &n]);
     assert_same_run(&sim, &run, tag);
     assert_eq!(run["rejected"].as_u64(), Some(0), "{}", run["rejected_by"]);
     assert_nothing_left(&d);
@@ -437,7 +415,7 @@ fn a_monitor_restarted_at_a_failed_estimate_records_the_command_flown() {
     let scenario = dir.join("noisy.toml");
     std::fs::write(&scenario, "sigma = 500.0\nestimator = \"snapshot\"\n").unwrap();
     let scenario = scenario.to_str().unwrap();
-    let sim = as_wire_mask(json_of(&["simulate", "--json", "--scenario", scenario, "--steps", steps]));
+    let sim = json_of(&["simulate", "--json", "--scenario", scenario, "--steps", steps]);
     let failed = sim["steps"].as_array().unwrap().iter().find(|s| s["estimate_status"] == "failed");
     let failed = failed.expect("the scenario has a failed estimate in 300 steps")["step"].as_u64().unwrap();
     let at = failed.to_string();
@@ -510,7 +488,7 @@ fn emitter_sim_killed_while_the_planner_restarts_is_not_the_end_of_the_run() {
     let run = launch.finish_json();
 
     assert_eq!(run["restarts"].as_u64(), Some(3));
-    let sim = as_wire_mask(json_of(&["simulate", "--json", "--steps", steps]));
+    let sim = json_of(&["simulate", "--json", "--steps", steps]);
     assert_same_run(&sim, &run, "emitter-sim killed while the planner restarts");
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();

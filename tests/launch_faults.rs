@@ -184,3 +184,52 @@ fn a_monitor_restart_keeps_the_stamps_written_before_it() {
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The pipeline's record equals `simulate`'s, constraint labels included (before, in 36 of 200 steps of
+/// seed 7 the launch labelled `approach(UAV i)` "violated" where `simulate` said "binding": the command's
+/// mask had one violation flag per kind).
+#[test]
+fn constraint_labels_of_launch_and_simulate_agree() {
+    let d = domain("labels", "seed7");
+    let run = json_of(&["launch", "--headless", "--json", "--steps", "200", "--seed", "7", "--domain", &d]);
+    let sim = json_of(&["simulate", "--json", "--steps", "200", "--seed", "7"]);
+    let violated = |v: &Value| {
+        v["steps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|s| s["active_constraints"].to_string().contains("violated"))
+            .count()
+    };
+    assert!(violated(&sim) > 0, "the run reaches the L_min ring, where constraints are violated");
+    for (s, l) in sim["steps"].as_array().unwrap().iter().zip(run["steps"].as_array().unwrap()) {
+        assert_eq!(s["active_constraints"], l["active_constraints"], "step {}", s["step"]);
+    }
+    assert_same_run(&sim, &run, "seed 7, 200 steps");
+    assert_nothing_left(&d);
+}
+
+/// `launch --json` stopped by SIGINT prints the partial record — the steps done, `"interrupted": true` —
+/// instead of nothing, and exits 1.
+#[test]
+fn an_interrupted_launch_prints_the_steps_done() {
+    let dir = common::scratch("sigint");
+    let d = domain("sigint", "partial");
+    let mut launch = common::Launch::start(&d, &dir, &["--steps", "400", "--step-delay-ms", "10"]);
+    launch.wait_for_step(20, std::time::Duration::from_secs(30));
+    common::kill(launch.child.id(), libc::SIGINT);
+    let (status, stdout, stderr) = launch.finish();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    let run: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("no JSON ({e}): {stdout:?}\n{stderr}"));
+    assert_eq!(run["interrupted"], Value::Bool(true));
+    let steps = run["steps"].as_array().unwrap();
+    assert!(steps.len() >= 20 && steps.len() < 401, "{} steps", steps.len());
+    // The steps done are the simulation's first steps, exactly.
+    let sim = json_of(&["simulate", "--json", "--steps", "400"]);
+    let first: Vec<Value> = sim["steps"].as_array().unwrap()[..steps.len()].to_vec();
+    let partial = serde_json::json!({"steps": first});
+    common::assert_same_steps(&partial, &serde_json::json!({"steps": steps}), "interrupted");
+    assert!(stderr.contains("interrupted by SIGINT"), "{stderr}");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}

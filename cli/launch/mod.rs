@@ -154,7 +154,15 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     if args.link.transport == protocol::TransportKind::Uds {
         protocol::transport::uds::cleanup_stale();
     }
-    result?;
+    // Interrupted (SIGINT/SIGTERM): the steps done are kept — the monitor sent its partial record when it
+    // was stopped — and printed with `"interrupted": true` (exit code 1).
+    let interrupted = match result {
+        Err(e) => match (supervisor::received_signal(), &sup.record) {
+            (Some(signal), Some(_)) => Some(format!("interrupted by {signal}: {e}")),
+            _ => return Err(e),
+        },
+        Ok(()) => None,
+    };
     cleaned?;
     let leftovers = resources::list(&domain).map_err(CliError::Failed)?;
 
@@ -198,6 +206,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         .filter(|s| s.active_constraints.iter().any(|a| a == monitor::assemble::ESTIMATE_STALE))
         .count() as u64;
     Ok(LaunchReport {
+        interrupted,
         run,
         restarts: sup.restarts,
         rejected: children.iter().map(|c| c.rejected).sum(),

@@ -8,6 +8,10 @@ use serde::Serialize;
 
 use crate::output::{Diagnostic, Report, Table};
 
+fn as_true<S: serde::Serializer>(_: &Option<String>, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_bool(true)
+}
+
 /// One child's outcome (every instance, also the crashed ones).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ChildReport {
@@ -27,6 +31,10 @@ pub struct ChildReport {
 pub struct LaunchReport {
     #[serde(flatten)]
     pub run: RunRecord,
+    /// Set when the launch was stopped by SIGINT/SIGTERM: `steps` are those done (JSON: `"interrupted":
+    /// true`, absent otherwise).
+    #[serde(rename = "interrupted", serialize_with = "as_true", skip_serializing_if = "Option::is_none")]
+    pub interrupted: Option<String>,
     /// Children restarted after a crash.
     pub restarts: u64,
     /// Invalid messages counted and ignored by all four processes.
@@ -112,6 +120,9 @@ impl Report for LaunchReport {
 
     fn diagnostics(&self) -> Vec<Diagnostic> {
         let mut out = Vec::new();
+        if let Some(why) = &self.interrupted {
+            out.push(Diagnostic::Failure(format!("{why}; the record holds the {} step(s) done", self.run.steps.len())));
+        }
         // Writing the monitor's files failed at the end: the run's record is still printed, the exit
         // code says the outputs are missing.
         for c in self.children.iter().filter(|c| c.role == "monitor") {

@@ -42,6 +42,14 @@ pub(super) fn catch_termination_signals() {
     }
 }
 
+/// The termination signal the launcher received, if any (its name).
+pub(super) fn received_signal() -> Option<&'static str> {
+    match SIGNAL.load(Ordering::SeqCst) {
+        0 => None,
+        s => Some(signal_name(s)),
+    }
+}
+
 fn signal_name(signal: i32) -> &'static str {
     if signal == libc::SIGINT { "SIGINT" } else { "SIGTERM" }
 }

@@ -94,7 +94,8 @@ pub fn run_closed_loop(
             record.headings_rad = plan.headings.clone();
             record.objective_value = plan.objective_value.is_finite().then(|| plan.objective_value.sqrt());
             record.plan_ms = Some(plan.plan_time_ms);
-            record.active_constraints = plan.active_constraints.iter().map(|a| a.to_string()).collect();
+            // The wire form, as the pipeline's monitor records it (no violation magnitudes).
+            record.active_constraints = planner::active_mask::labels(&plan.active_constraints, plan.headings.len());
             record.criterion_ess = plan.criterion_ess;
         }
         on_step(&record);

@@ -11,12 +11,12 @@
 //! | 24–51 | `spacing` of the pair (i, j), i < j, in the order (0,1), (0,2), …, (0,7), (1,2), … (28 pairs) |
 //! | 56–59 | at least one constraint of kind `turn_radius`, `spacing`, `approach`, `heading_cone` is violated |
 //!
-//! [`decode`] gives back the strings of [`ActiveConstraint`]'s `Display`, in the planner's order (per UAV:
-//! turn radius, heading cone, approach, then its spacing pairs), e.g. `heading_cone(UAV 0) binding`.
-//! The one difference: the mask carries no violation magnitude, so a violated constraint reads
-//! `spacing(UAV 0, UAV 1) violated` instead of `… violated by 1.234e-3`, and when a kind has a violated
-//! instance every active instance of that kind reads `violated` (plans are feasible in practice: a
-//! violation only happens when no candidate satisfies every constraint).
+//! A second mask of the same layout ([`encode_violated`], `Command::violated_constraints`) marks the
+//! active constraints that are violated, not merely binding. [`decode`] gives back the strings of
+//! [`ActiveConstraint`]'s `Display`, in the planner's order (per UAV: turn radius, heading cone, approach,
+//! then its spacing pairs), e.g. `heading_cone(UAV 0) binding` — without the violation magnitude, which
+//! the masks do not carry: `spacing(UAV 0, UAV 1) violated`. [`labels`] is that wire form of a plan's
+//! constraints: what a run record holds, in `simulate` as in the pipeline, so the two are equal.
 
 use crate::constraint::{ActiveConstraint, ConstraintKind};
 use tdoa::MAX_UAVS;
@@ -74,13 +74,22 @@ pub fn encode(active: &[ActiveConstraint]) -> u64 {
     mask
 }
 
-/// The active constraints of `mask` for `n` UAVs as report strings (see the module docs).
-pub fn decode(mask: u64, n: usize) -> Vec<String> {
+/// The mask of the violated constraints among `active`, in the layout of [`encode`] (bits 0–51).
+pub fn encode_violated(active: &[ActiveConstraint]) -> u64 {
+    active.iter().filter(|a| a.is_violated()).filter_map(bit).fold(0, |m, b| m | 1 << b)
+}
+
+/// The record labels of a plan's active constraints: their wire form ([`decode`] of both masks).
+pub fn labels(active: &[ActiveConstraint], n: usize) -> Vec<String> {
+    decode(encode(active), encode_violated(active), n)
+}
+
+/// The active constraints of `mask` for `n` UAVs as report strings, `violated` where `violated` has the
+/// constraint's bit, else `binding` (see the module docs).
+pub fn decode(mask: u64, violated: u64, n: usize) -> Vec<String> {
     let n = n.min(MAX_UAVS);
     let is_set = |b: u32| mask & (1 << b) != 0;
-    let state = |kind: ConstraintKind| {
-        if is_set(VIOLATED_BASE + kind_index(kind)) { "violated" } else { "binding" }
-    };
+    let state = |b: u32| if violated & (1 << b) != 0 { "violated" } else { "binding" };
     let mut out = Vec::new();
     for i in 0..n {
         for (kind, base) in [
@@ -89,12 +98,13 @@ pub fn decode(mask: u64, n: usize) -> Vec<String> {
             (ConstraintKind::Approach, APPROACH_BASE),
         ] {
             if is_set(base + i as u32) {
-                out.push(format!("{kind}(UAV {i}) {}", state(kind)));
+                out.push(format!("{kind}(UAV {i}) {}", state(base + i as u32)));
             }
         }
         for j in i + 1..n {
-            if is_set(SPACING_BASE + pair_index(i, j)) {
-                out.push(format!("{}(UAV {i}, UAV {j}) {}", ConstraintKind::Spacing, state(ConstraintKind::Spacing)));
+            let b = SPACING_BASE + pair_index(i, j);
+            if is_set(b) {
+                out.push(format!("{}(UAV {i}, UAV {j}) {}", ConstraintKind::Spacing, state(b)));
             }
         }
     }
@@ -133,16 +143,29 @@ mod tests {
         ];
         let mask = encode(&list);
         let expected: Vec<String> = list.iter().map(|a| a.to_string()).collect();
-        assert_eq!(decode(mask, 8), expected);
-        assert_eq!(decode(0, 3), Vec::<String>::new());
+        assert_eq!(decode(mask, encode_violated(&list), 8), expected);
+        assert_eq!(decode(0, 0, 3), Vec::<String>::new());
     }
 
     #[test]
-    fn violations_are_flagged_per_kind() {
-        let list =
-            vec![active(ConstraintKind::Spacing, 0, Some(1), 0.25), active(ConstraintKind::HeadingCone, 2, None, 0.0)];
-        let decoded = decode(encode(&list), 3);
-        assert_eq!(decoded, vec!["spacing(UAV 0, UAV 1) violated".to_string(), "heading_cone(UAV 2) binding".into()]);
+    fn violations_are_flagged_per_instance() {
+        // Two approach constraints of one kind: one violated, one binding (the launch once labelled both
+        // "violated": the mask had one violation flag per kind).
+        let list = vec![
+            active(ConstraintKind::Spacing, 0, Some(1), 0.25),
+            active(ConstraintKind::Approach, 1, None, 0.05),
+            active(ConstraintKind::HeadingCone, 2, None, 0.0),
+            active(ConstraintKind::Approach, 2, None, 0.0),
+        ];
+        assert_eq!(
+            labels(&list, 3),
+            vec![
+                "spacing(UAV 0, UAV 1) violated".to_string(),
+                "approach(UAV 1) violated".into(),
+                "heading_cone(UAV 2) binding".into(),
+                "approach(UAV 2) binding".into(),
+            ]
+        );
         assert!(list[0].to_string().starts_with("spacing(UAV 0, UAV 1) violated by"));
     }
 }

@@ -350,7 +350,8 @@ impl Assembler {
                 } else {
                     record.objective_value = (c.objective >= 0.0).then(|| c.objective.sqrt());
                     record.plan_ms = Some(c.plan_time_us as f64 / 1e3);
-                    record.active_constraints = active_mask::decode(c.active_constraints, c.len());
+                    record.active_constraints =
+                        active_mask::decode(c.active_constraints, c.violated_constraints, c.len());
                 }
                 let info = PlannerInfo {
                     instance: c.planner_instance,
@@ -445,6 +446,7 @@ mod tests {
             objective_name: "analytical",
             plan_time_us: 1234,
             active_constraints: mask,
+            violated_constraints: 0,
         };
         Command::from_estimate(&estimate(k, ok(25000.0)), 20, k + 1, 99, &plan).unwrap()
     }

@@ -510,6 +510,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                     objective_name: args.objective.name(),
                     plan_time_us: (plan.plan_time_ms * 1e3).round() as u64,
                     active_constraints: active_mask::encode(&plan.active_constraints),
+                    violated_constraints: active_mask::encode_violated(&plan.active_constraints),
                 },
             )
             .map_err(|e| ProcessError::Failed(format!("step {step}: command: {e}")))?;
@@ -594,6 +595,7 @@ fn hold_command(
             objective_name: args.objective.name(),
             plan_time_us: 0,
             active_constraints: 0,
+            violated_constraints: 0,
         },
     )
     .map_err(|e| ProcessError::Failed(format!("step {}: hold command: {e}", due.step)))?;

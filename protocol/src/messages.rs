@@ -737,11 +737,13 @@ pub struct PlanInfo<'a> {
     pub plan_time_us: u64,
     /// Bitmask of violated or binding constraints (bit meanings defined by the planner).
     pub active_constraints: u64,
+    /// The same bits for the constraints among them that are violated (not merely binding).
+    pub violated_constraints: u64,
 }
 
 /// planner → emitter-sim, monitor: the headings to fly for the next step.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Command/v2")]
+#[type_name("uavloc::Command/v3")]
 #[repr(C)]
 pub struct Command {
     /// Common header (step of the estimate it was planned from).
@@ -752,6 +754,8 @@ pub struct Command {
     pub plan_time_us: u64,
     /// Bitmask of violated or binding constraints.
     pub active_constraints: u64,
+    /// The same bits for the active constraints that are violated (the others are binding).
+    pub violated_constraints: u64,
     /// Number of UAVs N (3..=8).
     pub count: u32,
     /// What kind of command this is: 0 a plan; [`Command::FLAG_HOLD`] a hold (see there). Unknown bits are
@@ -769,7 +773,7 @@ pub struct Command {
     pub objective_name: Name16,
 }
 
-impl_message!(Command, MessageKind::Command, 2, "uavloc::Command/v2");
+impl_message!(Command, MessageKind::Command, 3, "uavloc::Command/v3");
 
 impl Command {
     /// [`Command::flags`] bit: a *hold*, not a plan — no fresh estimate of the step reached the planner
@@ -791,6 +795,7 @@ impl Command {
             planner_instance,
             plan_time_us: plan.plan_time_us,
             active_constraints: plan.active_constraints,
+            violated_constraints: plan.violated_constraints,
             count: n as u32,
             flags: 0,
             objective: plan.objective,
@@ -1062,7 +1067,7 @@ mod tests {
         assert_eq!((size_of::<Name16>(), align_of::<Name16>()), (16, 1));
         assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (408, 8));
         assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (424, 8));
-        assert_eq!((size_of::<Command>(), align_of::<Command>()), (352, 8));
+        assert_eq!((size_of::<Command>(), align_of::<Command>()), (360, 8));
         assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
         assert_eq!((size_of::<Control>(), align_of::<Control>()), (144, 8));
     }
@@ -1079,7 +1084,7 @@ mod tests {
         assert_eq!(offset_of!(Estimate, headings) + 8 * MAX_UAVS, offset_of!(Estimate, velocity));
         assert_eq!(offset_of!(Estimate, velocity_cov) + 32, size_of::<Estimate>());
         assert_eq!(offset_of!(Estimate, rejected_run) + 1, offset_of!(Estimate, position));
-        assert_eq!(offset_of!(Command, objective), 88 + 32);
+        assert_eq!(offset_of!(Command, objective), 88 + 40);
         assert_eq!(offset_of!(Command, objective_name) + 16, size_of::<Command>());
         assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));
         assert_eq!(offset_of!(Truth, reserved) + 4, size_of::<Truth>());
@@ -1125,6 +1130,7 @@ mod tests {
             objective_name: "trace",
             plan_time_us: 0,
             active_constraints: 0,
+            violated_constraints: 0,
         };
         assert!(matches!(Command::new(0, 0, 0, &plan), Err(ProtocolError::BadName { field: "solver", .. })));
     }
@@ -1158,6 +1164,7 @@ mod tests {
                 objective_name: "trace",
                 plan_time_us: 5,
                 active_constraints: 0,
+                violated_constraints: 0,
             },
         )
         .unwrap();
@@ -1211,6 +1218,7 @@ mod tests {
             objective_name: "trace",
             plan_time_us: 80,
             active_constraints: 0b101,
+            violated_constraints: 0,
         }
     }
 

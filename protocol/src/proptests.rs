@@ -274,6 +274,7 @@ proptest! {
             objective_name: "trace",
             plan_time_us: 1,
             active_constraints: 0,
+            violated_constraints: 0,
         };
         let c = Command::from_estimate(&e, 2, seq, 1, &plan).unwrap();
         prop_assert_eq!(c.validate(Some(seq - 1)), Ok(()));

@@ -381,6 +381,7 @@ mod tests {
                 objective_name: "trace-crlb",
                 plan_time_us: 120,
                 active_constraints: 0,
+                violated_constraints: 0,
             },
         )
         .unwrap()

@@ -61,6 +61,7 @@ fn command(seq: u64) -> Command {
         objective_name: "trace-crlb",
         plan_time_us: 321,
         active_constraints: 0b1011,
+        violated_constraints: 0b10,
     };
     Command::from_estimate(&estimate(seq, Fix::Failed), 654_321, seq, 99, &plan).unwrap()
 }

@@ -68,6 +68,7 @@ fn every_message_type_round_trips_byte_for_byte() {
         objective_name: "trace-crlb",
         plan_time_us: 321,
         active_constraints: 0b1011,
+        violated_constraints: 0b10,
     };
     round_trip(Command::from_estimate(&e, 77, 3, 99, &plan).unwrap());
     round_trip(Truth::new(3, 4, [25_000.0, 15_000.0]));
