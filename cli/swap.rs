@@ -75,10 +75,39 @@ pub struct SwapReport {
     pub planner: Option<String>,
 }
 
-fn opt_flag(flags: &mut Vec<String>, name: &str, value: Option<String>) {
-    if let Some(v) = value {
-        flags.extend([name.to_string(), v]);
+/// A planner's `--scenario`, `--steps`, `--seed` against the running launch's: taken from the run when
+/// not given; a given one that differs is refused (exit 2) — a planner with another horizon or seed would
+/// stall the run or plan another one.
+fn reconcile(
+    a: &mut planner::process::PlannerArgs,
+    run: &crate::launch::state_dir::RunSettings,
+    file: &std::path::Path,
+) -> Result<(), CliError> {
+    let mismatch = |flag: &str, given: String, running: String| {
+        CliError::Input(format!(
+            "{flag} {given} does not match the running launch's {running} (from {}); leave it out to take the run's",
+            file.display()
+        ))
+    };
+    match a.steps {
+        Some(n) if n != run.steps => return Err(mismatch("--steps", n.to_string(), run.steps.to_string())),
+        _ => a.steps = Some(run.steps),
     }
+    match a.seed {
+        Some(s) if s != run.seed => return Err(mismatch("--seed", s.to_string(), run.seed.to_string())),
+        _ => a.seed = Some(run.seed),
+    }
+    match (&a.scenario, &run.scenario) {
+        (Some(given), Some(running)) if std::path::absolute(given).unwrap_or_else(|_| given.clone()) != *running => {
+            return Err(mismatch("--scenario", given.display().to_string(), running.display().to_string()));
+        }
+        (Some(given), None) => {
+            return Err(mismatch("--scenario", given.display().to_string(), "default scenario".into()));
+        }
+        (None, running) => a.scenario = running.clone(),
+        _ => {}
+    }
+    Ok(())
 }
 
 /// Runs `uavloc swap`.
@@ -87,26 +116,11 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
         return Err(CliError::Input(format!("--timeout-s must be > 0, got {}", args.timeout_s)));
     }
     let timeout = Duration::from_secs_f64(args.timeout_s);
-    let (role, domain_flag, mut flags, planner) = match &args.role {
+    let (role, domain_flag, planner) = match &args.role {
         SwapRole::Planner(a) => {
-            let mut f = Vec::new();
-            opt_flag(&mut f, "--scenario", a.scenario.as_ref().map(|p| p.display().to_string()));
-            opt_flag(&mut f, "--steps", a.steps.map(|n| n.to_string()));
-            opt_flag(&mut f, "--seed", a.seed.map(|n| n.to_string()));
-            f.extend(["--objective".into(), a.objective.name().into(), "--solver".into(), a.solver.name().into()]);
-            f.extend(a.link.to_flags());
-            if a.quiet {
-                f.push("--quiet".into());
-            }
-            ("planner", a.domain.as_deref(), f, Some(format!("{}/{}", a.solver.name(), a.objective.name())))
+            ("planner", a.domain.as_deref(), Some(format!("{}/{}", a.solver.name(), a.objective.name())))
         }
-        SwapRole::Estimator(a) => {
-            let mut f = a.link.to_flags();
-            if a.quiet {
-                f.push("--quiet".into());
-            }
-            ("estimator", a.domain.as_deref(), f, None)
-        }
+        SwapRole::Estimator(a) => ("estimator", a.domain.as_deref(), None),
     };
     protocol::transport::quiet_logs();
     let domain = Domain::resolve(domain_flag).map_err(|e| CliError::Input(format!("--domain: {e}")))?;
@@ -121,7 +135,25 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     }
     // The processes to see gone: a node is released a moment before its process exits.
     let old_pids = resources::list(&domain).map_err(CliError::Failed)?.alive_pids(&node_name);
-    flags.extend(["--domain".into(), domain.to_string(), "--takeover".into(), "--supervised".into()]);
+    // The run's settings, when a launch runs the domain: a swapped-in planner runs the same scenario.
+    let run = crate::launch::state_dir::find_run_settings(&domain);
+    let flags = match &args.role {
+        SwapRole::Planner(a) => {
+            let mut a = a.clone();
+            if let Some((settings, file)) = &run {
+                reconcile(&mut a, settings, file)?;
+            }
+            planner::process::PlannerArgs { domain: Some(domain.to_string()), takeover: true, supervised: true, ..a }
+                .to_flags()
+        }
+        SwapRole::Estimator(a) => estimator::process::EstimatorArgs {
+            domain: Some(domain.to_string()),
+            takeover: true,
+            supervised: true,
+            ..a.clone()
+        }
+        .to_flags(),
+    };
 
     let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("cannot find this executable: {e}")))?;
     let mut command = std::process::Command::new(exe);
@@ -169,6 +201,16 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
             }
         }
     };
+    // A run that has ended has nothing to take over (the new process saw the last step).
+    if let Some((settings, _)) = &run
+        && from_step > settings.steps as u64
+    {
+        let _ = give_up(&mut child, String::new());
+        return Err(CliError::Input(format!(
+            "the run in domain {domain} has ended (its last step is {}): there is nothing to take over",
+            settings.steps
+        )));
+    }
     // … and the old one exits once it has handled the steps before (its node, then its process).
     while running(&domain)? > 1 || old_pids.iter().any(|p| process_runs(*p)) {
         if Instant::now() > deadline {

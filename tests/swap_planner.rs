@@ -144,3 +144,44 @@ fn a_swap_without_a_pipeline_is_refused() {
 fn launch_events(dir: &std::path::Path) -> Vec<Value> {
     common::read_events(&dir.join("run.jsonl"))
 }
+
+/// A swapped-in planner is not the launcher's child: killed, it is not restarted, but the launch now
+/// fails at once saying so (before, it stalled and failed after 41 s with "no command").
+#[test]
+fn a_killed_swapped_in_planner_fails_the_run_at_once_with_a_clear_message() {
+    let d = domain("swap", "killed");
+    let dir = scratch("swap-killed");
+    let mut launch = Launch::start(&d, &dir, &["--steps", "100", "--step-delay-ms", "30"]);
+    launch.wait_for_step(5, Duration::from_secs(30));
+    let report = swap(&dir, &["planner", "--domain", &d, "--solver", "ga"]);
+    let new = report["pid"].as_u64().unwrap() as u32;
+    let killed = std::time::Instant::now();
+    common::kill(new, libc::SIGKILL);
+    let (status, _, stderr) = launch.finish();
+    assert!(!status.success(), "{stderr}");
+    assert!(stderr.contains("swapped in by `uavloc swap` is gone"), "{stderr}");
+    assert!(killed.elapsed() < Duration::from_secs(10), "took {:?} to notice", killed.elapsed());
+    common::assert_nothing_left(&d);
+}
+
+/// `swap` takes the run's settings from the running launch: a planner given another `--steps` is refused
+/// (exit 2) and the run goes on unharmed (before, the swap succeeded and the run stalled at step 24);
+/// without `--steps` it takes the run's.
+#[test]
+fn a_swap_with_other_run_settings_is_refused_and_the_run_goes_on() {
+    let d = domain("swap", "mismatch");
+    let dir = scratch("swap-mismatch");
+    let mut launch = Launch::start(&d, &dir, &["--steps", "60", "--step-delay-ms", "20"]);
+    launch.wait_for_step(3, Duration::from_secs(30));
+    let out = Command::new(UAVLOC).args(["swap", "planner", "--domain", &d, "--steps", "24"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--steps 24 does not match") && err.contains("60"), "{err}");
+    // Without --steps: the run's 60.
+    let report = swap(&dir, &["planner", "--domain", &d, "--solver", "aco"]);
+    assert!(report["from_step"].as_u64().unwrap() < 60);
+    let run = launch.finish_json();
+    assert_eq!(run["steps"].as_array().unwrap().len(), 61);
+    assert_eq!(run["restarts"].as_u64(), Some(0));
+    common::assert_nothing_left(&d);
+}

@@ -59,7 +59,7 @@ mod children;
 mod process_cmd;
 mod report;
 mod role;
-mod state_dir;
+pub mod state_dir;
 mod supervisor;
 
 use std::collections::BTreeMap;
@@ -133,6 +133,11 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // Checkpoints (and the monitor's log when --log is not given) live in a private directory of this
     // launch, removed at the end: a restarted child resumes from what its predecessor wrote there.
     let state = StateDir::create(&domain)?;
+    state.write_run_settings(&state_dir::RunSettings {
+        scenario: args.scenario.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
+        steps: sc.steps,
+        seed: sc.seed,
+    })?;
     let log = args.log.clone().unwrap_or_else(|| state.path("monitor.jsonl"));
     let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts);
     let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log);

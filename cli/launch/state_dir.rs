@@ -99,6 +99,37 @@ pub(super) fn remove_stale_state_dirs(root: &Path) -> usize {
     removed
 }
 
+/// What a running launch tells a `uavloc swap` about its run (`run.json` in its state directory), so a
+/// swapped-in process runs the same scenario.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunSettings {
+    /// The scenario file (absolute), if not the default.
+    pub scenario: Option<PathBuf>,
+    /// Planning steps.
+    pub steps: usize,
+    /// Run seed.
+    pub seed: u64,
+}
+
+/// The settings of the launch running in `domain` (its launcher alive), with the file they came from.
+pub fn find_run_settings(domain: &Domain) -> Option<(RunSettings, PathBuf)> {
+    let root = state_root().ok()?;
+    let suffix = format!("-{domain}");
+    for entry in std::fs::read_dir(&root).ok()?.flatten() {
+        let name = entry.file_name().to_string_lossy().to_string();
+        let Some(rest) = name.strip_prefix("launch-").and_then(|r| r.strip_suffix(&suffix)) else { continue };
+        let Ok(pid) = rest.parse::<u32>() else { continue };
+        let path = entry.path().join("run.json");
+        if pid_alive(pid)
+            && let Ok(text) = std::fs::read_to_string(&path)
+            && let Ok(settings) = serde_json::from_str(&text)
+        {
+            return Some((settings, path));
+        }
+    }
+    None
+}
+
 /// The private directory of one launch (checkpoints, and the monitor's log when `--log` is not given):
 /// `$TMPDIR/uavloc-<uid>/launch-<pid>-<domain>`, mode 0700 (as its parent), removed when dropped.
 pub(super) struct StateDir(PathBuf);
@@ -116,6 +147,13 @@ impl StateDir {
 
     pub(super) fn path(&self, name: &str) -> PathBuf {
         self.0.join(name)
+    }
+
+    /// Writes the run's settings for `uavloc swap` ([`find_run_settings`]).
+    pub(super) fn write_run_settings(&self, settings: &RunSettings) -> Result<(), CliError> {
+        let path = self.path("run.json");
+        let text = serde_json::to_string_pretty(settings).unwrap_or_default();
+        std::fs::write(&path, text).map_err(|e| failed(&path, e))
     }
 }
 

@@ -58,6 +58,9 @@ fn signal_name(signal: i32) -> &'static str {
 // Children
 // ---------------------------------------------------------------------------------------------------------
 
+/// How often the launcher checks that a swapped-in process (not its child) is still there.
+const SWAPPED_CHECK: Duration = Duration::from_millis(500);
+
 /// How long a child may take to print `ready`.
 const READY_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long the estimator and planner get to exit after SIGTERM before SIGKILL.
@@ -294,9 +297,14 @@ impl Supervisor {
     /// restarted while the run ended, and is stopped with the others afterwards.
     pub(super) fn wait_for_the_end(&mut self, monitor_grace: Duration) -> Result<(), CliError> {
         let mut emitter_done_at = None;
+        let mut checked_swapped = Instant::now();
         loop {
             self.pump()?;
             self.restart_crashed()?;
+            if checked_swapped.elapsed() > SWAPPED_CHECK {
+                checked_swapped = Instant::now();
+                self.check_swapped_in()?;
+            }
             let (emitter, monitor) = (self.index(Role::EmitterSim), self.index(Role::Monitor));
             // Only a successful exit is the end: one that crashed while another process was being restarted
             // (after `restart_crashed` went past it) is restarted in the next round.
@@ -313,6 +321,28 @@ impl Supervisor {
                 }
             }
         }
+    }
+
+    /// A role whose child handed over to a process started by `uavloc swap` is served by a process that
+    /// is not the launcher's child, so the launcher cannot restart it; if it is gone (its node is not
+    /// alive: it crashed or was killed), the run fails at once with a message saying so — it would stall
+    /// otherwise.
+    fn check_swapped_in(&self) -> Result<(), CliError> {
+        for role in [Role::Planner, Role::Estimator] {
+            let current = &self.procs[self.index(role)];
+            if current.exit.is_none() || !current.handed_over() {
+                continue;
+            }
+            let node = protocol::services::node_name(&self.domain, role.name());
+            let alive = resources::list(&self.domain).map_err(CliError::Failed)?.alive_nodes().any(|n| n == node);
+            if !alive {
+                return Err(CliError::Failed(format!(
+                    "the {role} swapped in by `uavloc swap` is gone (it is not the launcher's child, so it is not \
+                     restarted); stopping the run"
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// Restarts every current process that exited although it should still run — all but emitter-sim and
