@@ -89,22 +89,22 @@ fn reconcile(
             file.display()
         ))
     };
-    match a.steps {
+    match a.run.steps {
         Some(n) if n != run.steps => return Err(mismatch("--steps", n.to_string(), run.steps.to_string())),
-        _ => a.steps = Some(run.steps),
+        _ => a.run.steps = Some(run.steps),
     }
-    match a.seed {
+    match a.run.seed {
         Some(s) if s != run.seed => return Err(mismatch("--seed", s.to_string(), run.seed.to_string())),
-        _ => a.seed = Some(run.seed),
+        _ => a.run.seed = Some(run.seed),
     }
-    match (&a.scenario, &run.scenario) {
+    match (&a.run.scenario, &run.scenario) {
         (Some(given), Some(running)) if std::path::absolute(given).unwrap_or_else(|_| given.clone()) != *running => {
             return Err(mismatch("--scenario", given.display().to_string(), running.display().to_string()));
         }
         (Some(given), None) => {
             return Err(mismatch("--scenario", given.display().to_string(), "default scenario".into()));
         }
-        (None, running) => a.scenario = running.clone(),
+        (None, running) => a.run.scenario = running.clone(),
         _ => {}
     }
     Ok(())

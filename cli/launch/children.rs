@@ -29,14 +29,13 @@ pub(super) fn child_flags(
 ) -> Vec<String> {
     let domain = Some(domain.to_string());
     let checkpoint = role.checkpoints().then(|| state.path(&format!("{role}.ckpt")));
+    let run = runtime::RunArgs { scenario: args.scenario.clone(), steps: args.steps, seed: args.seed };
     match role {
         Role::Monitor => monitor::process::MonitorArgs {
             domain,
             link: args.link,
             stamps: args.stamps.clone(),
-            scenario: args.scenario.clone(),
-            steps: args.steps,
-            seed: args.seed,
+            run: run.clone(),
             log: Some(log.to_path_buf()),
             out: args.out.clone(),
             quiet: args.headless,
@@ -45,11 +44,9 @@ pub(super) fn child_flags(
         .to_flags(),
         Role::Planner => planner::process::PlannerArgs {
             domain,
-            scenario: args.scenario.clone(),
+            run: run.clone(),
             objective: args.objective,
             solver: args.solver,
-            steps: args.steps,
-            seed: args.seed,
             link: args.link,
             checkpoint,
             estimate_deadline_ms: args.estimate_deadline_ms,
@@ -74,9 +71,7 @@ pub(super) fn child_flags(
         .to_flags(),
         Role::EmitterSim => emitter_sim::process::EmitterSimArgs {
             domain,
-            scenario: args.scenario.clone(),
-            steps: args.steps,
-            seed: args.seed,
+            run: run.clone(),
             command_timeout_s: args.command_timeout_s,
             retry_interval_ms: args.retry_interval_ms,
             // The estimator and the monitor.
@@ -138,9 +133,7 @@ mod tests {
             domain: Some("d".into()),
             link,
             stamps: Some("s.csv".into()),
-            scenario: Some("a b.toml".into()),
-            steps: Some(7),
-            seed: Some(9),
+            run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
             log: Some("l.jsonl".into()),
             record: Some("r.json".into()),
             out: Some("o".into()),
@@ -152,11 +145,9 @@ mod tests {
         round_trip(m.clone(), monitor::process::MonitorArgs { link: link.normalized(), ..m }, |a| a.to_flags());
         let p = planner::process::PlannerArgs {
             domain: Some("d".into()),
-            scenario: None,
+            run: runtime::RunArgs { scenario: None, steps: Some(3), seed: None },
             objective: planner::ObjectiveKind::PosteriorCubature,
             solver: planner::SolverKind::Aco,
-            steps: Some(3),
-            seed: None,
             link,
             takeover: true,
             checkpoint: Some("p.ckpt".into()),
@@ -169,9 +160,7 @@ mod tests {
         round_trip(p.clone(), planner::process::PlannerArgs { link: link.normalized(), ..p }, |a| a.to_flags());
         let e = emitter_sim::process::EmitterSimArgs {
             domain: Some("d".into()),
-            scenario: Some("x.toml".into()),
-            steps: Some(2),
-            seed: Some(1),
+            run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
             command_timeout_s: 0.1 + 0.2,
             retry_interval_ms: 77,
             connect_timeout_s: 3.5,

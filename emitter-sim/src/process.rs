@@ -154,9 +154,7 @@ impl EmitterSimArgs {
     pub fn to_flags(&self) -> Vec<String> {
         runtime::Flags::new()
             .opt("--domain", self.domain.as_deref())
-            .path("--scenario", self.scenario.as_deref())
-            .opt("--steps", self.steps)
-            .opt("--seed", self.seed)
+            .extend(self.run.to_flags())
             .float("--command-timeout-s", self.command_timeout_s)
             .value("--retry-interval-ms", self.retry_interval_ms)
             .float("--connect-timeout-s", self.connect_timeout_s)
@@ -206,15 +204,9 @@ pub struct EmitterSimArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
-    /// Scenario TOML file (default: the paper's nominal case).
-    #[arg(long, value_name = "FILE")]
-    pub scenario: Option<PathBuf>,
-    /// Planning steps (default: the scenario's); steps 0..N are measured, 0..N−1 planned.
-    #[arg(long, value_name = "N")]
-    pub steps: Option<usize>,
-    /// Run seed (default: the scenario's): the measurement noise of step k is drawn from (seed, k).
-    #[arg(long, value_name = "N")]
-    pub seed: Option<u64>,
+    /// The run: scenario, steps, seed.
+    #[command(flatten)]
+    pub run: runtime::RunArgs,
     /// Give up (exit 1) when the command for a step has not arrived after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     pub command_timeout_s: f64,
@@ -742,7 +734,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         ));
     }
     let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
-    let scenario = load_scenario(args.scenario.as_deref(), args.steps, args.seed)
+    let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let interval = match args.mode {
         Mode::Lockstep => None,

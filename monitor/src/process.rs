@@ -100,6 +100,9 @@ pub struct MonitorArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
+    /// The run: scenario, steps, seed.
+    #[command(flatten)]
+    pub run: runtime::RunArgs,
     /// Transport and waiting.
     #[command(flatten)]
     pub link: runtime::LinkArgs,
@@ -109,15 +112,6 @@ pub struct MonitorArgs {
     /// What `uavloc bench latency` reads.
     #[arg(long, value_name = "FILE")]
     pub stamps: Option<PathBuf>,
-    /// Scenario TOML file (default: the paper's nominal case): RMSE resamples and the record's scenario.
-    #[arg(long, value_name = "FILE")]
-    pub scenario: Option<PathBuf>,
-    /// Steps of the run (default: the scenario's); the monitor ends after step N.
-    #[arg(long, value_name = "N")]
-    pub steps: Option<usize>,
-    /// Run seed (default: the scenario's): the RMSE resamples of step k are drawn from (seed, k).
-    #[arg(long, value_name = "N")]
-    pub seed: Option<u64>,
     /// Write every event as one JSON object per line to FILE.
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
@@ -382,11 +376,9 @@ impl MonitorArgs {
     pub fn to_flags(&self) -> Vec<String> {
         runtime::Flags::new()
             .opt("--domain", self.domain.as_deref())
+            .extend(self.run.to_flags())
             .extend(self.link.to_flags())
             .path("--stamps", self.stamps.as_deref())
-            .path("--scenario", self.scenario.as_deref())
-            .opt("--steps", self.steps)
-            .opt("--seed", self.seed)
             .path("--log", self.log.as_deref())
             .path("--record", self.record.as_deref())
             .path("--out", self.out.as_deref())
@@ -701,7 +693,7 @@ fn write_outputs(args: &MonitorArgs, run: &RunRecord) -> Result<(), ProcessError
 pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessError> {
     protocol::transport::quiet_logs();
     let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
-    let scenario = load_scenario(args.scenario.as_deref(), args.steps, args.seed)
+    let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
     // With a log, the step records live there, not in memory (read back at the end); a restart takes the

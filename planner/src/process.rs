@@ -99,21 +99,15 @@ pub struct PlannerArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
-    /// Scenario TOML file (default: the paper's nominal case).
-    #[arg(long, value_name = "FILE")]
-    pub scenario: Option<PathBuf>,
+    /// The run: scenario, steps, seed.
+    #[command(flatten)]
+    pub run: runtime::RunArgs,
     /// Planning objective: single | mc | analytical | cubature | formation.
     #[arg(long, default_value = "analytical")]
     pub objective: ObjectiveKind,
     /// Solver: pso | ga | aco (ignored by formation).
     #[arg(long, default_value = "pso")]
     pub solver: SolverKind,
-    /// Steps of the run (default: the scenario's); the estimate of the last step is not planned.
-    #[arg(long, value_name = "N")]
-    pub steps: Option<usize>,
-    /// Run seed (default: the scenario's): MC objective samples and the solver derive from it.
-    #[arg(long, value_name = "N")]
-    pub seed: Option<u64>,
     /// Transport and waiting.
     #[command(flatten)]
     pub link: runtime::LinkArgs,
@@ -154,11 +148,9 @@ impl PlannerArgs {
     pub fn to_flags(&self) -> Vec<String> {
         runtime::Flags::new()
             .opt("--domain", self.domain.as_deref())
-            .path("--scenario", self.scenario.as_deref())
+            .extend(self.run.to_flags())
             .value("--objective", self.objective)
             .value("--solver", self.solver)
-            .opt("--steps", self.steps)
-            .opt("--seed", self.seed)
             .extend(self.link.to_flags())
             .switch("--takeover", self.takeover)
             .path("--checkpoint", self.checkpoint.as_deref())
@@ -246,7 +238,7 @@ fn content_key(e: &Estimate, usable: Option<&(Vector2<f64>, Matrix2<f64>)>) -> V
 pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     protocol::transport::quiet_logs();
     let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
-    let scenario = load_scenario(args.scenario.as_deref(), args.steps, args.seed)
+    let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     if scenario.target == TargetMode::Controlled {
         return Err(ProcessError::Input(

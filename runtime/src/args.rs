@@ -1,6 +1,34 @@
 //! The flags every process takes for its link (and `uavloc launch` passes on): transport and waiting.
 
+use std::path::PathBuf;
+
 use protocol::{TransportKind, WaitMode, WaitPolicy};
+
+/// The run every process of a pipeline must agree on: the scenario and the overrides of its steps and
+/// seed (each process loads it with `model::load_scenario`, the same rule as `uavloc simulate`).
+#[derive(clap::Args, Debug, Clone, Default, PartialEq, Eq)]
+pub struct RunArgs {
+    /// Scenario TOML file (default: the paper's nominal case; see scenarios/nominal.toml).
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Planning steps (default: the scenario's): steps 0..N are measured, 0..N−1 planned.
+    #[arg(long, value_name = "N")]
+    pub steps: Option<usize>,
+    /// Run seed (default: the scenario's): every random stream of step k derives from (seed, k).
+    #[arg(long, value_name = "N")]
+    pub seed: Option<u64>,
+}
+
+impl RunArgs {
+    /// The flags that reproduce these settings.
+    pub fn to_flags(&self) -> Vec<String> {
+        crate::Flags::new()
+            .path("--scenario", self.scenario.as_deref())
+            .opt("--steps", self.steps)
+            .opt("--seed", self.seed)
+            .into_vec()
+    }
+}
 
 /// Default busy-poll budget of `--wait spin-then-block` when `--spin-us` is not given, µs.
 pub const DEFAULT_SPIN_US: u64 = 100;

@@ -11,7 +11,7 @@ pub mod exit;
 pub mod flags;
 pub mod supervisor;
 
-pub use args::{DEFAULT_SPIN_US, LinkArgs};
+pub use args::{DEFAULT_SPIN_US, LinkArgs, RunArgs};
 pub use exit::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError, cpu_seconds};
 pub use flags::Flags;
 pub use supervisor::{SupervisorLine, exit_with, tell};
