@@ -120,28 +120,13 @@ pub use runtime::ProcessError;
 /// What the estimator did, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct EstimatorSummary {
-    /// `"estimator"`.
-    pub role: &'static str,
-    /// This process's instance id (in every estimate).
-    pub instance: u64,
-    /// Valid measurements received.
-    pub accepted: u64,
-    /// Invalid measurements ignored.
-    pub rejected: u64,
-    /// Estimates published.
-    pub published: u64,
+    /// What every data process reports (role, instance, counts, hand-over, CPU).
+    #[serde(flatten)]
+    pub node: runtime::NodeSummary,
     /// Estimates published as `failed` (Chan failed; the previous estimate stands).
     pub failed: u64,
-    /// Estimates sent again for a measurement seen before (a replay).
-    pub resent: u64,
     /// Measurements dropped because the step before them was not estimated (see the module docs).
     pub out_of_chain: u64,
-    /// With `--takeover`: the first step this estimator estimated (it took over there).
-    pub took_over_at: Option<u64>,
-    /// The step from which a newer estimator took over (this one exited then).
-    pub handed_over_at: Option<u64>,
-    /// CPU time this process used, seconds.
-    pub cpu_s: f64,
 }
 
 /// Steps whose answers are kept (the oldest is forgotten beyond): emitter-sim's replay history.
@@ -408,7 +393,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
     if link.interrupted() {
-        return Ok(EstimatorSummary { role: ROLE, ..EstimatorSummary::default() });
+        return Ok(EstimatorSummary { node: runtime::NodeSummary::new(ROLE, 0), ..EstimatorSummary::default() });
     }
     let started_ns = now_ns();
     let instance = instance_id_at(started_ns);
@@ -442,7 +427,8 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         // of a launch: emitter-sim is not there).
         control.send(ControlKind::Hello, resumed.map_or(0, |c| c.step + 1), "")?;
     }
-    let mut summary = EstimatorSummary { role: ROLE, instance, ..EstimatorSummary::default() };
+    let mut summary =
+        EstimatorSummary { node: runtime::NodeSummary::new(ROLE, instance), ..EstimatorSummary::default() };
     runtime::tell(args.supervised, &SupervisorLine::Ready);
     if !args.quiet {
         eprintln!("estimator: domain {domain}, instance {instance:#x}");
@@ -477,7 +463,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         for msg in control.receive(&mut counter)? {
             match msg {
                 Err(r) => {
-                    summary.rejected += 1;
+                    summary.node.rejected += 1;
                     eprintln!("estimator: rejected a control message: {r}");
                 }
                 Ok(c) if c.kind() == Some(ControlKind::Shutdown) => break 'run,
@@ -498,7 +484,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
                 }
                 let last = predecessor_seq.entry(e.instance).or_default();
                 if let Err(r) = counter.check(&e, last) {
-                    summary.rejected += 1;
+                    summary.node.rejected += 1;
                     eprintln!("estimator: rejected an estimate of the running estimator: {r}");
                     continue;
                 }
@@ -507,7 +493,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
                     let f = e.header.step + 1;
                     state = StepEstimator::resume(config, e.header.step, e.position, e.covariance, &e.extra());
                     from_step = Some(f);
-                    summary.took_over_at = Some(f);
+                    summary.node.took_over_at = Some(f);
                     control.send(ControlKind::TakeOver, f, "")?;
                     runtime::tell(args.supervised, &SupervisorLine::TakeOver { from_step: f });
                     if !args.quiet {
@@ -519,22 +505,22 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         if let Some(f) = handover
             && state.last_step().is_some_and(|l| l + 1 >= f)
         {
-            summary.handed_over_at = Some(f);
+            summary.node.handed_over_at = Some(f);
             break 'run;
         }
         let received_ns = now_ns();
         for m in measurements.receive_all()? {
             if let Err(r) = counter.check(&m, &mut last_seq) {
-                summary.rejected += 1;
+                summary.node.rejected += 1;
                 eprintln!("estimator: rejected a measurement: {r}");
                 continue;
             }
-            summary.accepted += 1;
+            summary.node.accepted += 1;
             let step = m.header.step;
             if let Some(f) = handover
                 && step >= f
             {
-                summary.handed_over_at = Some(f);
+                summary.node.handed_over_at = Some(f);
                 break 'run;
             }
             if args.takeover && from_step.is_none() {
@@ -552,7 +538,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
             let (fix, extra) = match state.handle(&m) {
                 Answer::New(fix, extra) => (fix, extra),
                 Answer::Again(fix, extra) => {
-                    summary.resent += 1;
+                    summary.node.resent += 1;
                     (fix, extra)
                 }
                 Answer::OutOfChain => {
@@ -575,13 +561,13 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
                 .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?
                 .with_extra(&extra);
             estimates.send(&estimate)?;
-            summary.published += 1;
+            summary.node.published += 1;
         }
         // A newer estimator took over and this one has estimated every step before it: hand over.
         if let Some(f) = handover
             && state.last_step().is_some_and(|l| l + 1 >= f)
         {
-            summary.handed_over_at = Some(f);
+            summary.node.handed_over_at = Some(f);
             break 'run;
         }
     }
@@ -589,10 +575,10 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     if !args.quiet {
         eprintln!(
             "estimator: stopped after {} estimates ({} sent again, {} out of chain; {counter})",
-            summary.published, summary.resent, summary.out_of_chain
+            summary.node.published, summary.node.resent, summary.out_of_chain
         );
     }
-    summary.cpu_s = runtime::cpu_seconds();
+    summary.node.cpu_s = runtime::cpu_seconds();
     Ok(summary)
 }
 
@@ -623,6 +609,22 @@ mod tests {
             Answer::New(f, _) | Answer::Again(f, _) => f,
             Answer::OutOfChain => panic!("out of chain"),
         }
+    }
+
+    #[test]
+    fn the_summary_keeps_its_flat_keys() {
+        // The launcher reads `rejected` and `handed_over_at` from every summary line, whatever the role.
+        let mut s = EstimatorSummary { node: runtime::NodeSummary::new(ROLE, 7), ..EstimatorSummary::default() };
+        s.node.rejected = 2;
+        s.node.handed_over_at = Some(9);
+        s.failed = 1;
+        let v = serde_json::to_value(&s).unwrap();
+        assert_eq!(v["role"], "estimator");
+        assert_eq!(
+            (v["rejected"].as_u64(), v["handed_over_at"].as_u64(), v["failed"].as_u64()),
+            (Some(2), Some(9), Some(1))
+        );
+        assert!(v.get("node").is_none());
     }
 
     #[test]

@@ -168,30 +168,15 @@ pub use model::scenario::load_scenario;
 /// What the planner did, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct PlannerSummary {
-    /// `"planner"`.
-    pub role: &'static str,
-    /// This process's instance id (in every command).
-    pub instance: u64,
-    /// Valid estimates received.
-    pub accepted: u64,
-    /// Invalid estimates ignored.
-    pub rejected: u64,
-    /// Commands published.
-    pub published: u64,
+    /// What every data process reports (role, instance, counts, hand-over, CPU).
+    #[serde(flatten)]
+    pub node: runtime::NodeSummary,
     /// Estimates that could not be planned (no usable estimate yet, or `plan_step` refused).
     pub errors: u64,
-    /// Commands sent again for an estimate seen before (a replay).
-    pub resent: u64,
     /// Steps held: no fresh estimate within `--estimate-deadline-ms`, the current headings commanded.
     pub held: u64,
     /// Estimates of held steps (arrived after the deadline; answered with the hold, not planned).
     pub late_estimates: u64,
-    /// With `--takeover`: the first step this planner planned (it took over there).
-    pub took_over_at: Option<u64>,
-    /// The step from which a newer planner took over (this one exited then).
-    pub handed_over_at: Option<u64>,
-    /// CPU time this process used, seconds.
-    pub cpu_s: f64,
 }
 
 /// Steps whose commands are kept (the oldest is forgotten beyond): emitter-sim's replay history.
@@ -250,7 +235,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
     // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
     if link.interrupted() {
-        return Ok(PlannerSummary { role: ROLE, ..PlannerSummary::default() });
+        return Ok(PlannerSummary { node: runtime::NodeSummary::new(ROLE, 0), ..PlannerSummary::default() });
     }
     let started_ns = now_ns();
     let instance = instance_id_at(started_ns);
@@ -286,7 +271,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         // launch: emitter-sim is not there).
         control.send(ControlKind::Hello, resumed.map_or(0, |c| c.step), &detail)?;
     }
-    let mut summary = PlannerSummary { role: ROLE, instance, ..PlannerSummary::default() };
+    let mut summary = PlannerSummary { node: runtime::NodeSummary::new(ROLE, instance), ..PlannerSummary::default() };
     runtime::tell(args.supervised, &SupervisorLine::Ready);
     if !args.quiet {
         eprintln!(
@@ -342,7 +327,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         for msg in control.receive(&mut counter)? {
             match msg {
                 Err(r) => {
-                    summary.rejected += 1;
+                    summary.node.rejected += 1;
                     eprintln!("planner: rejected a control message: {r}");
                 }
                 Ok(c) if c.kind() == Some(ControlKind::Shutdown) => break 'run,
@@ -359,14 +344,14 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         if let Some(f) = handover
             && last_planned.is_some_and(|l| l + 1 >= f)
         {
-            summary.handed_over_at = Some(f);
+            summary.node.handed_over_at = Some(f);
             break 'run;
         }
         if let (Some(t), Some(sub)) = (tracker.as_mut(), measurements.as_ref()) {
             let now = Instant::now();
             for m in sub.receive_all()? {
                 if let Err(r) = counter.check(&m, &mut measurement_seq) {
-                    summary.rejected += 1;
+                    summary.node.rejected += 1;
                     eprintln!("planner: rejected a measurement: {r}");
                     continue;
                 }
@@ -379,11 +364,11 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         let received_ns = now_ns();
         for est in estimates.receive_all()? {
             if let Err(r) = counter.check(&est, &mut last_seq) {
-                summary.rejected += 1;
+                summary.node.rejected += 1;
                 eprintln!("planner: rejected an estimate: {r}");
                 continue;
             }
-            summary.accepted += 1;
+            summary.node.accepted += 1;
             let step = est.header.step;
             let own = matches!(est.status(), Some(EstimateStatus::Ok | EstimateStatus::Ambiguous))
                 .then(|| from_wire(&(est.position, est.covariance)));
@@ -392,7 +377,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
             if let Some(f) = handover
                 && step >= f
             {
-                summary.handed_over_at = Some(f);
+                summary.node.handed_over_at = Some(f);
                 break 'run;
             }
             if args.takeover {
@@ -401,7 +386,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                         // The running planner plans this step; this one takes over from the next.
                         let f = step + 1;
                         from_step = Some(f);
-                        summary.took_over_at = Some(f);
+                        summary.node.took_over_at = Some(f);
                         control.send(ControlKind::TakeOver, f, &detail)?;
                         runtime::tell(args.supervised, &SupervisorLine::TakeOver { from_step: f });
                         if !args.quiet {
@@ -434,8 +419,8 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                     let mut again = *hold;
                     again.header.seq = seq;
                     commands.send(&again)?;
-                    summary.resent += 1;
-                    summary.published += 1;
+                    summary.node.resent += 1;
+                    summary.node.published += 1;
                 }
                 continue;
             }
@@ -447,8 +432,8 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 let mut again = cached.carrying(&est, received_ns);
                 again.header.seq = seq;
                 commands.send(&again)?;
-                summary.resent += 1;
-                summary.published += 1;
+                summary.node.resent += 1;
+                summary.node.published += 1;
                 last_planned = last_planned.max(Some(step));
                 continue;
             }
@@ -518,7 +503,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 }
             }
             commands.send(&command)?;
-            summary.published += 1;
+            summary.node.published += 1;
             last_planned = last_planned.max(Some(step));
             answers.insert(step, (key, command));
             if answers.len() > MAX_CACHED_STEPS {
@@ -534,7 +519,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 let hold = hold_command(&due, &scenario, args, &mut seq, instance)?;
                 commands.send(&hold)?;
                 summary.held += 1;
-                summary.published += 1;
+                summary.node.published += 1;
                 last_planned = last_planned.max(Some(due.step));
                 eprintln!(
                     "planner: step {}: no estimate within {} ms of the measurement; holding course",
@@ -550,18 +535,21 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         if let Some(f) = handover
             && last_planned.is_some_and(|l| l + 1 >= f)
         {
-            summary.handed_over_at = Some(f);
+            summary.node.handed_over_at = Some(f);
             break 'run;
         }
     }
     drop(guards);
     if !args.quiet {
-        if let Some(f) = summary.handed_over_at {
+        if let Some(f) = summary.node.handed_over_at {
             eprintln!("planner: handed over to the newer planner at step {f}");
         }
-        eprintln!("planner: stopped after {} commands ({} estimates, {counter})", summary.published, summary.accepted);
+        eprintln!(
+            "planner: stopped after {} commands ({} estimates, {counter})",
+            summary.node.published, summary.node.accepted
+        );
     }
-    summary.cpu_s = runtime::cpu_seconds();
+    summary.node.cpu_s = runtime::cpu_seconds();
     Ok(summary)
 }
 

@@ -14,4 +14,4 @@ pub mod supervisor;
 pub use args::{DEFAULT_SPIN_US, LinkArgs, RunArgs};
 pub use exit::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError, cpu_seconds};
 pub use flags::Flags;
-pub use supervisor::{SupervisorLine, exit_with, tell};
+pub use supervisor::{NodeSummary, SupervisorLine, exit_with, tell};

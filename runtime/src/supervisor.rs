@@ -18,6 +18,37 @@ use serde_json::Value;
 
 use crate::exit::{EXIT_INTERRUPTED, ProcessError};
 
+/// What every data process (estimator, planner) reports at its end, flattened into its summary line:
+/// the JSON keys are the same for both, and a supervisor reads them without knowing the role.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct NodeSummary {
+    /// The role (`"estimator"`, `"planner"`).
+    pub role: &'static str,
+    /// This process's instance id (in every message it sends).
+    pub instance: u64,
+    /// Valid messages received.
+    pub accepted: u64,
+    /// Invalid messages ignored.
+    pub rejected: u64,
+    /// Answers published.
+    pub published: u64,
+    /// Answers sent again for a message seen before (a replay).
+    pub resent: u64,
+    /// With `--takeover`: the first step this process handled (it took over there).
+    pub took_over_at: Option<u64>,
+    /// The step from which a newer instance took over (this one exited then).
+    pub handed_over_at: Option<u64>,
+    /// CPU time this process used, seconds.
+    pub cpu_s: f64,
+}
+
+impl NodeSummary {
+    /// The summary of a fresh instance of `role`.
+    pub fn new(role: &'static str, instance: u64) -> Self {
+        Self { role, instance, ..Self::default() }
+    }
+}
+
 /// One line from a supervised process.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SupervisorLine {
