@@ -10,7 +10,7 @@ use serde::Serialize;
 use tdoa::{Dynamics, NoiseModel, RangeDiffs, SPEED_OF_LIGHT};
 
 use crate::error::CliError;
-use crate::output::{Diagnostic, Table, matrix, num, pair, rows};
+use crate::output::{Diagnostic, Table, pair, rows};
 
 /// One recorded snapshot.
 #[derive(Debug, Clone, PartialEq)]
@@ -213,19 +213,13 @@ pub fn fuse(snapshots: &[Snapshot], prior: Option<Vector2<f64>>) -> Result<FuseR
 impl FuseReport {
     /// The report as a table.
     pub fn table(&self) -> Table {
-        let sd = [self.cov[0][0].max(0.0).sqrt(), self.cov[1][1].max(0.0).sqrt()];
-        let mut t = Table::new()
-            .row("x", format!("{} m", num(self.x)))
-            .row("y", format!("{} m", num(self.y)))
-            .row("std x, y", format!("{} m, {} m", num(sd[0]), num(sd[1])))
-            .row("cov", format!("{} m²", matrix(self.cov)))
-            .row(
-                "snapshots",
-                format!(
-                    "{} read, {} fused, {} rejected (χ² gate), {} failed",
-                    self.snapshots, self.fused, self.rejected_snapshots, self.failed
-                ),
-            );
+        let mut t = crate::locate::position_rows(Table::new(), self.x, self.y, self.cov).row(
+            "snapshots",
+            format!(
+                "{} read, {} fused, {} rejected (χ² gate), {} failed",
+                self.snapshots, self.fused, self.rejected_snapshots, self.failed
+            ),
+        );
         for s in &self.steps {
             t = t.row(format!("line {}", s.line), format!("{} m  {}", pair(s.estimate), s.status));
         }

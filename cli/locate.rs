@@ -142,14 +142,18 @@ impl Report for LocateOutput {
     }
 }
 
+/// The rows of a position estimate: x, y, their standard deviations and the covariance (m, m²).
+pub(crate) fn position_rows(t: Table, x: f64, y: f64, cov: [[f64; 2]; 2]) -> Table {
+    let sd = [cov[0][0].max(0.0).sqrt(), cov[1][1].max(0.0).sqrt()];
+    t.row("x", format!("{} m", num(x)))
+        .row("y", format!("{} m", num(y)))
+        .row("std x, y", format!("{} m, {} m", num(sd[0]), num(sd[1])))
+        .row("cov", format!("{} m²", matrix(cov)))
+}
+
 impl Report for LocateReport {
     fn table(&self) -> Table {
-        let sd = [self.cov[0][0].max(0.0).sqrt(), self.cov[1][1].max(0.0).sqrt()];
-        let mut t = Table::new()
-            .row("x", format!("{} m", num(self.x)))
-            .row("y", format!("{} m", num(self.y)))
-            .row("std x, y", format!("{} m, {} m", num(sd[0]), num(sd[1])))
-            .row("cov", format!("{} m²", matrix(self.cov)))
+        let mut t = position_rows(Table::new(), self.x, self.y, self.cov)
             .row("ambiguous", if self.ambiguous { "yes" } else { "no" });
         for (i, c) in self.candidates.iter().enumerate() {
             t = t.row(format!("candidate {}", i + 1), format!("{} m", pair(*c)));

@@ -212,7 +212,7 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
         )));
     }
     // … and the old one exits once it has handled the steps before (its node, then its process).
-    while running(&domain)? > 1 || old_pids.iter().any(|p| process_runs(*p)) {
+    while running(&domain)? > 1 || old_pids.iter().any(|p| crate::launch::state_dir::pid_alive(*p)) {
         if Instant::now() > deadline {
             return Err(CliError::Failed(format!(
                 "the new {role} (pid {pid}) took over from step {from_step}, but the old one is still running after \
@@ -224,14 +224,6 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     // The new process runs on by itself (its later `summary` line goes nowhere).
     drop(child);
     Ok(SwapReport { role: role.into(), domain: domain.to_string(), pid, from_step, planner })
-}
-
-/// Whether process `pid` runs (exists and is not a zombie waiting to be reaped).
-fn process_runs(pid: u32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .ok()
-        .and_then(|s| s.rsplit_once(") ").map(|(_, rest)| !rest.starts_with('Z')))
-        .unwrap_or(false)
 }
 
 impl Report for SwapReport {

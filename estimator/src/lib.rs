@@ -106,24 +106,35 @@ pub struct EstimatorConfig {
     pub kind: EstimatorKind,
     /// The emitter's motion model (fused only).
     pub dynamics: Dynamics,
-    /// The χ² gate probability (fused only), in (0, 1]; 1 fuses everything.
-    pub gate_probability: f64,
+    /// The χ² gate `χ²_m(p_gate)` (fused only) for m range differences, index m, with the default
+    /// [`DEFAULT_GATE_PROBABILITY`]: computed once here, because the quantile is an iterative inversion
+    /// (≈ 1.4 µs) and every fused snapshot needs its gate.
+    gates: [f64; tdoa::MAX_UAVS],
 }
 
 impl EstimatorConfig {
     /// The paper's per-step Chan.
     pub fn snapshot() -> Self {
-        Self { kind: EstimatorKind::Snapshot, dynamics: Dynamics::fixed(), gate_probability: DEFAULT_GATE_PROBABILITY }
+        Self::new(EstimatorKind::Snapshot, Dynamics::fixed())
     }
 
     /// Fusion under `dynamics` with the default gate.
     pub fn fused(dynamics: Dynamics) -> Self {
-        Self { kind: EstimatorKind::Fused, dynamics, gate_probability: DEFAULT_GATE_PROBABILITY }
+        Self::new(EstimatorKind::Fused, dynamics)
     }
 
     /// `kind` under `dynamics` with the default gate.
     pub fn new(kind: EstimatorKind, dynamics: Dynamics) -> Self {
-        Self { kind, dynamics, gate_probability: DEFAULT_GATE_PROBABILITY }
+        let mut gates = [f64::INFINITY; tdoa::MAX_UAVS];
+        for (m, gate) in gates.iter_mut().enumerate().skip(1) {
+            *gate = fusion::gate_threshold(m, DEFAULT_GATE_PROBABILITY);
+        }
+        Self { kind, dynamics, gates }
+    }
+
+    /// The gate of a snapshot of `m` range differences (`+∞`, no gate, outside 1..MAX_UAVS).
+    pub fn gate(&self, m: usize) -> f64 {
+        self.gates.get(m).copied().unwrap_or(f64::INFINITY)
     }
 }
 
@@ -342,7 +353,7 @@ impl Estimator {
         noise: &NoiseModel,
     ) -> Result<EstimateOut, TdoaError> {
         let sensors = Self::sensors(uavs, noise)?;
-        let gate = fusion::gate_threshold(sensors.len() - 1, self.config.gate_probability);
+        let gate = self.config.gate(sensors.len() - 1);
         let up = fusion::fuse(predicted, &sensors, d, gate)?;
         let (status, nis) = match up.outcome {
             Outcome::Fused { nis, .. } => (EstimateStatus::Ok, nis),

@@ -44,7 +44,7 @@ pub fn step_metrics(
 pub fn annotate(run: &mut crate::RunRecord) {
     let sc = &run.scenario;
     let dynamics = sc.dynamics().unwrap_or_else(|_| tdoa::Dynamics::fixed());
-    let sigmas = sc.range_sigmas();
+    let noise = tdoa::NoiseModel::from_range_sigmas(&sc.range_sigmas()).ok();
     let mut bound = tdoa::InformationBound::new(dynamics);
     let mut last_step: Option<u64> = None;
     let mut violations = 0u64;
@@ -69,9 +69,9 @@ pub fn annotate(run: &mut crate::RunRecord) {
         );
         s.estimate_error_m = est.iter().all(|v| v.is_finite()).then(|| (est - z).norm());
         s.nees = tdoa::nees(&est, &cov, &z);
-        let fim = tdoa::NoiseModel::from_range_sigmas(&sigmas)
-            .and_then(|noise| Sensors::new(&s.uavs, noise))
-            .ok()
+        let fim = noise
+            .as_ref()
+            .and_then(|noise| Sensors::new(&s.uavs, noise.clone()).ok())
             .and_then(|sensors| tdoa::fim(&sensors, &z));
         let elapsed = last_step.map_or(1, |l| s.step.saturating_sub(l).max(1));
         last_step = Some(s.step);

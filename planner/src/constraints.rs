@@ -95,8 +95,26 @@ pub struct Constraints {
 }
 
 /// `k(c) = Φ⁻¹(c)` for a standoff confidence `c` in [0, 1); `c = 0` gives 0 (the paper's constraint).
+///
+/// Φ⁻¹ is an iterative inversion (≈ 2 µs) and every planning step of a run asks for the same `c`: the
+/// last answer is kept per thread.
 pub fn standoff_k(confidence: f64) -> f64 {
-    if confidence > 0.0 { tdoa::dist::normal_quantile(confidence) } else { 0.0 }
+    use std::cell::Cell;
+    thread_local! {
+        static LAST: Cell<(u64, f64)> = const { Cell::new((0, 0.0)) };
+    }
+    if confidence.is_nan() || confidence <= 0.0 {
+        return 0.0;
+    }
+    LAST.with(|last| {
+        let (bits, k) = last.get();
+        if bits == confidence.to_bits() {
+            return k;
+        }
+        let k = tdoa::dist::normal_quantile(confidence);
+        last.set((confidence.to_bits(), k));
+        k
+    })
 }
 
 impl Constraints {
@@ -275,7 +293,7 @@ impl Constraints {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn m_small() -> Matrix2<f64> {
@@ -338,7 +356,8 @@ mod tests {
     use crate::fitness::Fitness;
     use crate::kinematics::next_position;
 
-    fn constraints() -> Constraints {
+    /// The nominal constraints (L = 500 m, R_min 1000 m, D_min 500 m, L_min 3000 m, Δα 25°), k = 0.
+    pub(crate) fn constraints() -> Constraints {
         Constraints {
             arc_len: 500.0,
             r_min: 1000.0,

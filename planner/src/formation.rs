@@ -42,18 +42,7 @@ pub fn formation_headings(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn constraints() -> Constraints {
-        Constraints {
-            arc_len: 500.0,
-            r_min: 1000.0,
-            d_min: 500.0,
-            l_min: 3000.0,
-            delta_alpha: 25f64.to_radians(),
-            standoff_k: 0.0,
-            covariance: nalgebra::Matrix2::zeros(),
-        }
-    }
+    use crate::constraints::tests::constraints;
 
     #[test]
     fn common_heading_when_unconstrained() {

@@ -176,14 +176,7 @@ impl PosteriorObjective {
 
 impl PlanObjective for PosteriorObjective {
     fn evaluate(&self, next: &[Vector2<f64>]) -> f64 {
-        if next.len() > MAX_UAVS {
-            return f64::INFINITY;
-        }
-        let mut uavs = [[0.0; 2]; MAX_UAVS];
-        for (u, p) in uavs.iter_mut().zip(next) {
-            *u = [p.x, p.y];
-        }
-        let Ok(sensors) = Sensors::new(&uavs[..next.len()], self.noise.clone()) else { return f64::INFINITY };
+        let Some(sensors) = sensors_at(next, &self.noise) else { return f64::INFINITY };
         let mut sum = 0.0;
         for (p, w) in self.points.iter().zip(&self.weights) {
             let info = self.prior_info + tdoa::fim(&sensors, p).unwrap_or_else(nalgebra::Matrix2::zeros);
@@ -200,6 +193,19 @@ impl StepObjective for CrlbObjective {
     fn effective_samples(&self) -> Option<f64> {
         CrlbObjective::effective_samples(self)
     }
+}
+
+/// The sensing geometry of candidate waypoints `next` (on the stack): `None` — the criterion's `+∞` —
+/// for more than [`MAX_UAVS`], coincident UAVs or a wrong count.
+fn sensors_at(next: &[Vector2<f64>], noise: &NoiseModel) -> Option<Sensors> {
+    if next.len() > MAX_UAVS {
+        return None;
+    }
+    let mut uavs = [[0.0; 2]; MAX_UAVS];
+    for (u, p) in uavs.iter_mut().zip(next) {
+        *u = [p.x, p.y];
+    }
+    Sensors::new(&uavs[..next.len()], noise.clone()).ok()
 }
 
 /// A criterion prepared for one planning step, evaluated at candidate next waypoints.
@@ -269,21 +275,14 @@ impl CrlbObjective {
 
 impl PlanObjective for CrlbObjective {
     fn evaluate(&self, next: &[Vector2<f64>]) -> f64 {
-        if next.len() > MAX_UAVS {
-            return f64::INFINITY;
-        }
-        let mut uavs = [[0.0; 2]; MAX_UAVS];
-        for (u, p) in uavs.iter_mut().zip(next) {
-            *u = [p.x, p.y];
-        }
-        match Sensors::new(&uavs[..next.len()], self.noise.clone()) {
-            Ok(sensors)
+        match sensors_at(next, &self.noise) {
+            Some(sensors)
                 if self.support.as_ref().is_some_and(|unc| singular_report(&sensors, unc).intersects_support) =>
             {
                 f64::INFINITY
             }
-            Ok(sensors) => self.prepared.evaluate(&sensors).trace_m2,
-            Err(_) => f64::INFINITY,
+            Some(sensors) => self.prepared.evaluate(&sensors).trace_m2,
+            None => f64::INFINITY,
         }
     }
 }
