@@ -52,9 +52,10 @@ impl Role {
         matches!(self, Role::Monitor | Role::EmitterSim)
     }
 
-    /// Whether the role keeps a checkpoint file in the launch's state directory.
+    /// Whether the role keeps a checkpoint file in the launch's state directory (the planner keeps no
+    /// state; the monitor's is its log).
     pub fn checkpoints(self) -> bool {
-        self != Role::Monitor
+        matches!(self, Role::Estimator | Role::EmitterSim)
     }
 
     /// The flag a restarted instance gets on top of the first one's (the monitor resumes its log).
@@ -145,6 +146,8 @@ mod tests {
     fn names_and_order() {
         assert_eq!(Role::START_ORDER.map(Role::name), ["monitor", "planner", "estimator", "emitter-sim"]);
         assert_eq!(Role::Monitor.restart_flag(), Some("--resume"));
-        assert!(Role::START_ORDER.iter().filter(|r| r.checkpoints()).all(|r| *r != Role::Monitor));
+        assert!(
+            Role::START_ORDER.iter().filter(|r| r.checkpoints()).all(|r| !matches!(r, Role::Monitor | Role::Planner))
+        );
     }
 }

@@ -467,9 +467,13 @@ impl Sim<'_> {
             match c.kind() {
                 Some(ControlKind::Shutdown) => return Err(ProcessError::Interrupted),
                 Some(ControlKind::Hello) if matches!(c.role(), Some("estimator" | "planner" | "monitor")) => {
-                    let from = c.header.step;
-                    // A request beyond the steps published is for the next step: nothing to replay yet.
                     let published = self.sent_base + self.sent.len() as u64;
+                    // A planner needs the step in flight only (the newest published).
+                    let from = match c.header.step {
+                        ControlKind::IN_FLIGHT => published.saturating_sub(1),
+                        step => step,
+                    };
+                    // A request beyond the steps published is for the next step: nothing to replay yet.
                     if from >= published {
                         continue;
                     }

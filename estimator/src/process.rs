@@ -1,7 +1,7 @@
 //! The `estimator` process: receive a [`Measurement`] → [`Estimator::estimate`] → publish an [`Estimate`].
 //!
-//! One loop over the pipeline's measurement and control topics (blocking in a `WaitSet`, event-driven;
-//! optionally busy-polling for `--spin-us` first). It needs no scenario: the UAV positions, range
+//! A handler on the node runtime ([`runtime::node`]: one event loop over the measurement and control
+//! topics in a `WaitSet`, optionally busy-polling for `--spin-us` first). It needs no scenario: the UAV positions, range
 //! differences and their σ all come with the measurement (σ gives the noise model of eq. 19, exactly the
 //! one the world drew the noise with). The estimate carries the measurement's UAV geometry and stamps
 //! forward ([`Estimate::from_measurement`]).
@@ -26,7 +26,8 @@
 //!   answer for). Answers are kept for the last [`MAX_CACHED_STEPS`] steps, so
 //!   its memory does not grow with the run.
 //! - When Chan fails the library keeps its previous estimate; on the wire that is a `failed` estimate
-//!   (no position), and the receivers fall back to the last usable one they saw — the same numbers.
+//!   carrying that standing estimate (v3), which the planner plans from and the monitor records — the
+//!   numbers of `uavloc simulate`, with no fallback state in either.
 //! - Invalid measurements are counted (per rejection kind) and ignored.
 //! - SIGINT/SIGTERM, or a [`ControlKind::Shutdown`] on the control topic, end the loop cleanly (exit 0).
 //!
@@ -42,28 +43,22 @@
 use std::collections::{BTreeMap, HashMap};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Duration;
 
 use clap::Args;
 use nalgebra::{Matrix4, Vector2, Vector4};
-use protocol::control::instance_id_at;
-use protocol::services::{self, Domain};
+use protocol::services;
 use protocol::{
-    ControlChannel, ControlKind, Estimate, EstimateStatus as WireStatus, Fix, Measurement, PosteriorExtra,
-    RejectionCounter, Topic, TopicSubscriber, TransportError, now_ns,
+    ControlKind, Estimate, EstimateStatus as WireStatus, Fix, Measurement, PosteriorExtra, Topic, TopicPublisher,
+    TopicSubscriber, Waitable, now_ns,
 };
-use runtime::SupervisorLine;
 use runtime::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
+use runtime::{Flow, Handler, Node};
 use tdoa::{Dynamics, NoiseModel, Posterior, RangeDiffs};
 
 use crate::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig, EstimatorKind};
 
 /// The role name (node name suffix, `uavloc process estimator`).
 pub const ROLE: &str = "estimator";
-
-/// How long a blocking wait lasts before the loop re-checks for a termination request that arrived
-/// between two waits (a signal during a wait interrupts it at once).
-pub const IDLE_WAKEUP: Duration = Duration::from_secs(1);
 
 /// What `estimator --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
@@ -222,17 +217,29 @@ fn content_key(m: &Measurement) -> Vec<u64> {
 pub struct StepEstimator {
     estimator: Estimator,
     last_step: Option<u64>,
-    answers: BTreeMap<u64, (Vec<u64>, Fix, PosteriorExtra)>,
+    answers: BTreeMap<u64, (Vec<u64>, Reply)>,
     checkpoints: Vec<Checkpoint>,
+}
+
+/// The estimate of one step as it goes on the wire: the fix, the fused state beyond the position, and
+/// for a failed fix the standing estimate (the last usable one, what the step is planned from).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reply {
+    /// The fix of this step.
+    pub fix: Fix,
+    /// The fused posterior beyond the position.
+    pub extra: PosteriorExtra,
+    /// Failed: the standing estimate (position, covariance), if any.
+    pub standing: Option<([f64; 2], [[f64; 2]; 2])>,
 }
 
 /// What [`StepEstimator::handle`] did with a measurement.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Answer {
     /// Estimated now.
-    New(Fix, PosteriorExtra),
+    New(Reply),
     /// The answer given before to the same measurement.
-    Again(Fix, PosteriorExtra),
+    Again(Reply),
     /// Not estimated: the step before it was not (see the module docs).
     OutOfChain,
 }
@@ -326,16 +333,16 @@ impl StepEstimator {
     pub fn handle(&mut self, m: &Measurement) -> Answer {
         let step = m.header.step;
         let key = content_key(m);
-        if let Some((known, fix, extra)) = self.answers.get(&step)
+        if let Some((known, reply)) = self.answers.get(&step)
             && *known == key
         {
-            let (fix, extra) = (*fix, *extra);
+            let reply = *reply;
             // The answer is known, but the state may be behind it (rewound to an older checkpoint, then
             // replayed up to answers kept from before): the answer *is* the state after its step.
             if self.last_step.is_some_and(|last| step == last + 1) {
-                self.advance_to(step, &fix, &extra);
+                self.advance_to(step, &reply.fix, &reply.extra);
             }
-            return Answer::Again(fix, extra);
+            return Answer::Again(reply);
         }
         let config = *self.estimator.config();
         if step == 0 {
@@ -353,65 +360,158 @@ impl StepEstimator {
                 _ => return Answer::OutOfChain,
             }
         }
-        let (fix, extra) = estimate_measurement(&mut self.estimator, m);
+        let reply = estimate_measurement(&mut self.estimator, m);
         self.last_step = Some(step);
-        self.answers.insert(step, (key, fix, extra));
+        self.answers.insert(step, (key, reply));
         if self.answers.len() > MAX_CACHED_STEPS {
             self.answers.pop_first();
         }
-        Answer::New(fix, extra)
+        Answer::New(reply)
     }
 }
 
-/// The estimate of one measurement as a wire [`Fix`] and the fused state beyond the position
-/// (`Fix::Failed` when the step could not be estimated, whether or not the library had a previous
-/// estimate to keep).
-pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> (Fix, PosteriorExtra) {
+/// The estimate of one measurement as it goes on the wire (`Fix::Failed` when the step could not be
+/// estimated; it then carries the standing estimate the library keeps, if any).
+pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply {
     let uavs: Vec<Vector2<f64>> = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
-    let (Ok(noise), Ok(diffs)) = (NoiseModel::from_range_sigmas(m.sigmas()), RangeDiffs::from_slice(m.diffs())) else {
-        return (Fix::Failed, PosteriorExtra::default());
+    let outcome = match (NoiseModel::from_range_sigmas(m.sigmas()), RangeDiffs::from_slice(m.diffs())) {
+        (Ok(noise), Ok(diffs)) => estimator.estimate(m.header.step, &uavs, &diffs, &noise).ok(),
+        _ => None,
     };
-    match estimator.estimate(m.header.step, &uavs, &diffs, &noise) {
-        Ok(out) => {
+    let standing = || estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c));
+    match outcome {
+        Some(out) => {
             let (position, covariance) = tdoa::estimate_to_arrays(&out.position, &out.covariance);
             let fix = match out.status {
                 EstimateStatus::Ok => Fix::Ok { position, covariance },
                 EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
                 EstimateStatus::Rejected { .. } => Fix::Rejected { position, covariance },
-                EstimateStatus::Failed { .. } => Fix::Failed,
+                EstimateStatus::Failed { .. } => {
+                    // The library returned its previous estimate: the standing one.
+                    return Reply {
+                        fix: Fix::Failed,
+                        extra: PosteriorExtra::default(),
+                        standing: Some((position, covariance)),
+                    };
+                }
             };
-            (fix, extra_of(out.posterior.as_ref(), out.rejected_run))
+            Reply { fix, extra: extra_of(out.posterior.as_ref(), out.rejected_run), standing: None }
         }
-        Err(_) => (Fix::Failed, PosteriorExtra::default()),
+        None => Reply { fix: Fix::Failed, extra: PosteriorExtra::default(), standing: standing() },
     }
 }
 
-/// Runs the estimator until SIGINT/SIGTERM or a shutdown request.
+/// The estimator's handler: its ports, its state and the bookkeeping of a swap.
+struct EstimatorNode<'a> {
+    args: &'a EstimatorArgs,
+    config: EstimatorConfig,
+    measurements: &'a TopicSubscriber<Measurement>,
+    estimates: &'a TopicPublisher<Estimate>,
+    /// With --takeover: the running estimator's estimates (its state to take over), and the last sequence
+    /// number of each of its instances.
+    predecessor: Option<&'a TopicSubscriber<Estimate>>,
+    predecessor_seq: HashMap<u64, Option<u64>>,
+    last_seq: Option<u64>,
+    state: StepEstimator,
+    /// With --takeover: the step this estimator takes over from.
+    from_step: Option<u64>,
+    summary: EstimatorSummary,
+}
+
+impl EstimatorNode<'_> {
+    /// With --takeover: the first usable estimate of the running estimator (step k) is its state after
+    /// step k; this one takes over from k + 1.
+    fn follow_predecessor(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        let Some(p) = self.predecessor else { return Ok(()) };
+        for e in p.receive_all()? {
+            if e.instance == node.instance() || self.from_step.is_some() {
+                continue;
+            }
+            let last = self.predecessor_seq.entry(e.instance).or_default();
+            if let Err(r) = node.counter().check(&e, last) {
+                node.summary().rejected += 1;
+                node.warn(format_args!("rejected an estimate of the running estimator: {r}"));
+                continue;
+            }
+            if e.status().is_some_and(WireStatus::is_usable) {
+                let f = e.header.step + 1;
+                self.state = StepEstimator::resume(self.config, e.header.step, e.position, e.covariance, &e.extra());
+                self.from_step = Some(f);
+                node.take_over(f, "")?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The checkpoint (the state before a checkpoint step) goes out before the step's estimate.
+    fn checkpoint_before(&mut self, node: &Node, step: u64) {
+        if let Some(path) = &self.args.checkpoint
+            && checkpoint::is_checkpoint_step(step)
+            && self.state.last_step() == Some(step - 1)
+            && self.state.take_checkpoint()
+            && let Err(e) = checkpoint::save(path, ROLE, node.domain().as_str(), &self.state.checkpoints())
+        {
+            node.warn(format_args!("{e}"));
+        }
+    }
+}
+
+impl Handler for EstimatorNode<'_> {
+    fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
+        self.follow_predecessor(node)?;
+        let received_ns = now_ns();
+        for m in node.receive(self.measurements, &mut self.last_seq, "a measurement")? {
+            let step = m.header.step;
+            if node.hands_over(step) {
+                return Ok(Flow::Stop);
+            }
+            if self.args.takeover && self.from_step.is_none() {
+                continue; // the running estimator's step
+            }
+            self.checkpoint_before(node, step);
+            let reply = match self.state.handle(&m) {
+                Answer::New(reply) => reply,
+                Answer::Again(reply) => {
+                    node.summary().resent += 1;
+                    reply
+                }
+                Answer::OutOfChain => {
+                    self.summary.out_of_chain += 1;
+                    node.say(format_args!("step {step}: the step before was not estimated here; waiting for a replay"));
+                    continue;
+                }
+            };
+            if reply.fix == Fix::Failed {
+                self.summary.failed += 1;
+                node.warn(format_args!("step {step}: no fix (the previous estimate stands)"));
+            }
+            let seq = node.next_seq();
+            let estimate = Estimate::from_measurement(&m, received_ns, seq, node.instance(), reply.fix)
+                .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?
+                .with_extra(&reply.extra)
+                .with_standing(reply.standing);
+            self.estimates.send(&estimate)?;
+            node.summary().published += 1;
+        }
+        Ok(Flow::Continue)
+    }
+
+    fn last_answered(&self) -> Option<u64> {
+        self.state.last_step()
+    }
+}
+
+/// Runs the estimator until SIGINT/SIGTERM, a shutdown request or a hand-over.
 pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
-    protocol::transport::quiet_logs();
-    let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
-    let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
-    // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
-    if link.interrupted() {
+    let config = args.config()?;
+    let Some(mut node) = Node::open(ROLE, args.domain.as_deref(), &args.link, args.supervised, args.quiet)? else {
         return Ok(EstimatorSummary { node: runtime::NodeSummary::new(ROLE, 0), ..EstimatorSummary::default() });
-    }
-    let started_ns = now_ns();
-    let instance = instance_id_at(started_ns);
-    let measurements = Topic::<Measurement>::subscriber(&link, &services::measurement(&domain))?;
-    let estimates = Topic::<Estimate>::publisher(&link, &services::estimate(&domain))?;
-    let control = ControlChannel::open(&link, &domain, ROLE, instance, started_ns)?;
-    // With --takeover: the running estimator's estimates (its state to take over).
-    let predecessor: Option<TopicSubscriber<Estimate>> =
-        if args.takeover { Some(Topic::<Estimate>::subscriber(&link, &services::estimate(&domain))?) } else { None };
-    let waitset = protocol::transport::waitset()?;
-    let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
-    let mut guards = vec![
-        waitset.attach_notification(&measurements).map_err(attach_failed)?,
-        waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
-    ];
-    if let Some(p) = &predecessor {
-        guards.push(waitset.attach_notification(p).map_err(attach_failed)?);
-    }
+    };
+    let domain = node.domain().clone();
+    let measurements = Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain))?;
+    let estimates = Topic::<Estimate>::publisher(node.link(), &services::estimate(&domain))?;
+    let predecessor =
+        args.takeover.then(|| Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))).transpose()?;
     // A restart in the same run resumes from its checkpoint.
     let kept = match (&args.checkpoint, args.takeover) {
         (Some(path), false) => checkpoint::load::<Vec<Checkpoint>>(path, ROLE, domain.as_str())
@@ -419,167 +519,41 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
             .unwrap_or_default(),
         _ => Vec::new(),
     };
-    let config = args.config()?;
     let resumed = kept.last().copied();
-    let mut state = StepEstimator::from_checkpoints(config, kept);
     if !args.takeover {
         // "Replay the run for me from the step after my checkpoint, else from step 0" (a no-op at the start
         // of a launch: emitter-sim is not there).
-        control.send(ControlKind::Hello, resumed.map_or(0, |c| c.step + 1), "")?;
+        node.announce(ControlKind::Hello, resumed.map_or(0, |c| c.step + 1), "")?;
     }
-    let mut summary =
-        EstimatorSummary { node: runtime::NodeSummary::new(ROLE, instance), ..EstimatorSummary::default() };
-    runtime::tell(args.supervised, &SupervisorLine::Ready);
-    if !args.quiet {
-        eprintln!("estimator: domain {domain}, instance {instance:#x}");
-        if let Some(c) = &resumed {
-            eprintln!("estimator: resumed from the checkpoint of step {}", c.step);
-        }
+    node.ready();
+    node.say(format_args!("domain {domain}, instance {:#x}", node.instance()));
+    if let Some(c) = &resumed {
+        node.say(format_args!("resumed from the checkpoint of step {}", c.step));
     }
-
-    let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
-    let mut counter = RejectionCounter::new();
-    let mut last_seq = None;
-    let mut seq = now_ns();
-    // The swap: the step a newer estimator takes over from (this one stops before it), and with
-    // --takeover the step this one takes over from.
-    let mut handover: Option<u64> = None;
-    let mut from_step: Option<u64> = None;
-    let mut predecessor_seq: HashMap<u64, Option<u64>> = HashMap::new();
-    'run: loop {
-        let ready = || {
-            Ok(measurements.has_samples()?
-                || control.subscriber().has_samples()?
-                || predecessor.as_ref().map_or(Ok(false), |p| p.has_samples())?)
-        };
-        match protocol::transport::wait_any(&waitset, spin, block, ready) {
-            Ok(()) => {}
-            Err(TransportError::Interrupted) => break,
-            Err(e) => return Err(e.into()),
-        }
-        if link.interrupted() {
-            break;
-        }
-        for msg in control.receive(&mut counter)? {
-            match msg {
-                Err(r) => {
-                    summary.node.rejected += 1;
-                    eprintln!("estimator: rejected a control message: {r}");
-                }
-                Ok(c) if c.kind() == Some(ControlKind::Shutdown) => break 'run,
-                Ok(c) if protocol::control::is_newer(&c, ControlKind::TakeOver, ROLE, started_ns) => {
-                    let f = c.header.step;
-                    if !args.quiet {
-                        eprintln!("estimator: a newer estimator takes over from step {f}");
-                    }
-                    handover = Some(handover.map_or(f, |h| h.min(f)));
-                }
-                Ok(_) => {}
-            }
-        }
-        if let Some(p) = &predecessor {
-            for e in p.receive_all()? {
-                if e.instance == instance || from_step.is_some() {
-                    continue;
-                }
-                let last = predecessor_seq.entry(e.instance).or_default();
-                if let Err(r) = counter.check(&e, last) {
-                    summary.node.rejected += 1;
-                    eprintln!("estimator: rejected an estimate of the running estimator: {r}");
-                    continue;
-                }
-                if e.status().is_some_and(WireStatus::is_usable) {
-                    // Its state after this step; take over from the next one.
-                    let f = e.header.step + 1;
-                    state = StepEstimator::resume(config, e.header.step, e.position, e.covariance, &e.extra());
-                    from_step = Some(f);
-                    summary.node.took_over_at = Some(f);
-                    control.send(ControlKind::TakeOver, f, "")?;
-                    runtime::tell(args.supervised, &SupervisorLine::TakeOver { from_step: f });
-                    if !args.quiet {
-                        eprintln!("estimator: taking over from step {f}");
-                    }
-                }
-            }
-        }
-        if let Some(f) = handover
-            && state.last_step().is_some_and(|l| l + 1 >= f)
-        {
-            summary.node.handed_over_at = Some(f);
-            break 'run;
-        }
-        let received_ns = now_ns();
-        for m in measurements.receive_all()? {
-            if let Err(r) = counter.check(&m, &mut last_seq) {
-                summary.node.rejected += 1;
-                eprintln!("estimator: rejected a measurement: {r}");
-                continue;
-            }
-            summary.node.accepted += 1;
-            let step = m.header.step;
-            if let Some(f) = handover
-                && step >= f
-            {
-                summary.node.handed_over_at = Some(f);
-                break 'run;
-            }
-            if args.takeover && from_step.is_none() {
-                continue; // the running estimator's step
-            }
-            // The checkpoint (the state before a checkpoint step) goes out before the step's estimate.
-            if let Some(path) = &args.checkpoint
-                && checkpoint::is_checkpoint_step(step)
-                && state.last_step() == Some(step - 1)
-                && state.take_checkpoint()
-                && let Err(e) = checkpoint::save(path, ROLE, domain.as_str(), &state.checkpoints())
-            {
-                eprintln!("estimator: {e}");
-            }
-            let (fix, extra) = match state.handle(&m) {
-                Answer::New(fix, extra) => (fix, extra),
-                Answer::Again(fix, extra) => {
-                    summary.node.resent += 1;
-                    (fix, extra)
-                }
-                Answer::OutOfChain => {
-                    summary.out_of_chain += 1;
-                    if !args.quiet {
-                        eprintln!(
-                            "estimator: step {step}: the step before was not estimated here; waiting for a replay"
-                        );
-                    }
-                    continue;
-                }
-            };
-            if fix == Fix::Failed {
-                summary.failed += 1;
-                eprintln!("estimator: step {step}: no fix (the previous estimate stands)");
-            }
-
-            seq += 1;
-            let estimate = Estimate::from_measurement(&m, received_ns, seq, instance, fix)
-                .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?
-                .with_extra(&extra);
-            estimates.send(&estimate)?;
-            summary.node.published += 1;
-        }
-        // A newer estimator took over and this one has estimated every step before it: hand over.
-        if let Some(f) = handover
-            && state.last_step().is_some_and(|l| l + 1 >= f)
-        {
-            summary.node.handed_over_at = Some(f);
-            break 'run;
-        }
+    let mut handler = EstimatorNode {
+        args,
+        config,
+        measurements: &measurements,
+        estimates: &estimates,
+        predecessor: predecessor.as_ref(),
+        predecessor_seq: HashMap::new(),
+        last_seq: None,
+        state: StepEstimator::from_checkpoints(config, kept),
+        from_step: None,
+        summary: EstimatorSummary::default(),
+    };
+    let mut inputs: Vec<&dyn Waitable> = vec![&measurements];
+    if let Some(p) = &predecessor {
+        inputs.push(p);
     }
-    drop(guards);
-    if !args.quiet {
-        eprintln!(
-            "estimator: stopped after {} estimates ({} sent again, {} out of chain; {counter})",
-            summary.node.published, summary.node.resent, summary.out_of_chain
-        );
-    }
-    summary.node.cpu_s = runtime::cpu_seconds();
-    Ok(summary)
+    node.run(&inputs, &mut handler)?;
+    let (published, resent) = (node.summary().published, node.summary().resent);
+    let counts = node.counter().to_string();
+    node.say(format_args!(
+        "stopped after {published} estimates ({resent} sent again, {} out of chain; {counts})",
+        handler.summary.out_of_chain
+    ));
+    Ok(EstimatorSummary { node: node.finish(), ..handler.summary })
 }
 
 /// Runs the estimator and maps the outcome to an exit code (errors as one `error:` line on stderr); in
@@ -606,7 +580,7 @@ mod tests {
 
     fn fix(a: Answer) -> Fix {
         match a {
-            Answer::New(f, _) | Answer::Again(f, _) => f,
+            Answer::New(r) | Answer::Again(r) => r.fix,
             Answer::OutOfChain => panic!("out of chain"),
         }
     }
@@ -679,7 +653,7 @@ mod tests {
             }
             let answer = straight.handle(&measurement(k));
             if config.kind == EstimatorKind::Fused && k > 0 {
-                assert!(matches!(answer, Answer::New(_, extra) if extra.estimator == 1), "step {k}: {answer:?}");
+                assert!(matches!(answer, Answer::New(r) if r.extra.estimator == 1), "step {k}: {answer:?}");
             }
             reference.push(fix(answer));
         }
@@ -688,7 +662,7 @@ mod tests {
         // Restarted from the newest checkpoint (after step 7); the run is replayed to it from step 8.
         let mut restarted = StepEstimator::from_checkpoints(config, kept);
         for k in 8..=9 {
-            assert!(matches!(restarted.handle(&measurement(k)), Answer::New(f, _) if f == reference[k as usize]));
+            assert!(matches!(restarted.handle(&measurement(k)), Answer::New(r) if r.fix == reference[k as usize]));
         }
         // The world is rewound to step 4 (an older emitter-sim snapshot) and flies on past step 9.
         for k in 4..=12 {

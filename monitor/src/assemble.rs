@@ -10,9 +10,9 @@
 //!
 //! - `uavs` from the measurement, `headings_rad` from the command (the headings chosen at step k), or on
 //!   the last step the measurement's current headings;
-//! - `estimate`, `estimate_cov`, `estimate_status` from the estimate; a `failed` estimate carries no
-//!   position on the wire, so the last usable (ok / ambiguous) one stands in — which is what the estimator
-//!   library reports on failure;
+//! - `estimate`, `estimate_cov`, `estimate_status` from the estimate; a `failed` estimate carries the
+//!   standing (last usable) estimate on the wire ([`Estimate::plan_from`]) — which is what the estimator
+//!   library reports on failure — so the assembler keeps no estimate of its own;
 //! - `crlb_true_m`, `rmse_m` from [`step_metrics`] with the measurement's geometry and σ, the truth, the
 //!   scenario's R and seed, and the estimate as prior;
 //! - `objective_value` = √(the command's criterion) (`None` when the planner sent the "not finite" marker,
@@ -98,7 +98,6 @@ pub struct Assembler {
     scenario: Scenario,
     next: u64,
     pending: BTreeMap<u64, Pending>,
-    usable: Option<([f64; 2], [[f64; 2]; 2])>,
     /// The estimator's kind, from the first estimate (`fused` / `snapshot`).
     estimator: Option<&'static str>,
     steps: Vec<StepRecord>,
@@ -116,7 +115,6 @@ impl Assembler {
             scenario,
             next: 0,
             pending: BTreeMap::new(),
-            usable: None,
             estimator: None,
             steps: Vec::new(),
             keep: true,
@@ -128,8 +126,7 @@ impl Assembler {
 
     /// An assembler that continues a run whose steps `0..steps.len()` are already recorded (e.g. read back
     /// from a monitor's log after a restart): `emitter` is the truth, `names` the run's (objective,
-    /// solver). The last usable estimate is the last step's (a failed step records the previous usable
-    /// one). `None` if the steps are not numbered 0, 1, 2, ….
+    /// solver). `None` if the steps are not numbered 0, 1, 2, ….
     pub fn resume(
         scenario: Scenario,
         steps: Vec<StepRecord>,
@@ -141,7 +138,6 @@ impl Assembler {
         }
         let mut a = Self::new(scenario);
         a.next = steps.len() as u64;
-        a.usable = steps.last().and_then(usable_of);
         a.emitter = emitter;
         a.names = names;
         a.steps = steps;
@@ -171,7 +167,6 @@ impl Assembler {
         }
         let mut a = Self::new(scenario).forgetting();
         a.next = next;
-        a.usable = last.and_then(usable_of);
         a.emitter = emitter;
         a.names = names;
         Some(a)
@@ -295,12 +290,9 @@ impl Assembler {
         missed: bool,
     ) -> CompletedStep {
         let status = e.status().unwrap_or(EstimateStatus::Failed);
-        if status != EstimateStatus::Failed {
-            self.usable = Some((e.position, e.covariance));
-        }
         self.estimator.get_or_insert(if e.estimator == 1 { "fused" } else { "snapshot" });
         let velocity = (status.is_usable() && e.model == 1).then_some((e.velocity, e.velocity_cov));
-        let (position, covariance) = self.usable.unwrap_or(([f64::NAN; 2], [[f64::NAN; 2]; 2]));
+        let (position, covariance) = e.plan_from().unwrap_or(([f64::NAN; 2], [[f64::NAN; 2]; 2]));
         let truth = Vector2::new(t.position[0], t.position[1]);
         self.emitter.get_or_insert(t.position);
         let geometry = NoiseModel::from_range_sigmas(m.sigmas()).and_then(|noise| Sensors::new(m.uavs(), noise)).ok();
@@ -404,16 +396,6 @@ impl Assembler {
     }
 }
 
-/// The usable estimate a record leaves behind (a failed step records the previous usable one; none
-/// before the first).
-fn usable_of(s: &StepRecord) -> Option<([f64; 2], [[f64; 2]; 2])> {
-    s.estimate
-        .iter()
-        .chain(s.estimate_cov.iter().flatten())
-        .all(|v| v.is_finite())
-        .then_some((s.estimate, s.estimate_cov))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -431,6 +413,11 @@ mod tests {
 
     fn estimate(k: u64, fix: Fix) -> Estimate {
         Estimate::from_measurement(&measurement(k), 10, k + 1, 7, fix).unwrap()
+    }
+
+    /// A failed estimate carrying the standing estimate of `ok(x)`.
+    fn failed(k: u64, x: f64) -> Estimate {
+        estimate(k, Fix::Failed).with_standing(ok(x).usable())
     }
 
     fn ok(x: f64) -> Fix {
@@ -480,7 +467,7 @@ mod tests {
         // Step 1 complete before step 0: nothing is emitted until step 0 is.
         assert!(a.add_command(command(1, 4.0, 0)));
         assert!(a.add_truth(truth(1)));
-        assert!(a.add_estimate(estimate(1, Fix::Failed)));
+        assert!(a.add_estimate(failed(1, 24000.0)));
         assert!(a.add_measurement(measurement(1)));
         assert!(a.complete_ready().is_empty());
         a.add_measurement(measurement(0));
@@ -502,7 +489,7 @@ mod tests {
         assert_eq!(s0.plan_ms, Some(1.234));
         assert_eq!(s0.active_constraints, vec!["heading_cone(UAV 0) binding".to_string()]);
         assert!(s0.crlb_true_m > 1000.0 && s0.rmse_m.is_some());
-        // A failed estimate reports the previous usable one.
+        // A failed estimate reports the standing one it carries.
         let s1 = &done[1].record;
         assert_eq!((s1.estimate_status.as_str(), s1.estimate), ("failed", [24000.0, 15000.0]));
         assert_eq!(s1.estimate_cov, [[4.0e4, 0.0], [0.0, 9.0e4]]);
@@ -531,7 +518,7 @@ mod tests {
         for k in 0..2 {
             a.add_measurement(measurement(k));
             a.add_truth(truth(k));
-            a.add_estimate(estimate(k, if k == 0 { ok(24000.0) } else { Fix::Failed }));
+            a.add_estimate(if k == 0 { estimate(k, ok(24000.0)) } else { failed(k, 24000.0) });
             a.add_command(command(k, 4.0, 0));
         }
         assert!(a.add_truth(flown(2)));
@@ -546,14 +533,14 @@ mod tests {
             x.add_measurement(measurement(2));
             x.add_truth(flown(2));
             // A failed last estimate: both fall back on step 0's.
-            x.add_estimate(estimate(2, Fix::Failed));
+            x.add_estimate(failed(2, 24000.0));
         }
         let mut c =
             Assembler::resume_forgetting(scenario(2), 2, records.last(), Some([25000.0, 15000.0]), names.clone())
                 .unwrap();
         c.add_measurement(measurement(2));
         c.add_truth(flown(2));
-        c.add_estimate(estimate(2, Fix::Failed));
+        c.add_estimate(failed(2, 24000.0));
         let from_b = b.complete_ready();
         assert_eq!(a.complete_ready(), from_b);
         assert_eq!(c.complete_ready(), from_b, "a forgetting assembler completes the same steps");

@@ -47,19 +47,18 @@ use std::fs::File;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Duration;
+use std::time::Instant;
 
 use clap::Args;
 use hdrhistogram::Histogram;
 use model::load_scenario;
-use protocol::control::instance_id_at;
-use protocol::services::{self, Domain};
-use protocol::transport::wait_any;
+use protocol::services;
 use protocol::{
-    Command, ControlChannel, ControlKind, Estimate, Latencies, Measurement, Message, MessageKind, RejectionCounter,
-    Stamps, Topic, TopicSubscriber, TransportError, Truth, now_ns,
+    Command, Control, ControlKind, Estimate, Latencies, Measurement, Message, MessageKind, RejectionCounter, Stamps,
+    Topic, TopicSubscriber, Truth, Waitable, now_ns,
 };
 use runtime::checkpoint::checkpoint_step_at_or_below;
+use runtime::{Flow, Handler, IDLE_WAKEUP, Node};
 use serde_json::json;
 
 use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
@@ -70,10 +69,6 @@ pub const ROLE: &str = "monitor";
 
 /// Exit code when SIGINT/SIGTERM stopped the monitor before the last step.
 pub const EXIT_INTERRUPTED: u8 = 130;
-
-/// How long one blocking wait lasts at most before the loop re-checks for a termination request that
-/// arrived between two waits (a signal during a wait interrupts it at once).
-pub const IDLE_WAKEUP: Duration = Duration::from_secs(1);
 
 /// When the step the monitor waits for is incomplete while a message of this many steps later is in, one of
 /// its messages was lost: the monitor asks emitter-sim for a replay from it.
@@ -432,7 +427,6 @@ fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
 /// Everything the loop keeps between wake-ups.
 struct State {
     assembler: Assembler,
-    counter: RejectionCounter,
     last_seq: [Option<u64>; MessageKind::ALL.len()],
     log: EventLog,
     samples: LatencySamples,
@@ -454,6 +448,7 @@ struct State {
 impl State {
     fn drain<T: Message>(
         &mut self,
+        node: &mut Node,
         sub: &TopicSubscriber<T>,
         add: fn(&mut Assembler, T) -> bool,
     ) -> Result<(), ProcessError> {
@@ -464,7 +459,7 @@ impl State {
                 self.received.entry((T::KIND, msg.header().step)).or_insert(received_ns);
             }
             let slot = &mut self.last_seq[T::KIND.index()];
-            if let Err(r) = self.counter.check(&msg, slot) {
+            if let Err(r) = node.counter().check(&msg, slot) {
                 self.log.write(
                     "rejected",
                     json!({"kind": T::KIND.name(), "reason": r.kind(), "detail": r.to_string(), "seq": msg.header().seq}),
@@ -484,49 +479,29 @@ impl State {
         Ok(())
     }
 
-    /// Logs and shows who joined or took over; `true` on a shutdown request.
-    fn drain_control(&mut self, control: &ControlChannel) -> Result<bool, ProcessError> {
-        let mut shutdown = false;
-        for msg in control.receive(&mut self.counter)? {
-            let c = match msg {
-                Ok(c) => c,
-                Err(r) => {
-                    self.log.write("rejected", json!({"kind": "control", "reason": r.kind(), "detail": r.to_string()}));
-                    if !self.quiet {
-                        eprintln!("monitor: rejected a control message: {r}");
-                    }
-                    continue;
-                }
-            };
-            let Some(kind) = c.kind() else { continue };
-            let role = c.role().unwrap_or("?");
-            match kind {
-                ControlKind::Shutdown => shutdown = true,
-                ControlKind::Progress => {}
-                ControlKind::Hello | ControlKind::TakeOver => {
-                    // A (re)started emitter-sim learns where this monitor is (see `Progress`).
-                    self.emitter_joined |= kind == ControlKind::Hello && role == "emitter-sim";
-                    self.log.write(
-                        kind.name(),
-                        json!({"role": role, "instance": c.instance, "detail": c.detail(), "step": c.header.step}),
-                    );
-                    if !self.quiet {
-                        let what = if kind == ControlKind::Hello { "joined" } else { "takes over" };
-                        eprintln!(
-                            "monitor: a {role} {what} (instance {:#x}{}{}), step {}",
-                            c.instance,
-                            if c.detail().is_empty() { "" } else { ", " },
-                            c.detail(),
-                            c.header.step
-                        );
-                    }
-                }
-            }
+    /// Logs and shows who joined or took over.
+    fn heard(&mut self, c: &Control) {
+        let Some(kind) = c.kind().filter(|k| matches!(k, ControlKind::Hello | ControlKind::TakeOver)) else { return };
+        let role = c.role().unwrap_or("?");
+        // A (re)started emitter-sim learns where this monitor is (see `Progress`).
+        self.emitter_joined |= kind == ControlKind::Hello && role == "emitter-sim";
+        self.log.write(
+            kind.name(),
+            json!({"role": role, "instance": c.instance, "detail": c.detail(), "step": c.header.step}),
+        );
+        if !self.quiet {
+            let what = if kind == ControlKind::Hello { "joined" } else { "takes over" };
+            let sep = if c.detail().is_empty() { "" } else { ", " };
+            eprintln!(
+                "monitor: a {role} {what} (instance {:#x}{sep}{}), step {}",
+                c.instance,
+                c.detail(),
+                c.header.step
+            );
         }
-        Ok(shutdown)
     }
 
-    fn complete_steps(&mut self) {
+    fn complete_steps(&mut self, rejected: u64) {
         for done in self.assembler.complete_ready() {
             self.account(&done);
             if let Some(p) = &done.planner
@@ -572,7 +547,7 @@ impl State {
                 self.log.write("estimate_stale", json!({"step": done.record.step}));
             }
             if !self.quiet {
-                eprintln!("{}", status_line(&done, self.assembler.last_step(), self.counter.total()));
+                eprintln!("{}", status_line(&done, self.assembler.last_step(), rejected));
             }
         }
     }
@@ -690,10 +665,64 @@ fn write_outputs(args: &MonitorArgs, run: &RunRecord) -> Result<(), ProcessError
     Ok(())
 }
 
-/// Runs the monitor until the last step is recorded (or SIGINT/SIGTERM); returns the record and summary.
+/// The monitor's handler: the four data topics, the record being assembled, the progress reports and
+/// the replay requests.
+struct MonitorNode<'a> {
+    state: State,
+    truths: &'a TopicSubscriber<Truth>,
+    measurements: &'a TopicSubscriber<Measurement>,
+    estimates: &'a TopicSubscriber<Estimate>,
+    commands: &'a TopicSubscriber<Command>,
+    replay_asked: Option<u64>,
+    progress_sent: Option<(u64, Instant)>,
+}
+
+impl Handler for MonitorNode<'_> {
+    fn on_control(&mut self, _node: &mut Node, msg: &Control) -> Result<Flow, ProcessError> {
+        self.state.heard(msg);
+        Ok(Flow::Continue)
+    }
+
+    fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
+        let state = &mut self.state;
+        state.drain(node, self.truths, Assembler::add_truth)?;
+        state.drain(node, self.measurements, Assembler::add_measurement)?;
+        state.drain(node, self.estimates, Assembler::add_estimate)?;
+        state.drain(node, self.commands, Assembler::add_command)?;
+        state.complete_steps(node.counter().total());
+        // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
+        state.log.check()?;
+        if let Some(stamps) = &state.stamps {
+            stamps.check()?;
+        }
+        let next = state.assembler.next_step();
+        if std::mem::take(&mut state.emitter_joined)
+            || self.progress_sent.is_none_or(|(step, at)| next >= step + PROGRESS_EVERY || at.elapsed() >= IDLE_WAKEUP)
+        {
+            node.announce(ControlKind::Progress, next, "")?;
+            self.progress_sent = Some((next, Instant::now()));
+        }
+        // A message of the step we wait for was lost (e.g. overwritten in a full buffer while this monitor
+        // was starved of CPU) if newer steps are in and it is not: ask emitter-sim to replay from it (once
+        // per step), as a restarted monitor would.
+        if let Some(newest) = state.assembler.newest_pending_step()
+            && newest >= next + STALL_STEPS
+            && self.replay_asked != Some(next)
+            && !state.assembler.is_done()
+        {
+            self.replay_asked = Some(next);
+            state.replays_requested += 1;
+            state.log.write("replay_request", json!({"step": next, "newest": newest}));
+            node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));
+            node.announce(ControlKind::Hello, checkpoint_step_at_or_below(next), "lost")?;
+        }
+        Ok(if state.assembler.is_done() { Flow::Stop } else { Flow::Continue })
+    }
+}
+
+/// Runs the monitor until the last step is recorded (or SIGINT/SIGTERM, or a shutdown); returns the run
+/// record and the summary.
 pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessError> {
-    protocol::transport::quiet_logs();
-    let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
     let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
@@ -710,42 +739,40 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         (Some(_), false) => (Assembler::new(scenario.clone()).forgetting(), None),
         (None, _) => (Assembler::new(scenario.clone()), None),
     };
-    let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
-    let stamps = args.stamps.as_deref().map(|p| StampsCsv::create(p, resumed)).transpose()?;
-    let mut state = State {
-        assembler,
-        counter: RejectionCounter::new(),
-        last_seq: [None; MessageKind::ALL.len()],
-        log,
-        samples: LatencySamples::default(),
-        planner: None,
-        planners: 0,
-        missed: 0,
-        stale: 0,
-        quiet: args.quiet,
-        received: HashMap::new(),
-        missing: 0,
-        stamps,
-        replays_requested: 0,
-        emitter_joined: false,
+    let Some(mut node) = Node::open(ROLE, args.domain.as_deref(), &args.link, args.supervised, args.quiet)? else {
+        return Err(ProcessError::Interrupted);
     };
-    // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
-    let mut interrupted = link.interrupted();
-    let started_ns = now_ns();
-    let measurements = Topic::<Measurement>::subscriber(&link, &services::measurement(&domain))?;
-    let estimates = Topic::<Estimate>::subscriber(&link, &services::estimate(&domain))?;
-    let commands = Topic::<Command>::subscriber(&link, &services::command(&domain))?;
-    let truths = Topic::<Truth>::subscriber(&link, &services::truth(&domain))?;
-    let control = ControlChannel::open(&link, &domain, ROLE, instance_id_at(started_ns), started_ns)?;
-    let waitset = protocol::transport::waitset()?;
-    let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
-    let _guards = [
-        waitset.attach_notification(&measurements).map_err(attach_failed)?,
-        waitset.attach_notification(&estimates).map_err(attach_failed)?,
-        waitset.attach_notification(&commands).map_err(attach_failed)?,
-        waitset.attach_notification(&truths).map_err(attach_failed)?,
-        waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
-    ];
+    let domain = node.domain().clone();
+    let stamps = args.stamps.as_deref().map(|p| StampsCsv::create(p, resumed)).transpose()?;
+    let measurements = Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain))?;
+    let estimates = Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))?;
+    let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
+    let truths = Topic::<Truth>::subscriber(node.link(), &services::truth(&domain))?;
+    let mut monitor = MonitorNode {
+        state: State {
+            assembler,
+            last_seq: [None; MessageKind::ALL.len()],
+            log,
+            samples: LatencySamples::default(),
+            planner: None,
+            planners: 0,
+            missed: 0,
+            stale: 0,
+            quiet: args.quiet,
+            received: HashMap::new(),
+            missing: 0,
+            stamps,
+            replays_requested: 0,
+            emitter_joined: false,
+        },
+        truths: &truths,
+        measurements: &measurements,
+        estimates: &estimates,
+        commands: &commands,
+        replay_asked: None,
+        progress_sent: None,
+    };
+    let state = &mut monitor.state;
     match resumed {
         None => {
             state.log.write("start", json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed}))
@@ -755,71 +782,20 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
     // (From the checkpoint step at or below it: the estimator and planner can answer from there even when
     // they were restarted; see runtime::checkpoint.)
-    control.send(ControlKind::Hello, checkpoint_step_at_or_below(state.assembler.next_step()), "")?;
-    runtime::tell(args.supervised, &runtime::SupervisorLine::Ready);
-    if !args.quiet {
-        match resumed {
-            None => {
-                eprintln!("monitor: domain {domain}, waiting for {} steps (seed {})", scenario.steps, scenario.seed)
-            }
-            Some(n) => eprintln!("monitor: domain {domain}, resumed with {n} steps from the log"),
+    node.announce(ControlKind::Hello, checkpoint_step_at_or_below(state.assembler.next_step()), "")?;
+    node.ready();
+    match resumed {
+        None => {
+            node.say(format_args!("domain {domain}, waiting for {} steps (seed {})", scenario.steps, scenario.seed))
         }
+        Some(n) => node.say(format_args!("domain {domain}, resumed with {n} steps from the log")),
     }
-
-    let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
-    let mut replay_asked: Option<u64> = None;
-    let mut progress_sent: Option<(u64, std::time::Instant)> = None;
-    while !interrupted && !state.assembler.is_done() {
-        let ready = || {
-            Ok(truths.has_samples()?
-                || measurements.has_samples()?
-                || estimates.has_samples()?
-                || commands.has_samples()?
-                || control.subscriber().has_samples()?)
-        };
-        match wait_any(&waitset, spin, block, ready) {
-            Ok(()) => {}
-            Err(TransportError::Interrupted) => interrupted = true,
-            Err(e) => return Err(e.into()),
-        }
-        interrupted |= state.drain_control(&control)?;
-        state.drain(&truths, Assembler::add_truth)?;
-        state.drain(&measurements, Assembler::add_measurement)?;
-        state.drain(&estimates, Assembler::add_estimate)?;
-        state.drain(&commands, Assembler::add_command)?;
-        state.complete_steps();
-        // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
-        state.log.check()?;
-        if let Some(stamps) = &state.stamps {
-            stamps.check()?;
-        }
-        // A message of the step we wait for was lost (e.g. overwritten in a full buffer while this
-        // monitor was starved of CPU) if newer steps are in and it is not: ask emitter-sim to replay
-        // from it (once per step), as a restarted monitor would.
-        let next = state.assembler.next_step();
-        if std::mem::take(&mut state.emitter_joined)
-            || progress_sent.is_none_or(|(step, at)| next >= step + PROGRESS_EVERY || at.elapsed() >= IDLE_WAKEUP)
-        {
-            control.send(ControlKind::Progress, next, "")?;
-            progress_sent = Some((next, std::time::Instant::now()));
-        }
-        if let Some(newest) = state.assembler.newest_pending_step()
-            && newest >= next + STALL_STEPS
-            && replay_asked != Some(next)
-            && !state.assembler.is_done()
-        {
-            replay_asked = Some(next);
-            state.replays_requested += 1;
-            state.log.write("replay_request", json!({"step": next, "newest": newest}));
-            if !args.quiet {
-                eprintln!("monitor: a message of step {next} was lost (step {newest} is in); asking for a replay");
-            }
-            control.send(ControlKind::Hello, checkpoint_step_at_or_below(next), "lost")?;
-        }
-        if !interrupted {
-            interrupted = link.interrupted();
-        }
+    if !state.assembler.is_done() {
+        let inputs: [&dyn Waitable; 4] = [&truths, &measurements, &estimates, &commands];
+        node.run(&inputs, &mut monitor)?;
     }
+    let mut state = monitor.state;
+    let counter = node.counter().clone();
 
     let mut run = state.assembler.record();
     if let Some(path) = &args.log {
@@ -840,8 +816,8 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         output_error: None,
         complete: state.assembler.is_done(),
         steps: run.steps.len() as u64,
-        accepted: accepted_total(&state.counter),
-        rejected: state.counter.total(),
+        accepted: accepted_total(&counter),
+        rejected: counter.total(),
         ignored: state.assembler.ignored(),
         planners: state.planners,
         missed_commands: state.missed,
@@ -876,7 +852,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
              cycle {}",
             summary.steps,
             scenario.steps + 1,
-            state.counter,
+            counter,
             p50(&l.command_hop),
             p50(&l.measurement_hop),
             p50(&l.estimate_hop),

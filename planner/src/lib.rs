@@ -21,7 +21,6 @@ pub mod aco;
 // The shared model, re-exported under the planner's historical paths.
 pub use model::{active_mask, kinematics, scenario};
 pub mod constraints;
-pub mod fallback;
 pub mod fitness;
 pub mod formation;
 pub mod ga;

@@ -1,37 +1,31 @@
 //! The `planner` process: receive an [`Estimate`] → [`plan_step`] → publish a [`Command`].
 //!
-//! One loop over the pipeline's estimate and control topics (blocking in a `WaitSet`, event-driven;
-//! optionally busy-polling for `--spin-us` first). For every valid estimate of a step below the
-//! scenario's `steps` it builds the [`PlanRequest`] exactly as `uavloc simulate` does (UAV positions and
-//! headings from the estimate, ẑ and M from the estimate, run seed and step) and publishes the command.
-//! The final step (`step == steps`) is measured and estimated but not planned, as in the in-process loop.
+//! A handler on the node runtime ([`runtime::node`]): it waits on the estimate topic (and, with a
+//! staleness deadline, the measurement topic) in the runtime's event loop. For every valid estimate of a
+//! step below the scenario's `steps` it builds the [`PlanRequest`] exactly as `uavloc simulate` does (UAV
+//! positions and headings from the estimate, ẑ and M from it, run seed and step) and publishes the
+//! command. The final step (`step == steps`) is measured and estimated but not planned, as in the
+//! in-process loop.
 //!
-//! - A *failed* estimate carries no position (NaN on the wire); the planner then plans with the usable
-//!   estimate of the latest step before it, which is exactly the fallback of the estimator library (it
-//!   keeps its previous estimate on failure). That is the latest in step order, not in arrival order: a
-//!   replay from the middle of the run comes after the estimates of later steps ([`crate::fallback`]).
-//! - Each step's command is kept: an estimate seen again (a replay by emitter-sim, or a restarted
-//!   emitter-sim running the same scenario from step 0) gets the same command again (`resent`), without
-//!   planning. Plans depend only on the estimate, the last usable one, the scenario, the seed and the
-//!   step, so a restarted planner — which announces itself on the control topic
-//!   ([`ControlKind::Hello`], from step 0) and gets the run replayed — plans exactly what its
-//!   predecessor would have.
-//! - With `--checkpoint FILE` it writes its state (the estimate the step planned from) to FILE every
-//!   [`checkpoint::CHECKPOINT_EVERY`] steps, before publishing that step's command; started again with
-//!   the same FILE (a restart) it resumes from it and asks for the replay from that step (planned again
-//!   from the same inputs: the same command) instead of step 0. It keeps its last checkpoints and takes
-//!   one up again when the world was rewound to its step (a restarted emitter-sim) (see [`runtime::checkpoint`]). Commands are kept for the last [`MAX_CACHED_STEPS`] steps, so
-//!   its memory does not grow with the run.
+//! **The planner is a function of the estimate it receives**: it keeps no state across steps. A usable
+//! estimate is planned from its own fix; a *failed* one carries the standing estimate (the last usable
+//! one, which the estimator keeps: [`Estimate::plan_from`]) and is planned from that — exactly what
+//! `uavloc simulate` plans from. So a replayed estimate gets the same command again, and a restarted or
+//! swapped-in planner plans exactly what its predecessor would have, with no checkpoint and no replay of
+//! the past: at start-up it announces itself ([`ControlKind::Hello`] for [`ControlKind::IN_FLIGHT`]) and
+//! emitter-sim publishes the step in flight again, whose estimate the dead planner may have taken with
+//! it.
+//!
 //! - Only `target = "chan"` is supported: `controlled` mode needs the true emitter, which the pipeline
 //!   never shows the planner (use `uavloc simulate` for it).
 //! - Invalid estimates are counted (per rejection kind) and ignored.
 //! - **Staleness deadline** (`--estimate-deadline-ms D`, off by default): the planner also subscribes to
 //!   the measurements; when the estimate of the newest measured step has not arrived D ms after its
-//!   measurement, the planner *holds course*: it publishes a command with the UAVs' current headings (they
-//!   fly straight on) flagged [`Command::FLAG_HOLD`] (objective −1, no plan time), counts it (`held`) and
-//!   logs it; the monitor shows the step as `estimate_stale`. The estimate that comes later still becomes
-//!   the last usable one, and the step is answered with its hold (`late_estimates`). With a deadline the
-//!   run depends on timing (like emitter-sim's real-time mode), so lock-step reproductions of `simulate`
+//!   measurement (a deadline of the event loop), the planner *holds course*: it publishes a command with
+//!   the UAVs' current headings (they fly straight on) flagged [`Command::FLAG_HOLD`] (objective −1, no
+//!   plan time), counts it (`held`) and logs it; the monitor shows the step as `estimate_stale`. The
+//!   estimate that comes later is answered with the same hold (`late_estimates`). With a deadline the run
+//!   depends on timing (like emitter-sim's real-time mode), so lock-step reproductions of `simulate`
 //!   leave it off.
 //! - `--plan-delay-ms` (with `--plan-delay-steps`) is a test / fault-injection aid: the planner sleeps
 //!   before planning those steps, like a slow one, e.g. to make its commands miss their step in
@@ -41,44 +35,33 @@
 //!
 //! # Swapping planners (`--takeover`, what `uavloc swap planner` starts)
 //!
-//! A planner started with `--takeover` joins a running pipeline without a replay: it follows the
-//! estimates (keeping the last usable one), and on the first one (step k) it announces
-//! [`ControlKind::TakeOver`] from step k + 1 and prints `takeover {"from_step": k + 1}` (supervised). The
-//! running planner plans every step before k + 1 — step k included — and then exits (exit 0, its summary
-//! says `handed_over`); the new one plans from k + 1 on. No step is planned twice and none is missed;
-//! should the old planner die before its last command, the emitter-sim's retry replays step k and the
-//! new planner plans it. A planner that sees a take-over by a newer planner behaves as the old one.
+//! A planner started with `--takeover` joins a running pipeline without a replay: on the first estimate
+//! it sees (step k) it announces [`ControlKind::TakeOver`] from step k + 1 and prints
+//! `takeover {"from_step": k + 1}` (supervised). The running planner plans every step before k + 1 —
+//! step k included — and then exits (exit 0, its summary says `handed_over`); the new one plans from
+//! k + 1 on. No step is planned twice and none is missed; should the old planner die before its last
+//! command, the emitter-sim's retry replays step k and the new planner plans it. A planner that sees a
+//! take-over by a newer planner behaves as the old one.
 
-use std::collections::BTreeMap;
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use nalgebra::{Matrix2, Vector2};
-use protocol::control::instance_id_at;
-use protocol::services::{self, Domain};
-use protocol::{
-    Command, ControlChannel, ControlKind, Estimate, EstimateStatus, Measurement, Message, PlanInfo, RejectionCounter,
-    Topic, TopicSubscriber, TransportError, now_ns,
-};
-use runtime::SupervisorLine;
-use runtime::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
+use nalgebra::Vector2;
+use protocol::services;
+use protocol::{Command, ControlKind, Estimate, Measurement, PlanInfo, Topic, TopicPublisher, TopicSubscriber, now_ns};
+use runtime::checkpoint::HISTORY_STEPS;
+use runtime::{Flow, Handler, Node};
 
 use crate::active_mask;
-use crate::fallback::UsableEstimates;
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, TargetMode};
 use crate::solver::SolverKind;
-use crate::staleness::{self, DueStep, Freshness, HoldTracker, hold_plan};
+use crate::staleness::{self, Freshness, HoldTracker, hold_plan};
 use crate::step::{PlanRequest, plan_step};
 
 /// The role name (node name suffix, `uavloc process planner`).
 pub const ROLE: &str = "planner";
-
-/// How long a blocking wait lasts before the loop re-checks for a termination request that arrived
-/// between two waits (a signal during a wait interrupts it at once).
-pub const IDLE_WAKEUP: Duration = Duration::from_secs(1);
 
 /// What `planner --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
@@ -114,11 +97,6 @@ pub struct PlannerArgs {
     /// Take over from the running planner at the next step (see `uavloc swap planner`).
     #[arg(long)]
     pub takeover: bool,
-    /// Checkpoint file: the state is written there every 256 steps, and a start that finds it (a restart
-    /// in the same run) resumes from it instead of having the run replayed from step 0. Remove it before
-    /// a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
-    #[arg(long, value_name = "FILE")]
-    pub checkpoint: Option<PathBuf>,
     /// Staleness deadline: when a step's estimate has not arrived this many milliseconds after its
     /// measurement, hold course (command the current headings, flagged as a hold; the monitor shows
     /// `estimate_stale`). 0: no deadline (wait for every estimate; what lock-step reproductions need).
@@ -153,7 +131,6 @@ impl PlannerArgs {
             .value("--solver", self.solver)
             .extend(self.link.to_flags())
             .switch("--takeover", self.takeover)
-            .path("--checkpoint", self.checkpoint.as_deref())
             .value("--estimate-deadline-ms", self.estimate_deadline_ms)
             .value("--plan-delay-ms", self.plan_delay_ms)
             .list("--plan-delay-steps", &self.plan_delay_steps)
@@ -179,50 +156,180 @@ pub struct PlannerSummary {
     pub late_estimates: u64,
 }
 
-/// Steps whose commands are kept (the oldest is forgotten beyond): emitter-sim's replay history.
-pub const MAX_CACHED_STEPS: usize = HISTORY_STEPS as usize;
-
-/// What the planner writes to its `--checkpoint` file.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Checkpoint {
-    /// The step it was written at (a restart asks for the replay from it and plans it again).
-    pub step: u64,
-    /// The usable estimate (metres) and its covariance (m²) that step was planned from (its own, or the
-    /// latest before it: see [`crate::fallback`]).
-    pub usable: Option<([f64; 2], [[f64; 2]; 2])>,
+/// The planner's handler: its ports, the scenario, and the bookkeeping of a swap and of the staleness
+/// deadline (no state of the run: see the module docs).
+struct Planner<'a> {
+    args: &'a PlannerArgs,
+    scenario: Scenario,
+    detail: String,
+    estimates: &'a TopicSubscriber<Estimate>,
+    measurements: Option<&'a TopicSubscriber<Measurement>>,
+    commands: &'a TopicPublisher<Command>,
+    last_seq: Option<u64>,
+    measurement_seq: Option<u64>,
+    /// With a staleness deadline: the steps measured and not yet estimated, and the steps held.
+    tracker: Option<HoldTracker>,
+    /// With --takeover: the step this planner takes over from, and how often the step before it was seen.
+    from_step: Option<u64>,
+    seen_before_takeover: u32,
+    last_planned: Option<u64>,
+    summary: PlannerSummary,
 }
 
-fn to_wire(u: &(Vector2<f64>, Matrix2<f64>)) -> ([f64; 2], [[f64; 2]; 2]) {
-    tdoa::estimate_to_arrays(&u.0, &u.1)
-}
-
-fn from_wire(u: &([f64; 2], [[f64; 2]; 2])) -> (Vector2<f64>, Matrix2<f64>) {
-    tdoa::estimate_from_arrays(&u.0, &u.1)
-}
-
-/// Everything a plan depends on besides the step (the estimate's geometry, status, ẑ and M, and the usable
-/// estimate it plans from), bit for bit.
-fn content_key(e: &Estimate, usable: Option<&(Vector2<f64>, Matrix2<f64>)>) -> Vec<u64> {
-    let mut key = vec![u64::from(e.count), u64::from(e.status)];
-    if let Some((z, m)) = usable {
-        key.extend(z.iter().chain(m.iter()).map(|v| v.to_bits()));
+impl Planner<'_> {
+    /// Publishes `command` as the answer to its step.
+    fn answer(&mut self, node: &mut Node, mut command: Command) -> Result<(), ProcessError> {
+        command.header.seq = node.next_seq();
+        self.commands.send(&command)?;
+        node.summary().published += 1;
+        self.last_planned = self.last_planned.max(Some(command.header.step));
+        Ok(())
     }
-    key.extend(
-        e.uavs()
-            .iter()
-            .flatten()
-            .chain(e.headings())
-            .chain(&e.position)
-            .chain(e.covariance.iter().flatten())
-            .map(|v| v.to_bits()),
-    );
-    key
+
+    /// Whether a step is the running planner's (this one is taking over); the take-over is announced on the
+    /// first estimate.
+    fn belongs_to_predecessor(&mut self, node: &mut Node, step: u64) -> Result<bool, ProcessError> {
+        if !self.args.takeover {
+            return Ok(false);
+        }
+        match self.from_step {
+            None => {
+                // The running planner plans this step; this one takes over from the next.
+                self.from_step = Some(step + 1);
+                node.take_over(step + 1, &self.detail)?;
+                self.seen_before_takeover = 1;
+                Ok(true)
+            }
+            Some(f) if step + 1 == f => {
+                // Seen again: the old planner did not answer it (a retry); plan it here.
+                self.seen_before_takeover += 1;
+                Ok(self.seen_before_takeover < 2)
+            }
+            Some(f) => Ok(step < f),
+        }
+    }
+
+    /// The staleness deadline: measurements start a step's deadline.
+    fn track_measurements(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        let (Some(t), Some(sub)) = (self.tracker.as_mut(), self.measurements) else { return Ok(()) };
+        let now = Instant::now();
+        for m in node.receive(sub, &mut self.measurement_seq, "a measurement")? {
+            let step = m.header.step;
+            let positions = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+            let plannable = step < self.scenario.steps as u64 && self.last_planned.is_none_or(|l| step > l);
+            t.on_measurement(step, now, positions, m.headings().to_vec(), staleness::fingerprint(&m), plannable);
+        }
+        Ok(())
+    }
+
+    /// The command of one estimate; `None` when it cannot be planned (counted and logged).
+    fn plan(&mut self, node: &mut Node, est: &Estimate, received_ns: u64) -> Result<Option<Command>, ProcessError> {
+        let step = est.header.step;
+        let Some((position, covariance)) = est.plan_from() else {
+            self.summary.errors += 1;
+            node.warn(format_args!("step {step}: the estimator has no fix yet, nothing to plan from"));
+            return Ok(None);
+        };
+        let args = self.args;
+        if args.plan_delay_ms > 0 && (args.plan_delay_steps.is_empty() || args.plan_delay_steps.contains(&step)) {
+            // Fault injection: a slow planner (a signal ends the sleep and the loop).
+            node.say(format_args!("step {step}: delaying the plan by {} ms (--plan-delay-ms)", args.plan_delay_ms));
+            node.link().sleep(Duration::from_millis(args.plan_delay_ms))?;
+        }
+        let (z_hat, m) = tdoa::estimate_from_arrays(&position, &covariance);
+        let positions: Vec<Vector2<f64>> = est.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+        let plan = match plan_step(&PlanRequest {
+            positions: &positions,
+            headings: est.headings(),
+            estimate: z_hat,
+            covariance: m,
+            scenario: &self.scenario,
+            objective: args.objective,
+            solver: args.solver,
+            run_seed: self.scenario.seed,
+            step,
+        }) {
+            Ok(plan) => plan,
+            Err(e) => {
+                self.summary.errors += 1;
+                node.warn(format_args!("step {step}: {e}"));
+                return Ok(None);
+            }
+        };
+        let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();
+        let info = PlanInfo {
+            headings: &plan.headings,
+            waypoints: &waypoints,
+            // The wire requires a finite value: an infinite criterion (a singular geometry) is sent as −1,
+            // which the monitor reads as "no value" like `simulate` does.
+            objective: if plan.objective_value.is_finite() { plan.objective_value } else { -1.0 },
+            solver: args.solver.name(),
+            objective_name: args.objective.name(),
+            plan_time_us: (plan.plan_time_ms * 1e3).round() as u64,
+            active_constraints: active_mask::encode(&plan.active_constraints),
+            violated_constraints: active_mask::encode_violated(&plan.active_constraints),
+        };
+        Command::from_estimate(est, received_ns, 0, node.instance(), &info)
+            .map(Some)
+            .map_err(|e| ProcessError::Failed(format!("step {step}: command: {e}")))
+    }
 }
 
-/// Runs the planner until SIGINT/SIGTERM.
+impl Handler for Planner<'_> {
+    fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
+        self.track_measurements(node)?;
+        let received_ns = now_ns();
+        for est in node.receive(self.estimates, &mut self.last_seq, "an estimate")? {
+            let step = est.header.step;
+            if node.hands_over(step) {
+                return Ok(Flow::Stop);
+            }
+            if self.belongs_to_predecessor(node, step)? || step >= self.scenario.steps as u64 {
+                continue; // the running planner's step, or the final step (recorded, not planned)
+            }
+            let late = self.tracker.as_mut().is_some_and(|t| t.on_estimate(step) == Freshness::Late);
+            let command = if late {
+                // Held already: the step's answer is its hold.
+                self.summary.late_estimates += 1;
+                node.summary().resent += 1;
+                let positions: Vec<Vector2<f64>> = est.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+                Some(hold_command(step, &positions, est.headings(), &self.scenario, self.args, node.instance())?)
+            } else {
+                self.plan(node, &est, received_ns)?
+            };
+            if let Some(command) = command {
+                self.answer(node, command)?;
+            }
+        }
+        // Steps whose estimate missed the deadline: hold course.
+        let due = self.tracker.as_mut().map(|t| t.due(Instant::now())).unwrap_or_default();
+        for due in due {
+            if self.args.takeover && self.from_step.is_none_or(|f| due.step < f) {
+                continue; // the running planner's step
+            }
+            let hold =
+                hold_command(due.step, &due.positions, &due.headings, &self.scenario, self.args, node.instance())?;
+            self.answer(node, hold)?;
+            self.summary.held += 1;
+            node.warn(format_args!(
+                "step {}: no estimate within {} ms of the measurement; holding course",
+                due.step, self.args.estimate_deadline_ms
+            ));
+        }
+        Ok(Flow::Continue)
+    }
+
+    fn deadline(&self) -> Option<Instant> {
+        self.tracker.as_ref().and_then(HoldTracker::next_deadline)
+    }
+
+    fn last_answered(&self) -> Option<u64> {
+        self.last_planned
+    }
+}
+
+/// Runs the planner until SIGINT/SIGTERM, a shutdown or a hand-over.
 pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
-    protocol::transport::quiet_logs();
-    let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
     let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     if scenario.target == TargetMode::Controlled {
@@ -232,340 +339,72 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 .into(),
         ));
     }
-    let link = protocol::Link::open(args.link.transport, &services::node_name(&domain, ROLE))?;
-    // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
-    if link.interrupted() {
+    let Some(mut node) = Node::open(ROLE, args.domain.as_deref(), &args.link, args.supervised, args.quiet)? else {
         return Ok(PlannerSummary { node: runtime::NodeSummary::new(ROLE, 0), ..PlannerSummary::default() });
-    }
-    let started_ns = now_ns();
-    let instance = instance_id_at(started_ns);
-    let estimates = Topic::<Estimate>::subscriber(&link, &services::estimate(&domain))?;
-    let commands = Topic::<Command>::publisher(&link, &services::command(&domain))?;
-    let control = ControlChannel::open(&link, &domain, ROLE, instance, started_ns)?;
+    };
+    let domain = node.domain().clone();
+    let estimates = Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))?;
+    let commands = Topic::<Command>::publisher(node.link(), &services::command(&domain))?;
     // With a staleness deadline: the measurements start each step's deadline.
-    let measurements: Option<TopicSubscriber<Measurement>> = if args.estimate_deadline_ms > 0 {
-        Some(Topic::<Measurement>::subscriber(&link, &services::measurement(&domain))?)
-    } else {
-        None
-    };
-    let waitset = protocol::transport::waitset()?;
-    let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
-    let mut guards = vec![
-        waitset.attach_notification(&estimates).map_err(attach_failed)?,
-        waitset.attach_notification(control.subscriber()).map_err(attach_failed)?,
-    ];
-    if let Some(m) = &measurements {
-        guards.push(waitset.attach_notification(m).map_err(attach_failed)?);
-    }
+    let measurements = (args.estimate_deadline_ms > 0)
+        .then(|| Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain)))
+        .transpose()?;
     let detail = format!("{}/{}", args.solver.name(), args.objective.name());
-    // A restart in the same run resumes from its checkpoint.
-    let mut kept = match (&args.checkpoint, args.takeover) {
-        (Some(path), false) => checkpoint::load::<Vec<Checkpoint>>(path, ROLE, domain.as_str())
-            .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?
-            .unwrap_or_default(),
-        _ => Vec::new(),
-    };
-    let resumed = kept.last().copied();
     if !args.takeover {
-        // "Replay the run for me from my checkpoint's step, else from step 0" (a no-op at the start of a
-        // launch: emitter-sim is not there).
-        control.send(ControlKind::Hello, resumed.map_or(0, |c| c.step), &detail)?;
+        // "I joined; publish the step in flight again" (a no-op at the start of a launch: emitter-sim is
+        // not there).
+        node.announce(ControlKind::Hello, ControlKind::IN_FLIGHT, &detail)?;
     }
-    let mut summary = PlannerSummary { node: runtime::NodeSummary::new(ROLE, instance), ..PlannerSummary::default() };
-    runtime::tell(args.supervised, &SupervisorLine::Ready);
-    if !args.quiet {
-        eprintln!(
-            "planner: domain {domain}, {} / {}, {} steps, seed {}, instance {instance:#x}",
-            args.objective.name(),
-            args.solver.name(),
-            scenario.steps,
-            scenario.seed
-        );
-        if let Some(c) = &resumed {
-            eprintln!("planner: resumed from the checkpoint of step {}", c.step);
-        }
+    node.ready();
+    node.say(format_args!(
+        "domain {domain}, {} / {}, {} steps, seed {}, instance {:#x}",
+        args.objective.name(),
+        args.solver.name(),
+        scenario.steps,
+        scenario.seed,
+        node.instance()
+    ));
+    let tracker = (args.estimate_deadline_ms > 0)
+        .then(|| HoldTracker::new(Duration::from_millis(args.estimate_deadline_ms), HISTORY_STEPS));
+    let mut planner = Planner {
+        args,
+        scenario,
+        detail,
+        estimates: &estimates,
+        measurements: measurements.as_ref(),
+        commands: &commands,
+        last_seq: None,
+        measurement_seq: None,
+        tracker,
+        from_step: None,
+        seen_before_takeover: 0,
+        last_planned: None,
+        summary: PlannerSummary::default(),
+    };
+    let mut inputs: Vec<&dyn protocol::Waitable> = vec![&estimates];
+    if let Some(m) = &measurements {
+        inputs.push(m);
     }
-
-    let (spin, block) = args.link.policy().split(IDLE_WAKEUP);
-    let mut counter = RejectionCounter::new();
-    let mut last_seq = None;
-    // Sequence numbers start at the monotonic clock: a restarted planner continues above its predecessor.
-    let mut seq = now_ns();
-    let mut usable = UsableEstimates::new(MAX_CACHED_STEPS);
-    let mut answers: BTreeMap<u64, (Vec<u64>, Command)> = BTreeMap::new();
-    // The swap: the step a newer planner takes over from (this one stops before it), and with
-    // --takeover the step this one takes over from (and how often the step before it was seen).
-    let mut handover: Option<u64> = None;
-    let mut from_step: Option<u64> = None;
-    let mut seen_before_takeover = 0u32;
-    let mut last_planned: Option<u64> = None;
-    let mut tracker = (args.estimate_deadline_ms > 0)
-        .then(|| HoldTracker::new(Duration::from_millis(args.estimate_deadline_ms), MAX_CACHED_STEPS as u64));
-    let mut measurement_seq = None;
-    'run: loop {
-        let ready = || {
-            Ok(estimates.has_samples()?
-                || control.subscriber().has_samples()?
-                || measurements.as_ref().map_or(Ok(false), |m| m.has_samples())?)
-        };
-        // Wake up for the earliest staleness deadline too.
-        let (spin, block) = match tracker.as_ref().and_then(HoldTracker::next_deadline) {
-            Some(d) => {
-                let left = d.saturating_duration_since(Instant::now());
-                (spin.min(left), block.min(left.max(Duration::from_micros(1))))
-            }
-            None => (spin, block),
-        };
-        match protocol::transport::wait_any(&waitset, spin, block, ready) {
-            Ok(()) => {}
-            Err(TransportError::Interrupted) => break,
-            Err(e) => return Err(e.into()),
-        }
-        if link.interrupted() {
-            break;
-        }
-        for msg in control.receive(&mut counter)? {
-            match msg {
-                Err(r) => {
-                    summary.node.rejected += 1;
-                    eprintln!("planner: rejected a control message: {r}");
-                }
-                Ok(c) if c.kind() == Some(ControlKind::Shutdown) => break 'run,
-                Ok(c) if protocol::control::is_newer(&c, ControlKind::TakeOver, ROLE, started_ns) => {
-                    let f = c.header.step;
-                    if !args.quiet {
-                        eprintln!("planner: a newer planner ({}) takes over from step {f}", c.detail());
-                    }
-                    handover = Some(handover.map_or(f, |h| h.min(f)));
-                }
-                Ok(_) => {}
-            }
-        }
-        if let Some(f) = handover
-            && last_planned.is_some_and(|l| l + 1 >= f)
-        {
-            summary.node.handed_over_at = Some(f);
-            break 'run;
-        }
-        if let (Some(t), Some(sub)) = (tracker.as_mut(), measurements.as_ref()) {
-            let now = Instant::now();
-            for m in sub.receive_all()? {
-                if let Err(r) = counter.check(&m, &mut measurement_seq) {
-                    summary.node.rejected += 1;
-                    eprintln!("planner: rejected a measurement: {r}");
-                    continue;
-                }
-                let step = m.header.step;
-                let positions = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
-                let plannable = step < scenario.steps as u64 && !answers.contains_key(&step);
-                t.on_measurement(step, now, positions, m.headings().to_vec(), staleness::fingerprint(&m), plannable);
-            }
-        }
-        let received_ns = now_ns();
-        for est in estimates.receive_all()? {
-            if let Err(r) = counter.check(&est, &mut last_seq) {
-                summary.node.rejected += 1;
-                eprintln!("planner: rejected an estimate: {r}");
-                continue;
-            }
-            summary.node.accepted += 1;
-            let step = est.header.step;
-            let own = matches!(est.status(), Some(EstimateStatus::Ok | EstimateStatus::Ambiguous))
-                .then(|| from_wire(&(est.position, est.covariance)));
-            let checkpoints = kept.iter().map(|c| (c.step, c.usable.as_ref().map(from_wire)));
-            let plan_from = usable.record(step, own, checkpoints);
-            if let Some(f) = handover
-                && step >= f
-            {
-                summary.node.handed_over_at = Some(f);
-                break 'run;
-            }
-            if args.takeover {
-                match from_step {
-                    None => {
-                        // The running planner plans this step; this one takes over from the next.
-                        let f = step + 1;
-                        from_step = Some(f);
-                        summary.node.took_over_at = Some(f);
-                        control.send(ControlKind::TakeOver, f, &detail)?;
-                        runtime::tell(args.supervised, &SupervisorLine::TakeOver { from_step: f });
-                        if !args.quiet {
-                            eprintln!("planner: taking over from step {f}");
-                        }
-                        seen_before_takeover = 1;
-                        continue;
-                    }
-                    Some(f) if step + 1 == f => {
-                        // Seen again: the old planner did not answer it (a retry); plan it here.
-                        seen_before_takeover += 1;
-                        if seen_before_takeover < 2 {
-                            continue;
-                        }
-                    }
-                    Some(f) if step < f => continue, // planned by the old planner
-                    Some(_) => {}
-                }
-            }
-            if step >= scenario.steps as u64 {
-                continue; // the final step is recorded, not planned
-            }
-            if let Some(t) = tracker.as_mut()
-                && t.on_estimate(step) == Freshness::Late
-            {
-                // Held already: the estimate updated the last usable one; the step's answer is its hold.
-                summary.late_estimates += 1;
-                if let Some((_, hold)) = answers.get(&step) {
-                    seq += 1;
-                    let mut again = *hold;
-                    again.header.seq = seq;
-                    commands.send(&again)?;
-                    summary.node.resent += 1;
-                    summary.node.published += 1;
-                }
-                continue;
-            }
-            let key = content_key(&est, plan_from.as_ref());
-            if let Some((known, cached)) = answers.get(&step)
-                && *known == key
-            {
-                seq += 1;
-                let mut again = cached.carrying(&est, received_ns);
-                again.header.seq = seq;
-                commands.send(&again)?;
-                summary.node.resent += 1;
-                summary.node.published += 1;
-                last_planned = last_planned.max(Some(step));
-                continue;
-            }
-            let Some((z_hat, m)) = plan_from else {
-                summary.errors += 1;
-                eprintln!("planner: step {step}: the estimator has no fix yet, nothing to plan from");
-                continue;
-            };
-            if args.plan_delay_ms > 0 && (args.plan_delay_steps.is_empty() || args.plan_delay_steps.contains(&step)) {
-                // Fault injection: a slow planner (a signal ends the sleep and the loop).
-                if !args.quiet {
-                    eprintln!("planner: step {step}: delaying the plan by {} ms (--plan-delay-ms)", args.plan_delay_ms);
-                }
-                if link.sleep(Duration::from_millis(args.plan_delay_ms)).is_err() {
-                    break 'run;
-                }
-            }
-            let positions: Vec<Vector2<f64>> = est.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
-            let plan = match plan_step(&PlanRequest {
-                positions: &positions,
-                headings: est.headings(),
-                estimate: z_hat,
-                covariance: m,
-                scenario: &scenario,
-                objective: args.objective,
-                solver: args.solver,
-                run_seed: scenario.seed,
-                step,
-            }) {
-                Ok(plan) => plan,
-                Err(e) => {
-                    summary.errors += 1;
-                    eprintln!("planner: step {step}: {e}");
-                    continue;
-                }
-            };
-            let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();
-            seq += 1;
-            let command = Command::from_estimate(
-                &est,
-                received_ns,
-                seq,
-                instance,
-                &PlanInfo {
-                    headings: &plan.headings,
-                    waypoints: &waypoints,
-                    // The wire requires a finite value: an infinite criterion (a singular geometry) is sent as
-                    // −1, which the monitor reads as "no value" like `simulate` does.
-                    objective: if plan.objective_value.is_finite() { plan.objective_value } else { -1.0 },
-                    solver: args.solver.name(),
-                    objective_name: args.objective.name(),
-                    plan_time_us: (plan.plan_time_ms * 1e3).round() as u64,
-                    active_constraints: active_mask::encode(&plan.active_constraints),
-                    violated_constraints: active_mask::encode_violated(&plan.active_constraints),
-                },
-            )
-            .map_err(|e| ProcessError::Failed(format!("step {step}: command: {e}")))?;
-            // The checkpoint goes out before the answer that depends on it.
-            if let Some(path) = &args.checkpoint
-                && checkpoint::is_checkpoint_step(step)
-                && kept.last().is_none_or(|c| c.step < step)
-            {
-                let state = Checkpoint { step, usable: plan_from.as_ref().map(to_wire) };
-                checkpoint::push_kept(&mut kept, state, PROCESS_CHECKPOINTS);
-                if let Err(e) = checkpoint::save(path, ROLE, domain.as_str(), &kept) {
-                    eprintln!("planner: {e}");
-                }
-            }
-            commands.send(&command)?;
-            summary.node.published += 1;
-            last_planned = last_planned.max(Some(step));
-            answers.insert(step, (key, command));
-            if answers.len() > MAX_CACHED_STEPS {
-                answers.pop_first();
-            }
-        }
-        // Steps whose estimate missed the deadline: hold course.
-        if let Some(t) = tracker.as_mut() {
-            for due in t.due(Instant::now()) {
-                if from_step.is_some_and(|f| due.step < f) || (args.takeover && from_step.is_none()) {
-                    continue; // the running planner's step
-                }
-                let hold = hold_command(&due, &scenario, args, &mut seq, instance)?;
-                commands.send(&hold)?;
-                summary.held += 1;
-                summary.node.published += 1;
-                last_planned = last_planned.max(Some(due.step));
-                eprintln!(
-                    "planner: step {}: no estimate within {} ms of the measurement; holding course",
-                    due.step, args.estimate_deadline_ms
-                );
-                answers.insert(due.step, (Vec::new(), hold));
-                if answers.len() > MAX_CACHED_STEPS {
-                    answers.pop_first();
-                }
-            }
-        }
-        // A newer planner took over and this one has planned every step before it: hand over.
-        if let Some(f) = handover
-            && last_planned.is_some_and(|l| l + 1 >= f)
-        {
-            summary.node.handed_over_at = Some(f);
-            break 'run;
-        }
-    }
-    drop(guards);
-    if !args.quiet {
-        if let Some(f) = summary.node.handed_over_at {
-            eprintln!("planner: handed over to the newer planner at step {f}");
-        }
-        eprintln!(
-            "planner: stopped after {} commands ({} estimates, {counter})",
-            summary.node.published, summary.node.accepted
-        );
-    }
-    summary.node.cpu_s = runtime::cpu_seconds();
-    Ok(summary)
+    node.run(&inputs, &mut planner)?;
+    let published = node.summary().published;
+    let accepted = node.summary().accepted;
+    node.say(format_args!("stopped after {published} commands ({accepted} messages received)"));
+    Ok(PlannerSummary { node: node.finish(), ..planner.summary })
 }
 
 /// The hold command of a step whose estimate missed the deadline (see the module docs).
 fn hold_command(
-    due: &DueStep,
+    step: u64,
+    positions: &[Vector2<f64>],
+    headings: &[f64],
     scenario: &Scenario,
     args: &PlannerArgs,
-    seq: &mut u64,
     instance: u64,
 ) -> Result<Command, ProcessError> {
-    let (headings, waypoints) = hold_plan(&due.positions, &due.headings, scenario.speed, scenario.dt);
-    *seq += 1;
+    let (headings, waypoints) = hold_plan(positions, headings, scenario.speed, scenario.dt);
     let mut hold = Command::new(
-        due.step,
-        *seq,
+        step,
+        0,
         instance,
         &PlanInfo {
             headings: &headings,
@@ -578,7 +417,7 @@ fn hold_command(
             violated_constraints: 0,
         },
     )
-    .map_err(|e| ProcessError::Failed(format!("step {}: hold command: {e}", due.step)))?;
+    .map_err(|e| ProcessError::Failed(format!("step {step}: hold command: {e}")))?;
     hold.flags |= Command::FLAG_HOLD;
     Ok(hold)
 }

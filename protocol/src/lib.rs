@@ -41,7 +41,7 @@ pub use messages::{
 pub use services::Domain;
 pub use transport::{
     Link, Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, TransportKind, WaitMode,
-    WaitPolicy, node,
+    WaitPolicy, Waitable, node, wait_attached,
 };
 pub use validate::{Rejection, RejectionCounter};
 

@@ -466,7 +466,8 @@ pub enum EstimateStatus {
     Ok = 0,
     /// A usable fix chosen among several candidates (e.g. Chan's two roots).
     Ambiguous = 1,
-    /// No fix; position and covariance are meaningless (NaN).
+    /// No fix of this step; position and covariance are the standing (last usable) estimate, NaN when
+    /// there is none yet.
     Failed = 2,
     /// A usable estimate whose snapshot failed the fused estimator's χ² gate and was not fused: the
     /// position and covariance are the posterior predicted to this step.
@@ -573,7 +574,7 @@ pub struct PosteriorExtra {
 
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v2")]
+#[type_name("uavloc::Estimate/v3")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -591,9 +592,11 @@ pub struct Estimate {
     /// Fused: snapshots rejected in a row up to this one (the estimator restarts from Chan after a few,
     /// see `uavloc-estimator`); 0 otherwise.
     pub rejected_run: u8,
-    /// Estimated emitter position, metres (NaN when failed).
+    /// Estimated emitter position, metres. Failed: the *standing* estimate — the last usable one, which
+    /// the estimator keeps and the next step is planned from — or NaN when there is none yet (v3; in v2 a
+    /// failed estimate carried no position).
     pub position: [f64; 2],
-    /// Its covariance, m², row-major (NaN when failed).
+    /// Its covariance, m², row-major (failed: the standing estimate's, or NaN).
     pub covariance: [[f64; 2]; 2],
     /// UAV positions the estimate was computed for, metres.
     pub uavs: [[f64; 2]; MAX_UAVS],
@@ -607,7 +610,7 @@ pub struct Estimate {
     pub velocity_cov: [[f64; 2]; 2],
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 2, "uavloc::Estimate/v2");
+impl_message!(Estimate, MessageKind::Estimate, 3, "uavloc::Estimate/v3");
 
 impl Estimate {
     /// An estimate for `uavs.len()` UAVs (`headings` one per UAV).
@@ -665,6 +668,25 @@ impl Estimate {
         self.cross_cov = extra.cross_cov;
         self.velocity_cov = extra.velocity_cov;
         self
+    }
+
+    /// A failed estimate carrying the standing estimate `standing` (the last usable one: what the step is
+    /// planned from); no change to a usable one, nor without a standing estimate.
+    pub fn with_standing(mut self, standing: Option<([f64; 2], [[f64; 2]; 2])>) -> Self {
+        if let (Some(EstimateStatus::Failed), Some((position, covariance))) = (self.status(), standing) {
+            self.position = position;
+            self.covariance = covariance;
+        }
+        self
+    }
+
+    /// The estimate this step is planned from: the fix of a usable estimate, the standing estimate of a
+    /// failed one, `None` for a failed one without (no usable estimate yet) or an unknown status.
+    pub fn plan_from(&self) -> Option<([f64; 2], [[f64; 2]; 2])> {
+        match self.status()? {
+            EstimateStatus::Failed if !self.position.iter().all(|v| v.is_finite()) => None,
+            _ => Some((self.position, self.covariance)),
+        }
     }
 
     /// The fused estimator's state beyond the position.
@@ -953,8 +975,9 @@ impl Truth {
 #[repr(u32)]
 pub enum ControlKind {
     /// A process instance (re)joined the pipeline, e.g. restarted after a crash. `header.step` is the
-    /// first step it needs to see again (0 for the estimator and the planner, whose state is rebuilt from
-    /// the whole run; the monitor's first step not in its log): emitter-sim replays the run from there.
+    /// first step it needs to see again (the estimator: the step after its checkpoint; the monitor: its
+    /// first step not in its log), or [`ControlKind::IN_FLIGHT`] (the planner, which keeps no state: only
+    /// the step in flight, whose message it may have lost): emitter-sim replays the run from there.
     Hello = 0,
     /// A new instance of `role` takes over from step `header.step` (a swap): the running one handles the
     /// steps before it and then exits.
@@ -968,6 +991,10 @@ pub enum ControlKind {
 }
 
 impl ControlKind {
+    /// The step of a [`ControlKind::Hello`] that asks for the step in flight only (the newest one
+    /// published).
+    pub const IN_FLIGHT: u64 = u64::MAX;
+
     /// Decodes the wire value.
     pub fn from_u32(v: u32) -> Option<Self> {
         match v {

@@ -189,7 +189,8 @@ impl Estimate {
         let status = EstimateStatus::from_u8(self.status).ok_or(Rejection::UnknownStatus { status: self.status })?;
         check_finite("uavs", self.uavs[..n].iter().flatten())?;
         check_finite("headings", &self.headings[..n])?;
-        if status != EstimateStatus::Failed {
+        // A failed estimate carries the standing estimate, or none (all NaN).
+        if status != EstimateStatus::Failed || self.position.iter().any(|v| v.is_finite()) {
             check_finite("position", &self.position)?;
             check_finite("covariance", self.covariance.iter().flatten())?;
             if !is_symmetric_positive_definite(&self.covariance) {
@@ -404,6 +405,18 @@ mod tests {
         let failed = Estimate::new(0, 0, 1, &UAVS[..3], &[0.0; 3], Fix::Failed).unwrap();
         assert!(failed.position[0].is_nan());
         assert_eq!(failed.validate(None), Ok(()), "a failed estimate's NaN position is not used");
+        assert_eq!(failed.plan_from(), None, "no standing estimate yet");
+        // A failed estimate that carries the standing estimate: it must be a valid one.
+        let standing = failed.with_standing(Some(([5.0, 6.0], [[4.0, 1.0], [1.0, 3.0]])));
+        assert_eq!(standing.validate(None), Ok(()));
+        assert_eq!(standing.plan_from(), Some(([5.0, 6.0], [[4.0, 1.0], [1.0, 3.0]])));
+        let bad = failed.with_standing(Some(([5.0, 6.0], [[1.0, 3.0], [3.0, 1.0]])));
+        assert_eq!(bad.validate(None), Err(Rejection::NotPositiveDefinite));
+        let mut half = failed;
+        half.position[0] = 1.0;
+        assert!(half.validate(None).is_err(), "a half-NaN standing estimate is rejected");
+        let usable = Estimate::new(0, 0, 1, &UAVS[..3], &[0.0; 3], ambiguous).unwrap();
+        assert_eq!(usable.with_standing(Some(([0.0; 2], [[1.0, 0.0], [0.0, 1.0]]))), usable, "only a failed one");
         let mut eight = [[0.0; 2]; 8];
         for (i, p) in eight.iter_mut().enumerate() {
             *p = [i as f64, 1.0];

@@ -1,6 +1,7 @@
 //! # uavloc-runtime — what every uavloc process runs on
 //!
-//! The part of a process that is not its handler: its flags ([`args::LinkArgs`]), how it ends
+//! The part of a process that is not its handler: the event loop ([`node`]: one `WaitSet` over the
+//! process's inputs, the control topic and its deadlines, calling the process's [`Handler`]), its flags ([`args::LinkArgs`]), how it ends
 //! ([`exit`]: [`ProcessError`] and the exit codes a supervisor acts on), what it tells its supervisor
 //! ([`supervisor`]: typed stdout lines, written and read with one definition), and the checkpoint files
 //! of the recovery rules ([`checkpoint`]). The wire format and the transports are `uavloc-protocol`'s.
@@ -9,9 +10,11 @@ pub mod args;
 pub mod checkpoint;
 pub mod exit;
 pub mod flags;
+pub mod node;
 pub mod supervisor;
 
 pub use args::{DEFAULT_SPIN_US, LinkArgs, RunArgs};
 pub use exit::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError, cpu_seconds};
 pub use flags::Flags;
+pub use node::{Ended, Flow, Handler, IDLE_WAKEUP, Node};
 pub use supervisor::{NodeSummary, SupervisorLine, exit_with, tell};

@@ -572,6 +572,38 @@ pub fn wait_any(
     }
 }
 
+/// Something a process waits on in its `WaitSet`: a subscriber of either transport (its file descriptor
+/// wakes the wait) that says whether a message is waiting.
+pub trait Waitable: SynchronousMultiplexing + fmt::Debug {
+    /// Whether a message is waiting (a busy poll asks this).
+    fn has_samples(&self) -> Result<bool, TransportError>;
+}
+
+impl<T: Message> Waitable for TopicSubscriber<T> {
+    fn has_samples(&self) -> Result<bool, TransportError> {
+        TopicSubscriber::has_samples(self)
+    }
+}
+
+/// Waits on a `WaitSet` whose deadlines are its own attachments (an interval, a one-shot deadline):
+/// busy-polls `ready` for `spin` first, then, when `block` is set, blocks until a message, an attached
+/// deadline or a signal wakes the `WaitSet`. Errors as [`wait_any`].
+pub fn wait_attached(
+    waitset: &WaitSet<ipc::Service>,
+    spin: Duration,
+    block: bool,
+    ready: impl FnMut() -> Result<bool, TransportError>,
+) -> Result<(), TransportError> {
+    if spin_until(spin, ready)? || !block {
+        return Ok(());
+    }
+    match waitset.wait_and_process_once(|_| CallbackProgression::Continue) {
+        Ok(iceoryx2::waitset::WaitSetRunResult::TerminationRequest) => Err(TransportError::Interrupted),
+        Ok(_) => Ok(()),
+        Err(e) => Err(failed("waiting", "waitset", e)),
+    }
+}
+
 /// A `WaitSet` for the subscribers of one process (either transport).
 pub fn waitset() -> Result<WaitSet<ipc::Service>, TransportError> {
     WaitSetBuilder::new().create::<ipc::Service>().map_err(|e| failed("creating", "waitset", e))

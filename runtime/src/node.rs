@@ -1,0 +1,363 @@
+//! The node runtime: one event loop that every uavloc process runs its handler on.
+//!
+//! A process opens a [`Node`] (its link, domain, instance id, control channel, counters and summary),
+//! makes its topics on the node's link, and hands [`Node::run`] the subscribers to wait on and a
+//! [`Handler`]. The loop waits in one iceoryx2 `WaitSet` — the subscribers and the control topic as
+//! notification attachments, the idle wake-up ([`IDLE_WAKEUP`]) as an interval attachment and the
+//! handler's next deadline ([`Handler::deadline`]) as a one-shot interval attachment — busy-polling first
+//! as the `--wait` policy says. Per wake-up it
+//!
+//! 1. reads the control topic: a rejected message is counted and logged, a shutdown ends the loop
+//!    ([`Ended::Shutdown`]), a take-over by a newer instance of the same role sets the hand-over step,
+//!    anything else goes to [`Handler::on_control`];
+//! 2. calls [`Handler::on_wake`], which drains its inputs ([`Node::receive`] validates and counts) and
+//!    publishes its answers;
+//! 3. ends the loop with [`Ended::HandedOver`] once the handler has answered every step before the
+//!    hand-over step, and with [`Ended::Interrupted`] on SIGINT/SIGTERM.
+//!
+//! The take-over side of a swap is [`Node::take_over`]; the hand-over side is [`Node::hands_over`] (a
+//! handler asks it before answering a step). Readiness (`ready` to the supervisor) and the exit codes are
+//! the node's too ([`crate::exit`], [`crate::supervisor`]), so no process repeats them.
+
+use std::fmt;
+use std::rc::Rc;
+use std::time::{Duration, Instant};
+
+use protocol::control::{instance_id_at, is_newer};
+use protocol::services::{self, Domain};
+use protocol::{
+    Control, ControlChannel, ControlKind, Link, Message, RejectionCounter, TopicSubscriber, TransportError, WaitPolicy,
+    Waitable, now_ns,
+};
+
+use crate::{LinkArgs, NodeSummary, ProcessError, SupervisorLine};
+
+/// The longest a wait lasts without a message or a deadline (an interval attachment): the loop then
+/// re-checks for a termination request that arrived between two waits (a signal during a wait
+/// interrupts it at once).
+pub const IDLE_WAKEUP: Duration = Duration::from_secs(1);
+
+/// What a handler tells the loop after a wake-up or a control message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flow {
+    /// Wait for the next wake-up.
+    Continue,
+    /// End the loop ([`Ended::Stopped`], or [`Ended::HandedOver`] after [`Node::hands_over`]).
+    Stop,
+}
+
+/// Why [`Node::run`] returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ended {
+    /// SIGINT/SIGTERM.
+    Interrupted,
+    /// A shutdown on the control topic.
+    Shutdown,
+    /// A newer instance took over from this step; this one answered every step before it.
+    HandedOver(u64),
+    /// The handler said [`Flow::Stop`].
+    Stopped,
+}
+
+/// A process's part of the event loop: messages in, messages out.
+pub trait Handler {
+    /// Handles one wake-up: drains the inputs, publishes the answers.
+    fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError>;
+
+    /// A valid control message the runtime does not act on itself (hello, progress, an older instance's
+    /// take-over, …).
+    fn on_control(&mut self, _node: &mut Node, _msg: &Control) -> Result<Flow, ProcessError> {
+        Ok(Flow::Continue)
+    }
+
+    /// When to be woken without a message (e.g. a staleness deadline); `None`: only by messages.
+    fn deadline(&self) -> Option<Instant> {
+        None
+    }
+
+    /// The last step this handler answered (the hand-over waits for the step before the take-over).
+    fn last_answered(&self) -> Option<u64> {
+        None
+    }
+}
+
+/// One process on the pipeline: its link, domain, identity, control channel, counters and summary.
+#[derive(Debug)]
+pub struct Node {
+    link: Link,
+    domain: Domain,
+    control: Rc<ControlChannel>,
+    policy: WaitPolicy,
+    supervised: bool,
+    quiet: bool,
+    counter: RejectionCounter,
+    summary: NodeSummary,
+    seq: u64,
+    handover: Option<u64>,
+}
+
+impl Node {
+    /// Opens the node of `role` in `domain` (default: `$UAVLOC_DOMAIN`, else `uavloc`) on the link of
+    /// `link`; `Ok(None)` when SIGINT/SIGTERM came while it opened (the process then ends cleanly).
+    pub fn open(
+        role: &'static str,
+        domain: Option<&str>,
+        link: &LinkArgs,
+        supervised: bool,
+        quiet: bool,
+    ) -> Result<Option<Self>, ProcessError> {
+        protocol::transport::quiet_logs();
+        let domain = Domain::resolve(domain).map_err(|e| ProcessError::Input(e.to_string()))?;
+        let opened = Link::open(link.transport, &services::node_name(&domain, role))?;
+        // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
+        if opened.interrupted() {
+            return Ok(None);
+        }
+        let started_ns = now_ns();
+        let instance = instance_id_at(started_ns);
+        let control = Rc::new(ControlChannel::open(&opened, &domain, role, instance, started_ns)?);
+        Ok(Some(Self {
+            link: opened,
+            domain,
+            control,
+            policy: link.policy(),
+            supervised,
+            quiet,
+            counter: RejectionCounter::new(),
+            summary: NodeSummary::new(role, instance),
+            // Sequence numbers start at the monotonic clock: a restarted process numbers above its
+            // predecessor.
+            seq: started_ns,
+            handover: None,
+        }))
+    }
+
+    /// The link (to create topics on).
+    pub fn link(&self) -> &Link {
+        &self.link
+    }
+
+    /// The domain.
+    pub fn domain(&self) -> &Domain {
+        &self.domain
+    }
+
+    /// The role.
+    pub fn role(&self) -> &'static str {
+        self.summary.role
+    }
+
+    /// This instance's id.
+    pub fn instance(&self) -> u64 {
+        self.summary.instance
+    }
+
+    /// Whether `--quiet` is off.
+    pub fn verbose(&self) -> bool {
+        !self.quiet
+    }
+
+    /// Whether a supervisor reads this process's stdout.
+    pub fn supervised(&self) -> bool {
+        self.supervised
+    }
+
+    /// The wait policy (`--wait`, `--spin-us`).
+    pub fn policy(&self) -> WaitPolicy {
+        self.policy
+    }
+
+    /// The control channel.
+    pub fn control(&self) -> &ControlChannel {
+        &self.control
+    }
+
+    /// The validation counters of every message received.
+    pub fn counter(&mut self) -> &mut RejectionCounter {
+        &mut self.counter
+    }
+
+    /// What this node did (the counts every data process reports).
+    pub fn summary(&mut self) -> &mut NodeSummary {
+        &mut self.summary
+    }
+
+    /// Publishes a control message of `kind` (e.g. a hello from `step`).
+    pub fn announce(&self, kind: ControlKind, step: u64, detail: &str) -> Result<(), ProcessError> {
+        Ok(self.control.send(kind, step, detail)?)
+    }
+
+    /// Tells the supervisor this process is ready (subscribed).
+    pub fn ready(&self) {
+        crate::tell(self.supervised, &SupervisorLine::Ready);
+    }
+
+    /// Logs a line on stderr, prefixed with the role, unless `--quiet`.
+    pub fn say(&self, what: fmt::Arguments<'_>) {
+        if !self.quiet {
+            eprintln!("{}: {what}", self.role());
+        }
+    }
+
+    /// Logs a line on stderr, prefixed with the role, even with `--quiet` (a rejection, a failure).
+    pub fn warn(&self, what: fmt::Arguments<'_>) {
+        eprintln!("{}: {what}", self.role());
+    }
+
+    /// The next sequence number of this instance's data messages.
+    pub fn next_seq(&mut self) -> u64 {
+        self.seq += 1;
+        self.seq
+    }
+
+    /// The valid messages waiting on `sub` (validated against `last_seq`, the last accepted sequence
+    /// number of that topic); each rejected one is counted and logged ("rejected a `what`: …"), each
+    /// accepted one counted.
+    pub fn receive<T: Message>(
+        &mut self,
+        sub: &TopicSubscriber<T>,
+        last_seq: &mut Option<u64>,
+        what: &str,
+    ) -> Result<Vec<T>, ProcessError> {
+        let mut out = sub.receive_all()?;
+        out.retain(|m| match self.counter.check(m, last_seq) {
+            Ok(()) => true,
+            Err(r) => {
+                self.summary.rejected += 1;
+                eprintln!("{}: rejected {what}: {r}", self.summary.role);
+                false
+            }
+        });
+        self.summary.accepted += out.len() as u64;
+        Ok(out)
+    }
+
+    /// Announces that this instance takes over from `from_step` (a swap): the control topic, the
+    /// supervisor's `takeover` line, the summary and the log.
+    pub fn take_over(&mut self, from_step: u64, detail: &str) -> Result<(), ProcessError> {
+        self.summary.took_over_at = Some(from_step);
+        self.control.send(ControlKind::TakeOver, from_step, detail)?;
+        crate::tell(self.supervised, &SupervisorLine::TakeOver { from_step });
+        self.say(format_args!("taking over from step {from_step}"));
+        Ok(())
+    }
+
+    /// Whether a newer instance takes over at or before `step` (this one must not answer it); records the
+    /// hand-over in the summary when so.
+    pub fn hands_over(&mut self, step: u64) -> bool {
+        match self.handover {
+            Some(f) if step >= f => {
+                self.summary.handed_over_at = Some(f);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Whether the hand-over is due: a newer instance takes over from `f` and this one answered `f − 1`.
+    fn handover_due(&mut self, last_answered: Option<u64>) -> Option<u64> {
+        let f = self.handover?;
+        last_answered.is_some_and(|l| l + 1 >= f).then(|| {
+            self.summary.handed_over_at = Some(f);
+            f
+        })
+    }
+
+    /// The control messages since the last wake-up; `Some` when one ends the loop.
+    fn on_control(&mut self, handler: &mut impl Handler) -> Result<Option<Ended>, ProcessError> {
+        for msg in self.control.receive(&mut self.counter)? {
+            let c = match msg {
+                Ok(c) => c,
+                Err(r) => {
+                    self.summary.rejected += 1;
+                    self.warn(format_args!("rejected a control message: {r}"));
+                    continue;
+                }
+            };
+            if c.kind() == Some(ControlKind::Shutdown) {
+                return Ok(Some(Ended::Shutdown));
+            }
+            if is_newer(&c, ControlKind::TakeOver, self.role(), self.control.started_ns()) {
+                let f = c.header.step;
+                self.say(format_args!("a newer {} ({}) takes over from step {f}", self.role(), c.detail()));
+                self.handover = Some(self.handover.map_or(f, |h| h.min(f)));
+                continue;
+            }
+            if handler.on_control(self, &c)? == Flow::Stop {
+                return Ok(Some(self.stopped()));
+            }
+        }
+        Ok(None)
+    }
+
+    fn stopped(&self) -> Ended {
+        self.summary.handed_over_at.map_or(Ended::Stopped, Ended::HandedOver)
+    }
+
+    /// Runs `handler` over the wake-ups of `inputs` and the control topic until it stops, hands over, a
+    /// shutdown comes or SIGINT/SIGTERM (see the module docs).
+    pub fn run(&mut self, inputs: &[&dyn Waitable], handler: &mut impl Handler) -> Result<Ended, ProcessError> {
+        // The guards borrow this handle of the control channel (declared first, dropped last), so the
+        // handler may use the node meanwhile.
+        let control = Rc::clone(&self.control);
+        let waitset = protocol::transport::waitset()?;
+        let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
+        let mut guards = Vec::with_capacity(inputs.len() + 2);
+        for input in inputs {
+            guards.push(waitset.attach_notification(*input).map_err(attach_failed)?);
+        }
+        guards.push(waitset.attach_notification(control.subscriber()).map_err(attach_failed)?);
+        let _idle = waitset.attach_interval(IDLE_WAKEUP).map_err(attach_failed)?;
+        loop {
+            let left = handler.deadline().map(|d| d.saturating_duration_since(Instant::now()));
+            let (spin, block) = self.policy.split(left.unwrap_or(IDLE_WAKEUP).min(IDLE_WAKEUP));
+            // The deadline is a one-shot attachment of this wait (iceoryx2 rounds it up to whole
+            // milliseconds; a message wakes the wait at once).
+            let _deadline = match left {
+                Some(left) if !block.is_zero() => Some(
+                    waitset
+                        .attach_interval(left.saturating_sub(spin).max(Duration::from_micros(1)))
+                        .map_err(attach_failed)?,
+                ),
+                _ => None,
+            };
+            let ready = || {
+                for input in inputs {
+                    if input.has_samples()? {
+                        return Ok(true);
+                    }
+                }
+                control.subscriber().has_samples()
+            };
+            match protocol::wait_attached(&waitset, spin, !block.is_zero(), ready) {
+                Ok(()) => {}
+                Err(TransportError::Interrupted) => return Ok(Ended::Interrupted),
+                Err(e) => return Err(e.into()),
+            }
+            if self.link.interrupted() {
+                return Ok(Ended::Interrupted);
+            }
+            if let Some(ended) = self.on_control(handler)? {
+                return Ok(ended);
+            }
+            if let Some(f) = self.handover_due(handler.last_answered()) {
+                return Ok(Ended::HandedOver(f));
+            }
+            if handler.on_wake(self)? == Flow::Stop {
+                return Ok(self.stopped());
+            }
+            if let Some(f) = self.handover_due(handler.last_answered()) {
+                return Ok(Ended::HandedOver(f));
+            }
+        }
+    }
+
+    /// The summary at the end (CPU time filled in), with the hand-over logged.
+    pub fn finish(mut self) -> NodeSummary {
+        if let Some(f) = self.summary.handed_over_at {
+            self.say(format_args!("handed over to the newer {} at step {f}", self.role()));
+        }
+        self.summary.cpu_s = crate::cpu_seconds();
+        self.summary
+    }
+}
