@@ -14,6 +14,7 @@
 
 pub mod backpressure;
 pub mod process;
+pub mod schedule;
 
 use model::Scenario;
 use model::ScenarioError;

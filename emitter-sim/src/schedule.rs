@@ -1,0 +1,539 @@
+//! emitter-sim's schedule: a pure state machine over (event, time), without I/O.
+//!
+//! The process ([`crate::process`]) feeds it what happens — a command for a step ([`Schedule::wants`],
+//! [`Schedule::applied`], [`Schedule::other_command`]), a process that joined and asks for a replay
+//! ([`Schedule::joined`]), the monitor's progress ([`Schedule::heard`]) — and asks it what to do now
+//! ([`Schedule::poll`]: publish a new step, publish a kept step again, fly a missed step straight on,
+//! finish, fail) and when to ask again ([`Schedule::deadline`]). Everything timed is here; the process
+//! only measures, sends and applies.
+//!
+//! # Pacing
+//!
+//! One interface, two implementations ([`Pacing`]):
+//! - **lock-step**: step k + 1 is published as soon as the command of step k is applied (after
+//!   `--step-delay-ms`); the command of the current step is awaited up to the timeout (then the run
+//!   fails), and when it has not come `retry` after the step was (re)published, the steps from the
+//!   checkpoint step at or below it are replayed (a process died or lost a message). Before publishing
+//!   step k it waits while the monitor lacks step k − window or older (backpressure), replaying to the
+//!   monitor when it makes no progress for `retry` and failing after the timeout.
+//! - **real time**: step k is due at t0 + (k − first)·interval (t0: the first publication), whatever came;
+//!   the first command of step k applied before step k + 1 is due is flown, else the step is *missed*
+//!   (the UAVs fly straight on, [`Action::FlyStraight`]) and a command that comes later is counted late.
+//!
+//! # Replays
+//!
+//! A replay publishes kept steps `from..=to` again, one at a time, each after the command of the previous
+//! one came back (that command is not applied). A step whose answer does not come within `retry` ends the
+//! replay early: lock-step drops it (the next retry starts over), real time sends that step again, and
+//! after the last step (`--linger`) the replay starts over from the checkpoint step at or below it. In
+//! real time a replay pauses when the next step is due and goes on in the next interval, up to the step
+//! current then. A request for a step older than the kept history fails the run.
+
+use std::collections::BTreeSet;
+use std::time::{Duration, Instant};
+
+use runtime::checkpoint::{HISTORY_STEPS, checkpoint_step_at_or_below};
+
+use crate::backpressure::MonitorProgress;
+
+/// How emitter-sim paces the run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// The next step once the command of the current one is applied, after `step_delay`; the monitor may
+    /// lag at most `window` steps (0: no backpressure).
+    Lockstep {
+        /// Wait this long before each step after the first.
+        step_delay: Duration,
+        /// `--monitor-window`.
+        window: u64,
+    },
+    /// Step k at t0 + (k − first)·`interval`.
+    Realtime {
+        /// The real time between two steps.
+        interval: Duration,
+    },
+}
+
+/// The schedule's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Config {
+    /// The first step this instance publishes (0, or a snapshot's step after a restart).
+    pub first: u64,
+    /// The last step (`steps`: measured, not planned).
+    pub last: u64,
+    /// Lock-step or real time.
+    pub pacing: Pacing,
+    /// How long a (re)published step may go without its command before it is published again.
+    pub retry: Duration,
+    /// How long the command of a step (lock-step) or the monitor's progress may take in all.
+    pub timeout: Duration,
+    /// Stay after the last step and replay to whoever asks.
+    pub linger: bool,
+}
+
+/// What the process does next.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Action {
+    /// Measure and publish the new step.
+    Publish(u64),
+    /// Publish the kept step again.
+    Republish(u64),
+    /// Real time: the step's command missed it; fly straight on at the current headings.
+    FlyStraight(u64),
+    /// The run is over (the last step is published, and without `--linger`).
+    Finished,
+    /// The run cannot go on.
+    Fail(String),
+}
+
+/// What a command that is not applied was.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Other {
+    /// The answer to the replayed step awaited (not applied: the world is past it).
+    Answer,
+    /// Real time: a command for a missed step, after its time.
+    Late,
+    /// Any other step (a duplicate, a replay's stray answer).
+    Ignored,
+}
+
+/// What the schedule counted (the process's summary takes them).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Steps flown (commands applied, and missed steps).
+    pub steps: u64,
+    /// Replays started.
+    pub replays: u64,
+    /// Replays because a command (or the monitor's progress) was late.
+    pub retries: u64,
+    /// Real time: steps whose command missed them.
+    pub missed_commands: u64,
+    /// Real time: commands for missed steps, after their time.
+    pub late_commands: u64,
+    /// Commands neither applied nor late.
+    pub ignored: u64,
+    /// Real time: the largest delay of a publication behind its schedule, µs.
+    pub max_lag_us: u64,
+}
+
+/// A replay in progress.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Replay {
+    /// The next step to publish again.
+    next: u64,
+    /// The last step (published again without waiting for its answer).
+    to: u64,
+    /// The step published again whose answer is awaited, and when.
+    pending: Option<(u64, Instant)>,
+    answered: bool,
+}
+
+/// Where the run is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// Step `k` is the next to publish (lock-step: from `ready`).
+    Before { k: u64, ready: Instant },
+    /// Step `k` is published; its command is awaited since `since`, last (re)published at `published`.
+    Awaiting { k: u64, since: Instant, published: Instant, applied: bool },
+    /// The last step is published.
+    Done,
+}
+
+/// Lock-step backpressure: the monitor's first missing step as last seen, and since when.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Held {
+    seen: u64,
+    progressed: Instant,
+    replayed: Instant,
+}
+
+/// The schedule (see the module docs).
+#[derive(Debug, Clone)]
+pub struct Schedule {
+    cfg: Config,
+    phase: Phase,
+    /// The steps published by this instance: `first..published`.
+    published: u64,
+    t0: Option<Instant>,
+    replay: Option<Replay>,
+    /// A replay asked for and not started yet.
+    requested: Option<u64>,
+    monitor: MonitorProgress,
+    held: Option<Held>,
+    missed: BTreeSet<u64>,
+    counts: Counts,
+}
+
+impl Schedule {
+    /// The schedule of a run from `cfg.first`, starting at `now`.
+    pub fn new(cfg: Config, now: Instant) -> Self {
+        Self {
+            cfg,
+            phase: Phase::Before { k: cfg.first, ready: now },
+            published: cfg.first,
+            t0: None,
+            replay: None,
+            requested: None,
+            monitor: MonitorProgress::default(),
+            held: None,
+            missed: BTreeSet::new(),
+            counts: Counts::default(),
+        }
+    }
+
+    /// What was counted.
+    pub fn counts(&self) -> Counts {
+        self.counts
+    }
+
+    /// The oldest step kept for replays.
+    pub fn kept_from(&self) -> u64 {
+        self.published.saturating_sub(HISTORY_STEPS).max(self.cfg.first)
+    }
+
+    /// Whether a command for `step` is to be applied now (the step whose command the world waits for, no
+    /// command applied yet). The process applies it and reports [`applied`](Self::applied), or counts it
+    /// refused when the world refuses it.
+    pub fn wants(&self, step: u64) -> bool {
+        matches!(self.phase, Phase::Awaiting { k, applied: false, .. } if k == step)
+    }
+
+    /// The command of the awaited step was applied.
+    pub fn applied(&mut self, step: u64) {
+        if let Phase::Awaiting { k, applied, .. } = &mut self.phase
+            && *k == step
+        {
+            *applied = true;
+        }
+    }
+
+    /// A valid command that is not applied: what it was (counted).
+    pub fn other_command(&mut self, step: u64) -> Other {
+        if let Some(r) = &mut self.replay
+            && r.pending.is_some_and(|(j, _)| j == step)
+        {
+            r.answered = true;
+            self.counts.ignored += 1;
+            Other::Answer
+        } else if self.missed.contains(&step) {
+            self.counts.late_commands += 1;
+            Other::Late
+        } else {
+            self.counts.ignored += 1;
+            Other::Ignored
+        }
+    }
+
+    /// A process joined and asks to see the run again from step `from` ([`protocol::ControlKind::IN_FLIGHT`]:
+    /// the newest step published). Nothing to replay for a step not published yet; an error for a step
+    /// older than the history kept. Requests that came before the first publication are the pipeline's
+    /// start: nothing to replay.
+    pub fn joined(&mut self, from: u64) -> Result<Option<u64>, String> {
+        if self.published == self.cfg.first {
+            return Ok(None);
+        }
+        let from = if from == protocol::ControlKind::IN_FLIGHT { self.published - 1 } else { from };
+        if from >= self.published {
+            return Ok(None);
+        }
+        if from < self.kept_from() {
+            return Err(format!(
+                "a replay from step {from} was asked for, but only steps {}..={} are kept (the last {HISTORY_STEPS}); \
+                 a process restarted without its --checkpoint cannot rejoin a run this long",
+                self.kept_from(),
+                self.published - 1
+            ));
+        }
+        self.requested = Some(self.requested.map_or(from, |f| f.min(from)));
+        Ok(Some(from))
+    }
+
+    /// Takes a control message into account for the monitor's progress.
+    pub fn heard(&mut self, c: &protocol::Control) {
+        self.monitor.hear(c);
+    }
+
+    /// Real time: when step `k` is due.
+    fn due(&self, k: u64) -> Option<Instant> {
+        match (self.cfg.pacing, self.t0) {
+            (Pacing::Realtime { interval }, Some(t0)) => Some(t0 + interval.mul_f64((k - self.cfg.first) as f64)),
+            _ => None,
+        }
+    }
+
+    /// Where a replay that must reach step `k` starts: the checkpoint step at or below it (every process
+    /// can answer from there), or the oldest step kept.
+    fn replay_start(&self, k: u64) -> u64 {
+        checkpoint_step_at_or_below(k).max(self.kept_from())
+    }
+
+    /// The next instant [`poll`](Self::poll) has something to do without a new event.
+    pub fn deadline(&self) -> Option<Instant> {
+        let retry = self.cfg.retry;
+        let replay = self.replay.and_then(|r| r.pending).map(|(_, sent)| sent + retry);
+        let phase = match self.phase {
+            Phase::Before { k, ready } => match self.cfg.pacing {
+                Pacing::Realtime { .. } => self.due(k),
+                Pacing::Lockstep { .. } => Some(match self.held {
+                    Some(h) => (h.progressed + self.cfg.timeout).min(h.progressed.max(h.replayed) + retry),
+                    None => ready,
+                }),
+            },
+            Phase::Awaiting { k, since, published, .. } => match self.cfg.pacing {
+                Pacing::Realtime { .. } => self.due(k + 1),
+                Pacing::Lockstep { .. } => Some((since + self.cfg.timeout).min(published + retry)),
+            },
+            Phase::Done => None,
+        };
+        match (replay, phase) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// Everything to do at `now`, in order.
+    pub fn poll(&mut self, now: Instant) -> Vec<Action> {
+        let mut out = Vec::new();
+        while let Some(action) = self.step(now) {
+            let end = matches!(action, Action::Finished | Action::Fail(_));
+            out.push(action);
+            if end {
+                break;
+            }
+        }
+        out
+    }
+
+    /// One thing to do at `now`, if any.
+    fn step(&mut self, now: Instant) -> Option<Action> {
+        if let Some(a) = self.on_time(now) {
+            return Some(a);
+        }
+        if let Some(a) = self.start_requested_replay(now).or_else(|| self.advance_replay(now)) {
+            return Some(a);
+        }
+        if self.replay.is_some() {
+            return None; // a replay in progress completes first
+        }
+        match self.phase {
+            Phase::Before { k, ready } => self.before(k, ready, now),
+            Phase::Awaiting { k, applied: true, .. } if !self.is_realtime() => {
+                let delay = match self.cfg.pacing {
+                    Pacing::Lockstep { step_delay, .. } => step_delay,
+                    Pacing::Realtime { .. } => Duration::ZERO,
+                };
+                self.counts.steps += 1;
+                self.phase = Phase::Before { k: k + 1, ready: now + delay };
+                self.before(k + 1, now + delay, now)
+            }
+            Phase::Awaiting { k, since, published, .. } if !self.is_realtime() => {
+                if now >= since + self.cfg.timeout {
+                    return Some(Action::Fail(format!(
+                        "step {k}: no command within {} s (is a planner running in this domain?)",
+                        self.cfg.timeout.as_secs_f64()
+                    )));
+                }
+                if now >= published + self.cfg.retry {
+                    self.counts.retries += 1;
+                    self.requested = Some(self.replay_start(k));
+                    return self.start_requested_replay(now);
+                }
+                None
+            }
+            Phase::Awaiting { .. } => None,
+            Phase::Done if !self.cfg.linger => Some(Action::Finished),
+            Phase::Done => None,
+        }
+    }
+
+    fn is_realtime(&self) -> bool {
+        matches!(self.cfg.pacing, Pacing::Realtime { .. })
+    }
+
+    /// Real time: what the clock says comes first — the interval of the awaited step is over (flown, or
+    /// missed: fly straight on; a replay in progress pauses), or the next step is due.
+    fn on_time(&mut self, now: Instant) -> Option<Action> {
+        if !self.is_realtime() {
+            return None;
+        }
+        match self.phase {
+            Phase::Awaiting { k, applied, .. } if self.due(k + 1).is_some_and(|d| now >= d) => {
+                if let Some(r) = &mut self.replay {
+                    r.pending = None;
+                    r.answered = false;
+                }
+                self.phase = Phase::Before { k: k + 1, ready: now };
+                self.counts.steps += 1;
+                if applied {
+                    return self.on_time(now);
+                }
+                self.missed.insert(k);
+                self.missed = self.missed.split_off(&self.kept_from());
+                self.counts.missed_commands += 1;
+                Some(Action::FlyStraight(k))
+            }
+            Phase::Before { k, ready } if self.due(k).is_none_or(|d| now >= d) => self.before(k, ready, now),
+            _ => None,
+        }
+    }
+
+    /// Step `k` is the next to publish: publishes it when it may go.
+    fn before(&mut self, k: u64, ready: Instant, now: Instant) -> Option<Action> {
+        match self.cfg.pacing {
+            Pacing::Realtime { .. } => {
+                if self.due(k).is_some_and(|d| now < d) {
+                    return None;
+                }
+                self.t0.get_or_insert(now);
+                if let Some(d) = self.due(k) {
+                    self.counts.max_lag_us = self.counts.max_lag_us.max(now.saturating_duration_since(d).as_micros() as u64);
+                }
+            }
+            Pacing::Lockstep { window, .. } => {
+                if now < ready {
+                    return None;
+                }
+                if let Some(a) = self.backpressure(k, window, now) {
+                    return a;
+                }
+            }
+        }
+        self.published = k + 1;
+        self.phase = if k == self.cfg.last {
+            Phase::Done
+        } else {
+            Phase::Awaiting { k, since: now, published: now, applied: false }
+        };
+        Some(Action::Publish(k))
+    }
+
+    /// Lock-step backpressure before step `k`: `Some` while it holds (the action to take, or none).
+    fn backpressure(&mut self, k: u64, window: u64, now: Instant) -> Option<Option<Action>> {
+        let held = k > 0 && self.monitor.holds(k, window);
+        let Some(next) = self.monitor.next().filter(|_| held) else {
+            self.held = None;
+            return None;
+        };
+        if self.replay.is_some() {
+            return Some(None);
+        }
+        let h = self.held.get_or_insert(Held { seen: next, progressed: now, replayed: now });
+        if h.seen != next {
+            *h = Held { seen: next, progressed: now, replayed: h.replayed };
+        }
+        let h = *h;
+        if now >= h.progressed + self.cfg.timeout {
+            return Some(Some(Action::Fail(format!(
+                "step {k}: the monitor has lacked step {next} for {} s, and emitter-sim runs at most --monitor-window \
+                 {window} steps ahead of it (is the monitor running? --monitor-window 0 runs without it)",
+                self.cfg.timeout.as_secs_f64()
+            ))));
+        }
+        if self.requested.is_none() && now >= h.progressed.max(h.replayed) + self.cfg.retry {
+            self.counts.retries += 1;
+            self.requested = Some(self.replay_start(next.min(k - 1)));
+        }
+        Some(self.start_requested_replay(now))
+    }
+
+    /// The last step a replay may reach now: the newest published.
+    fn replay_end(&self) -> Option<u64> {
+        self.published.checked_sub(1).filter(|_| self.published > self.cfg.first)
+    }
+
+    /// Starts the replay asked for, if any and none is running (real time: merges it into the running one).
+    fn start_requested_replay(&mut self, now: Instant) -> Option<Action> {
+        let from = self.requested?;
+        let to = self.replay_end()?;
+        match &mut self.replay {
+            Some(r) => {
+                if from < r.next {
+                    // Real time or a second join: go back to the earlier step.
+                    r.next = from;
+                    r.pending = None;
+                }
+                r.to = to;
+                self.requested = None;
+                self.counts.replays += 1;
+                None
+            }
+            None => {
+                self.requested = None;
+                self.counts.replays += 1;
+                self.replay = Some(Replay { next: from.min(to), to, pending: None, answered: false });
+                if let Some(h) = &mut self.held {
+                    h.replayed = now;
+                }
+                self.advance_replay(now)
+            }
+        }
+    }
+
+    /// Moves the replay in progress on (see the module docs).
+    fn advance_replay(&mut self, now: Instant) -> Option<Action> {
+        let mut r = self.replay?;
+        let realtime = self.is_realtime();
+        if realtime {
+            // Up to the step current now.
+            r.to = r.to.max(self.replay_end()?);
+        }
+        if let Some((j, sent)) = r.pending {
+            if r.answered {
+                r.next = j + 1;
+                r.pending = None;
+                r.answered = false;
+            } else if now >= sent + self.cfg.retry {
+                // No answer: the replay stops early at j.
+                r.pending = None;
+                self.replay = None;
+                self.ended_early(j, now, realtime.then_some(r));
+                return self.advance_replay(now).or_else(|| self.start_requested_replay(now));
+            } else {
+                self.replay = Some(r);
+                return None;
+            }
+        }
+        if r.next >= r.to {
+            // The last step of the replay: no answer awaited.
+            self.replay = None;
+            self.replayed(now);
+            return Some(Action::Republish(r.to));
+        }
+        let j = r.next;
+        r.pending = Some((j, now));
+        self.replay = Some(r);
+        Some(Action::Republish(j))
+    }
+
+    /// A replay stopped at `j` without an answer: real time sends `j` again (`resume`), after the last
+    /// step the replay starts over from the checkpoint step at or below `j`, lock-step drops it (the next
+    /// retry starts over).
+    fn ended_early(&mut self, j: u64, now: Instant, resume: Option<Replay>) {
+        if let Some(r) = resume {
+            self.replay = Some(Replay { next: j, pending: None, answered: false, ..r });
+            return;
+        }
+        if self.phase == Phase::Done {
+            self.counts.retries += 1;
+            self.requested = Some(self.replay_start(j));
+        }
+        self.replayed(now);
+    }
+
+    /// A lock-step replay ended: the retry timers start again.
+    fn replayed(&mut self, now: Instant) {
+        if let Phase::Awaiting { published, .. } = &mut self.phase
+            && matches!(self.cfg.pacing, Pacing::Lockstep { .. })
+        {
+            *published = now;
+        }
+        if let Some(h) = &mut self.held {
+            h.replayed = now;
+        }
+    }
+
+    /// Whether the last step is published and nothing is left to do but replays (`--linger`).
+    pub fn is_done(&self) -> bool {
+        self.phase == Phase::Done
+    }
+}
