@@ -365,10 +365,10 @@ impl EmitterNode<'_> {
     /// Publishes kept step `j` again (new sequence number, no stamps: its latencies mean nothing).
     fn publish_again(&mut self, node: &mut Node, j: u64) -> Result<(), ProcessError> {
         let base = self.schedule.kept_from();
-        let (mut truth, mut measurement) = j
-            .checked_sub(base)
-            .and_then(|i| self.sent.get(i as usize).copied())
-            .ok_or_else(|| ProcessError::Failed(format!("step {j} is not kept for a replay (kept: from step {base})")))?;
+        let (mut truth, mut measurement) =
+            j.checked_sub(base).and_then(|i| self.sent.get(i as usize).copied()).ok_or_else(|| {
+                ProcessError::Failed(format!("step {j} is not kept for a replay (kept: from step {base})"))
+            })?;
         truth.header.stamps = Stamps::default();
         measurement.header.stamps = Stamps::default();
         self.send(node, truth, measurement)
@@ -544,7 +544,9 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     }
     let pace = match pacing {
         Pacing::Lockstep { .. } => "lock-step".to_string(),
-        Pacing::Realtime { interval } => format!("realtime ×{} ({:.3} s per step)", args.time_scale, interval.as_secs_f64()),
+        Pacing::Realtime { interval } => {
+            format!("realtime ×{} ({:.3} s per step)", args.time_scale, interval.as_secs_f64())
+        }
     };
     node.say(format_args!(
         "domain {domain}, {} steps, seed {}, {} UAVs, emitter at ({}, {}) m, {pace}",

@@ -386,7 +386,8 @@ impl Schedule {
                 }
                 self.t0.get_or_insert(now);
                 if let Some(d) = self.due(k) {
-                    self.counts.max_lag_us = self.counts.max_lag_us.max(now.saturating_duration_since(d).as_micros() as u64);
+                    self.counts.max_lag_us =
+                        self.counts.max_lag_us.max(now.saturating_duration_since(d).as_micros() as u64);
                 }
             }
             Pacing::Lockstep { window, .. } => {
@@ -535,5 +536,249 @@ impl Schedule {
     /// Whether the last step is published and nothing is left to do but replays (`--linger`).
     pub fn is_done(&self) -> bool {
         self.phase == Phase::Done
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::{Control, ControlKind};
+
+    const RETRY: Duration = Duration::from_millis(100);
+    const TIMEOUT: Duration = Duration::from_secs(2);
+
+    fn ms(t0: Instant, m: u64) -> Instant {
+        t0 + Duration::from_millis(m)
+    }
+
+    fn lockstep(last: u64, linger: bool, window: u64) -> Config {
+        Config {
+            first: 0,
+            last,
+            pacing: Pacing::Lockstep { step_delay: Duration::ZERO, window },
+            retry: RETRY,
+            timeout: TIMEOUT,
+            linger,
+        }
+    }
+
+    fn progress(step: u64) -> Control {
+        Control::new(ControlKind::Progress, step, 1, 7, 100, "monitor", "").unwrap()
+    }
+
+    /// Applies the awaited command of `k` at `now` and returns what follows.
+    fn answer(s: &mut Schedule, k: u64, now: Instant) -> Vec<Action> {
+        assert!(s.wants(k), "step {k} is awaited");
+        s.applied(k);
+        s.poll(now)
+    }
+
+    #[test]
+    fn lockstep_runs_each_step_after_its_command_and_finishes() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(3, false, 0), t0);
+        assert_eq!(s.poll(t0), vec![Action::Publish(0)]);
+        assert!(!s.wants(1) && s.wants(0));
+        assert_eq!(s.poll(ms(t0, 50)), vec![], "waiting for the command");
+        assert_eq!(s.deadline(), Some(ms(t0, 100)), "the retry is the next deadline");
+        assert_eq!(answer(&mut s, 0, ms(t0, 60)), vec![Action::Publish(1)]);
+        assert_eq!(answer(&mut s, 1, ms(t0, 70)), vec![Action::Publish(2)]);
+        assert_eq!(answer(&mut s, 2, ms(t0, 80)), vec![Action::Publish(3), Action::Finished]);
+        assert!(s.is_done());
+        assert_eq!(s.counts().steps, 3);
+    }
+
+    #[test]
+    fn the_step_delay_paces_lockstep() {
+        let t0 = Instant::now();
+        let cfg = Config {
+            pacing: Pacing::Lockstep { step_delay: Duration::from_millis(30), window: 0 },
+            ..lockstep(2, false, 0)
+        };
+        let mut s = Schedule::new(cfg, t0);
+        assert_eq!(s.poll(t0), vec![Action::Publish(0)]);
+        assert_eq!(answer(&mut s, 0, ms(t0, 10)), vec![]);
+        assert_eq!(s.deadline(), Some(ms(t0, 40)));
+        assert_eq!(s.poll(ms(t0, 39)), vec![]);
+        assert_eq!(s.poll(ms(t0, 40)), vec![Action::Publish(1)]);
+    }
+
+    #[test]
+    fn a_late_command_replays_from_the_checkpoint_step_and_times_out() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(10, false, 0), t0);
+        s.poll(t0);
+        for k in 0..3 {
+            answer(&mut s, k, ms(t0, k));
+        }
+        // Step 3 is published at 2 ms; no command by 102 ms: replay 0, 1, 2 (each after its answer), then 3.
+        assert_eq!(s.poll(ms(t0, 102)), vec![Action::Republish(0)]);
+        assert_eq!((s.counts().retries, s.counts().replays), (1, 1));
+        assert_eq!(s.other_command(0), Other::Answer);
+        assert_eq!(s.poll(ms(t0, 103)), vec![Action::Republish(1)]);
+        assert_eq!(s.other_command(5), Other::Ignored);
+        assert_eq!(s.poll(ms(t0, 104)), vec![], "step 1's answer is awaited");
+        assert_eq!(s.other_command(1), Other::Answer);
+        assert_eq!(s.poll(ms(t0, 105)), vec![Action::Republish(2)]);
+        s.other_command(2);
+        assert_eq!(s.poll(ms(t0, 106)), vec![Action::Republish(3)], "the awaited step, with no wait");
+        // No answer again: the next retry comes a retry interval after the replay.
+        assert_eq!(s.poll(ms(t0, 205)), vec![]);
+        assert_eq!(s.poll(ms(t0, 206)), vec![Action::Republish(0)]);
+        // A replay that gets no answer stops early; the next retry starts over.
+        assert_eq!(s.poll(ms(t0, 306)), vec![]);
+        assert_eq!(s.poll(ms(t0, 406)), vec![Action::Republish(0)]);
+        assert!(matches!(s.poll(ms(t0, 2002))[..], [Action::Fail(ref m)] if m.contains("step 3: no command")));
+    }
+
+    #[test]
+    fn the_command_applied_during_a_replay_goes_on_after_it() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(10, false, 0), t0);
+        s.poll(t0);
+        answer(&mut s, 0, t0);
+        answer(&mut s, 1, t0);
+        assert_eq!(s.joined(0), Ok(Some(0)));
+        assert_eq!(s.poll(ms(t0, 1)), vec![Action::Republish(0)]);
+        // The awaited command of step 2 comes meanwhile: applied, but the replay completes first.
+        s.applied(2);
+        assert_eq!(s.poll(ms(t0, 2)), vec![]);
+        s.other_command(0);
+        assert_eq!(s.poll(ms(t0, 3)), vec![Action::Republish(1)]);
+        s.other_command(1);
+        assert_eq!(s.poll(ms(t0, 4)), vec![Action::Republish(2), Action::Publish(3)]);
+    }
+
+    #[test]
+    fn joins_replay_what_they_ask_for_and_no_more() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(10, false, 0), t0);
+        assert_eq!(s.joined(0), Ok(None), "before the first publication: the pipeline's start");
+        s.poll(t0);
+        answer(&mut s, 0, t0);
+        answer(&mut s, 1, t0);
+        assert_eq!(s.joined(3), Ok(None), "a step not published yet");
+        assert_eq!(s.joined(ControlKind::IN_FLIGHT), Ok(Some(2)), "the planner: the step in flight");
+        assert_eq!(s.poll(ms(t0, 1)), vec![Action::Republish(2)]);
+        assert_eq!(s.counts().replays, 1);
+    }
+
+    #[test]
+    fn a_request_older_than_the_history_fails_the_run() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(HISTORY_STEPS + 10, false, 0), t0);
+        s.poll(t0);
+        for k in 0..HISTORY_STEPS + 5 {
+            answer(&mut s, k, t0);
+        }
+        assert_eq!(s.kept_from(), 6);
+        let e = s.joined(5).unwrap_err();
+        assert!(e.contains("from step 5") && e.contains("6..=4101"), "{e}");
+        assert_eq!(s.joined(6), Ok(Some(6)));
+    }
+
+    #[test]
+    fn backpressure_holds_replays_to_the_monitor_and_gives_up() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(100, false, 4), t0);
+        s.poll(t0);
+        s.heard(&progress(0));
+        for k in 0..3 {
+            answer(&mut s, k, t0);
+        }
+        // Step 4 may not go while the monitor lacks step 0 (window 4).
+        assert_eq!(answer(&mut s, 3, t0), vec![]);
+        assert_eq!(s.poll(ms(t0, 99)), vec![]);
+        // No progress for the retry interval: replay to the monitor from the checkpoint step (0) to step 3.
+        assert_eq!(s.poll(ms(t0, 100)), vec![Action::Republish(0)]);
+        s.other_command(0);
+        assert_eq!(s.poll(ms(t0, 101)), vec![Action::Republish(1)]);
+        s.other_command(1);
+        assert_eq!(s.poll(ms(t0, 102)), vec![Action::Republish(2)]);
+        s.other_command(2);
+        assert_eq!(s.poll(ms(t0, 103)), vec![Action::Republish(3)]);
+        // The monitor catches up: step 4 goes.
+        s.heard(&progress(2));
+        assert_eq!(s.poll(ms(t0, 104)), vec![Action::Publish(4)]);
+        // It stops making progress for the whole timeout: the run fails naming the monitor.
+        for k in 4..6 {
+            answer(&mut s, k, ms(t0, 105));
+        }
+        let end = ms(t0, 105) + TIMEOUT;
+        let mut failed: Vec<Action> = (0..40).flat_map(|i| s.poll(ms(t0, 105 + 100 * i))).collect();
+        failed.extend(s.poll(end));
+        assert!(
+            matches!(failed.last(), Some(Action::Fail(m)) if m.contains("monitor has lacked step 2")),
+            "{failed:?}"
+        );
+    }
+
+    #[test]
+    fn linger_replays_after_the_last_step_and_starts_over_when_an_answer_is_missing() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(2, true, 0), t0);
+        s.poll(t0);
+        answer(&mut s, 0, t0);
+        assert_eq!(answer(&mut s, 1, t0), vec![Action::Publish(2)], "no Finished: it lingers");
+        assert!(s.is_done());
+        assert_eq!(s.joined(1), Ok(Some(1)));
+        assert_eq!(s.poll(ms(t0, 1)), vec![Action::Republish(1)]);
+        // No answer: the replay starts over from the checkpoint step at or below step 1.
+        assert_eq!(s.poll(ms(t0, 101)), vec![Action::Republish(0)]);
+        assert_eq!(s.counts().retries, 1);
+        s.other_command(0);
+        assert_eq!(s.poll(ms(t0, 102)), vec![Action::Republish(1)]);
+        s.other_command(1);
+        assert_eq!(s.poll(ms(t0, 103)), vec![Action::Republish(2)]);
+        assert_eq!(s.poll(ms(t0, 10_000)), vec![], "nothing left to do");
+    }
+
+    fn realtime(last: u64) -> Config {
+        Config {
+            first: 0,
+            last,
+            pacing: Pacing::Realtime { interval: Duration::from_millis(100) },
+            retry: Duration::from_millis(30),
+            timeout: TIMEOUT,
+            linger: false,
+        }
+    }
+
+    #[test]
+    fn realtime_keeps_the_clock_flies_missed_steps_straight_and_counts_late_commands() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(realtime(3), t0);
+        assert_eq!(s.poll(t0), vec![Action::Publish(0)]);
+        // The command comes in time, but the next step waits for its time.
+        assert_eq!(answer(&mut s, 0, ms(t0, 10)), vec![]);
+        assert_eq!(s.deadline(), Some(ms(t0, 100)));
+        assert_eq!(s.poll(ms(t0, 103)), vec![Action::Publish(1)]);
+        assert_eq!(s.counts().max_lag_us, 3000);
+        // No command for step 1: missed at 200 ms, step 2 goes at once.
+        assert_eq!(s.poll(ms(t0, 200)), vec![Action::FlyStraight(1), Action::Publish(2)]);
+        assert_eq!(s.other_command(1), Other::Late);
+        assert_eq!((s.counts().missed_commands, s.counts().late_commands), (1, 1));
+        s.applied(2);
+        assert_eq!(s.poll(ms(t0, 300)), vec![Action::Publish(3), Action::Finished]);
+        assert_eq!(s.counts().steps, 3);
+    }
+
+    #[test]
+    fn a_realtime_replay_pauses_when_a_step_is_due_and_goes_on_up_to_the_current_step() {
+        let t0 = Instant::now();
+        let mut s = Schedule::new(realtime(10), t0);
+        s.poll(t0);
+        answer(&mut s, 0, ms(t0, 1));
+        assert_eq!(s.poll(ms(t0, 100)), vec![Action::Publish(1)]);
+        assert_eq!(s.joined(0), Ok(Some(0)));
+        assert_eq!(s.poll(ms(t0, 150)), vec![Action::Republish(0)]);
+        // No answer within the retry interval: step 0 is sent again.
+        assert_eq!(s.poll(ms(t0, 180)), vec![Action::Republish(0)]);
+        // Step 2 is due: step 1 missed, step 2 published, then the replay goes on (step 0 again).
+        assert_eq!(s.poll(ms(t0, 200)), vec![Action::FlyStraight(1), Action::Publish(2), Action::Republish(0)]);
+        s.other_command(0);
+        assert_eq!(s.poll(ms(t0, 201)), vec![Action::Republish(1)]);
+        s.other_command(1);
+        assert_eq!(s.poll(ms(t0, 202)), vec![Action::Republish(2)], "up to the step current now");
     }
 }
