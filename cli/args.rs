@@ -221,3 +221,41 @@ mod tests {
         assert!((m.sigmas()[0] - 10.0 * tdoa::SPEED_OF_LIGHT / 1e9).abs() < 1e-12);
     }
 }
+
+/// The run both `simulate` and `launch` make: scenario, objective, solver, steps, seed, estimator.
+#[derive(clap::Args, Debug, Clone, PartialEq)]
+pub struct RunChoice {
+    /// Scenario TOML file (default: the paper's nominal case; see scenarios/nominal.toml).
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<std::path::PathBuf>,
+    /// Planning objective: single | mc | analytical | cubature | posterior | posterior-cubature |
+    /// formation (the fixed-formation baseline).
+    #[arg(long, default_value = "analytical")]
+    pub objective: planner::ObjectiveKind,
+    /// Solver: pso | ga | aco (ignored by the formation baseline).
+    #[arg(long, default_value = "pso")]
+    pub solver: planner::SolverKind,
+    /// Number of planning steps (default: the scenario's, 24 for the paper).
+    #[arg(long, value_name = "N")]
+    pub steps: Option<usize>,
+    /// Run seed: measurement noise, RMSE resamples, MC samples and the solver all derive from it
+    /// (default: the scenario's seed).
+    #[arg(long, value_name = "N")]
+    pub seed: Option<u64>,
+    /// The estimator: fused (the posterior of every measurement so far) or snapshot (the paper's Chan
+    /// per step); default: the scenario's `estimator` (fused).
+    #[arg(long, value_name = "KIND")]
+    pub estimator: Option<estimator::EstimatorKind>,
+}
+
+impl RunChoice {
+    /// The scenario of these flags (file or default) with `--steps`, `--seed` and `--estimator` applied,
+    /// validated.
+    pub fn scenario(&self) -> Result<model::Scenario, crate::error::CliError> {
+        let mut sc = crate::simulate::scenario_from(self.scenario.as_ref(), self.steps, self.seed)?;
+        if let Some(kind) = self.estimator {
+            sc.estimator = kind;
+        }
+        Ok(sc)
+    }
+}

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use monitor::RunRecord;
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use planner::Scenario;
 
 use crate::error::CliError;
 use crate::output::{Diagnostic, Report, Table};
@@ -37,26 +37,9 @@ Figure 4, metrics.svg/.png with CRLB and RMSE per step).";
 /// Flags of `uavloc simulate`.
 #[derive(Args, Debug, Clone, PartialEq)]
 pub struct SimulateArgs {
-    /// Scenario TOML file (default: the paper's nominal case; see scenarios/nominal.toml).
-    #[arg(long, value_name = "FILE")]
-    pub scenario: Option<PathBuf>,
-    /// Planning objective: single | mc | analytical | cubature | formation (the fixed-formation baseline).
-    #[arg(long, default_value = "analytical")]
-    pub objective: ObjectiveKind,
-    /// Solver: pso | ga | aco (ignored by the formation baseline).
-    #[arg(long, default_value = "pso")]
-    pub solver: SolverKind,
-    /// Number of planning steps (default: the scenario's, 24 for the paper).
-    #[arg(long, value_name = "N")]
-    pub steps: Option<usize>,
-    /// Run seed: measurement noise, RMSE resamples, MC samples and the solver all derive from it
-    /// (default: the scenario's seed).
-    #[arg(long, value_name = "N")]
-    pub seed: Option<u64>,
-    /// The estimator: fused (the posterior of every measurement so far) or snapshot (the paper's Chan
-    /// per step); default: the scenario's `estimator` (fused).
-    #[arg(long, value_name = "KIND")]
-    pub estimator: Option<estimator::EstimatorKind>,
+    /// Scenario, objective, solver, steps, seed, estimator.
+    #[command(flatten)]
+    pub run: crate::args::RunChoice,
     /// Directory to write CSVs, run.json and plots into (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
@@ -82,14 +65,11 @@ pub struct SimulateReport {
 
 /// Runs `uavloc simulate`.
 pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
-    let mut sc = scenario_from(args.scenario.as_ref(), args.steps, args.seed)?;
-    if let Some(kind) = args.estimator {
-        sc.estimator = kind;
-    }
+    let sc = args.run.scenario()?;
     if let Some(dir) = &args.out {
         crate::output::check_out_dir("--out", dir)?;
     }
-    let run = experiments::closed_loop::run_closed_loop(&sc, args.objective, args.solver, |_| {})
+    let run = experiments::closed_loop::run_closed_loop(&sc, args.run.objective, args.run.solver, |_| {})
         .map_err(|e| CliError::Failed(e.to_string()))?;
     let written = match &args.out {
         Some(dir) => monitor::export::write_run(&run, dir)

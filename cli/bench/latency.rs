@@ -311,12 +311,14 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
     let domain = unique_domain();
     let stamps_file = std::env::temp_dir().join(format!("uavloc-{domain}.stamps.csv"));
     let args = LaunchArgs {
-        scenario: flags.scenario.clone(),
-        objective: flags.objective,
-        solver: planner::SolverKind::Pso,
-        steps: Some(config.steps),
-        seed: None,
-        estimator: None,
+        run: crate::args::RunChoice {
+            scenario: flags.scenario.clone(),
+            objective: flags.objective,
+            solver: planner::SolverKind::Pso,
+            steps: Some(config.steps),
+            seed: None,
+            estimator: None,
+        },
         domain: Some(domain),
         headless: true,
         out: None,

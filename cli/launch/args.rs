@@ -4,8 +4,6 @@ use std::path::PathBuf;
 
 use clap::Args;
 use emitter_sim::process::Mode;
-use estimator::EstimatorKind;
-use planner::{ObjectiveKind, SolverKind};
 
 pub const LONG_ABOUT: &str = "\
 Run the closed loop as the four processes of the uavloc pipeline, exchanging zero-copy messages over
@@ -57,25 +55,9 @@ Each process also runs on its own, e.g. in four terminals (or systemd units) wit
 /// Flags of `uavloc launch`.
 #[derive(Args, Debug, Clone, PartialEq)]
 pub struct LaunchArgs {
-    /// Scenario TOML file (default: the paper's nominal case; see scenarios/nominal.toml).
-    #[arg(long, value_name = "FILE")]
-    pub scenario: Option<PathBuf>,
-    /// Planning objective: single | mc | analytical | cubature | formation.
-    #[arg(long, default_value = "analytical")]
-    pub objective: ObjectiveKind,
-    /// Solver: pso | ga | aco (ignored by formation).
-    #[arg(long, default_value = "pso")]
-    pub solver: SolverKind,
-    /// Number of planning steps (default: the scenario's, 24 for the paper).
-    #[arg(long, value_name = "N")]
-    pub steps: Option<usize>,
-    /// Run seed (default: the scenario's).
-    #[arg(long, value_name = "N")]
-    pub seed: Option<u64>,
-    /// The estimator: fused (the posterior of every measurement so far) or snapshot (the paper's Chan
-    /// per step); default: the scenario's `estimator` (fused).
-    #[arg(long, value_name = "KIND")]
-    pub estimator: Option<EstimatorKind>,
+    /// Scenario, objective, solver, steps, seed, estimator.
+    #[command(flatten)]
+    pub run: crate::args::RunChoice,
     /// Pipeline domain, the prefix of every iceoryx2 service name (default: $UAVLOC_DOMAIN, else
     /// `uavloc-<pid>`, unique per launch).
     #[arg(long, value_name = "NAME")]

@@ -29,7 +29,7 @@ pub(super) fn child_flags(
 ) -> Vec<String> {
     let domain = Some(domain.to_string());
     let checkpoint = role.checkpoints().then(|| state.path(&format!("{role}.ckpt")));
-    let run = runtime::RunArgs { scenario: args.scenario.clone(), steps: args.steps, seed: args.seed };
+    let run = runtime::RunArgs { scenario: args.run.scenario.clone(), steps: args.run.steps, seed: args.run.seed };
     match role {
         Role::Monitor => monitor::process::MonitorArgs {
             domain,
@@ -45,8 +45,8 @@ pub(super) fn child_flags(
         Role::Planner => planner::process::PlannerArgs {
             domain,
             run: run.clone(),
-            objective: args.objective,
-            solver: args.solver,
+            objective: args.run.objective,
+            solver: args.run.solver,
             link: args.link,
             estimate_deadline_ms: args.estimate_deadline_ms,
             plan_delay_ms: args.plan_delay_ms,

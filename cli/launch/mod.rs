@@ -77,7 +77,6 @@ pub use report::{ChildReport, LaunchReport};
 pub use role::{RestartDecision, Role};
 
 use crate::error::CliError;
-use crate::simulate::scenario_from;
 use state_dir::StateDir;
 use supervisor::{STOP_GRACE, Supervisor, TICK, catch_termination_signals};
 
@@ -91,10 +90,7 @@ fn launch_domain(flag: Option<&str>) -> Result<Domain, CliError> {
 /// Runs `uavloc launch`.
 pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let start = Instant::now();
-    let mut sc = scenario_from(args.scenario.as_ref(), args.steps, args.seed)?;
-    if let Some(kind) = args.estimator {
-        sc.estimator = kind;
-    }
+    let sc = args.run.scenario()?;
     if sc.target == TargetMode::Controlled {
         return Err(CliError::Input(
             "scenario key `target`: \"controlled\" is not supported by the process pipeline (the planner never \
@@ -134,7 +130,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // launch, removed at the end: a restarted child resumes from what its predecessor wrote there.
     let state = StateDir::create(&domain)?;
     state.write_run_settings(&state_dir::RunSettings {
-        scenario: args.scenario.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
+        scenario: args.run.scenario.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
         steps: sc.steps,
         seed: sc.seed,
     })?;
@@ -180,8 +176,8 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // The monitor names the run after the commands it recorded; if none was flown (every one missed, in
     // realtime mode), the names are the launch's.
     if run.objective == "-" && run.solver == "-" {
-        run.objective = args.objective.name().to_string();
-        run.solver = args.solver.name().to_string();
+        run.objective = args.run.objective.name().to_string();
+        run.solver = args.run.solver.name().to_string();
     }
     let children: Vec<ChildReport> = sup
         .procs

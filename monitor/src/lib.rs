@@ -3,17 +3,21 @@
 //! The monitor's logic: per-step metrics against the truth, the run record (the JSON shape shared by
 //! `uavloc simulate` and the process pipeline), plots of a run, generic report charts ([`chart`]: curves
 //! with confidence bands, grouped bars); and the monitor process of the pipeline: [`assemble`] rebuilds
-//! the record from the pipeline's messages (no IPC), [`process`] is the iceoryx2 loop around it,
+//! the record from the pipeline's messages (no IPC), [`process`] is its handler on the node runtime (with [`runlog`], [`stamps`] and [`latency`]:
+//! its log, stamp file and latency statistics),
 //! [`resources`] lists (and cleans up) a domain's iceoryx2 nodes and services.
 
 pub mod assemble;
 pub mod chart;
 pub mod export;
+pub mod latency;
 pub mod metrics;
 pub mod plot;
 pub mod process;
 pub mod record;
 pub mod resources;
+pub mod runlog;
+pub mod stamps;
 
 pub use assemble::{Assembler, CompletedStep};
 pub use chart::{BarGroup, Series, plot_bars, plot_curves};

@@ -2,8 +2,8 @@
 //! run record ([`Assembler`]), shows one status line per step, logs every event as JSON lines, and writes
 //! the record (and CSVs and plots) when the last step is in.
 //!
-//! It waits in one iceoryx2 `WaitSet` on the topics' listeners (event-driven, no polling) and drains
-//! every subscriber on each wake-up; every message is validated first ([`RejectionCounter`]), invalid ones
+//! A handler on the node runtime ([`runtime::node`]: one `WaitSet` over the topics' listeners, event-driven)
+//! that drains every subscriber on each wake-up; every message is validated first ([`RejectionCounter`]), invalid ones
 //! are counted, logged and ignored.
 //!
 //! The JSON-lines log (`--log FILE`) has one object per line with `t_ns` (monotonic clock, the stamps'
@@ -36,33 +36,37 @@
 //! With `--resume` (what `uavloc launch` passes to a restarted monitor) it appends to its `--log` instead
 //! of truncating it, reads back the steps recorded there, and announces itself on the control topic
 //! ([`ControlKind::Hello`]) with the first step it lacks: emitter-sim replays the run from there (the
-//! estimator and planner answer from what they kept), so the record is complete again. The latency
+//! estimator answers from what it kept, the planner plans the same estimates again), so the record is
+//! complete again. The latency
 //! statistics of the summary cover the steps this instance saw.
 //!
 //! It exits 0 after the last step, or 130 on SIGINT/SIGTERM or a [`ControlKind::Shutdown`] before it
 //! (writing the partial record).
 
 use std::collections::HashMap;
-use std::fs::File;
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Args;
-use hdrhistogram::Histogram;
 use model::load_scenario;
 use protocol::services;
 use protocol::{
-    Command, Control, ControlKind, Estimate, Latencies, Measurement, Message, MessageKind, RejectionCounter, Stamps,
-    Topic, TopicSubscriber, Truth, Waitable, now_ns,
+    Command, Control, ControlKind, Estimate, Measurement, Message, MessageKind, RejectionCounter, Topic,
+    TopicSubscriber, Truth, Waitable, now_ns,
 };
 use runtime::checkpoint::checkpoint_step_at_or_below;
 use runtime::{Flow, Handler, IDLE_WAKEUP, Node};
 use serde_json::json;
 
 use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
-use crate::record::{RunRecord, StepRecord};
+use crate::latency::LatencySamples;
+pub use crate::latency::{LatencyStat, LatencySummary};
+use crate::record::RunRecord;
+use crate::runlog::EventLog;
+pub use crate::runlog::{LoggedRun, read_log};
+pub use crate::stamps::STAMPS_HEADER;
+use crate::stamps::StampsCsv;
 
 /// The role name (node name suffix, `uavloc process monitor`).
 pub const ROLE: &str = "monitor";
@@ -134,87 +138,6 @@ pub struct MonitorArgs {
 
 pub use runtime::ProcessError;
 
-/// Median and maximum of a latency, microseconds.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
-pub struct LatencyStat {
-    /// Median, µs.
-    pub p50_us: f64,
-    /// Maximum, µs.
-    pub max_us: f64,
-    /// Samples.
-    pub n: usize,
-}
-
-impl LatencyStat {
-    fn of(h: &Histogram<u64>) -> Option<Self> {
-        if h.is_empty() {
-            return None;
-        }
-        Some(Self { p50_us: h.value_at_quantile(0.5) as f64 / 1e3, max_us: h.max() as f64 / 1e3, n: h.len() as usize })
-    }
-}
-
-/// Latency statistics over the planned steps of a run.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct LatencySummary {
-    /// Command published → received by emitter-sim.
-    pub command_hop: Option<LatencyStat>,
-    /// Measurement published → received by the estimator.
-    pub measurement_hop: Option<LatencyStat>,
-    /// Estimate published → received by the planner.
-    pub estimate_hop: Option<LatencyStat>,
-    /// Measurement published → command published (estimator + planner, with both hops).
-    pub end_to_end: Option<LatencyStat>,
-    /// Command of step k−1 published → command of step k published (one whole cycle: in lock-step mode the
-    /// pipeline's round trip, in real-time mode about one step interval).
-    pub cycle: Option<LatencyStat>,
-}
-
-/// The latencies of the planned steps, in histograms of fixed size (the memory does not grow with the run;
-/// a median is known to 0.1 %, the maximum exactly).
-#[derive(Debug)]
-struct LatencySamples {
-    command_hop: Histogram<u64>,
-    measurement_hop: Histogram<u64>,
-    estimate_hop: Histogram<u64>,
-    end_to_end: Histogram<u64>,
-    cycle: Histogram<u64>,
-}
-
-impl Default for LatencySamples {
-    fn default() -> Self {
-        // 1 ns .. 1 h at 3 significant figures; larger values are clamped to 1 h.
-        let h = || Histogram::<u64>::new_with_bounds(1, 3_600_000_000_000, 3).expect("valid histogram bounds");
-        Self { command_hop: h(), measurement_hop: h(), estimate_hop: h(), end_to_end: h(), cycle: h() }
-    }
-}
-
-impl LatencySamples {
-    fn add(&mut self, l: &Latencies) {
-        for (v, s) in [
-            (l.trigger_hop_ns, &mut self.command_hop),
-            (l.measurement_hop_ns, &mut self.measurement_hop),
-            (l.estimate_hop_ns, &mut self.estimate_hop),
-            (l.end_to_end_ns, &mut self.end_to_end),
-            (l.cycle_ns, &mut self.cycle),
-        ] {
-            if let Some(ns) = v {
-                s.saturating_record(ns);
-            }
-        }
-    }
-
-    fn summary(&self) -> LatencySummary {
-        LatencySummary {
-            command_hop: LatencyStat::of(&self.command_hop),
-            measurement_hop: LatencyStat::of(&self.measurement_hop),
-            estimate_hop: LatencyStat::of(&self.estimate_hop),
-            end_to_end: LatencyStat::of(&self.end_to_end),
-            cycle: LatencyStat::of(&self.cycle),
-        }
-    }
-}
-
 /// What the monitor saw, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct MonitorSummary {
@@ -248,106 +171,6 @@ pub struct MonitorSummary {
     pub replays_requested: u64,
     /// CPU time this process used, seconds.
     pub cpu_s: f64,
-}
-
-/// The JSON-lines run log (a no-op without `--log`), opened for appending: each line goes out in one
-/// `write`, so lines of other writers (the launcher's `restart` events) never land inside one.
-struct EventLog {
-    file: Option<(File, PathBuf)>,
-    /// The first write error, reported when it happened; the run cannot go on without its log.
-    error: Option<String>,
-}
-
-impl EventLog {
-    /// Opens `path` for appending; truncates it first unless `append`.
-    fn open(path: Option<&Path>, append: bool) -> Result<Self, ProcessError> {
-        let Some(p) = path else { return Ok(EventLog { file: None, error: None }) };
-        // Cannot be opened: a bad flag (exit 2), not worth a restart.
-        let failed = |e: std::io::Error| ProcessError::Input(format!("--log {}: {e}", p.display()));
-        if !append {
-            File::create(p).map_err(failed)?;
-        }
-        let file = std::fs::OpenOptions::new().create(true).append(true).open(p).map_err(failed)?;
-        Ok(EventLog { file: Some((file, p.to_path_buf())), error: None })
-    }
-
-    fn write(&mut self, event: &str, mut fields: serde_json::Value) {
-        if let Some((out, path)) = &mut self.file {
-            if let Some(map) = fields.as_object_mut() {
-                map.insert("t_ns".into(), json!(now_ns()));
-                map.insert("event".into(), json!(event));
-            }
-            if let Err(e) = out.write_all(format!("{fields}\n").as_bytes())
-                && self.error.is_none()
-            {
-                self.error = Some(format!(
-                    "--log {}: {e} (the step records live in the log: the run cannot be recorded)",
-                    path.display()
-                ));
-            }
-        }
-    }
-
-    /// The first write error, as the unrecoverable end of the run (a restart would hit it again).
-    fn check(&self) -> Result<(), ProcessError> {
-        match &self.error {
-            Some(e) => Err(ProcessError::Unrecoverable(e.clone())),
-            None => Ok(()),
-        }
-    }
-}
-
-/// What a monitor's log says about a run.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct LoggedRun {
-    /// How many steps are recorded, in order from step 0 (up to the first gap).
-    pub count: u64,
-    /// The record of the last of them.
-    pub last: Option<StepRecord>,
-    /// All of them (when asked for; else empty).
-    pub steps: Vec<StepRecord>,
-    /// The true emitter.
-    pub truth: Option<[f64; 2]>,
-    /// The run's (objective, solver).
-    pub names: Option<(String, String)>,
-}
-
-/// Reads a monitor's log back, line by line (a missing file is an empty log); lines that do not parse are
-/// skipped (e.g. the last one of a killed monitor). The step records are kept only with `keep_steps`.
-pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
-    use std::io::BufRead as _;
-    let mut run = LoggedRun::default();
-    let Ok(file) = File::open(path) else { return run };
-    let (mut truth, mut names) = (None, None);
-    for line in std::io::BufReader::new(file).lines() {
-        let Ok(line) = line else { break };
-        if !line.contains("\"event\":\"step\"") {
-            continue;
-        }
-        let Ok(e) = serde_json::from_str::<serde_json::Value>(&line) else { continue };
-        if e["event"] != "step" {
-            continue;
-        }
-        let Ok(record) = serde_json::from_value::<StepRecord>(e["record"].clone()) else { continue };
-        if record.step != run.count {
-            continue; // a duplicate, or a gap: keep the steps from 0 without gaps
-        }
-        if truth.is_none() {
-            truth = serde_json::from_value::<[f64; 2]>(e["truth"].clone()).ok();
-        }
-        if names.is_none()
-            && let (Some(objective), Some(solver)) =
-                (e["planner"]["objective"].as_str(), e["planner"]["solver"].as_str())
-        {
-            names = Some((objective.to_string(), solver.to_string()));
-        }
-        run.count += 1;
-        if keep_steps {
-            run.steps.push(record.clone());
-        }
-        run.last = Some(record);
-    }
-    LoggedRun { truth, names, ..run }
 }
 
 fn us(ns: Option<u64>) -> Option<f64> {
@@ -572,83 +395,6 @@ impl State {
         if let Some(csv) = &mut self.stamps {
             csv.row(k, &done.chain, done.command_received_ns, rx);
         }
-    }
-}
-
-/// The `--stamps` CSV file: one row per recorded step, written (one `write`) before the step's log line.
-struct StampsCsv {
-    out: File,
-    path: PathBuf,
-    /// The first write error, reported when it happened.
-    error: Option<String>,
-}
-
-/// Header of the `--stamps` CSV (see [`MonitorArgs::stamps`]).
-pub const STAMPS_HEADER: &str = "step,trigger_command_published_ns,trigger_command_received_ns,\
-measurement_published_ns,measurement_received_ns,estimate_published_ns,estimate_received_ns,command_published_ns,\
-command_received_ns,monitor_measurement_ns,monitor_estimate_ns,monitor_command_ns,monitor_truth_ns";
-
-/// The rows of an existing stamps file for steps before `next` (header first); a restarted monitor keeps
-/// them — and drops a row its predecessor wrote for a step it did not log, which it records again.
-fn stamps_kept(text: &str, next: u64) -> String {
-    let mut out = String::from(STAMPS_HEADER);
-    out.push('\n');
-    for line in text.lines().skip(1) {
-        if line.split(',').next().and_then(|s| s.parse::<u64>().ok()).is_some_and(|k| k < next) {
-            out.push_str(line);
-            out.push('\n');
-        }
-    }
-    out
-}
-
-impl StampsCsv {
-    /// A new file (header only), or with `resume_at` the rows of an existing one for steps before it.
-    fn create(path: &Path, resume_at: Option<u64>) -> Result<Self, ProcessError> {
-        // A file that cannot be opened is a bad flag (exit 2); one that cannot be written, a run that
-        // cannot be measured (exit 3): neither is worth a restart.
-        let msg = |e: std::io::Error| format!("--stamps {}: {e}", path.display());
-        let start = match resume_at {
-            Some(next) => stamps_kept(&std::fs::read_to_string(path).unwrap_or_default(), next),
-            None => format!("{STAMPS_HEADER}\n"),
-        };
-        let mut out = File::create(path).map_err(|e| ProcessError::Input(msg(e)))?;
-        out.write_all(start.as_bytes()).map_err(|e| ProcessError::Unrecoverable(msg(e)))?;
-        Ok(StampsCsv { out, path: path.to_owned(), error: None })
-    }
-
-    fn row(&mut self, step: u64, s: &Stamps, command_received_ns: u64, rx: [u64; 4]) {
-        let line = format!(
-            "{step},{},{},{},{},{},{},{},{command_received_ns},{},{},{},{}\n",
-            s.trigger_command_published_ns,
-            s.trigger_command_received_ns,
-            s.measurement_published_ns,
-            s.measurement_received_ns,
-            s.estimate_published_ns,
-            s.estimate_received_ns,
-            s.command_published_ns,
-            rx[0],
-            rx[1],
-            rx[2],
-            rx[3]
-        );
-        if let Err(e) = self.out.write_all(line.as_bytes())
-            && self.error.is_none()
-        {
-            self.error = Some(format!("--stamps {}: {e}", self.path.display()));
-        }
-    }
-
-    /// The first write error, as the unrecoverable end of the run.
-    fn check(&self) -> Result<(), ProcessError> {
-        match &self.error {
-            Some(e) => Err(ProcessError::Unrecoverable(e.clone())),
-            None => Ok(()),
-        }
-    }
-
-    fn finish(self) -> Result<(), ProcessError> {
-        self.check()
     }
 }
 

@@ -1,0 +1,112 @@
+//! The monitor's JSON-lines run log (`--log`): writing it (one `write` per event line, appended) and
+//! reading a run back from it (a restarted monitor's steps, the record at the end).
+
+use std::fs::File;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use protocol::now_ns;
+use serde_json::json;
+
+use crate::record::StepRecord;
+use runtime::ProcessError;
+
+/// The JSON-lines run log (a no-op without `--log`), opened for appending: each line goes out in one
+/// `write`, so lines of other writers (the launcher's `restart` events) never land inside one.
+pub(crate) struct EventLog {
+    file: Option<(File, PathBuf)>,
+    /// The first write error, reported when it happened; the run cannot go on without its log.
+    error: Option<String>,
+}
+
+impl EventLog {
+    /// Opens `path` for appending; truncates it first unless `append`.
+    pub(crate) fn open(path: Option<&Path>, append: bool) -> Result<Self, ProcessError> {
+        let Some(p) = path else { return Ok(EventLog { file: None, error: None }) };
+        // Cannot be opened: a bad flag (exit 2), not worth a restart.
+        let failed = |e: std::io::Error| ProcessError::Input(format!("--log {}: {e}", p.display()));
+        if !append {
+            File::create(p).map_err(failed)?;
+        }
+        let file = std::fs::OpenOptions::new().create(true).append(true).open(p).map_err(failed)?;
+        Ok(EventLog { file: Some((file, p.to_path_buf())), error: None })
+    }
+
+    pub(crate) fn write(&mut self, event: &str, mut fields: serde_json::Value) {
+        if let Some((out, path)) = &mut self.file {
+            if let Some(map) = fields.as_object_mut() {
+                map.insert("t_ns".into(), json!(now_ns()));
+                map.insert("event".into(), json!(event));
+            }
+            if let Err(e) = out.write_all(format!("{fields}\n").as_bytes())
+                && self.error.is_none()
+            {
+                self.error = Some(format!(
+                    "--log {}: {e} (the step records live in the log: the run cannot be recorded)",
+                    path.display()
+                ));
+            }
+        }
+    }
+
+    /// The first write error, as the unrecoverable end of the run (a restart would hit it again).
+    pub(crate) fn check(&self) -> Result<(), ProcessError> {
+        match &self.error {
+            Some(e) => Err(ProcessError::Unrecoverable(e.clone())),
+            None => Ok(()),
+        }
+    }
+}
+
+/// What a monitor's log says about a run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LoggedRun {
+    /// How many steps are recorded, in order from step 0 (up to the first gap).
+    pub count: u64,
+    /// The record of the last of them.
+    pub last: Option<StepRecord>,
+    /// All of them (when asked for; else empty).
+    pub steps: Vec<StepRecord>,
+    /// The true emitter.
+    pub truth: Option<[f64; 2]>,
+    /// The run's (objective, solver).
+    pub names: Option<(String, String)>,
+}
+
+/// Reads a monitor's log back, line by line (a missing file is an empty log); lines that do not parse are
+/// skipped (e.g. the last one of a killed monitor). The step records are kept only with `keep_steps`.
+pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
+    use std::io::BufRead as _;
+    let mut run = LoggedRun::default();
+    let Ok(file) = File::open(path) else { return run };
+    let (mut truth, mut names) = (None, None);
+    for line in std::io::BufReader::new(file).lines() {
+        let Ok(line) = line else { break };
+        if !line.contains("\"event\":\"step\"") {
+            continue;
+        }
+        let Ok(e) = serde_json::from_str::<serde_json::Value>(&line) else { continue };
+        if e["event"] != "step" {
+            continue;
+        }
+        let Ok(record) = serde_json::from_value::<StepRecord>(e["record"].clone()) else { continue };
+        if record.step != run.count {
+            continue; // a duplicate, or a gap: keep the steps from 0 without gaps
+        }
+        if truth.is_none() {
+            truth = serde_json::from_value::<[f64; 2]>(e["truth"].clone()).ok();
+        }
+        if names.is_none()
+            && let (Some(objective), Some(solver)) =
+                (e["planner"]["objective"].as_str(), e["planner"]["solver"].as_str())
+        {
+            names = Some((objective.to_string(), solver.to_string()));
+        }
+        run.count += 1;
+        if keep_steps {
+            run.steps.push(record.clone());
+        }
+        run.last = Some(record);
+    }
+    LoggedRun { truth, names, ..run }
+}
