@@ -233,3 +233,33 @@ fn an_interrupted_launch_prints_the_steps_done() {
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 16.2: kill -9 of a launch and its children can leave a service of the domain half-created: its
+/// static config file exists but still has the permissions of a file being written (here: made as such
+/// a kill leaves it, empty and owner-read-write). Before, every later launch in the domain failed within
+/// ≈ 10 ms with `HangsInCreation`, and `process resources --remove-dead` could not remove it. Now the
+/// next launch — holding the domain's lock, with no live node in the domain — removes it and runs.
+#[test]
+fn a_service_left_half_created_by_kill_9_is_removed_by_the_next_launch() {
+    use std::os::unix::fs::PermissionsExt;
+    let d = domain("half", "created");
+    let [pubsub, event] = monitor::resources::static_config_files(&format!("{d}/measurement")).unwrap();
+    std::fs::create_dir_all(pubsub.parent().unwrap()).unwrap();
+    for f in [&pubsub, &event] {
+        std::fs::write(f, b"").unwrap();
+        std::fs::set_permissions(f, std::fs::Permissions::from_mode(0o600)).unwrap();
+    }
+    // The next launch comes a moment later (a service younger than a second may still be in creation).
+    std::thread::sleep(std::time::Duration::from_millis(1100));
+    let out = Command::new(UAVLOC)
+        .args(["launch", "--headless", "--json", "--steps", "4", "--domain", &d])
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "the next launch failed: {stderr}");
+    assert!(stderr.contains("half-created"), "the clean-up is reported: {stderr}");
+    let run: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_same_run(&json_of(&["simulate", "--json", "--steps", "4"]), &run, "after the clean-up");
+    assert_nothing_left(&d);
+}

@@ -117,13 +117,19 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // Held until the launch returns: a second launch into this domain is refused here, atomically.
     let _lock = state_dir::DomainLock::acquire(&domain)?;
     protocol::transport::quiet_logs();
-    resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
     let existing = resources::list(&domain).map_err(CliError::Failed)?;
     if let Some(node) = existing.alive_nodes().next() {
         return Err(CliError::Input(format!(
             "domain {domain} is in use (process node {node} is running); choose another --domain"
         )));
     }
+    // Nobody uses the domain: services a killed run left half-created would make every open fail (and the
+    // dead nodes' clean-up, which opens them, too).
+    let half = resources::remove_half_created_services(&domain).map_err(CliError::Failed)?;
+    if !half.is_empty() {
+        eprintln!("launch: removed the half-created services {half:?} of domain {domain} (left by a killed run)");
+    }
+    resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
 
     catch_termination_signals();
     // Checkpoints (and the monitor's log when --log is not given) live in a private directory of this

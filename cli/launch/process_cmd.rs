@@ -41,7 +41,9 @@ pub struct ResourcesArgs {
     /// The domain (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
-    /// Remove the stale resources of the domain's dead nodes before listing.
+    /// Remove the stale resources of the domain's dead nodes before listing — and, when no node of the
+    /// domain is alive, the services a killed run left half-created (what makes every open fail with
+    /// HangsInCreation; `uavloc launch` does the same before it starts).
     #[arg(long)]
     pub remove_dead: bool,
 }
@@ -58,6 +60,13 @@ pub fn run_process(args: &ProcessArgs) -> ExitCode {
             let listed =
                 Domain::resolve(a.domain.as_deref()).map_err(|e| CliError::Input(e.to_string())).and_then(|domain| {
                     if a.remove_dead {
+                        let idle = resources::list(&domain).map_err(CliError::Failed)?.alive_nodes().next().is_none();
+                        if idle {
+                            let half = resources::remove_half_created_services(&domain).map_err(CliError::Failed)?;
+                            if !half.is_empty() {
+                                eprintln!("removed the half-created services {half:?}");
+                            }
+                        }
                         resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
                     }
                     resources::list(&domain).map_err(CliError::Failed)

@@ -111,6 +111,53 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {
     Ok(removed)
 }
 
+/// How long a service may be in creation before it counts as left half-created (creating one takes
+/// microseconds; a creator killed mid-way never finishes it).
+pub const HALF_CREATED_AFTER: Duration = Duration::from_secs(1);
+
+/// The static config file of the iceoryx2 service `name` (`<root>/<services>/<prefix><hash><suffix>`; one
+/// per messaging pattern: a topic is a pub/sub and an event service of one name). iceoryx2 names it after a
+/// hash of the pattern and the name, so it can be found even when it holds nothing yet.
+pub fn static_config_files(name: &str) -> Result<[std::path::PathBuf; 2], String> {
+    use iceoryx2::service::messaging_pattern::MessagingPattern;
+    use iceoryx2::service::service_hash::ServiceHash;
+    type Hasher = <ipc::Service as iceoryx2::service::Service>::ServiceNameHasher;
+
+    let global = &Config::global_config().global;
+    let dir = std::path::PathBuf::from(global.service_dir().to_string());
+    let (prefix, suffix) = (global.prefix.to_string(), global.service.static_config_storage_suffix.to_string());
+    let service = ServiceName::new(name).map_err(|e| format!("service name {name}: {e:?}"))?;
+    Ok([MessagingPattern::PublishSubscribe, MessagingPattern::Event]
+        .map(|p| dir.join(format!("{prefix}{}{suffix}", ServiceHash::new::<Hasher>(&service, p).as_str()))))
+}
+
+/// Removes the services of `domain` left *half-created* — their static config file still has the
+/// owner-read-write permissions iceoryx2 gives it while it writes it (it makes the file read-only when
+/// done) — by a process killed while creating them (kill -9 of a launch and its children, issue 16.2).
+/// Opening such a service fails with `HangsInCreation` for ever, and so does iceoryx2's dead-node
+/// clean-up, which opens the services of the dead nodes. Only for a domain nobody uses (the caller holds
+/// the domain's lock and found no live node); files younger than [`HALF_CREATED_AFTER`] are left alone.
+/// Returns the services removed.
+pub fn remove_half_created_services(domain: &Domain) -> Result<Vec<String>, String> {
+    use std::os::unix::fs::PermissionsExt;
+
+    let mut removed = Vec::new();
+    for (_, name) in protocol::services::all(domain) {
+        for file in static_config_files(&name)? {
+            let Ok(meta) = std::fs::metadata(&file) else { continue };
+            let in_creation = meta.permissions().mode() & 0o777 == 0o600;
+            let old = meta.modified().ok().and_then(|t| t.elapsed().ok()).is_some_and(|age| age >= HALF_CREATED_AFTER);
+            if in_creation && old {
+                std::fs::remove_file(&file).map_err(|e| format!("removing {}: {e}", file.display()))?;
+                if removed.last() != Some(&name) {
+                    removed.push(name.clone());
+                }
+            }
+        }
+    }
+    Ok(removed)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
