@@ -295,6 +295,9 @@ impl Handler for Planner<'_> {
                 let positions: Vec<Vector2<f64>> = est.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
                 Some(hold_command(step, &positions, est.headings(), &self.scenario, self.args, node.instance())?)
             } else {
+                if self.last_planned.is_some_and(|l| step <= l) {
+                    node.summary().resent += 1; // a replayed estimate: planned again, the same command
+                }
                 self.plan(node, &est, received_ns)?
             };
             if let Some(command) = command {
