@@ -42,6 +42,7 @@ fn main() -> ExitCode {
             bench::BenchCommand::Latency(a) => emit(bench::latency::run_latency(a), json),
             bench::BenchCommand::Compare(a) => emit(bench::latency::run_compare(a), json),
             bench::BenchCommand::Planner(a) => emit(bench::planner::run(a), json),
+            bench::BenchCommand::Ipc(a) => emit(bench::ipc::run(a), json),
         },
         Command::Process(a) => launch::run_process(a),
     }

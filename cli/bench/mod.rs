@@ -2,6 +2,7 @@
 //! a Unix-domain-socket baseline, and the planner's compute time per objective and solver.
 
 pub mod histogram;
+pub mod ipc;
 pub mod latency;
 pub mod planner;
 pub mod plot;
@@ -17,6 +18,8 @@ Benchmarks, measured with the real processes and the real transports (no timing 
   compare   every transport (iceoryx2, uds) × wait mode (block, spin-then-block, spin) back to back in
             one invocation, with the iceoryx2/uds ratios per percentile and the goals met or missed
   planner   the planning step's compute time per objective and solver, beside the paper's Table 7
+  ipc       a payload-size sweep between two pinned processes: iceoryx2 written in place (zero-copy)
+            against a Unix stream socket, one-way latency p50/p99 and CPU per message
 
 See BENCHMARKS.md for the figures of this machine and how to reproduce them.";
 
@@ -39,4 +42,7 @@ pub enum BenchCommand {
     /// Compute time of the planning step per objective and solver (median, p99), beside the paper.
     #[command(long_about = planner::LONG_ABOUT, after_help = planner::AFTER_HELP)]
     Planner(planner::PlannerBenchArgs),
+    /// Payload-size sweep between two pinned processes: iceoryx2 zero-copy against a Unix stream socket.
+    #[command(long_about = ipc::LONG_ABOUT, after_help = ipc::AFTER_HELP)]
+    Ipc(ipc::IpcArgs),
 }

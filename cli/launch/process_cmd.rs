@@ -33,6 +33,9 @@ pub enum ProcessRole {
     Monitor(monitor::process::MonitorArgs),
     /// Lists the iceoryx2 nodes and services of a domain as JSON (optionally removing dead nodes first).
     Resources(ResourcesArgs),
+    /// The echo end of `uavloc bench ipc`.
+    #[command(hide = true)]
+    IpcEcho(crate::bench::ipc::EchoArgs),
 }
 
 /// Flags of `uavloc process resources`.
@@ -55,6 +58,7 @@ pub fn run_process(args: &ProcessArgs) -> ExitCode {
         ProcessRole::Estimator(a) => estimator::process::main_with(a),
         ProcessRole::Planner(a) => planner::process::main_with(a),
         ProcessRole::Monitor(a) => monitor::process::main_with(a),
+        ProcessRole::IpcEcho(a) => crate::bench::ipc::run_echo(a),
         ProcessRole::Resources(a) => {
             protocol::transport::quiet_logs();
             let listed =

@@ -155,6 +155,16 @@ pub fn all(domain: &Domain) -> [(&'static str, String); 5] {
     ]
 }
 
+/// The payload service of `uavloc bench ipc`'s sweep `tag` (`[u8]` samples, sender → echo).
+pub fn sweep_data(tag: &str) -> String {
+    format!("{tag}/data")
+}
+
+/// The acknowledgement service of `uavloc bench ipc`'s sweep `tag` (echo → sender).
+pub fn sweep_ack(tag: &str) -> String {
+    format!("{tag}/ack")
+}
+
 /// The iceoryx2 node name of a process role in a domain, e.g. `uavloc/estimator` (shown by `iox2 node list`).
 pub fn node_name(domain: &Domain, role: &str) -> String {
     format!("{domain}/{role}")

@@ -25,6 +25,7 @@
 //! ports on the thread that uses them.
 
 pub mod iox;
+pub mod sweep;
 pub mod uds;
 
 use core::fmt;

@@ -1,0 +1,435 @@
+//! The two ends of `uavloc bench ipc`: a payload of N bytes from one process to another and a small
+//! acknowledgement back, over iceoryx2 (the payload written in place in a loaned shared-memory sample —
+//! zero-copy — and a notification to wake the receiver) or over a Unix stream socket (the payload written
+//! into a buffer and through the kernel into the receiver's buffer).
+//!
+//! A payload starts with a 16-byte header: the sequence number and the send time (CLOCK_MONOTONIC, ns)
+//! taken once the payload is written, right before it is handed to the transport; the rest is filled by
+//! the sender. The receiver answers each payload with an [`Ack`]: the sequence number, the send time, its
+//! receive time and the CPU time it has used so far. Both ends block (the iceoryx2 ends on a listener,
+//! the socket ends in `read`), one payload in flight at a time.
+
+use std::io::{Read as _, Write as _};
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::Path;
+use std::time::Duration;
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+use super::{IpcNode, TransportError, failed};
+use crate::messages::now_ns;
+
+/// Bytes of a payload's header (sequence number, send time).
+pub const HEADER: usize = 16;
+
+/// The sequence number that tells the receiver to stop.
+pub const STOP: u64 = u64::MAX;
+
+/// How long an end waits for the other before it gives up.
+pub const PATIENCE: Duration = Duration::from_secs(10);
+
+/// The receiver's answer to one payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ack {
+    /// The payload's sequence number.
+    pub seq: u64,
+    /// When the sender handed it to the transport, ns (CLOCK_MONOTONIC).
+    pub sent_ns: u64,
+    /// When the receiver had it, ns (CLOCK_MONOTONIC).
+    pub received_ns: u64,
+    /// The receiver's CPU time so far, ns.
+    pub cpu_ns: u64,
+}
+
+impl Ack {
+    fn to_words(self) -> [u64; 4] {
+        [self.seq, self.sent_ns, self.received_ns, self.cpu_ns]
+    }
+
+    fn from_words(w: [u64; 4]) -> Self {
+        Ack { seq: w[0], sent_ns: w[1], received_ns: w[2], cpu_ns: w[3] }
+    }
+}
+
+/// This process's CPU time so far (user + system), ns.
+pub fn cpu_ns() -> u64 {
+    // SAFETY: `usage` is a valid, writable rusage; RUSAGE_SELF is always supported.
+    let mut usage: libc::rusage = unsafe { core::mem::zeroed() };
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) };
+    let ns = |t: libc::timeval| t.tv_sec as u64 * 1_000_000_000 + t.tv_usec as u64 * 1000;
+    ns(usage.ru_utime) + ns(usage.ru_stime)
+}
+
+/// Writes a payload of `buf.len()` bytes: the body filled with `seq`'s low byte, then the header.
+fn fill(buf: &mut [u8], seq: u64) {
+    buf[HEADER..].fill(seq as u8);
+    buf[..8].copy_from_slice(&seq.to_le_bytes());
+    buf[8..HEADER].copy_from_slice(&now_ns().to_le_bytes());
+}
+
+/// The header of a payload: (sequence number, send time).
+fn header(buf: &[u8]) -> (u64, u64) {
+    let word = |i: usize| u64::from_le_bytes(buf[i..i + 8].try_into().unwrap_or([0; 8]));
+    (word(0), word(8))
+}
+
+/// The sending end.
+pub trait Sender {
+    /// Sends a payload of `size` bytes (≥ [`HEADER`]) numbered `seq`.
+    fn send(&mut self, seq: u64, size: usize) -> Result<(), TransportError>;
+    /// Waits for the next acknowledgement (at most [`PATIENCE`]).
+    fn ack(&mut self) -> Result<Ack, TransportError>;
+}
+
+/// The receiving end.
+pub trait Receiver {
+    /// Waits for the next payload and acknowledges it; `false` once told to stop.
+    fn echo(&mut self) -> Result<bool, TransportError>;
+}
+
+fn timeout(what: &'static str, name: &str) -> TransportError {
+    TransportError::Failed { op: what, service: name.into(), detail: format!("nothing within {PATIENCE:?}") }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// iceoryx2
+// ---------------------------------------------------------------------------------------------------------
+
+/// The services of a sweep named `name`: `<name>/data` (`[u8]` payloads) and `<name>/ack`, each with an
+/// event service of the same name.
+struct IoxServices {
+    data: Publisher<ipc::Service, [u8], ()>,
+    notifier: Notifier<ipc::Service>,
+    acks: Subscriber<ipc::Service, [u64; 4], ()>,
+    listener: Listener<ipc::Service>,
+}
+
+fn service(name: &str) -> Result<ServiceName, TransportError> {
+    ServiceName::new(name).map_err(|e| TransportError::BadName {
+        what: "service",
+        name: name.to_owned(),
+        detail: format!("{e:?}"),
+    })
+}
+
+fn event_pair(
+    node: &IpcNode,
+    out: &str,
+    inbound: &str,
+) -> Result<(Notifier<ipc::Service>, Listener<ipc::Service>), TransportError> {
+    let open = |n: &str| {
+        node.service_builder(&service(n)?).event().open_or_create().map_err(|e| failed("opening event service", n, e))
+    };
+    let notifier = open(out)?.notifier_builder().create().map_err(|e| failed("creating notifier", out, e))?;
+    let listener = open(inbound)?.listener_builder().create().map_err(|e| failed("creating listener", inbound, e))?;
+    Ok((notifier, listener))
+}
+
+/// The sending end over iceoryx2 (payloads up to `max_size` bytes).
+pub struct IoxSender {
+    name: String,
+    ports: IoxServices,
+}
+
+impl IoxSender {
+    /// Creates the sending end of sweep `name`.
+    pub fn create(node: &IpcNode, name: &str, max_size: usize) -> Result<Self, TransportError> {
+        let (data_name, ack_name) = (crate::services::sweep_data(name), crate::services::sweep_ack(name));
+        let data = node
+            .service_builder(&service(&data_name)?)
+            .publish_subscribe::<[u8]>()
+            .subscriber_max_buffer_size(2)
+            .history_size(0)
+            .open_or_create()
+            .map_err(|e| failed("opening pub/sub service", &data_name, e))?
+            .publisher_builder()
+            .initial_max_slice_len(max_size)
+            .create()
+            .map_err(|e| failed("creating publisher", &data_name, e))?;
+        let acks = node
+            .service_builder(&service(&ack_name)?)
+            .publish_subscribe::<[u64; 4]>()
+            .subscriber_max_buffer_size(2)
+            .history_size(0)
+            .open_or_create()
+            .map_err(|e| failed("opening pub/sub service", &ack_name, e))?
+            .subscriber_builder()
+            .buffer_size(2)
+            .create()
+            .map_err(|e| failed("creating subscriber", &ack_name, e))?;
+        let (notifier, listener) = event_pair(node, &data_name, &ack_name)?;
+        Ok(IoxSender { name: name.to_owned(), ports: IoxServices { data, notifier, acks, listener } })
+    }
+}
+
+impl Sender for IoxSender {
+    fn send(&mut self, seq: u64, size: usize) -> Result<(), TransportError> {
+        let p = &self.ports;
+        let mut sample = p.data.loan_slice_uninit(size).map_err(|e| failed("loaning a sample", &self.name, e))?;
+        // Written in place, in shared memory: the receiver maps the same pages.
+        let bytes = sample.payload_mut();
+        for b in bytes[HEADER..].iter_mut() {
+            b.write(seq as u8);
+        }
+        for (b, v) in bytes[..8].iter_mut().zip(seq.to_le_bytes()) {
+            b.write(v);
+        }
+        for (b, v) in bytes[8..HEADER].iter_mut().zip(now_ns().to_le_bytes()) {
+            b.write(v);
+        }
+        // SAFETY: every byte was written just above.
+        let sample = unsafe { sample.assume_init() };
+        sample.send().map_err(|e| failed("sending a sample", &self.name, e))?;
+        p.notifier.notify().map_err(|e| failed("notifying", &self.name, e))?;
+        Ok(())
+    }
+
+    fn ack(&mut self) -> Result<Ack, TransportError> {
+        let p = &self.ports;
+        loop {
+            if let Some(s) = p.acks.receive().map_err(|e| failed("receiving an ack", &self.name, e))? {
+                return Ok(Ack::from_words(*s.payload()));
+            }
+            match p.listener.timed_wait(|_| {}, PATIENCE) {
+                Ok(0) => return Err(timeout("waiting for an ack", &self.name)),
+                Ok(_) => {}
+                Err(e) => return Err(failed("waiting for an ack", &self.name, e)),
+            }
+        }
+    }
+}
+
+/// The receiving end over iceoryx2.
+pub struct IoxReceiver {
+    name: String,
+    data: Subscriber<ipc::Service, [u8], ()>,
+    acks: Publisher<ipc::Service, [u64; 4], ()>,
+    notifier: Notifier<ipc::Service>,
+    listener: Listener<ipc::Service>,
+}
+
+impl IoxReceiver {
+    /// Creates the receiving end of sweep `name` and says it is there (an ack numbered [`STOP`]).
+    pub fn create(node: &IpcNode, name: &str) -> Result<Self, TransportError> {
+        let (data_name, ack_name) = (crate::services::sweep_data(name), crate::services::sweep_ack(name));
+        let data = node
+            .service_builder(&service(&data_name)?)
+            .publish_subscribe::<[u8]>()
+            .subscriber_max_buffer_size(2)
+            .history_size(0)
+            .open_or_create()
+            .map_err(|e| failed("opening pub/sub service", &data_name, e))?
+            .subscriber_builder()
+            .buffer_size(2)
+            .create()
+            .map_err(|e| failed("creating subscriber", &data_name, e))?;
+        let acks = node
+            .service_builder(&service(&ack_name)?)
+            .publish_subscribe::<[u64; 4]>()
+            .subscriber_max_buffer_size(2)
+            .history_size(0)
+            .open_or_create()
+            .map_err(|e| failed("opening pub/sub service", &ack_name, e))?
+            .publisher_builder()
+            .create()
+            .map_err(|e| failed("creating publisher", &ack_name, e))?;
+        let (notifier, listener) = event_pair(node, &ack_name, &data_name)?;
+        let r = IoxReceiver { name: name.to_owned(), data, acks, notifier, listener };
+        r.answer(Ack { seq: STOP, sent_ns: 0, received_ns: now_ns(), cpu_ns: cpu_ns() })?;
+        Ok(r)
+    }
+
+    fn answer(&self, ack: Ack) -> Result<(), TransportError> {
+        self.acks.send_copy(ack.to_words()).map_err(|e| failed("sending an ack", &self.name, e))?;
+        self.notifier.notify().map_err(|e| failed("notifying", &self.name, e))?;
+        Ok(())
+    }
+}
+
+impl Receiver for IoxReceiver {
+    fn echo(&mut self) -> Result<bool, TransportError> {
+        loop {
+            if let Some(sample) = self.data.receive().map_err(|e| failed("receiving", &self.name, e))? {
+                let received_ns = now_ns();
+                let (seq, sent_ns) = header(sample.payload());
+                drop(sample);
+                if seq == STOP {
+                    return Ok(false);
+                }
+                self.answer(Ack { seq, sent_ns, received_ns, cpu_ns: cpu_ns() })?;
+                return Ok(true);
+            }
+            match self.listener.timed_wait(|_| {}, PATIENCE) {
+                Ok(0) => return Err(timeout("waiting for a payload", &self.name)),
+                Ok(_) => {}
+                Err(e) => return Err(failed("waiting for a payload", &self.name, e)),
+            }
+        }
+    }
+}
+
+/// Whether the sending end of sweep `name` has been connected to by a receiver (its readiness ack came).
+pub fn wait_ready(sender: &mut dyn Sender) -> Result<(), TransportError> {
+    match sender.ack()? {
+        Ack { seq: STOP, .. } => Ok(()),
+        other => Err(TransportError::Failed {
+            op: "connecting",
+            service: "sweep".into(),
+            detail: format!("expected the receiver's readiness, got ack {}", other.seq),
+        }),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Unix stream socket
+// ---------------------------------------------------------------------------------------------------------
+
+fn io<'a>(op: &'static str, path: &'a Path) -> impl Fn(std::io::Error) -> TransportError + 'a {
+    move |e| TransportError::Failed { op, service: path.display().to_string(), detail: e.to_string() }
+}
+
+/// The sending end over a Unix stream socket: a length (u64) then the payload; a 32-byte ack back.
+pub struct SocketSender {
+    stream: UnixStream,
+    buf: Vec<u8>,
+    path: std::path::PathBuf,
+}
+
+impl SocketSender {
+    /// Listens at `path` (a fresh path in a private directory) for one receiver, at most [`PATIENCE`].
+    pub fn accept(listener: &UnixListener, path: &Path, max_size: usize) -> Result<Self, TransportError> {
+        listener.set_nonblocking(true).map_err(io("listening", path))?;
+        let start = std::time::Instant::now();
+        let stream = loop {
+            match listener.accept() {
+                Ok((s, _)) => break s,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock && start.elapsed() < PATIENCE => {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                Err(e) => return Err(io("accepting", path)(e)),
+            }
+        };
+        stream.set_nonblocking(false).map_err(io("accepting", path))?;
+        stream.set_read_timeout(Some(PATIENCE)).map_err(io("accepting", path))?;
+        Ok(SocketSender { stream, buf: vec![0; max_size.max(HEADER)], path: path.to_path_buf() })
+    }
+}
+
+impl Sender for SocketSender {
+    fn send(&mut self, seq: u64, size: usize) -> Result<(), TransportError> {
+        let payload = &mut self.buf[..size];
+        fill(payload, seq);
+        self.stream.write_all(&(size as u64).to_le_bytes()).map_err(io("sending", &self.path))?;
+        self.stream.write_all(payload).map_err(io("sending", &self.path))
+    }
+
+    fn ack(&mut self) -> Result<Ack, TransportError> {
+        let mut raw = [0u8; 32];
+        self.stream.read_exact(&mut raw).map_err(io("receiving an ack", &self.path))?;
+        let word = |i: usize| u64::from_le_bytes(raw[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
+        Ok(Ack::from_words([word(0), word(1), word(2), word(3)]))
+    }
+}
+
+/// The receiving end over a Unix stream socket.
+pub struct SocketReceiver {
+    stream: UnixStream,
+    buf: Vec<u8>,
+    path: std::path::PathBuf,
+}
+
+impl SocketReceiver {
+    /// Connects to the sender listening at `path` and says it is there.
+    pub fn connect(path: &Path, max_size: usize) -> Result<Self, TransportError> {
+        let stream = UnixStream::connect(path).map_err(io("connecting", path))?;
+        stream.set_read_timeout(Some(PATIENCE)).map_err(io("connecting", path))?;
+        let mut r = SocketReceiver { stream, buf: vec![0; max_size.max(HEADER)], path: path.to_path_buf() };
+        r.answer(Ack { seq: STOP, sent_ns: 0, received_ns: now_ns(), cpu_ns: cpu_ns() })?;
+        Ok(r)
+    }
+
+    fn answer(&mut self, ack: Ack) -> Result<(), TransportError> {
+        let mut raw = [0u8; 32];
+        for (i, w) in ack.to_words().iter().enumerate() {
+            raw[i * 8..i * 8 + 8].copy_from_slice(&w.to_le_bytes());
+        }
+        self.stream.write_all(&raw).map_err(io("sending an ack", &self.path))
+    }
+}
+
+impl Receiver for SocketReceiver {
+    fn echo(&mut self) -> Result<bool, TransportError> {
+        let mut len = [0u8; 8];
+        match self.stream.read_exact(&mut len) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(false),
+            Err(e) => return Err(io("receiving", &self.path)(e)),
+        }
+        let len = u64::from_le_bytes(len) as usize;
+        if len < HEADER || len > self.buf.len() {
+            return Err(TransportError::Failed {
+                op: "receiving",
+                service: self.path.display().to_string(),
+                detail: format!("a payload of {len} bytes (expected {HEADER}..={})", self.buf.len()),
+            });
+        }
+        self.stream.read_exact(&mut self.buf[..len]).map_err(io("receiving", &self.path))?;
+        let received_ns = now_ns();
+        let (seq, sent_ns) = header(&self.buf[..len]);
+        if seq == STOP {
+            return Ok(false);
+        }
+        self.answer(Ack { seq, sent_ns, received_ns, cpu_ns: cpu_ns() })?;
+        Ok(true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_payload_carries_its_header_and_body() {
+        let mut buf = vec![0u8; 64];
+        let before = now_ns();
+        fill(&mut buf, 0x1_02);
+        let (seq, sent) = header(&buf);
+        assert_eq!(seq, 0x102);
+        assert!(sent >= before && sent <= now_ns());
+        assert!(buf[HEADER..].iter().all(|&b| b == 0x02));
+        let ack = Ack { seq: 1, sent_ns: 2, received_ns: 3, cpu_ns: 4 };
+        assert_eq!(Ack::from_words(ack.to_words()), ack);
+    }
+
+    #[test]
+    fn the_socket_ends_echo_each_payload_and_stop() {
+        let dir = std::env::temp_dir().join(format!("uavloc-sweep-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("s.sock");
+        let listener = UnixListener::bind(&path).unwrap();
+        let p = path.clone();
+        let echo = std::thread::spawn(move || {
+            let mut r = SocketReceiver::connect(&p, 4096).unwrap();
+            let mut n = 0;
+            while r.echo().unwrap() {
+                n += 1;
+            }
+            n
+        });
+        let mut s = SocketSender::accept(&listener, &path, 4096).unwrap();
+        wait_ready(&mut s).unwrap();
+        for seq in 0..5 {
+            s.send(seq, 100 + seq as usize).unwrap();
+            let ack = s.ack().unwrap();
+            assert_eq!(ack.seq, seq);
+            assert!(ack.received_ns >= ack.sent_ns && ack.cpu_ns > 0);
+        }
+        s.send(STOP, HEADER).unwrap();
+        assert_eq!(echo.join().unwrap(), 5);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -1,0 +1,63 @@
+//! End-to-end test of `uavloc bench ipc`: the real binary spawns its real echo process and times real
+//! iceoryx2 and Unix-socket transfers; checked are the JSON (a row per transport × size, consistent order
+//! statistics, CPU per message, the ratios), the files of `--out`, that nothing of the sweep is left, and
+//! the exit code on bad input. No assertion is made on how fast anything is.
+
+mod common;
+
+use std::process::Command;
+
+use common::UAVLOC;
+use serde_json::Value;
+
+fn num(v: &Value, key: &str) -> f64 {
+    v[key].as_f64().unwrap_or_else(|| panic!("{key} is not a number in {v}"))
+}
+
+#[test]
+fn a_small_sweep_reports_every_transport_and_size() {
+    let dir = common::scratch("bench-ipc");
+    let out = Command::new(UAVLOC)
+        .args(["bench", "ipc", "--messages", "60", "--sizes", "256,65536", "--json", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    let got: Vec<(&str, u64)> =
+        rows.iter().map(|r| (r["transport"].as_str().unwrap(), r["size_bytes"].as_u64().unwrap())).collect();
+    assert_eq!(got, vec![("iceoryx2", 256), ("iceoryx2", 65536), ("uds", 256), ("uds", 65536)]);
+    for r in rows {
+        assert_eq!(r["n"].as_u64(), Some(60), "{r}");
+        let (p50, p99, max) = (num(r, "p50_us"), num(r, "p99_us"), num(r, "max_us"));
+        assert!(p50 > 0.0 && p50 <= p99 * 1.001 && p99 <= max * 1.001, "{r}");
+        assert!(num(r, "cpu_us_per_message") > 0.0, "{r}");
+    }
+    let ratios = report["ratios"].as_array().unwrap();
+    assert_eq!(ratios.len(), 2);
+    let (i, u) = (&rows[0], &rows[2]);
+    assert!((num(&ratios[0], "p50") - num(u, "p50_us") / num(i, "p50_us")).abs() < 1e-9, "{}", ratios[0]);
+    for f in ["ipc.svg", "ipc.png", "ipc.json"] {
+        assert!(std::fs::metadata(dir.join(f)).is_ok_and(|m| m.len() > 0), "{f} missing");
+    }
+    // The echo processes and their services are gone (every sweep's names start with `uavloc-ipc-`).
+    common::assert_nothing_left("uavloc-ipc-");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn bad_sweeps_are_one_line_errors_with_exit_2() {
+    for args in [
+        &["bench", "ipc", "--sizes", "8"][..],
+        &["bench", "ipc", "--sizes", "256,999999999999"],
+        &["bench", "ipc", "--messages", "0"],
+        &["bench", "ipc", "--cores", "0"],
+        &["bench", "ipc", "--sizes", "lots"],
+    ] {
+        let out = Command::new(UAVLOC).args(args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert_eq!(stderr.trim().lines().count(), 1, "{args:?}: {stderr}");
+    }
+}
