@@ -222,6 +222,19 @@ fn bad_time_scales_and_modes_are_refused() {
     let out = uavloc(&["launch", "--mode", "realtime", "--time-scale", "-2", "--domain", &d]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("finite number > 0"));
+    // A valid time scale without --mode realtime (issue 18: it was silently ignored) is refused too, by the
+    // launcher and by the process.
+    for args in [
+        &["launch", "--headless", "--steps", "2", "--time-scale", "100", "--domain", &d][..],
+        &["launch", "--headless", "--steps", "2", "--mode", "lockstep", "--time-scale", "1", "--domain", &d],
+        &["process", "emitter-sim", "--time-scale", "100", "--domain", &d],
+    ] {
+        let out = uavloc(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("--time-scale applies to --mode realtime only"), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+    }
     for args in [
         &["launch", "--mode", "fast", "--domain", &d][..],
         &["launch", "--mode", "realtime", "--time-scale", "x", "--domain", &d],

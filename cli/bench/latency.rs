@@ -328,7 +328,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
         stamps: Some(stamps_file.clone()),
         idle_probe_ms: flags.idle_ms,
         mode: emitter_sim::process::Mode::Lockstep,
-        time_scale: 1.0,
+        time_scale: None,
         estimate_deadline_ms: 0,
         step_delay_ms: 0,
         plan_delay_ms: 0,

@@ -92,9 +92,10 @@ pub struct LaunchArgs {
     #[arg(long, value_enum, value_name = "MODE", default_value_t = Mode::Lockstep)]
     pub mode: Mode,
     /// Realtime mode: simulated seconds per real second, > 0; a step lasts dt/X real seconds
-    /// (--time-scale 100 runs the paper's 10 s step in 0.1 s, 1 is true real time). Ignored in lockstep.
-    #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
-    pub time_scale: f64,
+    /// (--time-scale 100 runs the paper's 10 s step in 0.1 s; default 1, true real time). Refused
+    /// without --mode realtime.
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    pub time_scale: Option<f64>,
     /// The planner's staleness deadline: a step whose estimate has not arrived this many milliseconds
     /// after its measurement is held (the current headings commanded, recorded as "estimate_stale").
     /// 0: no deadline.

@@ -166,7 +166,7 @@ mod tests {
             link,
             step_delay_ms: 4,
             mode: emitter_sim::process::Mode::Realtime,
-            time_scale: 1.0 / 3.0,
+            time_scale: Some(1.0 / 3.0),
             checkpoint: None,
             quiet: true,
             linger: true,

@@ -101,14 +101,15 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     if !(args.command_timeout_s > 0.0 && args.command_timeout_s.is_finite()) {
         return Err(CliError::Input(format!("--command-timeout-s must be > 0, got {}", args.command_timeout_s)));
     }
-    emitter_sim::process::check_time_scale(args.time_scale).map_err(CliError::Input)?;
+    emitter_sim::process::check_time_scale_flag(args.mode, args.time_scale).map_err(CliError::Input)?;
     if args.mode == Mode::Realtime {
         if args.step_delay_ms > 0 {
             return Err(CliError::Input(
                 "--step-delay-ms applies to lockstep mode only; in realtime mode --time-scale sets the pace".into(),
             ));
         }
-        emitter_sim::process::step_interval(sc.dt, args.time_scale, sc.steps).map_err(CliError::Input)?;
+        emitter_sim::process::step_interval(sc.dt, args.time_scale.unwrap_or(1.0), sc.steps)
+            .map_err(CliError::Input)?;
     }
     if let Some(dir) = &args.out {
         crate::output::check_out_dir("--out", dir)?;
@@ -223,7 +224,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         domain: domain.to_string(),
         mode: match args.mode {
             Mode::Lockstep => "lockstep".to_string(),
-            Mode::Realtime => format!("realtime ×{}", args.time_scale),
+            Mode::Realtime => format!("realtime ×{}", args.time_scale.unwrap_or(1.0)),
         },
         wall_s: start.elapsed().as_secs_f64(),
         children,

@@ -123,13 +123,26 @@ impl EmitterSimArgs {
             .extend(self.link.to_flags())
             .value("--step-delay-ms", self.step_delay_ms)
             .value("--mode", self.mode.name())
-            .float("--time-scale", self.time_scale)
+            .opt("--time-scale", self.time_scale.map(|x| format!("{x:?}")))
             .path("--checkpoint", self.checkpoint.as_deref())
             .switch("--quiet", self.quiet)
             .switch("--linger", self.linger)
             .value("--monitor-window", self.monitor_window)
             .switch("--supervised", self.supervised)
             .into_vec()
+    }
+}
+
+/// Checks `--time-scale` against `--mode`: given only with `realtime`, and then a valid scale.
+pub fn check_time_scale_flag(mode: Mode, time_scale: Option<f64>) -> Result<(), String> {
+    match (mode, time_scale) {
+        (Mode::Lockstep, Some(_)) => {
+            Err("--time-scale applies to --mode realtime only; a lock-step run goes as fast as \
+                                          the commands come (--step-delay-ms slows it down)"
+                .into())
+        }
+        (_, Some(x)) => check_time_scale(x),
+        (_, None) => Ok(()),
     }
 }
 
@@ -194,9 +207,9 @@ pub struct EmitterSimArgs {
     #[arg(long, value_enum, value_name = "MODE", default_value_t = Mode::Lockstep)]
     pub mode: Mode,
     /// Real-time mode: simulated seconds per real second, > 0. A step lasts dt/X real seconds (the paper's
-    /// 10 s interval takes 0.1 s at --time-scale 100). Ignored in lock-step mode.
-    #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
-    pub time_scale: f64,
+    /// 10 s interval takes 0.1 s at --time-scale 100; default 1). Refused in lock-step mode.
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    pub time_scale: Option<f64>,
     /// Checkpoint file: a world snapshot is written there every 256 steps, and a start that finds it (a
     /// restart in the same run) flies on from the oldest snapshot kept instead of from step 0. Remove it
     /// before a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
@@ -466,7 +479,7 @@ impl Handler for EmitterNode<'_> {
 
 /// Checks the flags that need no scenario.
 fn check_args(args: &EmitterSimArgs) -> Result<(), ProcessError> {
-    check_time_scale(args.time_scale).map_err(ProcessError::Input)?;
+    check_time_scale_flag(args.mode, args.time_scale).map_err(ProcessError::Input)?;
     if args.mode == Mode::Realtime && args.step_delay_ms > 0 {
         return Err(ProcessError::Input(
             "--step-delay-ms applies to lock-step mode only; in realtime mode --time-scale sets the pace".into(),
@@ -502,7 +515,8 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             Pacing::Lockstep { step_delay: Duration::from_millis(args.step_delay_ms), window: args.monitor_window }
         }
         Mode::Realtime => Pacing::Realtime {
-            interval: step_interval(scenario.dt, args.time_scale, scenario.steps).map_err(ProcessError::Input)?,
+            interval: step_interval(scenario.dt, args.time_scale.unwrap_or(1.0), scenario.steps)
+                .map_err(ProcessError::Input)?,
         },
     };
     // A restart in the same run flies on from the oldest snapshot of its checkpoint.
@@ -545,7 +559,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let pace = match pacing {
         Pacing::Lockstep { .. } => "lock-step".to_string(),
         Pacing::Realtime { interval } => {
-            format!("realtime ×{} ({:.3} s per step)", args.time_scale, interval.as_secs_f64())
+            format!("realtime ×{} ({:.3} s per step)", args.time_scale.unwrap_or(1.0), interval.as_secs_f64())
         }
     };
     node.say(format_args!(
