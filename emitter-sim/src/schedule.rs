@@ -442,14 +442,18 @@ impl Schedule {
         self.published.checked_sub(1).filter(|_| self.published > self.cfg.first)
     }
 
-    /// Starts the replay asked for, if any and none is running (real time: merges it into the running one).
+    /// Starts the replay asked for, if any and none is running. In real time a request merges into the
+    /// running replay (it goes back to the earlier step); otherwise it waits until the running one is
+    /// complete — going back at every request would start a long replay over and over, and a monitor
+    /// that asks once per step it lacks would get one step per replay.
     fn start_requested_replay(&mut self, now: Instant) -> Option<Action> {
         let from = self.requested?;
         let to = self.replay_end()?;
+        let realtime = self.is_realtime();
         match &mut self.replay {
+            Some(_) if !realtime => None,
             Some(r) => {
                 if from < r.next {
-                    // Real time or a second join: go back to the earlier step.
                     r.next = from;
                     r.pending = None;
                 }
@@ -647,6 +651,33 @@ mod tests {
         assert_eq!(s.poll(ms(t0, 3)), vec![Action::Republish(1)]);
         s.other_command(1);
         assert_eq!(s.poll(ms(t0, 4)), vec![Action::Republish(2), Action::Publish(3)]);
+    }
+
+    #[test]
+    fn a_request_during_a_lockstep_replay_waits_for_it_instead_of_restarting_it() {
+        // The long kill storm: a monitor that lacked a step asked for a replay from the checkpoint step
+        // below it once per step it lacked; each request sent the running replay back to that step, so the
+        // monitor got one step per replay and the run crawled into the command timeout.
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(10, false, 0), t0);
+        s.poll(t0);
+        for k in 0..5 {
+            answer(&mut s, k, t0);
+        }
+        assert_eq!(s.joined(0), Ok(Some(0)));
+        assert_eq!(s.poll(ms(t0, 1)), vec![Action::Republish(0)]);
+        s.other_command(0);
+        assert_eq!(s.poll(ms(t0, 2)), vec![Action::Republish(1)]);
+        assert_eq!(s.joined(0), Ok(Some(0)), "asked again meanwhile");
+        s.other_command(1);
+        assert_eq!(s.poll(ms(t0, 3)), vec![Action::Republish(2)], "the running replay goes on");
+        for j in 2..4 {
+            s.other_command(j);
+            assert_eq!(s.poll(ms(t0, 4 + j)), vec![Action::Republish(j + 1)]);
+        }
+        s.other_command(4);
+        assert_eq!(s.poll(ms(t0, 9)), vec![Action::Republish(5), Action::Republish(0)], "then the next one");
+        assert_eq!(s.counts().replays, 2);
     }
 
     #[test]

@@ -116,6 +116,14 @@ fn service(name: &str) -> Result<ServiceName, TransportError> {
     })
 }
 
+/// The builder of the pub/sub service `name` of a sweep: one sample in flight and a spare, no history.
+fn sweep_service<T: core::fmt::Debug + IceoryxSend + ?Sized>(
+    node: &IpcNode,
+    name: &str,
+) -> Result<iceoryx2::service::builder::publish_subscribe::Builder<T, (), ipc::Service>, TransportError> {
+    Ok(node.service_builder(&service(name)?).publish_subscribe::<T>().subscriber_max_buffer_size(2).history_size(0))
+}
+
 fn event_pair(
     node: &IpcNode,
     out: &str,
@@ -139,22 +147,14 @@ impl IoxSender {
     /// Creates the sending end of sweep `name`.
     pub fn create(node: &IpcNode, name: &str, max_size: usize) -> Result<Self, TransportError> {
         let (data_name, ack_name) = (crate::services::sweep_data(name), crate::services::sweep_ack(name));
-        let data = node
-            .service_builder(&service(&data_name)?)
-            .publish_subscribe::<[u8]>()
-            .subscriber_max_buffer_size(2)
-            .history_size(0)
+        let data = sweep_service::<[u8]>(node, &data_name)?
             .open_or_create()
             .map_err(|e| failed("opening pub/sub service", &data_name, e))?
             .publisher_builder()
             .initial_max_slice_len(max_size)
             .create()
             .map_err(|e| failed("creating publisher", &data_name, e))?;
-        let acks = node
-            .service_builder(&service(&ack_name)?)
-            .publish_subscribe::<[u64; 4]>()
-            .subscriber_max_buffer_size(2)
-            .history_size(0)
+        let acks = sweep_service::<[u64; 4]>(node, &ack_name)?
             .open_or_create()
             .map_err(|e| failed("opening pub/sub service", &ack_name, e))?
             .subscriber_builder()
@@ -216,22 +216,14 @@ impl IoxReceiver {
     /// Creates the receiving end of sweep `name` and says it is there (an ack numbered [`STOP`]).
     pub fn create(node: &IpcNode, name: &str) -> Result<Self, TransportError> {
         let (data_name, ack_name) = (crate::services::sweep_data(name), crate::services::sweep_ack(name));
-        let data = node
-            .service_builder(&service(&data_name)?)
-            .publish_subscribe::<[u8]>()
-            .subscriber_max_buffer_size(2)
-            .history_size(0)
+        let data = sweep_service::<[u8]>(node, &data_name)?
             .open_or_create()
             .map_err(|e| failed("opening pub/sub service", &data_name, e))?
             .subscriber_builder()
             .buffer_size(2)
             .create()
             .map_err(|e| failed("creating subscriber", &data_name, e))?;
-        let acks = node
-            .service_builder(&service(&ack_name)?)
-            .publish_subscribe::<[u64; 4]>()
-            .subscriber_max_buffer_size(2)
-            .history_size(0)
+        let acks = sweep_service::<[u64; 4]>(node, &ack_name)?
             .open_or_create()
             .map_err(|e| failed("opening pub/sub service", &ack_name, e))?
             .publisher_builder()
