@@ -2,22 +2,21 @@
 //! process gets back into a run that is older than what is kept.
 //!
 //! - emitter-sim keeps the truth and measurement of the last [`HISTORY_STEPS`] steps for replays; the
-//!   estimator and the planner keep their answers for as many steps. Nothing else grows with the run
-//!   (the monitor writes each step to its log as it completes and keeps no per-step record in memory when
-//!   it has a log).
-//! - Every [`CHECKPOINT_EVERY`] steps (at the *checkpoint steps* c = 256, 512, …) the estimator and the
-//!   planner write their state to their `--checkpoint` file before they publish that step's answer (the
-//!   estimator its state before step c, the planner its last usable estimate after step c), keeping the
+//!   estimator keeps its answers for as many steps. The planner keeps nothing across steps (it plans from
+//!   what each estimate carries). Nothing else grows with the run (the monitor writes each step to its
+//!   log as it completes and keeps no per-step record in memory when it has a log).
+//! - Every [`CHECKPOINT_EVERY`] steps (at the *checkpoint steps* c = 256, 512, …) the estimator writes its
+//!   state before step c to its `--checkpoint` file before it publishes that step's answer, keeping the
 //!   last [`PROCESS_CHECKPOINTS`]; emitter-sim writes the world before step c once the command of step c
-//!   has come back (so the estimator and the planner have checkpointed c by then), keeping the last
-//!   [`EMITTER_SNAPSHOTS`].
-//! - A restarted estimator or planner resumes from its newest checkpoint c and asks emitter-sim for a
-//!   replay from c instead of step 0; a restarted monitor asks from the checkpoint step at or below the
-//!   first step it lacks. A restarted emitter-sim flies on from its *older* snapshot b (from step 0 while
-//!   it has fewer than two), re-publishing steps it had published before.
-//! - When a step c arrives that a process has no answer for, although it is past it, and c is one of its
-//!   checkpoints, the world was rewound there (a restarted emitter-sim): the process rewinds to that
-//!   checkpoint and goes on from it, so its answers stay exactly those of the run.
+//!   has come back (so the estimator has checkpointed c by then), keeping the last [`EMITTER_SNAPSHOTS`].
+//! - A restarted estimator resumes from its newest checkpoint and asks emitter-sim for a replay from the
+//!   step after it instead of step 0; a restarted planner asks for the step in flight only; a restarted
+//!   monitor asks from the checkpoint step at or below the first step it lacks. A restarted emitter-sim
+//!   flies on from its *older* snapshot b (from step 0 while it has fewer than two), re-publishing steps
+//!   it had published before.
+//! - When a step c arrives that the estimator has no answer for, although it is past it, and c is one of
+//!   its checkpoints, the world was rewound there (a restarted emitter-sim): it rewinds to that checkpoint
+//!   and goes on from it, so its answers stay exactly those of the run.
 //!
 //! - A lock-step emitter-sim does not publish step k while the monitor's progress (the first step it lacks,
 //!   [`protocol::ControlKind::Progress`]) is k − [`MONITOR_WINDOW`] or less: a monitor restarted many times
