@@ -10,7 +10,7 @@
 //!    ([`Rejection::BadName`]);
 //! 4. every *used* float is finite ([`Rejection::NotFinite`]): the first `count` entries of per-UAV arrays,
 //!    the first `count − 1` range differences, and the scalars; a failed estimate's position and covariance
-//!    are not used (they are NaN by construction);
+//!    are its standing estimate when it has one (then checked like a fix's) and all NaN otherwise;
 //! 5. range sigmas are > 0 ([`Rejection::NonPositiveSigma`]) and an estimate's covariance is symmetric
 //!    positive definite ([`Rejection::NotPositiveDefinite`]);
 //! 6. the sequence number is strictly greater than that of the last *accepted* message of the stream

@@ -1,0 +1,157 @@
+/*
+ * uavloc wire format: the fixed-layout messages of the uavloc pipeline, for C and C++ front ends that
+ * publish or subscribe through iceoryx2's C/C++ API.
+ *
+ * The layouts equal the Rust `#[repr(C)]` types of `protocol/src/messages.rs` byte for byte; the test
+ * `tests/wire_layout.rs` compiles this header and checks every struct's size and alignment and every
+ * field's offset against the Rust types. The contract (units, validation, service names, versions) is
+ * docs/wire-format.md. Every padding is spelled out as a `reserved` field: any bit pattern is a value,
+ * and receivers validate before they trust one.
+ *
+ * iceoryx2 type names (the payload type name of each publish/subscribe service; a mismatch fails the
+ * open instead of misreading): see the UAVLOC_TYPE_NAME_* macros.
+ */
+#ifndef UAVLOC_MESSAGES_H
+#define UAVLOC_MESSAGES_H
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Largest number of UAVs a message carries; only the first `count` entries of a per-UAV array are used. */
+#define UAVLOC_MAX_UAVS 8
+/* Smallest number of UAVs of a valid message. */
+#define UAVLOC_MIN_UAVS 3
+
+/* Layout versions (the header's `version` must equal the type's). */
+#define UAVLOC_MEASUREMENT_VERSION 1u
+#define UAVLOC_ESTIMATE_VERSION 3u
+#define UAVLOC_COMMAND_VERSION 3u
+#define UAVLOC_TRUTH_VERSION 2u
+#define UAVLOC_CONTROL_VERSION 1u
+
+#define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v1"
+#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v3"
+#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v3"
+#define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
+#define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v1"
+
+/* Latency stamps (CLOCK_MONOTONIC, ns; 0 = not stamped) carried forward along one planning cycle. */
+typedef struct uavloc_stamps {
+    uint64_t published_ns;                 /* when this message was published */
+    uint64_t trigger_command_published_ns; /* the command that triggered this step: published */
+    uint64_t trigger_command_received_ns;  /* ... and received by the world */
+    uint64_t measurement_published_ns;
+    uint64_t measurement_received_ns;
+    uint64_t estimate_published_ns;
+    uint64_t estimate_received_ns;
+    uint64_t command_published_ns;
+} uavloc_stamps;
+
+/* Common header of every message. */
+typedef struct uavloc_header {
+    uint32_t version;  /* the type's layout version (UAVLOC_*_VERSION) */
+    uint32_t reserved; /* ignored */
+    uint64_t step;     /* planning step k */
+    uint64_t seq;      /* strictly increasing per publisher */
+    uavloc_stamps stamps;
+} uavloc_header;
+
+/* A short ASCII name, NUL-padded. */
+typedef struct uavloc_name16 {
+    uint8_t bytes[16];
+} uavloc_name16;
+
+/* front end (emitter-sim) -> estimator, planner, monitor: one TDOA snapshot of step k. */
+typedef struct uavloc_measurement {
+    uavloc_header header;
+    uint32_t count;                           /* UAVs N, 3..=8 */
+    uint32_t reserved;
+    double uavs[UAVLOC_MAX_UAVS][2];          /* UAV positions at the measurement, m (x, y); UAV 0 = reference */
+    double diffs[UAVLOC_MAX_UAVS - 1];        /* range differences d_i = r_i - r_0, i = 1..N-1, m */
+    double sigmas[UAVLOC_MAX_UAVS];           /* range noise sigma per UAV, m (> 0) */
+    double headings[UAVLOC_MAX_UAVS];         /* UAV headings at the measurement, rad */
+} uavloc_measurement;
+
+/* Estimate status (uavloc_estimate.status). */
+#define UAVLOC_STATUS_OK 0u
+#define UAVLOC_STATUS_AMBIGUOUS 1u
+#define UAVLOC_STATUS_FAILED 2u
+#define UAVLOC_STATUS_REJECTED 3u
+
+/* estimator -> planner, monitor: the emitter estimate of step k and the geometry it was computed for. */
+typedef struct uavloc_estimate {
+    uavloc_header header;
+    uint64_t instance;                /* estimator process instance id */
+    uint32_t count;                   /* UAVs N */
+    uint8_t status;                   /* UAVLOC_STATUS_* */
+    uint8_t estimator;                /* 0 snapshot (Chan), 1 fused */
+    uint8_t model;                    /* 0 static, 1 constant velocity */
+    uint8_t rejected_run;             /* fused: snapshots rejected in a row */
+    double position[2];               /* m; failed: the standing estimate, or NaN */
+    double covariance[2][2];          /* m^2, row-major */
+    double uavs[UAVLOC_MAX_UAVS][2];  /* m */
+    double headings[UAVLOC_MAX_UAVS]; /* rad */
+    double velocity[2];               /* m/s (constant velocity; else 0) */
+    double cross_cov[2][2];           /* position-velocity covariance, m^2/s */
+    double velocity_cov[2][2];        /* m^2/s^2 */
+} uavloc_estimate;
+
+/* uavloc_command.flags */
+#define UAVLOC_COMMAND_FLAG_HOLD 1u
+
+/* planner -> front end (emitter-sim), monitor: the headings for step k. */
+typedef struct uavloc_command {
+    uavloc_header header;
+    uint64_t planner_instance;          /* planner process instance id */
+    uint64_t plan_time_us;              /* planning compute time, us */
+    uint64_t active_constraints;        /* bit mask of active constraints (see docs/wire-format.md) */
+    uint64_t violated_constraints;      /* bit mask of violated ones */
+    uint32_t count;                     /* UAVs N */
+    uint32_t flags;                     /* 0 a plan, UAVLOC_COMMAND_FLAG_HOLD a hold */
+    double objective;                   /* criterion value at the waypoints (-1: not finite) */
+    double headings[UAVLOC_MAX_UAVS];   /* commanded headings, rad */
+    double waypoints[UAVLOC_MAX_UAVS][2]; /* where they lead after one interval, m */
+    uavloc_name16 solver;               /* e.g. "pso" */
+    uavloc_name16 objective_name;       /* e.g. "analytical" */
+} uavloc_command;
+
+/* uavloc_truth.previous_command */
+#define UAVLOC_PREVIOUS_NONE 0u
+#define UAVLOC_PREVIOUS_FLOWN 1u
+#define UAVLOC_PREVIOUS_MISSED 2u
+
+/* world -> monitor: the true emitter at step k (absent with an external front end). */
+typedef struct uavloc_truth {
+    uavloc_header header;
+    double position[2];        /* m */
+    uint32_t previous_command; /* what became of step k-1's command: UAVLOC_PREVIOUS_* */
+    uint32_t reserved;
+} uavloc_truth;
+
+/* uavloc_control.kind */
+#define UAVLOC_CONTROL_HELLO 0u
+#define UAVLOC_CONTROL_TAKEOVER 1u
+#define UAVLOC_CONTROL_SHUTDOWN 2u
+#define UAVLOC_CONTROL_PROGRESS 3u
+/* The step of a hello that asks for the step in flight only. */
+#define UAVLOC_CONTROL_IN_FLIGHT UINT64_MAX
+
+/* every process -> every process: hello, take-over, shutdown, progress. */
+typedef struct uavloc_control {
+    uavloc_header header;
+    uint64_t instance;     /* sender instance id */
+    uint64_t started_ns;   /* sender start time, CLOCK_MONOTONIC ns (orders two instances of a role) */
+    uint32_t kind;         /* UAVLOC_CONTROL_* */
+    uint32_t reserved;
+    uavloc_name16 role;    /* "emitter-sim", "estimator", "planner", "monitor", "launch" */
+    uavloc_name16 detail;  /* free text, e.g. "pso/analytical" */
+} uavloc_control;
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* UAVLOC_MESSAGES_H */
