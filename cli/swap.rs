@@ -203,13 +203,10 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     };
     // A run that has ended has nothing to take over (the new process saw the last step).
     if let Some((settings, _)) = &run
-        && from_step > settings.steps as u64
+        && let Err(e) = check_not_over(role, &domain, from_step, settings.steps)
     {
         let _ = give_up(&mut child, String::new());
-        return Err(CliError::Input(format!(
-            "the run in domain {domain} has ended (its last step is {}): there is nothing to take over",
-            settings.steps
-        )));
+        return Err(e);
     }
     // … and the old one exits once it has handled the steps before (its node, then its process).
     while running(&domain)? > 1 || old_pids.iter().any(|p| crate::launch::state_dir::pid_alive(*p)) {
@@ -226,6 +223,19 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     Ok(SwapReport { role: role.into(), domain: domain.to_string(), pid, from_step, planner })
 }
 
+/// Refuses a take-over from `from_step` that leaves the new `role` nothing to do in a run of `steps`
+/// planning steps: the planner plans steps `0..steps`, the estimator estimates `0..=steps`.
+fn check_not_over(role: &str, domain: &Domain, from_step: u64, steps: usize) -> Result<(), CliError> {
+    let last = if role == "planner" { steps as u64 } else { steps as u64 + 1 };
+    if from_step >= last {
+        return Err(CliError::Input(format!(
+            "the run in domain {domain} has ended (its last step is {steps}; the new {role} would take over from \
+             step {from_step}): there is nothing to take over"
+        )));
+    }
+    Ok(())
+}
+
 impl Report for SwapReport {
     fn table(&self) -> Table {
         let mut t = Table::new()
@@ -240,5 +250,30 @@ impl Report for SwapReport {
 
     fn diagnostics(&self) -> Vec<Diagnostic> {
         Vec::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_take_over_after_the_last_step_is_refused() {
+        // Issue 16.8: a swap after the last step of a 40-step run said "takes over from step 41".
+        let d = Domain::new("swap-end").unwrap();
+        for (role, from, ok) in [
+            ("planner", 39, true),
+            ("planner", 40, false), // step 40 is measured, not planned: nothing left to plan
+            ("planner", 41, false),
+            ("estimator", 40, true), // the final measurement is still estimated
+            ("estimator", 41, false),
+        ] {
+            let got = check_not_over(role, &d, from, 40);
+            assert_eq!(got.is_ok(), ok, "{role} from {from}: {got:?}");
+            if let Err(e) = got {
+                assert_eq!(e.code(), 2);
+                assert!(e.to_string().contains("nothing to take over"), "{e}");
+            }
+        }
     }
 }
