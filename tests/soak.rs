@@ -167,14 +167,14 @@ fn a_crash_after_the_history_wrapped_resumes_from_the_checkpoints() {
     for bad in ["AlreadyExists", "already exists", "Incompatible", "incompatible", "error:", "are kept"] {
         assert!(!stderr.contains(bad), "{bad:?} in:\n{stderr}");
     }
-    // The restarted estimator asked for a replay from its checkpoint, not from step 0 (which emitter-sim no
+    // The restarted estimator asked for a replay (a `replay` event) from its checkpoint, not from step 0 (which emitter-sim no
     // longer has); the restarted planner, which keeps no state, only for the step in flight; and the
     // restarted emitter-sim flew on from a snapshot.
     let events = common::read_events(&dir.join("run.jsonl"));
     let hellos = |role: &str| -> Vec<u64> {
         events
             .iter()
-            .filter(|e| e["event"] == "hello" && e["role"] == role)
+            .filter(|e| e["event"] == "replay" && e["role"] == role)
             .filter_map(|e| e["step"].as_u64())
             .collect()
     };

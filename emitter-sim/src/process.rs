@@ -28,7 +28,7 @@
 //! # Recovery
 //!
 //! It keeps the truth and measurement of the last [`HISTORY_STEPS`] steps and replays them (same data,
-//! new sequence numbers) when a process joins ([`ControlKind::Hello`]: the estimator from the step after
+//! new sequence numbers) when a process asks ([`ControlKind::Replay`]: the estimator from the step after
 //! its checkpoint, the planner the step in flight, a restarted monitor its first step missing) or a
 //! command is late (see [`crate::schedule`]). A restarted emitter-sim starts from the older of the two
 //! world snapshots in its `--checkpoint` file (the world before a checkpoint step c, written once the
@@ -458,7 +458,7 @@ impl Handler for EmitterNode<'_> {
 
     fn on_control(&mut self, node: &mut Node, c: &Control) -> Result<Flow, ProcessError> {
         self.schedule.heard(c);
-        if c.kind() == Some(ControlKind::Hello)
+        if c.kind() == Some(ControlKind::Replay)
             && let Some(role) = c.role().filter(|r| matches!(*r, "estimator" | "planner" | "monitor"))
         {
             match self.schedule.joined(c.header.step) {

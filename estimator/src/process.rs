@@ -12,7 +12,8 @@
 //!   resolves Chan's two-root ambiguity). So the estimator computes step k only right after step k − 1
 //!   (or at step 0); a measurement out of that chain — e.g. the current step, seen by an estimator
 //!   restarted mid-run — is counted (`out_of_chain`) and dropped. At start-up the estimator announces
-//!   itself on the control topic ([`ControlKind::Hello`], from step 0), and emitter-sim replays the run
+//!   itself on the control topic ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`],
+//!   from step 0), and emitter-sim replays the run
 //!   from step 0, which rebuilds exactly the state of the estimator it replaces.
 //! - Each step's answer is kept: a measurement seen again (a replay, or a restarted emitter-sim running
 //!   the same scenario from step 0) gets the same estimate again, without touching the state
@@ -523,7 +524,8 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     if !args.takeover {
         // "Replay the run for me from the step after my checkpoint, else from step 0" (a no-op at the start
         // of a launch: emitter-sim is not there).
-        node.announce(ControlKind::Hello, resumed.map_or(0, |c| c.step + 1), "")?;
+        node.announce(ControlKind::Hello, 0, "")?;
+        node.announce(ControlKind::Replay, resumed.map_or(0, |c| c.step + 1), "")?;
     }
     node.ready();
     node.say(format_args!("domain {domain}, instance {:#x}", node.instance()));

@@ -35,7 +35,8 @@
 //!
 //! With `--resume` (what `uavloc launch` passes to a restarted monitor) it appends to its `--log` instead
 //! of truncating it, reads back the steps recorded there, and announces itself on the control topic
-//! ([`ControlKind::Hello`]) with the first step it lacks: emitter-sim replays the run from there (the
+//! ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`]) from the first step it lacks:
+//! emitter-sim replays the run from there (the
 //! estimator answers from what it kept, the planner plans the same estimates again), so the record is
 //! complete again. The latency
 //! statistics of the summary cover the steps this instance saw.
@@ -304,7 +305,11 @@ impl State {
 
     /// Logs and shows who joined or took over.
     fn heard(&mut self, c: &Control) {
-        let Some(kind) = c.kind().filter(|k| matches!(k, ControlKind::Hello | ControlKind::TakeOver)) else { return };
+        let Some(kind) =
+            c.kind().filter(|k| matches!(k, ControlKind::Hello | ControlKind::TakeOver | ControlKind::Replay))
+        else {
+            return;
+        };
         let role = c.role().unwrap_or("?");
         // A (re)started emitter-sim learns where this monitor is (see `Progress`).
         self.emitter_joined |= kind == ControlKind::Hello && role == "emitter-sim";
@@ -313,7 +318,11 @@ impl State {
             json!({"role": role, "instance": c.instance, "detail": c.detail(), "step": c.header.step}),
         );
         if !self.quiet {
-            let what = if kind == ControlKind::Hello { "joined" } else { "takes over" };
+            let what = match kind {
+                ControlKind::Hello => "joined",
+                ControlKind::Replay => "asks for a replay",
+                _ => "takes over",
+            };
             let sep = if c.detail().is_empty() { "" } else { ", " };
             eprintln!(
                 "monitor: a {role} {what} (instance {:#x}{sep}{}), step {}",
@@ -460,7 +469,7 @@ impl Handler for MonitorNode<'_> {
             state.replays_requested += 1;
             state.log.write("replay_request", json!({"step": next, "newest": newest}));
             node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));
-            node.announce(ControlKind::Hello, checkpoint_step_at_or_below(next), "lost")?;
+            node.announce(ControlKind::Replay, checkpoint_step_at_or_below(next), "lost")?;
         }
         Ok(if state.assembler.is_done() { Flow::Stop } else { Flow::Continue })
     }
@@ -528,7 +537,8 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
     // (From the checkpoint step at or below it: the estimator and planner can answer from there even when
     // they were restarted; see runtime::checkpoint.)
-    node.announce(ControlKind::Hello, checkpoint_step_at_or_below(state.assembler.next_step()), "")?;
+    node.announce(ControlKind::Hello, 0, "")?;
+    node.announce(ControlKind::Replay, checkpoint_step_at_or_below(state.assembler.next_step()), "")?;
     node.ready();
     match resumed {
         None => {

@@ -12,7 +12,8 @@
 //! one, which the estimator keeps: [`Estimate::plan_from`]) and is planned from that — exactly what
 //! `uavloc simulate` plans from. So a replayed estimate gets the same command again, and a restarted or
 //! swapped-in planner plans exactly what its predecessor would have, with no checkpoint and no replay of
-//! the past: at start-up it announces itself ([`ControlKind::Hello`] for [`ControlKind::IN_FLIGHT`]) and
+//! the past: at start-up it announces itself ([`ControlKind::Hello`]), asks for a replay of
+//! [`ControlKind::IN_FLIGHT`] ([`ControlKind::Replay`]) and
 //! emitter-sim publishes the step in flight again, whose estimate the dead planner may have taken with
 //! it.
 //!
@@ -356,7 +357,8 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     if !args.takeover {
         // "I joined; publish the step in flight again" (a no-op at the start of a launch: emitter-sim is
         // not there).
-        node.announce(ControlKind::Hello, ControlKind::IN_FLIGHT, &detail)?;
+        node.announce(ControlKind::Hello, 0, &detail)?;
+        node.announce(ControlKind::Replay, ControlKind::IN_FLIGHT, &detail)?;
     }
     node.ready();
     node.say(format_args!(

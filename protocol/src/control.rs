@@ -1,4 +1,5 @@
 //! The control topic of a domain, as one process sees it: it announces itself ([`ControlKind::Hello`]),
+//! asks for a replay ([`ControlKind::Replay`]),
 //! hands over ([`ControlKind::TakeOver`]) or stops the domain ([`ControlKind::Shutdown`]), and hears what
 //! the other processes say.
 //!

@@ -974,10 +974,8 @@ impl Truth {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[repr(u32)]
 pub enum ControlKind {
-    /// A process instance (re)joined the pipeline, e.g. restarted after a crash. `header.step` is the
-    /// first step it needs to see again (the estimator: the step after its checkpoint; the monitor: its
-    /// first step not in its log), or [`ControlKind::IN_FLIGHT`] (the planner, which keeps no state: only
-    /// the step in flight, whose message it may have lost): emitter-sim replays the run from there.
+    /// A process instance (re)joined the pipeline, e.g. restarted after a crash (`header.step`: 0). Only
+    /// that: what it needs to see again it asks for with [`ControlKind::Replay`].
     Hello = 0,
     /// A new instance of `role` takes over from step `header.step` (a swap): the running one handles the
     /// steps before it and then exits.
@@ -988,10 +986,15 @@ pub enum ControlKind {
     /// record). A lock-step emitter-sim does not run more than `--monitor-window` steps ahead of the
     /// monitor's progress, and replays from it when it stalls.
     Progress = 3,
+    /// Publish the run again from step `header.step` (v2): the estimator asks from the step after its
+    /// checkpoint, a restarted monitor from its first step not in its log, a monitor that lost a message
+    /// from that step, the planner (which keeps no state) for [`ControlKind::IN_FLIGHT`], the step in
+    /// flight whose message it may have lost. emitter-sim replays from there.
+    Replay = 4,
 }
 
 impl ControlKind {
-    /// The step of a [`ControlKind::Hello`] that asks for the step in flight only (the newest one
+    /// The step of a [`ControlKind::Replay`] that asks for the step in flight only (the newest one
     /// published).
     pub const IN_FLIGHT: u64 = u64::MAX;
 
@@ -1002,6 +1005,7 @@ impl ControlKind {
             1 => Some(ControlKind::TakeOver),
             2 => Some(ControlKind::Shutdown),
             3 => Some(ControlKind::Progress),
+            4 => Some(ControlKind::Replay),
             _ => None,
         }
     }
@@ -1013,6 +1017,7 @@ impl ControlKind {
             ControlKind::TakeOver => "take_over",
             ControlKind::Shutdown => "shutdown",
             ControlKind::Progress => "progress",
+            ControlKind::Replay => "replay",
         }
     }
 }
@@ -1022,7 +1027,7 @@ impl ControlKind {
 /// Many processes publish on this topic, each with its own sequence numbers: a receiver tracks the last
 /// accepted sequence number per `instance`.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Control/v1")]
+#[type_name("uavloc::Control/v2")]
 #[repr(C)]
 pub struct Control {
     /// Common header; `step` depends on the kind (see [`ControlKind`]).
@@ -1041,7 +1046,7 @@ pub struct Control {
     pub detail: Name16,
 }
 
-impl_message!(Control, MessageKind::Control, 1, "uavloc::Control/v1");
+impl_message!(Control, MessageKind::Control, 2, "uavloc::Control/v2");
 
 impl Control {
     /// A control message of `kind` from `role` (`detail` may be empty).

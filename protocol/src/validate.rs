@@ -594,12 +594,14 @@ mod tests {
         assert_eq!((plain.validate(None), plain.detail()), (Ok(()), ""));
         assert_eq!(c.validate(Some(5)).unwrap_err().kind(), "stale");
         assert_eq!(
-            with(c, |c| c.kind = 4).validate(None),
-            Err(Rejection::UnknownKind { field: "control kind", kind: 4 })
+            with(c, |c| c.kind = 5).validate(None),
+            Err(Rejection::UnknownKind { field: "control kind", kind: 5 })
         );
         assert_eq!(with(c, |c| c.role.bytes = [0; 16]).validate(None), Err(Rejection::BadName { field: "role" }));
         assert_eq!(with(c, |c| c.detail.bytes[0] = 0x80).validate(None).unwrap_err().kind(), "bad_name");
-        assert_eq!(with(c, |c| c.header.version = 2).validate(None).unwrap_err().kind(), "bad_version");
+        assert_eq!(with(c, |c| c.header.version = 1).validate(None).unwrap_err().kind(), "bad_version");
+        let replay = Control::new(ControlKind::Replay, ControlKind::IN_FLIGHT, 6, 9, 100, "planner", "").unwrap();
+        assert_eq!((replay.validate(None), replay.kind()), (Ok(()), Some(ControlKind::Replay)));
     }
 
     #[test]
