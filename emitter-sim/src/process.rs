@@ -438,9 +438,11 @@ impl EmitterNode<'_> {
 
 impl Handler for EmitterNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
+        // Every message is checked and counted, also after the one that is applied; stamped once in hand
+        // (never before it was sent).
+        let batch = node.receive(self.commands, &mut self.last_seq, "a command")?;
         let received_ns = now_ns();
-        // Every message is checked and counted, also after the one that is applied.
-        for cmd in node.receive(self.commands, &mut self.last_seq, "a command")? {
+        for cmd in batch {
             let step = cmd.header.step;
             if self.schedule.wants(step) {
                 self.apply(node, cmd, received_ns);

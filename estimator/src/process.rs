@@ -460,8 +460,11 @@ impl EstimatorNode<'_> {
 impl Handler for EstimatorNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
         self.follow_predecessor(node)?;
+        let batch = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
+        // Stamped once they are in hand: a wake-up that began before a message was published (a
+        // notification of one already taken) must not stamp it as received before it was sent.
         let received_ns = now_ns();
-        for m in node.receive(self.measurements, &mut self.last_seq, "a measurement")? {
+        for m in batch {
             let step = m.header.step;
             if node.hands_over(step) {
                 return Ok(Flow::Stop);

@@ -279,8 +279,10 @@ impl Planner<'_> {
 impl Handler for Planner<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
         self.track_measurements(node)?;
+        let batch = node.receive(self.estimates, &mut self.last_seq, "an estimate")?;
+        // Stamped once they are in hand (see the estimator): never before the estimate was sent.
         let received_ns = now_ns();
-        for est in node.receive(self.estimates, &mut self.last_seq, "an estimate")? {
+        for est in batch {
             let step = est.header.step;
             if node.hands_over(step) {
                 return Ok(Flow::Stop);
