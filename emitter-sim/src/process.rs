@@ -50,7 +50,7 @@ use model::load_scenario;
 use protocol::services::{self, Domain};
 use protocol::transport::{Link, TopicPublisher};
 use protocol::{
-    Command, CommandOutcome, Control, ControlKind, Measurement, Message, Stamps, Topic, TopicSubscriber, Truth, now_ns,
+    Command, CommandOutcome, Control, ControlKind, Measurement, Message, Stamps, Topic, TopicSubscriber, Truth,
 };
 use runtime::checkpoint::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 use runtime::{Ended, Flow, Handler, Node, SupervisorLine};
@@ -438,10 +438,8 @@ impl EmitterNode<'_> {
 
 impl Handler for EmitterNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
-        // Every message is checked and counted, also after the one that is applied; stamped once in hand
-        // (never before it was sent).
-        let batch = node.receive(self.commands, &mut self.last_seq, "a command")?;
-        let received_ns = now_ns();
+        // Every message is checked and counted, also after the one that is applied.
+        let (batch, received_ns) = node.receive(self.commands, &mut self.last_seq, "a command")?;
         for cmd in batch {
             let step = cmd.header.step;
             if self.schedule.wants(step) {

@@ -50,7 +50,7 @@ use nalgebra::{Matrix4, Vector2, Vector4};
 use protocol::services;
 use protocol::{
     ControlKind, Estimate, EstimateStatus as WireStatus, Fix, Measurement, PosteriorExtra, Topic, TopicPublisher,
-    TopicSubscriber, Waitable, now_ns,
+    TopicSubscriber, Waitable,
 };
 use runtime::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 use runtime::{Flow, Handler, Node};
@@ -460,10 +460,7 @@ impl EstimatorNode<'_> {
 impl Handler for EstimatorNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
         self.follow_predecessor(node)?;
-        let batch = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
-        // Stamped once they are in hand: a wake-up that began before a message was published (a
-        // notification of one already taken) must not stamp it as received before it was sent.
-        let received_ns = now_ns();
+        let (batch, received_ns) = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
         for m in batch {
             let step = m.header.step;
             if node.hands_over(step) {

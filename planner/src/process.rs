@@ -50,7 +50,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use nalgebra::Vector2;
 use protocol::services;
-use protocol::{Command, ControlKind, Estimate, Measurement, PlanInfo, Topic, TopicPublisher, TopicSubscriber, now_ns};
+use protocol::{Command, ControlKind, Estimate, Measurement, PlanInfo, Topic, TopicPublisher, TopicSubscriber};
 use runtime::checkpoint::HISTORY_STEPS;
 use runtime::{Flow, Handler, Node};
 
@@ -213,8 +213,10 @@ impl Planner<'_> {
     /// The staleness deadline: measurements start a step's deadline.
     fn track_measurements(&mut self, node: &mut Node) -> Result<(), ProcessError> {
         let (Some(t), Some(sub)) = (self.tracker.as_mut(), self.measurements) else { return Ok(()) };
+        let (batch, _) = node.receive(sub, &mut self.measurement_seq, "a measurement")?;
+        // The deadline runs from when the measurements are in hand (see `Node::receive`).
         let now = Instant::now();
-        for m in node.receive(sub, &mut self.measurement_seq, "a measurement")? {
+        for m in batch {
             let step = m.header.step;
             let positions = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
             let plannable = step < self.scenario.steps as u64 && self.last_planned.is_none_or(|l| step > l);
@@ -279,9 +281,7 @@ impl Planner<'_> {
 impl Handler for Planner<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
         self.track_measurements(node)?;
-        let batch = node.receive(self.estimates, &mut self.last_seq, "an estimate")?;
-        // Stamped once they are in hand (see the estimator): never before the estimate was sent.
-        let received_ns = now_ns();
+        let (batch, received_ns) = node.receive(self.estimates, &mut self.last_seq, "an estimate")?;
         for est in batch {
             let step = est.header.step;
             if node.hands_over(step) {

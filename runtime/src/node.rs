@@ -211,15 +211,20 @@ impl Node {
     }
 
     /// The valid messages waiting on `sub` (validated against `last_seq`, the last accepted sequence
-    /// number of that topic); each rejected one is counted and logged ("rejected a `what`: …"), each
-    /// accepted one counted.
+    /// number of that topic) and when they were received (CLOCK_MONOTONIC ns); each rejected one is
+    /// counted and logged ("rejected a `what`: …"), each accepted one counted.
+    ///
+    /// The receive time is taken once the messages are in hand, not when the wake-up began: a message
+    /// published in between (the wake-up was for one already taken) would otherwise be stamped as
+    /// received before it was sent, and its latency sample lost.
     pub fn receive<T: Message>(
         &mut self,
         sub: &TopicSubscriber<T>,
         last_seq: &mut Option<u64>,
         what: &str,
-    ) -> Result<Vec<T>, ProcessError> {
+    ) -> Result<(Vec<T>, u64), ProcessError> {
         let mut out = sub.receive_all()?;
+        let received_ns = now_ns();
         out.retain(|m| match self.counter.check(m, last_seq) {
             Ok(()) => true,
             Err(r) => {
@@ -229,7 +234,7 @@ impl Node {
             }
         });
         self.summary.accepted += out.len() as u64;
-        Ok(out)
+        Ok((out, received_ns))
     }
 
     /// Announces that this instance takes over from `from_step` (a swap): the control topic, the
