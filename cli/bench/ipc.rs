@@ -222,7 +222,7 @@ fn sweep_one(carrier: Carrier, args: &IpcArgs, cores: [usize; 2]) -> Result<Vec<
         let (mut cpu_start, mut echo_start) = (0, 0);
         for i in 0..WARM_UP + args.messages {
             if i == WARM_UP {
-                cpu_start = sweep::cpu_ns();
+                cpu_start = protocol::cpu_ns();
             }
             sender.send(seq, size).map_err(failed)?;
             let ack = sender.ack().map_err(failed)?;
@@ -235,7 +235,7 @@ fn sweep_one(carrier: Carrier, args: &IpcArgs, cores: [usize; 2]) -> Result<Vec<
             if i >= WARM_UP {
                 latency.record(ack.received_ns.saturating_sub(ack.sent_ns));
                 if i + 1 == WARM_UP + args.messages {
-                    let cpu = (sweep::cpu_ns() - cpu_start) + ack.cpu_ns.saturating_sub(echo_start);
+                    let cpu = (protocol::cpu_ns() - cpu_start) + ack.cpu_ns.saturating_sub(echo_start);
                     let p = latency.percentiles().ok_or_else(|| CliError::Failed("no samples".into()))?;
                     rows.push(IpcRow {
                         transport: carrier.name(),

@@ -31,6 +31,17 @@ pub fn now_ns() -> u64 {
     (ts.tv_sec as u64).wrapping_mul(1_000_000_000).wrapping_add(ts.tv_nsec as u64)
 }
 
+/// The CPU time this process has used so far (user + system, all threads), nanoseconds (`getrusage`,
+/// microsecond resolution).
+pub fn cpu_ns() -> u64 {
+    // SAFETY: `usage` is a valid, writable rusage; RUSAGE_SELF is always supported. On failure (never in
+    // practice) the zeroed struct gives 0.
+    let mut usage: libc::rusage = unsafe { core::mem::zeroed() };
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) };
+    let ns = |t: libc::timeval| t.tv_sec as u64 * 1_000_000_000 + t.tv_usec as u64 * 1000;
+    ns(usage.ru_utime) + ns(usage.ru_stime)
+}
+
 /// Which message type; indexes per-type tables (e.g. in [`RejectionCounter`](crate::RejectionCounter)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum MessageKind {

@@ -58,10 +58,5 @@ impl From<TransportError> for ProcessError {
 /// CPU time this process has used so far (user + system, all threads), seconds; reported in every
 /// process's summary line.
 pub fn cpu_seconds() -> f64 {
-    // SAFETY: `usage` is a valid, writable rusage; RUSAGE_SELF is always supported. On failure (never in
-    // practice) the zeroed struct gives 0.
-    let mut usage: libc::rusage = unsafe { core::mem::zeroed() };
-    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) };
-    let tv = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
-    tv(usage.ru_utime) + tv(usage.ru_stime)
+    protocol::cpu_ns() as f64 * 1e-9
 }

@@ -21,7 +21,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use super::{IpcNode, TransportError, failed};
-use crate::messages::now_ns;
+use crate::messages::{cpu_ns, now_ns};
 
 /// Bytes of a payload's header (sequence number, send time).
 pub const HEADER: usize = 16;
@@ -53,15 +53,6 @@ impl Ack {
     fn from_words(w: [u64; 4]) -> Self {
         Ack { seq: w[0], sent_ns: w[1], received_ns: w[2], cpu_ns: w[3] }
     }
-}
-
-/// This process's CPU time so far (user + system), ns.
-pub fn cpu_ns() -> u64 {
-    // SAFETY: `usage` is a valid, writable rusage; RUSAGE_SELF is always supported.
-    let mut usage: libc::rusage = unsafe { core::mem::zeroed() };
-    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) };
-    let ns = |t: libc::timeval| t.tv_sec as u64 * 1_000_000_000 + t.tv_usec as u64 * 1000;
-    ns(usage.ru_utime) + ns(usage.ru_stime)
 }
 
 /// Writes a payload of `buf.len()` bytes: the body filled with `seq`'s low byte, then the header.
