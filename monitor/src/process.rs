@@ -73,7 +73,7 @@ use crate::stamps::StampsCsv;
 pub const ROLE: &str = "monitor";
 
 /// Exit code when SIGINT/SIGTERM stopped the monitor before the last step.
-pub const EXIT_INTERRUPTED: u8 = 130;
+pub use runtime::EXIT_INTERRUPTED;
 
 /// When the step the monitor waits for is incomplete while a message of this many steps later is in, one of
 /// its messages was lost: the monitor asks emitter-sim for a replay from it.

@@ -218,7 +218,7 @@ impl Planner<'_> {
         let now = Instant::now();
         for m in batch {
             let step = m.header.step;
-            let positions = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+            let positions = points(m.uavs());
             let plannable = step < self.scenario.steps as u64 && self.last_planned.is_none_or(|l| step > l);
             t.on_measurement(step, now, positions, m.headings().to_vec(), staleness::fingerprint(&m), plannable);
         }
@@ -240,7 +240,7 @@ impl Planner<'_> {
             node.link().sleep(Duration::from_millis(args.plan_delay_ms))?;
         }
         let (z_hat, m) = tdoa::estimate_from_arrays(&position, &covariance);
-        let positions: Vec<Vector2<f64>> = est.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+        let positions = points(est.uavs());
         let plan = match plan_step(&PlanRequest {
             positions: &positions,
             headings: est.headings(),
@@ -295,8 +295,14 @@ impl Handler for Planner<'_> {
                 // Held already: the step's answer is its hold.
                 self.summary.late_estimates += 1;
                 node.summary().resent += 1;
-                let positions: Vec<Vector2<f64>> = est.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
-                Some(hold_command(step, &positions, est.headings(), &self.scenario, self.args, node.instance())?)
+                Some(hold_command(
+                    step,
+                    &points(est.uavs()),
+                    est.headings(),
+                    &self.scenario,
+                    self.args,
+                    node.instance(),
+                )?)
             } else {
                 if self.last_planned.is_some_and(|l| step <= l) {
                     node.summary().resent += 1; // a replayed estimate: planned again, the same command
@@ -397,6 +403,11 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let accepted = node.summary().accepted;
     node.say(format_args!("stopped after {published} commands ({accepted} messages received)"));
     Ok(PlannerSummary { node: node.finish(), ..planner.summary })
+}
+
+/// UAV positions of a message as vectors, metres.
+fn points(uavs: &[[f64; 2]]) -> Vec<Vector2<f64>> {
+    uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect()
 }
 
 /// The hold command of a step whose estimate missed the deadline (see the module docs).
