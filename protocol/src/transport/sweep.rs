@@ -255,7 +255,7 @@ impl Receiver for IoxReceiver {
     }
 }
 
-/// Whether the sending end of sweep `name` has been connected to by a receiver (its readiness ack came).
+/// Waits until a receiver has connected to `sender` (its readiness ack, numbered [`STOP`], came).
 pub fn wait_ready(sender: &mut dyn Sender) -> Result<(), TransportError> {
     match sender.ack()? {
         Ack { seq: STOP, .. } => Ok(()),
