@@ -89,7 +89,7 @@ impl Report for SimulateReport {
         let mut t = Table::new()
             .row("objective / solver", format!("{} / {}", r.objective, r.solver))
             .row("seed", r.seed.to_string())
-            .row("emitter (truth, step 0)", format!("({:.1}, {:.1}) m", r.emitter[0], r.emitter[1]))
+            .row("emitter (truth, step 0)", r.emitter.map_or("-".into(), |e| format!("({:.1}, {:.1}) m", e[0], e[1])))
             .row("estimator", format!("{} ({})", r.estimator, r.scenario.emitter_model))
             .row("rejected snapshots", r.rejected_snapshots.to_string())
             .row(
@@ -107,8 +107,8 @@ impl Report for SimulateReport {
             t = t.row(
                 format!("step {:>3}", s.step),
                 format!(
-                    "{:>9.2} | {:>9} | {:>9} | {:>6} | {:>8} | {:>9} | {:>6} | {active}",
-                    s.crlb_true_m,
+                    "{:>9} | {:>9} | {:>9} | {:>6} | {:>8} | {:>9} | {:>6} | {active}",
+                    opt(s.crlb_true_m, 2),
                     opt(s.pcrlb_m, 2),
                     opt(s.estimate_error_m, 1),
                     opt(s.nees, 2),

@@ -320,6 +320,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
             estimator: None,
         },
         domain: Some(domain),
+        source: runtime::Source::Simulator,
         headless: true,
         out: None,
         log: None,

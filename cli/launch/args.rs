@@ -23,6 +23,13 @@ Two modes (--mode):
                       active_constraints [\"command_missed\"], and \"missed_commands\" counts it. With
                       every command in time the run still equals simulate.
 
+An external front end (--source external): the launch starts the estimator, the planner and the monitor
+only; a front end of your own (C, C++, Python, … through iceoryx2; docs/wire-format.md, and
+examples/python/frontend.py) publishes each step's Measurement on <domain>/measurement and reads the
+Command on <domain>/command. There is no truth: the record's truth-based fields (truth, crlb_true_m,
+rmse_m, estimate_error_m, nees, pcrlb_m) are absent or null, never zero; crlb_at_estimate_m is there.
+The run ends when the monitor has the last step (--steps N: steps 0..N), or on Ctrl-C.
+
 Staleness (--estimate-deadline-ms D, off by default): when a step's estimate has not reached the planner D
 ms after the step's measurement, the planner holds course (commands the current headings; the UAVs fly
 straight on); the step is recorded with active_constraints [\"estimate_stale\"] and counted in
@@ -46,6 +53,7 @@ Examples:
   uavloc launch
   uavloc launch --headless --json --steps 6 --objective mc
   uavloc launch --mode realtime --time-scale 100
+  uavloc launch --source external --domain lab1 --steps 20    (then: python3 examples/python/frontend.py --domain lab1 --steps 20)
   uavloc launch --scenario scenarios/nominal.toml --solver ga --domain lab1 --log run.jsonl --out runs/lab1
 
 Each process also runs on its own, e.g. in four terminals (or systemd units) with one --domain:
@@ -62,6 +70,11 @@ pub struct LaunchArgs {
     /// `uavloc-<pid>`, unique per launch).
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
+    /// Where the measurements come from: simulator (emitter-sim, the simulated world) or external (a front
+    /// end outside uavloc publishes the measurements and reads the commands, see docs/wire-format.md and
+    /// examples/python/; no truth, so the columns that need one are absent).
+    #[arg(long, value_name = "SOURCE", default_value = "simulator")]
+    pub source: runtime::Source,
     /// No live view: the monitor and the other processes print only errors.
     #[arg(long)]
     pub headless: bool,

@@ -34,6 +34,7 @@ pub(super) fn child_flags(
         Role::Monitor => monitor::process::MonitorArgs {
             domain,
             link: args.link,
+            source: args.source,
             stamps: args.stamps.clone(),
             run: run.clone(),
             log: Some(log.to_path_buf()),
@@ -98,12 +99,25 @@ pub(super) fn start_and_run(
     state: &StateDir,
     log: &std::path::Path,
 ) -> Result<(), CliError> {
-    for role in Role::START_ORDER {
+    for role in Role::started(args.source) {
         if role == Role::EmitterSim && args.idle_probe_ms > 0 {
             sup.idle_cpu = probe_idle_cpu(sup, Duration::from_millis(args.idle_probe_ms));
         }
         sup.spawn(role, child_flags(role, args, sc, domain, state, log))?;
         sup.wait_ready(role)?;
+    }
+    if args.source == runtime::Source::External {
+        let d = domain.as_str();
+        eprintln!(
+            "launch: estimator, planner and monitor are ready in domain {d}; waiting for an external front end to \
+             publish {} (steps 0..={}) on {}/measurement and read {} on {}/command (docs/wire-format.md). Ctrl-C \
+             stops the run.",
+            <protocol::Measurement as protocol::Message>::TYPE_NAME,
+            sc.steps,
+            d,
+            <protocol::Command as protocol::Message>::TYPE_NAME,
+            d
+        );
     }
     sup.wait_for_the_end(Duration::from_secs_f64(args.command_timeout_s))
 }
@@ -131,6 +145,7 @@ mod tests {
         let m = monitor::process::MonitorArgs {
             domain: Some("d".into()),
             link,
+            source: runtime::Source::External,
             stamps: Some("s.csv".into()),
             run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
             log: Some("l.jsonl".into()),

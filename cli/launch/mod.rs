@@ -101,6 +101,15 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     if !(args.command_timeout_s > 0.0 && args.command_timeout_s.is_finite()) {
         return Err(CliError::Input(format!("--command-timeout-s must be > 0, got {}", args.command_timeout_s)));
     }
+    if args.source == runtime::Source::External
+        && (args.mode != Mode::Lockstep || args.time_scale.is_some() || args.step_delay_ms > 0)
+    {
+        return Err(CliError::Input(
+            "--mode, --time-scale and --step-delay-ms pace emitter-sim; with --source external the front end \
+             sets the pace"
+                .into(),
+        ));
+    }
     emitter_sim::process::check_time_scale_flag(args.mode, args.time_scale).map_err(CliError::Input)?;
     if args.mode == Mode::Realtime {
         if args.step_delay_ms > 0 {
@@ -223,6 +232,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         stale_steps,
         domain: domain.to_string(),
         mode: match args.mode {
+            _ if args.source == runtime::Source::External => "external".to_string(),
             Mode::Lockstep => "lockstep".to_string(),
             Mode::Realtime => format!("realtime ×{}", args.time_scale.unwrap_or(1.0)),
         },

@@ -85,14 +85,17 @@ impl Report for LaunchReport {
             .row("mode", self.mode.clone())
             .row("seed", r.seed.to_string())
             .row("steps recorded", format!("{} (0..{})", r.steps.len(), r.steps.len().saturating_sub(1)))
-            .row("emitter (truth)", format!("({:.1}, {:.1}) m", r.emitter[0], r.emitter[1]))
-            .row("final CRLB at truth", format!("{} m", opt(last.map(|s| s.crlb_true_m), 2)))
+            .row(
+                "emitter (truth)",
+                r.emitter.map_or("- (no truth: external front end)".into(), |e| format!("({:.1}, {:.1}) m", e[0], e[1])),
+            )
+            .row("final CRLB at truth", format!("{} m", opt(last.and_then(|s| s.crlb_true_m), 2)))
             .row("final RMSE", format!("{} m", opt(last.and_then(|s| s.rmse_m), 2)))
             .row(
                 "final |ẑ − z|",
                 format!(
                     "{} m",
-                    opt(last.map(|s| (s.estimate[0] - r.emitter[0]).hypot(s.estimate[1] - r.emitter[1])), 1)
+                    opt(last.and_then(|s| s.estimate_error_m), 1)
                 ),
             )
             .row(

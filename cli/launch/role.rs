@@ -36,6 +36,12 @@ impl Role {
     /// The start order: each role's subscriptions exist before the next one publishes.
     pub const START_ORDER: [Role; 4] = [Role::Monitor, Role::Planner, Role::Estimator, Role::EmitterSim];
 
+    /// The roles a launch starts, in start order: all four, or without emitter-sim when the measurements
+    /// come from an external front end.
+    pub fn started(source: runtime::Source) -> impl Iterator<Item = Role> {
+        Self::START_ORDER.into_iter().filter(move |r| *r != Role::EmitterSim || source == runtime::Source::Simulator)
+    }
+
     /// The `uavloc process` subcommand and node-name suffix.
     pub fn name(self) -> &'static str {
         match self {

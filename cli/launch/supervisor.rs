@@ -159,7 +159,12 @@ impl Supervisor {
 
     /// The current instance of `role`.
     pub(super) fn index(&self, role: Role) -> usize {
-        self.procs.iter().rposition(|p| p.role == role).expect("a started role")
+        self.find(role).expect("a started role")
+    }
+
+    /// The current instance of `role`, if the launch started one.
+    pub(super) fn find(&self, role: Role) -> Option<usize> {
+        self.procs.iter().rposition(|p| p.role == role)
     }
 
     /// Starts `uavloc process <role> <flags> --supervised` with stdout piped to a reader thread.
@@ -305,10 +310,17 @@ impl Supervisor {
                 checked_swapped = Instant::now();
                 self.check_swapped_in()?;
             }
-            let (emitter, monitor) = (self.index(Role::EmitterSim), self.index(Role::Monitor));
+            let monitor = self.index(Role::Monitor);
             // Only a successful exit is the end: one that crashed while another process was being restarted
             // (after `restart_crashed` went past it) is restarted in the next round.
             let ended = |i: usize| self.procs[i].exit.is_some_and(|s| s.success());
+            // Without emitter-sim (an external front end) the monitor's end is the run's.
+            let Some(emitter) = self.find(Role::EmitterSim) else {
+                if ended(monitor) {
+                    return Ok(());
+                }
+                continue;
+            };
             if ended(emitter) || self.procs[emitter].finished {
                 let since = *emitter_done_at.get_or_insert_with(Instant::now);
                 if ended(monitor) {

@@ -33,7 +33,7 @@ impl Metric {
     /// The value of `step` of a run (NaN when not available).
     fn of(self, s: &monitor::StepRecord) -> f64 {
         match self {
-            Metric::Crlb => s.crlb_true_m,
+            Metric::Crlb => s.crlb_true_m.unwrap_or(f64::NAN),
             Metric::Rmse => s.rmse_m.unwrap_or(f64::NAN),
         }
     }

@@ -3,7 +3,7 @@
 //! planner's `plan_step`, the monitor's `step_metrics`), so a run through the processes reproduces it.
 //! `uavloc simulate` is one such run; every outer run of `uavloc paper` is another.
 
-use monitor::{RunRecord, StepRecord, step_metrics};
+use monitor::{RunRecord, StepRecord, crlb_at, step_metrics};
 use nalgebra::{Matrix2, Vector2};
 use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
 use thiserror::Error;
@@ -69,7 +69,8 @@ pub fn run_closed_loop(
             nees: None,
             pcrlb_m: None,
             min_true_distance_m: None,
-            crlb_true_m: metrics.crlb_true_m,
+            crlb_true_m: Some(metrics.crlb_true_m),
+            crlb_at_estimate_m: crlb_at(&sensors, &est.position),
             rmse_m: metrics.rmse_m,
             objective_value: None,
             plan_ms: None,
@@ -106,7 +107,7 @@ pub fn run_closed_loop(
         objective: objective.name().to_string(),
         solver: solver.name().to_string(),
         seed: scenario.seed,
-        emitter: pair(&start),
+        emitter: Some(pair(&start)),
         estimator: scenario.estimator.name().to_string(),
         rejected_snapshots: 0,
         true_standoff_violations: None,

@@ -31,6 +31,13 @@
 //! that held.
 //!
 //! Messages for steps already completed or beyond the last step are ignored (and counted).
+//!
+//! **Without a truth** ([`Assembler::without_truth`]: an external front end publishes the measurements,
+//! no world publishes truths) step k is complete with its measurement, estimate and — unless it is the
+//! last — command; nobody says whether a command was flown, so none is *missed*. The truth-based fields
+//! (`truth`, `crlb_true_m`, `rmse_m`, `estimate_error_m`, …) are absent, not zero; `crlb_at_estimate_m`
+//! (the CRLB of the step's geometry at its estimate) is there in both kinds of run. Truths that arrive
+//! anyway are ignored (and counted).
 
 use std::collections::BTreeMap;
 
@@ -40,7 +47,7 @@ use nalgebra::Vector2;
 use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Measurement, Stamps, Truth};
 use tdoa::{NoiseModel, Sensors};
 
-use crate::metrics::step_metrics;
+use crate::metrics::{crlb_at, step_metrics};
 use crate::record::{PlannerRef, RunRecord, StepRecord};
 
 /// The `active_constraints` entry of a step whose command was missed (see the module docs).
@@ -69,10 +76,10 @@ pub struct CompletedStep {
     pub latencies: Latencies,
     /// The planner of the step's command (`None` on the last step).
     pub planner: Option<PlannerInfo>,
-    /// Distance of the estimate from the truth, metres.
-    pub error_m: f64,
-    /// The true emitter position of the step, metres.
-    pub truth: [f64; 2],
+    /// Distance of the estimate from the truth, metres (`None` without a truth).
+    pub error_m: Option<f64>,
+    /// The true emitter position of the step, metres (`None` without a truth).
+    pub truth: Option<[f64; 2]>,
     /// The step's command was missed (real-time mode): the UAVs kept their headings.
     pub missed: bool,
     /// The step's command was a hold: no fresh estimate reached the planner in time, the UAVs kept their
@@ -106,6 +113,8 @@ pub struct Assembler {
     emitter: Option<[f64; 2]>,
     names: Option<(String, String)>,
     ignored: u64,
+    /// Whether a world publishes truths (see the module docs).
+    truth: bool,
 }
 
 impl Assembler {
@@ -121,7 +130,19 @@ impl Assembler {
             emitter: None,
             names: None,
             ignored: 0,
+            truth: true,
         }
+    }
+
+    /// The same assembler for a run without a truth (see the module docs).
+    pub fn without_truth(mut self) -> Self {
+        self.truth = false;
+        self
+    }
+
+    /// Whether this run has a truth.
+    pub fn has_truth(&self) -> bool {
+        self.truth
     }
 
     /// An assembler that continues a run whose steps `0..steps.len()` are already recorded (e.g. read back
@@ -220,6 +241,10 @@ impl Assembler {
     /// Adds a (validated) truth; `false` if it is ignored. A repeat keeps the first (see
     /// [`Assembler::add_measurement`]).
     pub fn add_truth(&mut self, t: Truth) -> bool {
+        if !self.truth {
+            self.ignored += 1;
+            return false;
+        }
         self.slot(t.header.step).map(|p| p.truth.get_or_insert(t)).is_some()
     }
 
@@ -255,22 +280,23 @@ impl Assembler {
             let outcome = next_truth.map(Truth::previous_command);
             let command_received_ns = next_truth.map_or(0, |t| t.header.stamps.trigger_command_received_ns);
             let missed = outcome == Some(Some(CommandOutcome::Missed));
+            let truth = self.truth;
             let ready = self.pending.get(&k).is_some_and(|p| {
                 p.measurement.is_some()
                     && p.estimate.is_some()
-                    && p.truth.is_some()
-                    && (!planned || (outcome.is_some() && (missed || p.command.is_some())))
+                    && (p.truth.is_some() || !truth)
+                    && (!planned || ((outcome.is_some() || !truth) && (missed || p.command.is_some())))
             });
             if !ready {
                 break;
             }
             let p = self.pending.remove(&k).unwrap_or_default();
-            let (Some(m), Some(e), Some(t)) = (p.measurement, p.estimate, p.truth) else { break };
+            let (Some(m), Some(e), t) = (p.measurement, p.estimate, p.truth) else { break };
             if missed && p.command.is_some() {
                 self.ignored += 1; // it came, but too late for the world
             }
             let command = if missed { None } else { p.command.as_ref() };
-            let mut step = self.complete(k, &m, &e, &t, command, planned && missed);
+            let mut step = self.complete(k, &m, &e, t.as_ref(), command, planned && missed);
             if command.is_some() {
                 step.command_received_ns = command_received_ns;
             }
@@ -285,7 +311,7 @@ impl Assembler {
         k: u64,
         m: &Measurement,
         e: &Estimate,
-        t: &Truth,
+        t: Option<&Truth>,
         c: Option<&Command>,
         missed: bool,
     ) -> CompletedStep {
@@ -293,23 +319,28 @@ impl Assembler {
         self.estimator.get_or_insert(if e.estimator == 1 { "fused" } else { "snapshot" });
         let velocity = (status.is_usable() && e.model == 1).then_some((e.velocity, e.velocity_cov));
         let (position, covariance) = e.plan_from().unwrap_or(([f64::NAN; 2], [[f64::NAN; 2]; 2]));
-        let truth = Vector2::new(t.position[0], t.position[1]);
-        self.emitter.get_or_insert(t.position);
+        let truth = t.map(|t| Vector2::new(t.position[0], t.position[1]));
+        if let Some(t) = t {
+            self.emitter.get_or_insert(t.position);
+        }
+        let estimate = Vector2::new(position[0], position[1]);
         let geometry = NoiseModel::from_range_sigmas(m.sigmas()).and_then(|noise| Sensors::new(m.uavs(), noise)).ok();
-        let (crlb_true_m, rmse_m) = match &geometry {
-            Some(sensors) => {
+        let (crlb_true_m, rmse_m) = match (&geometry, &truth) {
+            (Some(sensors), Some(truth)) => {
                 let metrics = step_metrics(
                     sensors,
-                    &truth,
+                    truth,
                     self.scenario.rmse_resamples,
                     self.scenario.seed,
                     k,
-                    Some(Vector2::new(position[0], position[1])),
+                    Some(estimate),
                 );
-                (metrics.crlb_true_m, metrics.rmse_m)
+                (Some(metrics.crlb_true_m), metrics.rmse_m)
             }
-            None => (f64::INFINITY, None),
+            (None, Some(_)) => (Some(f64::INFINITY), None),
+            (_, None) => (None, None),
         };
+        let crlb_at_estimate_m = geometry.as_ref().and_then(|sensors| crlb_at(sensors, &estimate));
         let mut record = StepRecord {
             step: k,
             uavs: m.uavs().to_vec(),
@@ -319,12 +350,13 @@ impl Assembler {
             estimate_status: status.name().to_string(),
             estimate_velocity: velocity.map(|v| v.0),
             estimate_velocity_cov: velocity.map(|v| v.1),
-            truth: Some(t.position),
+            truth: t.map(|t| t.position),
             estimate_error_m: None,
             nees: None,
             pcrlb_m: None,
             min_true_distance_m: None,
             crlb_true_m,
+            crlb_at_estimate_m,
             rmse_m,
             objective_value: None,
             plan_ms: None,
@@ -361,7 +393,7 @@ impl Assembler {
             }
             None => e.header.stamps.latencies(),
         };
-        let error_m = (position[0] - truth.x).hypot(position[1] - truth.y);
+        let error_m = truth.map(|z| (position[0] - z.x).hypot(position[1] - z.y));
         if self.keep {
             self.steps.push(record.clone());
         }
@@ -371,7 +403,7 @@ impl Assembler {
             latencies,
             planner,
             error_m,
-            truth: t.position,
+            truth: t.map(|t| t.position),
             missed,
             held,
             chain,
@@ -387,7 +419,7 @@ impl Assembler {
             objective,
             solver,
             seed: self.scenario.seed,
-            emitter: self.emitter.unwrap_or(self.scenario.emitter),
+            emitter: self.truth.then(|| self.emitter.unwrap_or(self.scenario.emitter)),
             estimator: self.estimator.unwrap_or(self.scenario.estimator.name()).to_string(),
             rejected_snapshots: 0,
             true_standoff_violations: None,
@@ -488,7 +520,11 @@ mod tests {
         assert_eq!(s0.objective_value, Some(3.0));
         assert_eq!(s0.plan_ms, Some(1.234));
         assert_eq!(s0.active_constraints, vec!["heading_cone(UAV 0) binding".to_string()]);
-        assert!(s0.crlb_true_m > 1000.0 && s0.rmse_m.is_some());
+        assert!(s0.crlb_true_m.unwrap() > 1000.0 && s0.rmse_m.is_some());
+        // The CRLB at the estimate [24000, 15000] equals the one at a truth placed there.
+        let sensors = Sensors::new(&UAVS, NoiseModel::from_range_sigmas(&[28.7712; 3]).unwrap()).unwrap();
+        let at = tdoa::crlb(&sensors, &Vector2::new(24000.0, 15000.0)).unwrap().crlb_m;
+        assert_eq!(s0.crlb_at_estimate_m, Some(at));
         // A failed estimate reports the standing one it carries.
         let s1 = &done[1].record;
         assert_eq!((s1.estimate_status.as_str(), s1.estimate), ("failed", [24000.0, 15000.0]));
@@ -505,7 +541,7 @@ mod tests {
         assert!(a.is_done());
         let run = a.record();
         assert_eq!((run.objective.as_str(), run.solver.as_str(), run.steps.len()), ("analytical", "pso", 3));
-        assert_eq!(run.emitter, [25000.0, 15000.0]);
+        assert_eq!(run.emitter, Some([25000.0, 15000.0]));
         // Late and out-of-range messages are ignored.
         assert!(!a.add_measurement(measurement(1)));
         assert!(!a.add_truth(truth(3)));

@@ -36,6 +36,15 @@ pub fn step_metrics(
     StepMetrics { crlb_true_m, rmse_m }
 }
 
+/// Single-point CRLB `sqrt(tr F⁻¹(p))` of `sensors` at the point `p` (e.g. the estimate), metres;
+/// `None` where F is singular or `p` is not finite.
+pub fn crlb_at(sensors: &Sensors, p: &Vector2<f64>) -> Option<f64> {
+    if !p.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    crlb(sensors, p).ok().map(|c| c.crlb_m).filter(|c| c.is_finite())
+}
+
 /// Fills in what needs the whole run and the truth: per step `estimate_error_m`, `nees`, `pcrlb_m`
 /// (the posterior CRLB from every snapshot so far, under the scenario's emitter model) and
 /// `min_true_distance_m`; for the run `rejected_snapshots` and `true_standoff_violations` (UAV, step

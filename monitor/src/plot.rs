@@ -124,7 +124,7 @@ impl Metric {
     /// The metric's value at a step, metres (`None` when not recorded).
     pub fn value(self, step: &StepRecord) -> Option<f64> {
         match self {
-            Metric::CrlbTrue => Some(step.crlb_true_m),
+            Metric::CrlbTrue => step.crlb_true_m,
             Metric::Rmse => step.rmse_m,
             Metric::Pcrlb => step.pcrlb_m,
             Metric::EstimateError => step.estimate_error_m,
@@ -479,7 +479,7 @@ impl Figure for Trajectories<'_> {
         let paths: Vec<Vec<(f64, f64)>> = (0..n_uavs)
             .map(|i| run.steps.iter().filter_map(|s| s.uavs.get(i).copied().and_then(finite_point)).collect())
             .collect();
-        let emitter = finite_point(run.emitter);
+        let emitter = run.emitter.and_then(finite_point);
         let estimates: Vec<(f64, f64)> = run.steps.iter().filter_map(|s| finite_point(s.estimate)).collect();
 
         // Frame on the UAVs and the emitter, plus the estimates near them (a failed estimate may be

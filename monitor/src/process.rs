@@ -106,6 +106,10 @@ pub struct MonitorArgs {
     /// Transport and waiting.
     #[command(flatten)]
     pub link: runtime::LinkArgs,
+    /// Where the measurements come from: simulator (emitter-sim, which also publishes the truth) or
+    /// external (a front end outside uavloc; no truth: the columns that need one are absent, not zero).
+    #[arg(long, value_name = "SOURCE", default_value = "simulator")]
+    pub source: runtime::Source,
     /// Write the raw stamps of every recorded step to FILE as CSV (one row per step, CLOCK_MONOTONIC
     /// nanoseconds; 0 = missing): the chain's publish/receive stamps, when emitter-sim received the step's
     /// command (from the next step's messages) and when the monitor received each of the step's messages.
@@ -197,6 +201,7 @@ impl MonitorArgs {
             .opt("--domain", self.domain.as_deref())
             .extend(self.run.to_flags())
             .extend(self.link.to_flags())
+            .value("--source", self.source)
             .path("--stamps", self.stamps.as_deref())
             .path("--log", self.log.as_deref())
             .path("--record", self.record.as_deref())
@@ -222,15 +227,18 @@ fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
     let (lo, hi) = tdoa::fim::sym_eigenvalues(&nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]));
     // χ²₂(0.95) = −2 ln 0.05 (the 2-dof quantile has this closed form).
     let k95 = -2.0 * 0.05f64.ln();
-    let closest =
-        r.uavs.iter().map(|w| (w[0] - done.truth[0]).hypot(w[1] - done.truth[1])).fold(f64::INFINITY, f64::min);
+    // Without a truth the closest UAV is the one closest to the estimate.
+    let (to, z) = done.truth.map_or(("ẑ", r.estimate), |t| ("z", t));
+    let closest = r.uavs.iter().map(|w| (w[0] - z[0]).hypot(w[1] - z[1])).fold(f64::INFINITY, f64::min);
     format!(
-        "step {:>3}/{last}  CRLB {:>8.1} m  RMSE {:>8} m  |ẑ−z| {:>8.1} m  95% ellipse {:.0}×{:.0} m  closest UAV {:.0} m  \
-         meas→est {:>7}  est→plan {:>7}  plan {:>8}  cycle {:>8}  planner {planner}  rejected {rejected}{}",
+        "step {:>3}/{last}  CRLB {:>8} m  CRLB@ẑ {:>8} m  RMSE {:>8} m  |ẑ−z| {:>8} m  95% ellipse {:.0}×{:.0} m  \
+         closest UAV to {to} {:.0} m  meas→est {:>7}  est→plan {:>7}  plan {:>8}  cycle {:>8}  planner {planner}  \
+         rejected {rejected}{}",
         r.step,
-        r.crlb_true_m,
+        fmt_m(r.crlb_true_m),
+        fmt_m(r.crlb_at_estimate_m),
         fmt_m(r.rmse_m),
-        done.error_m,
+        fmt_m(done.error_m),
         (k95 * hi.max(0.0)).sqrt(),
         (k95 * lo.max(0.0)).sqrt(),
         closest,
@@ -398,6 +406,7 @@ impl State {
             match self.received.remove(&(kind, k)) {
                 Some(t) => rx[i] = t,
                 None if kind == MessageKind::Command && (last || done.missed) => {}
+                None if kind == MessageKind::Truth && !self.assembler.has_truth() => {}
                 None => self.missing += 1,
             }
         }
@@ -464,6 +473,7 @@ impl Handler for MonitorNode<'_> {
             && newest >= next + STALL_STEPS
             && self.replay_asked != Some(next)
             && !state.assembler.is_done()
+            && state.assembler.has_truth()
         {
             self.replay_asked = Some(next);
             state.replays_requested += 1;
@@ -483,16 +493,22 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
     // With a log, the step records live there, not in memory (read back at the end); a restart takes the
     // steps its predecessor logged.
+    let external = args.source == runtime::Source::External;
+    let fresh = || {
+        let a = Assembler::new(scenario.clone());
+        if external { a.without_truth() } else { a }
+    };
     let (assembler, resumed) = match (&args.log, args.resume) {
         (Some(path), true) => {
             let LoggedRun { count, last, truth, names, .. } = read_log(path, false);
             match Assembler::resume_forgetting(scenario.clone(), count, last.as_ref(), truth, names) {
+                Some(a) if external => (a.without_truth(), Some(count)),
                 Some(a) => (a, Some(count)),
-                None => (Assembler::new(scenario.clone()).forgetting(), Some(0)),
+                None => (fresh().forgetting(), Some(0)),
             }
         }
-        (Some(_), false) => (Assembler::new(scenario.clone()).forgetting(), None),
-        (None, _) => (Assembler::new(scenario.clone()), None),
+        (Some(_), false) => (fresh().forgetting(), None),
+        (None, _) => (fresh(), None),
     };
     let Some(mut node) = Node::open(ROLE, args.domain.as_deref(), &args.link, args.supervised, args.quiet)? else {
         return Err(ProcessError::Interrupted);
@@ -530,7 +546,10 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let state = &mut monitor.state;
     match resumed {
         None => {
-            state.log.write("start", json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed}))
+            state.log.write(
+                "start",
+                json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed, "source": args.source}),
+            )
         }
         Some(n) => state.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
     }
@@ -541,6 +560,11 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     node.announce(ControlKind::Replay, checkpoint_step_at_or_below(state.assembler.next_step()), "")?;
     node.ready();
     match resumed {
+        None if external => node.say(format_args!(
+            "domain {domain}, waiting for {} steps from an external front end: no truth, so CRLB at the truth, RMSE \
+             and |ẑ−z| are absent",
+            scenario.steps + 1
+        )),
         None => {
             node.say(format_args!("domain {domain}, waiting for {} steps (seed {})", scenario.steps, scenario.seed))
         }
@@ -666,7 +690,7 @@ mod tests {
         }
         let run = read_log(&path, true);
         assert_eq!(run.count, 3);
-        assert_eq!(run.steps[1].crlb_true_m, f64::INFINITY);
+        assert_eq!(run.steps[1].crlb_true_m, Some(f64::INFINITY));
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -49,9 +49,14 @@ pub struct StepRecord {
     pub min_true_distance_m: Option<f64>,
     /// Single-point CRLB `sqrt(tr F⁻¹)` at the TRUE emitter for this geometry, metres (paper's Figure 5);
     /// `+∞` for a geometry that cannot localise (e.g. two UAVs on top of each other), written `null` in
-    /// JSON (which has no infinity) and read back as `+∞`.
-    #[serde(deserialize_with = "null_as_infinity")]
-    pub crlb_true_m: f64,
+    /// JSON (which has no infinity) and read back as `+∞`. Absent (`None`, no key) without a truth (an
+    /// external front end): an error column that is absent, not zero.
+    #[serde(default, skip_serializing_if = "Option::is_none", deserialize_with = "null_as_infinity")]
+    pub crlb_true_m: Option<f64>,
+    /// Single-point CRLB `sqrt(tr F⁻¹(ẑ))` at the step's *estimate* for this geometry, metres: what a run
+    /// without a truth can tell about its geometry (`null` where F is singular there or ẑ is unknown).
+    #[serde(default)]
+    pub crlb_at_estimate_m: Option<f64>,
     /// RMSE of Chan over R noise resamples at this geometry (paper Section 5.3), metres.
     pub rmse_m: Option<f64>,
     /// Objective value of the chosen headings (the planner's criterion, as `sqrt` of its trace, m);
@@ -74,9 +79,10 @@ pub struct StepRecord {
     pub criterion_ess: Option<f64>,
 }
 
-/// An `f64` that serde_json wrote as `null` because it was not finite (only `+∞` is possible here).
-fn null_as_infinity<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+/// A present `f64` that serde_json wrote as `null` because it was not finite (only `+∞` is possible
+/// here); an absent key is `None` (the field's default).
+fn null_as_infinity<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    Ok(Some(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY)))
 }
 
 /// A planner process instance, as recorded per step by the monitor.
@@ -101,8 +107,9 @@ pub struct RunRecord {
     pub solver: String,
     /// Run seed.
     pub seed: u64,
-    /// True emitter position (at step 0), metres.
-    pub emitter: [f64; 2],
+    /// True emitter position (at step 0), metres; `null` without a truth (an external front end).
+    #[serde(default)]
+    pub emitter: Option<[f64; 2]>,
     /// The estimator (`fused` or `snapshot`).
     #[serde(default)]
     pub estimator: String,
@@ -120,7 +127,7 @@ pub struct RunRecord {
 impl RunRecord {
     /// CRLB at the truth on the last step, metres.
     pub fn final_crlb_m(&self) -> Option<f64> {
-        self.steps.last().map(|s| s.crlb_true_m)
+        self.steps.last().and_then(|s| s.crlb_true_m)
     }
 }
 
@@ -144,7 +151,8 @@ pub(crate) mod tests {
             nees: None,
             pcrlb_m: None,
             min_true_distance_m: None,
-            crlb_true_m: crlb,
+            crlb_true_m: Some(crlb),
+            crlb_at_estimate_m: None,
             rmse_m: None,
             objective_value: None,
             plan_ms: None,
@@ -160,8 +168,17 @@ pub(crate) mod tests {
         let json = serde_json::to_string(&record(7, f64::INFINITY)).unwrap();
         assert!(json.contains("\"crlb_true_m\":null"), "{json}");
         let back: StepRecord = serde_json::from_str(&json).unwrap();
-        assert_eq!(back.crlb_true_m, f64::INFINITY);
+        assert_eq!(back.crlb_true_m, Some(f64::INFINITY));
         let finite: StepRecord = serde_json::from_str(&serde_json::to_string(&record(7, 12.5)).unwrap()).unwrap();
-        assert_eq!(finite.crlb_true_m, 12.5);
+        assert_eq!(finite.crlb_true_m, Some(12.5));
+    }
+
+    #[test]
+    fn without_a_truth_the_crlb_at_the_truth_is_absent_not_zero_nor_infinite() {
+        let r = StepRecord { crlb_true_m: None, ..record(3, 1.0) };
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(!json.contains("crlb_true_m"), "{json}");
+        let back: StepRecord = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.crlb_true_m, None);
     }
 }

@@ -61,7 +61,8 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
                 nees: None,
                 pcrlb_m: None,
                 min_true_distance_m: None,
-                crlb_true_m: crlb,
+                crlb_true_m: Some(crlb),
+                crlb_at_estimate_m: None,
                 rmse_m: (k != 2).then_some(1.2 * crlb + 5.0 * (k as f64).cos()),
                 objective_value: (k != 1 && k + 1 != n).then_some(0.9 * crlb),
                 plan_ms: (k + 1 != n).then_some(3.5 + k as f64),
@@ -85,7 +86,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
         objective: objective.to_owned(),
         solver: solver.to_owned(),
         seed,
-        emitter,
+        emitter: Some(emitter),
         estimator: "snapshot".into(),
         rejected_snapshots: 0,
         true_standoff_violations: None,
@@ -190,7 +191,7 @@ fn write_run_writes_the_seven_files() {
         for (pb, pr) in b.uavs.iter().zip(&r.uavs) {
             assert!((pb[0] - pr[0]).abs() < 1e-9 && (pb[1] - pr[1]).abs() < 1e-9);
         }
-        assert!((b.crlb_true_m - r.crlb_true_m).abs() < 1e-9);
+        assert!((b.crlb_true_m.unwrap() - r.crlb_true_m.unwrap()).abs() < 1e-9);
     }
     done(&dir);
 }
@@ -259,7 +260,7 @@ fn metrics_axis_is_log_only_for_a_wide_range() {
 
     let mut narrow = synthetic(3, "mc", "pso", 1);
     for s in &mut narrow.steps {
-        s.crlb_true_m = 50.0 + s.step as f64;
+        s.crlb_true_m = Some(50.0 + s.step as f64);
         s.rmse_m = Some(60.0);
     }
     plot_metrics(&narrow, &dir.join("narrow.svg")).unwrap();
@@ -314,11 +315,11 @@ fn csv_tables_have_one_row_per_step_and_empty_cells_for_none() {
     assert_eq!(
         lines[0],
         "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints,\
-         pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2"
+         pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m"
     );
     assert_eq!(lines.len(), 1 + 5);
     let rows: Vec<Vec<String>> = lines[1..].iter().map(|l| cells(l)).collect();
-    assert!(rows.iter().all(|r| r.len() == 16), "{rows:?}");
+    assert!(rows.iter().all(|r| r.len() == 17), "{rows:?}");
     // No truth in these records: the truth-based columns are empty, not zero.
     assert!(rows.iter().all(|r| r[9..13].iter().all(String::is_empty)), "{rows:?}");
     assert_eq!(rows[2][2], "", "rmse None at step 2");
@@ -372,7 +373,7 @@ fn a_record_without_steps_gives_empty_but_valid_files() {
     check_png(&dir.join("metrics.png"));
 
     // Not even a finite emitter: still a figure.
-    run.emitter = [f64::NAN, f64::INFINITY];
+    run.emitter = Some([f64::NAN, f64::INFINITY]);
     plot_trajectories(&run, &dir.join("nothing.png")).unwrap();
     check_png(&dir.join("nothing.png"));
     done(&dir);
@@ -385,7 +386,7 @@ fn non_finite_values_are_skipped() {
     run.steps[2].uavs[1] = [f64::NAN, 3000.0];
     run.steps[3].estimate = [f64::INFINITY, f64::NAN];
     run.steps[4].estimate = [1.0e9, -1.0e9]; // a wild but finite estimate: off-chart
-    run.steps[1].crlb_true_m = f64::INFINITY; // singular geometry
+    run.steps[1].crlb_true_m = Some(f64::INFINITY); // singular geometry
     run.steps[4].rmse_m = Some(f64::NAN);
     for name in ["t.svg", "t.png"] {
         plot_trajectories(&run, &dir.join(name)).unwrap();
@@ -403,7 +404,7 @@ fn non_finite_values_are_skipped() {
     check_png(&dir.join("m.png"));
     // A wholly non-finite metric series leaves an empty but valid chart.
     for s in &mut run.steps {
-        s.crlb_true_m = f64::NAN;
+        s.crlb_true_m = Some(f64::NAN);
         s.rmse_m = None;
     }
     plot_metrics(&run, &dir.join("m2.png")).unwrap();
@@ -440,13 +441,13 @@ fn render_for_visual_check() {
     let b = synthetic(24, "analytical", "ga", 1);
     let mut c = synthetic(24, "single", "aco", 1);
     for s in &mut c.steps {
-        s.crlb_true_m *= 1.4;
+        s.crlb_true_m = s.crlb_true_m.map(|c| c * 1.4);
     }
     plot_comparison(&[&run, &b, &c], Metric::CrlbTrue, &dir.join("comparison.png")).unwrap();
     plot_comparison(&[&run, &b, &c], Metric::CrlbTrue, &dir.join("comparison.svg")).unwrap();
     let mut narrow = synthetic(8, "mc", "pso", 1);
     for s in &mut narrow.steps {
-        s.crlb_true_m = 50.0 + s.step as f64;
+        s.crlb_true_m = Some(50.0 + s.step as f64);
         s.rmse_m = (s.step != 3).then_some(62.0 - s.step as f64);
     }
     plot_metrics(&narrow, &dir.join("metrics-linear.png")).unwrap();

@@ -30,6 +30,34 @@ impl RunArgs {
     }
 }
 
+/// Where a pipeline's measurements come from (`uavloc launch --source`, `monitor --source`).
+#[derive(clap::ValueEnum, Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Source {
+    /// emitter-sim, the simulated world, which also publishes the truth of every step.
+    #[default]
+    Simulator,
+    /// A front end outside uavloc (any language; the contract is docs/wire-format.md) publishes the
+    /// measurements and reads the commands; there is no truth.
+    External,
+}
+
+impl Source {
+    /// The flag value.
+    pub fn name(self) -> &'static str {
+        match self {
+            Source::Simulator => "simulator",
+            Source::External => "external",
+        }
+    }
+}
+
+impl std::fmt::Display for Source {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Default busy-poll budget of `--wait spin-then-block` when `--spin-us` is not given, µs.
 pub const DEFAULT_SPIN_US: u64 = 100;
 

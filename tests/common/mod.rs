@@ -310,3 +310,44 @@ pub fn assert_complete_run_equals_simulate(run: &Value, dir: &Path, domain: &str
     assert_eq!(run["rejected"].as_u64(), Some(0), "{label}: {}", run["rejected_by"]);
     assert_nothing_left(domain);
 }
+
+/// The Python interpreter of the tests that drive uavloc from Python through the official iceoryx2
+/// bindings (`examples/python/requirements.txt`): `$UAVLOC_PYTHON`, else the virtual environment
+/// `target/pyenv`, made on first use (`python3 -m venv`, then `pip install -r` the requirements; `.ci/run`
+/// makes it before the tests). Made in a private directory and renamed into place, so that test binaries
+/// running at once do not trip over each other.
+pub fn python() -> PathBuf {
+    if let Some(p) = std::env::var_os("UAVLOC_PYTHON").filter(|p| !p.is_empty()) {
+        return PathBuf::from(p);
+    }
+    // One test of this binary makes it; the others wait for it.
+    static MAKING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = MAKING.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let venv = root.join("target").join("pyenv");
+    let py = venv.join("bin").join("python");
+    let usable = |py: &Path| {
+        Command::new(py).args(["-c", "import iceoryx2, mcap"]).output().is_ok_and(|o| o.status.success())
+    };
+    if usable(&py) {
+        return py;
+    }
+    let tmp = root.join("target").join(format!("pyenv.{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let run = |cmd: &mut Command, what: &str| {
+        let out = cmd.output().unwrap_or_else(|e| panic!("{what}: {e}"));
+        assert!(out.status.success(), "{what} failed: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    run(Command::new("python3").args(["-m", "venv"]).arg(&tmp), "python3 -m venv (Python 3.11 or newer is needed)");
+    run(
+        Command::new(tmp.join("bin").join("pip"))
+            .args(["install", "-q", "-r"])
+            .arg(root.join("examples").join("python").join("requirements.txt")),
+        "pip install -r examples/python/requirements.txt",
+    );
+    if std::fs::rename(&tmp, &venv).is_err() {
+        let _ = std::fs::remove_dir_all(&tmp); // another test binary was first
+    }
+    assert!(usable(&py), "{} cannot import iceoryx2 and mcap", py.display());
+    py
+}

@@ -1,0 +1,251 @@
+#!/usr/bin/env python3
+"""An external uavloc front end in Python: a small world that publishes TDOA measurements and flies the
+planner's commands, through iceoryx2's official Python bindings (`pip install iceoryx2==0.10.0`).
+
+It stands where a receiver front end around an SDR would: uavloc's estimator, planner and monitor run
+without emitter-sim (`uavloc launch --source external --domain D --steps N`), and this script
+
+  1. opens D/measurement and D/command (and their companion event services, whose notifications wake
+     the uavloc processes up) and waits until the estimator, the planner and the monitor are there;
+  2. for k = 0..N: measures the range differences of the true emitter from the UAVs (Gaussian range noise
+     sigma per UAV, UAV 0 the reference), publishes the Measurement of step k, and — except after the
+     last step — waits for the Command of step k and flies it: each UAV goes to the command's waypoint
+     with the command's heading (the planner computed where the heading leads after one interval);
+  3. prints a JSON summary on stdout: the steps published, the commands flown, the true emitter, the
+     final UAV positions, and the malformed messages it sent (--inject-bad).
+
+The world is a scenario TOML of uavloc (default: scenarios/nominal.toml, the scenario `uavloc launch` runs
+by default): `uavs`, `headings_deg` (omitted: each UAV heads at the emitter), `emitter`, `sigma`.
+
+--inject-bad publishes three malformed measurements before step 1 (a NaN range difference, a UAV count
+of 2, a sequence number that steps back); uavloc's processes reject and count them, and the run goes on.
+
+Exit codes: 0 done, 1 an error (a timeout waiting for uavloc, a malformed command), 2 bad arguments.
+"""
+
+import argparse
+import ctypes
+import json
+import math
+import os
+import random
+import sys
+import time
+import tomllib
+
+import iceoryx2 as iox2
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import uavloc_messages as msg  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+DEFAULT_SCENARIO = os.path.join(HERE, "..", "..", "scenarios", "nominal.toml")
+
+
+class FrontEndError(Exception):
+    pass
+
+
+def load_world(path):
+    with open(path, "rb") as f:
+        sc = tomllib.load(f)
+    uavs = [list(map(float, p)) for p in sc.get("uavs", [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]])]
+    emitter = list(map(float, sc.get("emitter", [25000.0, 15000.0])))
+    n = len(uavs)
+    if not msg.MIN_UAVS <= n <= msg.MAX_UAVS:
+        raise FrontEndError(f"{path}: {n} UAVs; uavloc takes {msg.MIN_UAVS} to {msg.MAX_UAVS}")
+    sigma = sc.get("sigma", 28.7712)
+    sigmas = [float(s) for s in sigma] if isinstance(sigma, list) else [float(sigma)] * n
+    if "headings_deg" in sc:
+        headings = [math.radians(float(h)) for h in sc["headings_deg"]]
+    else:
+        headings = [math.atan2(emitter[1] - u[1], emitter[0] - u[0]) for u in uavs]
+    return uavs, headings, emitter, sigmas
+
+
+def wait_until(what, predicate, timeout_s):
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise FrontEndError(f"timed out after {timeout_s} s waiting for {what}")
+        time.sleep(0.01)
+
+
+class Link:
+    """The front end's two topics: D/measurement (publisher + notifier), D/command (subscriber + listener)."""
+
+    def __init__(self, domain):
+        iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
+        self.node = iox2.NodeBuilder.new().name(iox2.NodeName.new(f"{domain}/frontend")).create(iox2.ServiceType.Ipc)
+        self.measurements = self._pubsub(f"{domain}/measurement", msg.Measurement)
+        self.commands = self._pubsub(f"{domain}/command", msg.Command)
+        self.publisher = self.measurements.publisher_builder().create()
+        self.notifier = self._event(f"{domain}/measurement").notifier_builder().create()
+        self.subscriber = self.commands.subscriber_builder().buffer_size(msg.SUBSCRIBER_BUFFER).create()
+        self.listener = self._event(f"{domain}/command").listener_builder().create()
+
+    def _pubsub(self, name, t):
+        return (
+            self.node.service_builder(iox2.ServiceName.new(name))
+            .publish_subscribe(t)
+            .max_publishers(msg.MAX_PUBLISHERS)
+            .max_subscribers(msg.MAX_SUBSCRIBERS)
+            .subscriber_max_buffer_size(msg.SUBSCRIBER_BUFFER)
+            .history_size(msg.HISTORY)
+            .enable_safe_overflow(True)
+            .open_or_create()
+        )
+
+    def _event(self, name):
+        return (
+            self.node.service_builder(iox2.ServiceName.new(name))
+            .event()
+            .max_notifiers(msg.MAX_PUBLISHERS)
+            .max_listeners(msg.MAX_SUBSCRIBERS)
+            .notifier_created_event(iox2.EventId.new(msg.EVENT_PUBLISHER_CREATED))
+            .notifier_dropped_event(iox2.EventId.new(msg.EVENT_PUBLISHER_DROPPED))
+            .notifier_dead_event(iox2.EventId.new(msg.EVENT_PUBLISHER_DEAD))
+            .open_or_create()
+        )
+
+    def wait_for_uavloc(self, timeout_s):
+        # The estimator and the monitor subscribe to the measurements, the planner publishes the commands.
+        wait_until(
+            "uavloc's estimator and monitor (2 measurement subscribers) and planner (a command publisher)",
+            lambda: self.measurements.dynamic_config.number_of_subscribers >= 2
+            and self.commands.dynamic_config.number_of_publishers >= 1,
+            timeout_s,
+        )
+
+    def publish(self, m):
+        # The stamps of the latency chain (CLOCK_MONOTONIC, the clock of time.monotonic_ns on Linux).
+        m.header.stamps.published_ns = m.header.stamps.measurement_published_ns = time.monotonic_ns()
+        sample = self.publisher.loan_uninit()
+        sample = sample.write_payload(m)
+        sample.send()
+        # Wake up the waiting uavloc processes (they block on the topic's event service).
+        self.notifier.notify_with_custom_event_id(iox2.EventId.new(msg.EVENT_SAMPLE))
+
+    def command_of(self, step, timeout_s):
+        """The command of `step` (older ones are skipped) and when it was received."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            while True:
+                sample = self.subscriber.receive()
+                if sample is None:
+                    break
+                c = msg.Command.from_buffer_copy(sample.payload().contents)
+                received_ns = time.monotonic_ns()
+                sample.delete()
+                if c.header.step == step:
+                    return c, received_ns
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise FrontEndError(f"no command for step {step} within {timeout_s} s")
+            self.listener.timed_wait(iox2.Duration.from_secs_f64(min(left, 0.1)))
+
+
+def measure(step, seq, uavs, headings, emitter, sigmas, rng):
+    """The Measurement of step k: d_i = (r_i + n_i) - (r_0 + n_0), n_i ~ N(0, sigma_i^2), i = 1..N-1."""
+    n = len(uavs)
+    ranges = [math.hypot(u[0] - emitter[0], u[1] - emitter[1]) + rng.gauss(0.0, s) for u, s in zip(uavs, sigmas)]
+    m = msg.Measurement()
+    m.header.version = msg.MEASUREMENT_VERSION
+    m.header.step = step
+    m.header.seq = seq
+    m.count = n
+    for i in range(n):
+        m.uavs[i][0], m.uavs[i][1] = uavs[i]
+        m.sigmas[i] = sigmas[i]
+        m.headings[i] = headings[i]
+    for i in range(1, n):
+        m.diffs[i - 1] = ranges[i] - ranges[0]
+    return m
+
+
+def fly(command, n):
+    if command.count != n:
+        raise FrontEndError(f"a command for {command.count} UAVs; this world has {n}")
+    uavs = [[command.waypoints[i][0], command.waypoints[i][1]] for i in range(n)]
+    headings = [command.headings[i] for i in range(n)]
+    if not all(math.isfinite(v) for v in [*headings, *(c for u in uavs for c in u)]):
+        raise FrontEndError(f"a command with non-finite headings or waypoints (step {command.header.step})")
+    return uavs, headings
+
+
+def bad_measurements(good, seq, last_accepted_seq):
+    """Three malformed copies of `good`: a NaN range difference, 2 UAVs, a sequence number that steps back."""
+    out = []
+    nan = msg.Measurement.from_buffer_copy(good)
+    nan.diffs[0] = float("nan")
+    nan.header.seq = seq
+    out.append(("nan", nan))
+    two = msg.Measurement.from_buffer_copy(good)
+    two.count = 2
+    two.header.seq = seq + 1
+    out.append(("count", two))
+    stale = msg.Measurement.from_buffer_copy(good)
+    stale.header.seq = last_accepted_seq
+    out.append(("stale", stale))
+    return out
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--domain", default=os.environ.get("UAVLOC_DOMAIN", "uavloc"), help="uavloc's --domain")
+    p.add_argument("--steps", type=int, default=24, help="the launch's --steps N: steps 0..N are published")
+    p.add_argument("--scenario", default=DEFAULT_SCENARIO, help="the world (a uavloc scenario TOML)")
+    p.add_argument("--seed", type=int, default=7, help="seed of the range noise")
+    p.add_argument("--timeout-s", type=float, default=30.0, help="how long to wait for uavloc and for a command")
+    p.add_argument("--inject-bad", action="store_true", help="publish three malformed measurements before step 1")
+    args = p.parse_args()
+    if args.steps < 0:
+        p.error("--steps must be >= 0")
+
+    msg.check_layout()
+    uavs, headings, emitter, sigmas = load_world(args.scenario)
+    rng = random.Random(args.seed)
+    link = Link(args.domain)
+    link.wait_for_uavloc(args.timeout_s)
+    # Sequence numbers start at the monotonic clock: a restarted front end numbers above its predecessor.
+    seq = time.monotonic_ns()
+    flown, held, bad_sent = 0, 0, []
+    trigger = (0, 0)
+    last_accepted = None
+    for k in range(args.steps + 1):
+        m = measure(k, seq, uavs, headings, emitter, sigmas, rng)
+        m.header.stamps.trigger_command_published_ns, m.header.stamps.trigger_command_received_ns = trigger
+        if args.inject_bad and k == 1:
+            for kind, bad in bad_measurements(m, seq, last_accepted):
+                link.publish(bad)
+                bad_sent.append(kind)
+            seq += 2
+            m.header.seq = seq
+        link.publish(m)
+        last_accepted = seq
+        seq += 1
+        if k == args.steps:
+            break
+        c, received_ns = link.command_of(k, args.timeout_s)
+        uavs, headings = fly(c, len(uavs))
+        flown += 1
+        held += bool(c.flags & msg.COMMAND_FLAG_HOLD)
+        trigger = (c.header.stamps.command_published_ns, received_ns)
+    print(json.dumps({
+        "domain": args.domain,
+        "steps_published": args.steps + 1,
+        "commands_flown": flown,
+        "holds": held,
+        "truth": emitter,
+        "uavs": uavs,
+        "bad_sent": bad_sent,
+    }))
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except FrontEndError as e:
+        print(f"frontend: error: {e}", file=sys.stderr)
+        sys.exit(1)

@@ -1,0 +1,120 @@
+"""ctypes mirrors of uavloc's wire messages (include/uavloc/messages.h, docs/wire-format.md).
+
+The layouts equal the Rust `#[repr(C)]` types byte for byte; `check_layout()` compares the sizes with
+the ones the wire contract states, and the iceoryx2 type names below are the ones the Rust services are
+created with (a mismatch makes opening the service fail instead of misreading it).
+"""
+
+import ctypes
+
+MAX_UAVS = 8
+MIN_UAVS = 3
+
+MEASUREMENT_VERSION = 1
+COMMAND_VERSION = 3
+CONTROL_VERSION = 2
+
+# Event id of "a sample was published" on a topic's companion event service (protocol::transport::event_id).
+EVENT_SAMPLE = 1
+EVENT_PUBLISHER_CREATED = 2
+EVENT_PUBLISHER_DROPPED = 3
+EVENT_PUBLISHER_DEAD = 4
+
+# Service settings every uavloc topic is created with (protocol::transport); opening with the same ones
+# is always compatible.
+MAX_PUBLISHERS = 8
+MAX_SUBSCRIBERS = 16
+SUBSCRIBER_BUFFER = 64
+HISTORY = 0
+
+COMMAND_FLAG_HOLD = 1
+
+
+class Stamps(ctypes.Structure):
+    """Latency stamps, CLOCK_MONOTONIC nanoseconds (0 = not stamped)."""
+
+    _fields_ = [
+        ("published_ns", ctypes.c_uint64),
+        ("trigger_command_published_ns", ctypes.c_uint64),
+        ("trigger_command_received_ns", ctypes.c_uint64),
+        ("measurement_published_ns", ctypes.c_uint64),
+        ("measurement_received_ns", ctypes.c_uint64),
+        ("estimate_published_ns", ctypes.c_uint64),
+        ("estimate_received_ns", ctypes.c_uint64),
+        ("command_published_ns", ctypes.c_uint64),
+    ]
+
+
+class Header(ctypes.Structure):
+    """Common header: layout version, step, sequence number (strictly increasing per publisher), stamps."""
+
+    _fields_ = [
+        ("version", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+        ("step", ctypes.c_uint64),
+        ("seq", ctypes.c_uint64),
+        ("stamps", Stamps),
+    ]
+
+
+class Name16(ctypes.Structure):
+    """A short ASCII name, NUL-padded."""
+
+    _fields_ = [("bytes", ctypes.c_uint8 * 16)]
+
+    def text(self) -> str:
+        return bytes(self.bytes).rstrip(b"\0").decode("ascii", "replace")
+
+
+class Measurement(ctypes.Structure):
+    """front end -> estimator, planner, monitor: one TDOA snapshot of step k (metres, radians)."""
+
+    _fields_ = [
+        ("header", Header),
+        ("count", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+        ("uavs", (ctypes.c_double * 2) * MAX_UAVS),
+        ("diffs", ctypes.c_double * (MAX_UAVS - 1)),
+        ("sigmas", ctypes.c_double * MAX_UAVS),
+        ("headings", ctypes.c_double * MAX_UAVS),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        return "uavloc::Measurement/v1"
+
+
+class Command(ctypes.Structure):
+    """planner -> front end, monitor: the headings (and where they lead) for step k."""
+
+    _fields_ = [
+        ("header", Header),
+        ("planner_instance", ctypes.c_uint64),
+        ("plan_time_us", ctypes.c_uint64),
+        ("active_constraints", ctypes.c_uint64),
+        ("violated_constraints", ctypes.c_uint64),
+        ("count", ctypes.c_uint32),
+        ("flags", ctypes.c_uint32),
+        ("objective", ctypes.c_double),
+        ("headings", ctypes.c_double * MAX_UAVS),
+        ("waypoints", (ctypes.c_double * 2) * MAX_UAVS),
+        ("solver", Name16),
+        ("objective_name", Name16),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        return "uavloc::Command/v3"
+
+
+# Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/wire_layout.rs).
+SIZES = {Measurement: 408, Command: 360}
+
+
+def check_layout() -> None:
+    """Raises if a structure's size or alignment is not the wire contract's."""
+    for t, size in SIZES.items():
+        if ctypes.sizeof(t) != size or ctypes.alignment(t) != 8:
+            raise RuntimeError(
+                f"{t.__name__}: {ctypes.sizeof(t)} bytes, alignment {ctypes.alignment(t)}; the wire format says {size}, 8"
+            )

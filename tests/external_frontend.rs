@@ -1,0 +1,95 @@
+//! An external front end: `uavloc launch --source external` runs the estimator, the planner and the
+//! monitor without emitter-sim, and a real foreign client — `examples/python/frontend.py`, on iceoryx2's
+//! official Python bindings (PyPI `iceoryx2` 0.10) — plays the default scenario's world: it publishes each
+//! step's measurement and flies each command.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+use common::{Launch, assert_nothing_left, domain, python, scratch};
+
+const STEPS: u64 = 12;
+
+/// Runs the front end against a launch in `domain`; the launch's JSON and the front end's summary.
+fn run(domain: &str, tag: &str, extra: &[&str]) -> (Value, Value) {
+    let dir = scratch(tag);
+    let steps = STEPS.to_string();
+    let launch = Launch::start(domain, &dir, &["--source", "external", "--steps", &steps]);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/frontend.py");
+    let out = Command::new(python())
+        .arg(script)
+        .args(["--domain", domain, "--steps", &steps, "--timeout-s", "60"])
+        .args(extra)
+        .output()
+        .expect("run the Python front end");
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "the front end failed ({}):\n{stderr}\nlaunch:\n{}", out.status, launch.stderr_text());
+    let summary: Value = serde_json::from_slice(&out.stdout).expect("the front end's JSON summary");
+    let report = launch.finish_json();
+    assert_nothing_left(domain);
+    let _ = std::fs::remove_dir_all(&dir);
+    (report, summary)
+}
+
+#[test]
+fn a_python_front_end_is_answered_every_step_and_its_emitter_is_localised() {
+    let d = domain("ext", "py");
+    let (report, fe) = run(&d, "ext-py", &[]);
+    assert_eq!(fe["steps_published"], STEPS + 1);
+    assert_eq!(fe["commands_flown"], STEPS, "every step but the last answered with a command");
+    assert_eq!(fe["holds"], 0);
+    assert_eq!(report["rejected"], 0, "{}", report["rejected_by"]);
+    let steps = report["steps"].as_array().unwrap();
+    assert_eq!(steps.len() as u64, STEPS + 1, "every step recorded");
+    for s in &steps[..STEPS as usize] {
+        assert!(s["planner"].is_object() && s["objective_value"].is_f64(), "step planned: {s}");
+    }
+    // The world flew the commands: where the front end's UAVs ended is the last measurement's geometry.
+    let last = &steps[STEPS as usize];
+    assert_eq!(last["uavs"], fe["uavs"]);
+    assert_ne!(last["uavs"], steps[0]["uavs"]);
+    // No truth: the truth-based fields are absent or null, never zero; the CRLB at the estimate is there.
+    assert!(report["emitter"].is_null() && report["true_standoff_violations"].is_null(), "{}", report["emitter"]);
+    for s in steps {
+        assert!(s.get("crlb_true_m").is_none(), "{s}");
+        for key in ["truth", "rmse_m", "estimate_error_m", "nees", "pcrlb_m", "min_true_distance_m"] {
+            assert!(s[key].is_null(), "{key}: {s}");
+        }
+        assert!(s["crlb_at_estimate_m"].as_f64().is_some_and(|c| c > 0.0), "{s}");
+    }
+    // The estimate is within its expected error of the truth only the front end knows: the NEES of the
+    // reported covariance below the 99.9 % point of χ²(2), and closer than the initial CRLB (1655.58 m).
+    let truth = [fe["truth"][0].as_f64().unwrap(), fe["truth"][1].as_f64().unwrap()];
+    let e = [last["estimate"][0].as_f64().unwrap() - truth[0], last["estimate"][1].as_f64().unwrap() - truth[1]];
+    let c = |i: usize, j: usize| last["estimate_cov"][i][j].as_f64().unwrap();
+    let det = c(0, 0) * c(1, 1) - c(0, 1) * c(1, 0);
+    let nees = (c(1, 1) * e[0] * e[0] - (c(0, 1) + c(1, 0)) * e[0] * e[1] + c(0, 0) * e[1] * e[1]) / det;
+    assert!(nees < 13.82, "NEES {nees} of the final estimate (error {e:?})");
+    assert!(e[0].hypot(e[1]) < 1655.58, "final error {e:?}");
+    assert!(last["estimate_status"] == "ok", "{last}");
+}
+
+#[test]
+fn malformed_messages_from_the_python_front_end_are_rejected_and_counted() {
+    let d = domain("ext", "bad");
+    let (report, fe) = run(&d, "ext-bad", &["--inject-bad"]);
+    assert_eq!(fe["bad_sent"], serde_json::json!(["nan", "count", "stale"]));
+    // Each of the three is rejected by each process that reads measurements, and the run goes on.
+    assert_eq!(report["rejected_by"]["estimator"], 3, "{}", report["rejected_by"]);
+    assert_eq!(report["rejected_by"]["monitor"], 3, "{}", report["rejected_by"]);
+    assert_eq!(report["steps"].as_array().unwrap().len() as u64, STEPS + 1);
+    assert_eq!(fe["commands_flown"], STEPS);
+}
+
+#[test]
+fn pacing_flags_of_emitter_sim_are_refused_with_an_external_source() {
+    for flags in [&["--mode", "realtime"][..], &["--step-delay-ms", "5"]] {
+        let out = common::uavloc(&[&["launch", "--source", "external", "--headless"][..], flags].concat());
+        assert_eq!(out.status.code(), Some(2), "{flags:?}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains("--source external"), "{flags:?}");
+    }
+}
