@@ -19,6 +19,7 @@ pub mod launch;
 pub mod locate;
 pub mod output;
 pub mod paper;
+pub mod replay;
 pub mod rmse;
 pub mod simulate;
 pub mod swap;
@@ -109,6 +110,12 @@ pub enum Command {
         after_help = swap::AFTER_HELP
     )]
     Swap(swap::SwapArgs),
+    /// Run the estimator and the planner again on a recorded run (`launch --record FILE.mcap`), open loop.
+    #[command(
+        long_about = replay::LONG_ABOUT,
+        after_help = replay::AFTER_HELP
+    )]
+    Replay(replay::ReplayArgs),
     /// Reproduce the paper's experiments (Tables 2–10, Figures 4–17) with the paper's numbers beside ours.
     #[command(
         long_about = paper::LONG_ABOUT,

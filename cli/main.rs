@@ -6,8 +6,8 @@ use std::process::ExitCode;
 use clap::Parser;
 use clap::error::ErrorKind;
 use uavloc::{
-    Cli, CliError, Command, Diagnostic, Report, bench, crlb, global, launch, locate, one_line_clap_error, paper, rmse,
-    simulate, swap,
+    Cli, CliError, Command, Diagnostic, Report, bench, crlb, global, launch, locate, one_line_clap_error, paper,
+    replay, rmse, simulate, swap,
 };
 
 fn main() -> ExitCode {
@@ -37,6 +37,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => emit(simulate::run(a), json),
         Command::Launch(a) => emit(launch::run(a), json),
         Command::Swap(a) => emit(swap::run(a), json),
+        Command::Replay(a) => emit(replay::run(a), json),
         Command::Paper(a) => emit(paper::run(a), json),
         Command::Bench(a) => match &a.what {
             bench::BenchCommand::Latency(a) => emit(bench::latency::run_latency(a), json),

@@ -121,6 +121,21 @@ pub fn check_out_dir(flag: &str, dir: &std::path::Path) -> Result<(), crate::err
     Ok(())
 }
 
+/// Checks an output file flag before a run: `file` must not be a directory, and its directory must
+/// exist (or be creatable) and be writable. Returns the absolute path (what a child process is given).
+pub fn check_out_file(flag: &str, file: &std::path::Path) -> Result<std::path::PathBuf, crate::error::CliError> {
+    use crate::error::CliError;
+    let bad = |what: String| CliError::Input(format!("{flag} {}: {what}", file.display()));
+    if file.is_dir() {
+        return Err(bad("is a directory".into()));
+    }
+    let abs = std::path::absolute(file).map_err(|e| bad(e.to_string()))?;
+    if let Some(dir) = abs.parent() {
+        check_out_dir(flag, dir)?;
+    }
+    Ok(abs)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -27,7 +27,12 @@ fn run(domain: &str, tag: &str, extra: &[&str]) -> (Value, Value) {
         .output()
         .expect("run the Python front end");
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "the front end failed ({}):\n{stderr}\nlaunch:\n{}", out.status, launch.stderr_text());
+    assert!(
+        out.status.success(),
+        "the front end failed ({}):\n{stderr}\nlaunch:\n{}",
+        out.status,
+        launch.stderr_text()
+    );
     let summary: Value = serde_json::from_slice(&out.stdout).expect("the front end's JSON summary");
     let report = launch.finish_json();
     assert_nothing_left(domain);

@@ -321,6 +321,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
         },
         domain: Some(domain),
         source: runtime::Source::Simulator,
+        record: None,
         headless: true,
         out: None,
         log: None,

@@ -81,6 +81,11 @@ pub struct LaunchArgs {
     /// Directory for the monitor's CSVs, run.json and plots (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Record every message of the run (measurement, estimate, command, truth, control) to FILE as MCAP:
+    /// JSON channels with JSON schemas, so Foxglove and the Python `mcap` package open it; `uavloc replay
+    /// FILE` runs the estimator and the planner on it again. Kept whole across monitor restarts.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
     /// The monitor's JSON-lines event log (default: a file in the launch's private state directory,
     /// removed at the end). The step records are kept there during the run, not in memory.
     #[arg(long, value_name = "FILE")]

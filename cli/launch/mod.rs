@@ -123,6 +123,9 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     if let Some(dir) = &args.out {
         crate::output::check_out_dir("--out", dir)?;
     }
+    if let Some(file) = &args.record {
+        crate::output::check_out_file("--record", file)?;
+    }
     let domain = launch_domain(args.domain.as_deref())?;
     // Held until the launch returns: a second launch into this domain is refused here, atomically.
     let _lock = state_dir::DomainLock::acquire(&domain)?;

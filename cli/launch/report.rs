@@ -87,17 +87,12 @@ impl Report for LaunchReport {
             .row("steps recorded", format!("{} (0..{})", r.steps.len(), r.steps.len().saturating_sub(1)))
             .row(
                 "emitter (truth)",
-                r.emitter.map_or("- (no truth: external front end)".into(), |e| format!("({:.1}, {:.1}) m", e[0], e[1])),
+                r.emitter
+                    .map_or("- (no truth: external front end)".into(), |e| format!("({:.1}, {:.1}) m", e[0], e[1])),
             )
             .row("final CRLB at truth", format!("{} m", opt(last.and_then(|s| s.crlb_true_m), 2)))
             .row("final RMSE", format!("{} m", opt(last.and_then(|s| s.rmse_m), 2)))
-            .row(
-                "final |ẑ − z|",
-                format!(
-                    "{} m",
-                    opt(last.and_then(|s| s.estimate_error_m), 1)
-                ),
-            )
+            .row("final |ẑ − z|", format!("{} m", opt(last.and_then(|s| s.estimate_error_m), 1)))
             .row(
                 "median hops",
                 format!(

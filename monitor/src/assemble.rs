@@ -327,14 +327,8 @@ impl Assembler {
         let geometry = NoiseModel::from_range_sigmas(m.sigmas()).and_then(|noise| Sensors::new(m.uavs(), noise)).ok();
         let (crlb_true_m, rmse_m) = match (&geometry, &truth) {
             (Some(sensors), Some(truth)) => {
-                let metrics = step_metrics(
-                    sensors,
-                    truth,
-                    self.scenario.rmse_resamples,
-                    self.scenario.seed,
-                    k,
-                    Some(estimate),
-                );
+                let metrics =
+                    step_metrics(sensors, truth, self.scenario.rmse_resamples, self.scenario.seed, k, Some(estimate));
                 (Some(metrics.crlb_true_m), metrics.rmse_m)
             }
             (None, Some(_)) => (Some(f64::INFINITY), None),

@@ -15,6 +15,7 @@ pub mod metrics;
 pub mod plot;
 pub mod process;
 pub mod record;
+pub mod recording;
 pub mod resources;
 pub mod runlog;
 pub mod stamps;

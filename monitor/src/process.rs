@@ -53,8 +53,8 @@ use clap::Args;
 use model::load_scenario;
 use protocol::services;
 use protocol::{
-    Command, Control, ControlKind, Estimate, Measurement, Message, MessageKind, RejectionCounter, Topic,
-    TopicSubscriber, Truth, Waitable, now_ns,
+    Command, Control, ControlKind, Estimate, Measurement, MessageKind, RejectionCounter, Topic, TopicSubscriber, Truth,
+    Waitable, now_ns,
 };
 use runtime::checkpoint::checkpoint_step_at_or_below;
 use runtime::{Flow, Handler, IDLE_WAKEUP, Node};
@@ -64,6 +64,7 @@ use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
 use crate::latency::LatencySamples;
 pub use crate::latency::{LatencyStat, LatencySummary};
 use crate::record::RunRecord;
+use crate::recording::{Recordable, Recorder};
 use crate::runlog::EventLog;
 pub use crate::runlog::{LoggedRun, read_log};
 pub use crate::stamps::STAMPS_HEADER;
@@ -119,6 +120,11 @@ pub struct MonitorArgs {
     /// Write every event as one JSON object per line to FILE.
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
+    /// Record every message of the run to FILE as MCAP (JSON channels with JSON schemas: Foxglove and the
+    /// Python `mcap` package open it; `uavloc replay FILE` runs the estimator and planner on it again).
+    /// With --resume the messages already in FILE are kept.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
     /// Write the run record (the JSON of `uavloc simulate --json`) to FILE at the end.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
@@ -204,6 +210,7 @@ impl MonitorArgs {
             .value("--source", self.source)
             .path("--stamps", self.stamps.as_deref())
             .path("--log", self.log.as_deref())
+            .path("--mcap", self.mcap.as_deref())
             .path("--record", self.record.as_deref())
             .path("--out", self.out.as_deref())
             .switch("--print-record", self.print_record)
@@ -275,10 +282,12 @@ struct State {
     replays_requested: u64,
     /// An emitter-sim (re)joined since the last progress report.
     emitter_joined: bool,
+    /// `--mcap`: every valid message, as received.
+    recorder: Option<Recorder>,
 }
 
 impl State {
-    fn drain<T: Message>(
+    fn drain<T: Recordable>(
         &mut self,
         node: &mut Node,
         sub: &TopicSubscriber<T>,
@@ -301,6 +310,9 @@ impl State {
                 }
                 continue;
             }
+            if let Some(r) = &mut self.recorder {
+                r.record(&msg, received_ns);
+            }
             let h = msg.header();
             self.log.write(
                 "message",
@@ -313,6 +325,9 @@ impl State {
 
     /// Logs and shows who joined or took over.
     fn heard(&mut self, c: &Control) {
+        if let Some(r) = &mut self.recorder {
+            r.record(c, now_ns());
+        }
         let Some(kind) =
             c.kind().filter(|k| matches!(k, ControlKind::Hello | ControlKind::TakeOver | ControlKind::Replay))
         else {
@@ -342,7 +357,11 @@ impl State {
     }
 
     fn complete_steps(&mut self, rejected: u64) {
-        for done in self.assembler.complete_ready() {
+        let completed = self.assembler.complete_ready();
+        if let (Some(r), false) = (&mut self.recorder, completed.is_empty()) {
+            r.flush();
+        }
+        for done in completed {
             self.account(&done);
             if let Some(p) = &done.planner
                 && self.planner.as_ref() != Some(p)
@@ -456,6 +475,9 @@ impl Handler for MonitorNode<'_> {
         state.complete_steps(node.counter().total());
         // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
         state.log.check()?;
+        if let Some(r) = &state.recorder {
+            r.check().map_err(ProcessError::Failed)?;
+        }
         if let Some(stamps) = &state.stamps {
             stamps.check()?;
         }
@@ -515,6 +537,19 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     };
     let domain = node.domain().clone();
     let stamps = args.stamps.as_deref().map(|p| StampsCsv::create(p, resumed)).transpose()?;
+    let recorder = match &args.mcap {
+        Some(path) => {
+            let metadata = std::collections::BTreeMap::from([
+                ("scenario".to_string(), serde_json::to_string(&scenario).unwrap_or_default()),
+                ("steps".to_string(), scenario.steps.to_string()),
+                ("seed".to_string(), scenario.seed.to_string()),
+                ("domain".to_string(), domain.to_string()),
+                ("source".to_string(), args.source.to_string()),
+            ]);
+            Some(Recorder::create(path, metadata, resumed.is_some()).map_err(ProcessError::Failed)?)
+        }
+        None => None,
+    };
     let measurements = Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain))?;
     let estimates = Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))?;
     let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
@@ -535,6 +570,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             stamps,
             replays_requested: 0,
             emitter_joined: false,
+            recorder,
         },
         truths: &truths,
         measurements: &measurements,
@@ -545,12 +581,10 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     };
     let state = &mut monitor.state;
     match resumed {
-        None => {
-            state.log.write(
-                "start",
-                json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed, "source": args.source}),
-            )
-        }
+        None => state.log.write(
+            "start",
+            json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed, "source": args.source}),
+        ),
         Some(n) => state.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
     }
     // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
@@ -610,6 +644,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     if let Some(csv) = state.stamps.take() {
         csv.finish()?;
     }
+    let recorded = state.recorder.take().map_or(Ok(()), Recorder::finish);
     state.log.write(
         "end",
         json!({
@@ -620,7 +655,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     );
     // The record is the run's result: a failure to write files from it does not lose it (it still goes
     // to the supervisor), it is reported.
-    if let Err(e) = write_outputs(args, &run) {
+    if let Err(e) = recorded.map_err(ProcessError::Failed).and_then(|()| write_outputs(args, &run)) {
         eprintln!("error: monitor: {e}");
         summary.output_error = Some(e.to_string());
     }

@@ -326,9 +326,8 @@ pub fn python() -> PathBuf {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let venv = root.join("target").join("pyenv");
     let py = venv.join("bin").join("python");
-    let usable = |py: &Path| {
-        Command::new(py).args(["-c", "import iceoryx2, mcap"]).output().is_ok_and(|o| o.status.success())
-    };
+    let usable =
+        |py: &Path| Command::new(py).args(["-c", "import iceoryx2, mcap"]).output().is_ok_and(|o| o.status.success());
     if usable(&py) {
         return py;
     }

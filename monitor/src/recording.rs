@@ -1,0 +1,527 @@
+//! MCAP recordings of a pipeline run: every valid message the monitor receives — measurement, estimate,
+//! command, truth, control — as one MCAP message on the channel of its kind (`/measurement`, …),
+//! JSON-encoded with a JSON schema per channel, so that Foxglove, the Python `mcap` package or any MCAP
+//! reader opens the file without uavloc. Read back by [`read_recording`] (what `uavloc replay` runs on).
+//!
+//! - Each message's JSON has `step`, `seq`, `stamps` (the header's latency stamps, CLOCK_MONOTONIC ns)
+//!   and the type's fields, per-UAV arrays trimmed to the `count` UAVs in use. Numbers are written so that
+//!   they read back to the same `f64` bit for bit; a NaN (a failed estimate without a standing one) is
+//!   `null`. `log_time` is when the monitor received the message, `publish_time` its `published_ns`.
+//! - A metadata record `uavloc` holds the run: the scenario (JSON), steps, seed, domain and source.
+//! - Messages are written unchunked and the file is flushed after every recorded step, so a monitor killed
+//!   mid-run leaves a file whose messages up to the last flush are intact; the restarted monitor
+//!   (`--resume`) copies them into a new file and records on (the summary and footer are written at the
+//!   end). What a replay re-published is recorded again, as the monitor saw it on the wire.
+//! - Reading walks the file record by record and names the byte offset of the first damaged one (a
+//!   truncated or corrupt file is an error, not a shorter recording).
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+
+use protocol::{Command, Control, ControlKind, Estimate, Measurement, Message, MessageKind, Stamps, Truth};
+use serde_json::{Value, json};
+
+/// The MCAP channel (topic) of each message kind.
+pub fn topic(kind: MessageKind) -> &'static str {
+    match kind {
+        MessageKind::Measurement => "/measurement",
+        MessageKind::Estimate => "/estimate",
+        MessageKind::Command => "/command",
+        MessageKind::Truth => "/truth",
+        MessageKind::Control => "/control",
+    }
+}
+
+/// The name of the metadata record that describes the run.
+pub const METADATA_NAME: &str = "uavloc";
+
+/// A message type as it is recorded: its JSON and its JSON schema's properties.
+pub trait Recordable: Message {
+    /// The message as JSON (see the module docs).
+    fn to_json(&self) -> Value;
+    /// The JSON schema properties of the type's own fields (besides `step`, `seq`, `stamps`).
+    fn schema_properties() -> Value;
+}
+
+fn stamps_json(s: &Stamps) -> Value {
+    json!({
+        "published_ns": s.published_ns,
+        "trigger_command_published_ns": s.trigger_command_published_ns,
+        "trigger_command_received_ns": s.trigger_command_received_ns,
+        "measurement_published_ns": s.measurement_published_ns,
+        "measurement_received_ns": s.measurement_received_ns,
+        "estimate_published_ns": s.estimate_published_ns,
+        "estimate_received_ns": s.estimate_received_ns,
+        "command_published_ns": s.command_published_ns,
+    })
+}
+
+fn with_header<T: Message>(m: &T, mut fields: Value) -> Value {
+    let h = m.header();
+    fields["step"] = json!(h.step);
+    fields["seq"] = json!(h.seq);
+    fields["stamps"] = stamps_json(&h.stamps);
+    fields
+}
+
+const NUMBERS: &str = r#"{"type": "array", "items": {"type": ["number", "null"]}}"#;
+const POINTS: &str = r#"{"type": "array", "items": {"type": "array", "items": {"type": ["number", "null"]}, "minItems": 2, "maxItems": 2}}"#;
+
+fn numbers() -> Value {
+    serde_json::from_str(NUMBERS).expect("schema")
+}
+fn points() -> Value {
+    serde_json::from_str(POINTS).expect("schema")
+}
+fn integer() -> Value {
+    json!({"type": "integer", "minimum": 0})
+}
+fn string() -> Value {
+    json!({"type": "string"})
+}
+
+impl Recordable for Measurement {
+    fn to_json(&self) -> Value {
+        with_header(
+            self,
+            json!({"count": self.count, "uavs": self.uavs(), "diffs": self.diffs(), "sigmas": self.sigmas(),
+                   "headings": self.headings()}),
+        )
+    }
+    fn schema_properties() -> Value {
+        json!({"count": integer(), "uavs": points(), "diffs": numbers(), "sigmas": numbers(), "headings": numbers()})
+    }
+}
+
+impl Recordable for Estimate {
+    fn to_json(&self) -> Value {
+        with_header(
+            self,
+            json!({
+                "instance": self.instance, "count": self.count,
+                "status": self.status().map_or("unknown", |s| s.name()),
+                "estimator": if self.estimator == 1 { "fused" } else { "snapshot" },
+                "model": if self.model == 1 { "constant_velocity" } else { "static" },
+                "rejected_run": self.rejected_run,
+                "position": self.position, "covariance": self.covariance,
+                "uavs": self.uavs(), "headings": self.headings(),
+                "velocity": self.velocity, "cross_cov": self.cross_cov, "velocity_cov": self.velocity_cov,
+            }),
+        )
+    }
+    fn schema_properties() -> Value {
+        json!({
+            "instance": integer(), "count": integer(), "status": string(), "estimator": string(), "model": string(),
+            "rejected_run": integer(), "position": numbers(), "covariance": points(), "uavs": points(),
+            "headings": numbers(), "velocity": numbers(), "cross_cov": points(), "velocity_cov": points(),
+        })
+    }
+}
+
+impl Recordable for Command {
+    fn to_json(&self) -> Value {
+        with_header(
+            self,
+            json!({
+                "planner_instance": self.planner_instance, "plan_time_us": self.plan_time_us,
+                "active_constraints": self.active_constraints, "violated_constraints": self.violated_constraints,
+                "count": self.count, "hold": self.is_hold(), "objective": self.objective,
+                "headings": self.headings(), "waypoints": self.waypoints(),
+                "solver": self.solver().unwrap_or("?"), "objective_name": self.objective_name().unwrap_or("?"),
+            }),
+        )
+    }
+    fn schema_properties() -> Value {
+        json!({
+            "planner_instance": integer(), "plan_time_us": integer(), "active_constraints": integer(),
+            "violated_constraints": integer(), "count": integer(), "hold": {"type": "boolean"},
+            "objective": {"type": "number"}, "headings": numbers(), "waypoints": points(), "solver": string(),
+            "objective_name": string(),
+        })
+    }
+}
+
+impl Recordable for Truth {
+    fn to_json(&self) -> Value {
+        let previous = match self.previous_command() {
+            Some(protocol::CommandOutcome::Flown) => "flown",
+            Some(protocol::CommandOutcome::Missed) => "missed",
+            _ => "none",
+        };
+        with_header(self, json!({"position": self.position, "previous_command": previous}))
+    }
+    fn schema_properties() -> Value {
+        json!({"position": numbers(), "previous_command": string()})
+    }
+}
+
+impl Recordable for Control {
+    fn to_json(&self) -> Value {
+        with_header(
+            self,
+            json!({
+                "instance": self.instance, "started_ns": self.started_ns,
+                "kind": self.kind().map_or("unknown", ControlKind::name),
+                "role": self.role().unwrap_or("?"), "detail": self.detail(),
+            }),
+        )
+    }
+    fn schema_properties() -> Value {
+        json!({"instance": integer(), "started_ns": integer(), "kind": string(), "role": string(), "detail": string()})
+    }
+}
+
+/// The JSON schema of `T`'s recorded JSON.
+pub fn schema_of<T: Recordable>() -> Value {
+    let mut properties = T::schema_properties();
+    properties["step"] = integer();
+    properties["seq"] = integer();
+    properties["stamps"] = json!({"type": "object", "additionalProperties": {"type": "integer"}});
+    json!({
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": T::TYPE_NAME,
+        "type": "object",
+        "properties": properties,
+        "required": ["step", "seq", "stamps"],
+    })
+}
+
+/// A message read back from a recording.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordedMessage {
+    /// Its channel (`/measurement`, …).
+    pub topic: String,
+    /// When the monitor received it, CLOCK_MONOTONIC ns.
+    pub log_time: u64,
+    /// Its JSON (see the module docs).
+    pub json: Value,
+}
+
+/// A recording read back: the run's metadata and every message in file order.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Recording {
+    /// The `uavloc` metadata record (empty if absent).
+    pub metadata: BTreeMap<String, String>,
+    /// The messages, in the order they were written.
+    pub messages: Vec<RecordedMessage>,
+}
+
+/// Writes a recording (see the module docs).
+pub struct Recorder {
+    path: PathBuf,
+    writer: mcap::Writer<BufWriter<File>>,
+    channels: BTreeMap<&'static str, u16>,
+    sequence: u32,
+    error: Option<String>,
+}
+
+impl std::fmt::Debug for Recorder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Recorder").field("path", &self.path).finish_non_exhaustive()
+    }
+}
+
+fn channel_of<T: Recordable>(
+    writer: &mut mcap::Writer<BufWriter<File>>,
+    channels: &mut BTreeMap<&'static str, u16>,
+) -> mcap::McapResult<u16> {
+    let topic = topic(T::KIND);
+    if let Some(id) = channels.get(topic) {
+        return Ok(*id);
+    }
+    let schema = serde_json::to_vec(&schema_of::<T>()).expect("a JSON value");
+    let schema_id = writer.add_schema(T::TYPE_NAME, "jsonschema", &schema)?;
+    let id = writer.add_channel(schema_id, topic, "json", &BTreeMap::new())?;
+    channels.insert(topic, id);
+    Ok(id)
+}
+
+impl Recorder {
+    /// Creates the recording at `path` with the run's `metadata`. With `resume`, the messages of a
+    /// recording already at `path` (a monitor's predecessor's, possibly cut short by a kill) are copied
+    /// into the new file first.
+    pub fn create(path: &Path, metadata: BTreeMap<String, String>, resume: bool) -> Result<Self, String> {
+        let fail = |e: &dyn std::fmt::Display| format!("--mcap {}: {e}", path.display());
+        let earlier = if resume && path.exists() {
+            let bytes = std::fs::read(path).map_err(|e| fail(&e))?;
+            read_messages_up_to_damage(&bytes)
+        } else {
+            Vec::new()
+        };
+        let file = File::create(path).map_err(|e| fail(&e))?;
+        let options = mcap::WriteOptions::new()
+            .compression(None)
+            .use_chunks(false)
+            .emit_message_indexes(false)
+            .profile("")
+            .library(concat!("uavloc ", env!("CARGO_PKG_VERSION")));
+        let mut writer = options.create(BufWriter::new(file)).map_err(|e| fail(&e))?;
+        writer
+            .write_metadata(&mcap::records::Metadata { name: METADATA_NAME.into(), metadata })
+            .map_err(|e| fail(&e))?;
+        let mut r = Recorder { path: path.to_path_buf(), writer, channels: BTreeMap::new(), sequence: 0, error: None };
+        for m in earlier {
+            r.write_json(&m.topic, m.log_time, &m.json);
+        }
+        r.flush();
+        r.check()?;
+        Ok(r)
+    }
+
+    /// Records one message received at `received_ns`.
+    pub fn record<T: Recordable>(&mut self, msg: &T, received_ns: u64) {
+        if self.error.is_some() {
+            return;
+        }
+        let data = serde_json::to_vec(&msg.to_json()).expect("a JSON value");
+        let result = channel_of::<T>(&mut self.writer, &mut self.channels).and_then(|channel_id| {
+            self.sequence = self.sequence.wrapping_add(1);
+            self.writer.write_to_known_channel(
+                &mcap::records::MessageHeader {
+                    channel_id,
+                    sequence: self.sequence,
+                    log_time: received_ns,
+                    publish_time: msg.header().stamps.published_ns,
+                },
+                &data,
+            )
+        });
+        if let Err(e) = result {
+            self.error = Some(format!("--mcap {}: {e}", self.path.display()));
+        }
+    }
+
+    /// Re-writes a message read back from an earlier recording (its type from its topic).
+    fn write_json(&mut self, topic_name: &str, log_time: u64, json: &Value) {
+        let channel = match topic_name {
+            "/measurement" => channel_of::<Measurement>(&mut self.writer, &mut self.channels),
+            "/estimate" => channel_of::<Estimate>(&mut self.writer, &mut self.channels),
+            "/command" => channel_of::<Command>(&mut self.writer, &mut self.channels),
+            "/truth" => channel_of::<Truth>(&mut self.writer, &mut self.channels),
+            "/control" => channel_of::<Control>(&mut self.writer, &mut self.channels),
+            _ => return,
+        };
+        let publish_time = json["stamps"]["published_ns"].as_u64().unwrap_or(0);
+        let data = serde_json::to_vec(json).expect("a JSON value");
+        let result = channel.and_then(|channel_id| {
+            self.sequence = self.sequence.wrapping_add(1);
+            self.writer.write_to_known_channel(
+                &mcap::records::MessageHeader { channel_id, sequence: self.sequence, log_time, publish_time },
+                &data,
+            )
+        });
+        if let Err(e) = result {
+            self.error = Some(format!("--mcap {}: {e}", self.path.display()));
+        }
+    }
+
+    /// Pushes what was recorded to the file (a kill after this loses none of it).
+    pub fn flush(&mut self) {
+        if self.error.is_none()
+            && let Err(e) = self.writer.flush()
+        {
+            self.error = Some(format!("--mcap {}: {e}", self.path.display()));
+        }
+    }
+
+    /// The first write error, naming the file.
+    pub fn check(&self) -> Result<(), String> {
+        self.error.clone().map_or(Ok(()), Err)
+    }
+
+    /// Writes the summary and the footer and closes the file.
+    pub fn finish(mut self) -> Result<(), String> {
+        self.check()?;
+        self.writer.finish().map_err(|e| format!("--mcap {}: {e}", self.path.display()))?;
+        let mut inner = self.writer.into_inner();
+        inner.flush().map_err(|e| format!("--mcap {}: {e}", self.path.display()))
+    }
+}
+
+/// A damaged recording: where and what.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{path}: {what} at byte offset {offset}")]
+pub struct RecordingError {
+    /// The file.
+    pub path: String,
+    /// The byte offset of the damage (of the record that cannot be read).
+    pub offset: u64,
+    /// What is wrong there.
+    pub what: String,
+}
+
+const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+const OP_FOOTER: u8 = 0x02;
+const OP_CHUNK: u8 = 0x06;
+
+/// Reads the recording at `path`: an error names the byte offset of the first damaged record (a file
+/// cut short, a corrupt record, a missing end), or the file if it cannot be read.
+pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| RecordingError {
+        path: name.clone(),
+        offset: 0,
+        what: format!("cannot read it ({e})"),
+    })?;
+    parse(&bytes, true).map_err(|(offset, what)| RecordingError { path: name, offset, what })
+}
+
+/// The messages of a recording up to its first damage (what a monitor killed mid-run left).
+fn read_messages_up_to_damage(bytes: &[u8]) -> Vec<RecordedMessage> {
+    match parse(bytes, false) {
+        Ok(r) => r.messages,
+        Err(_) => Vec::new(),
+    }
+}
+
+/// Walks the records; `strict`: the file must end with a footer and the magic.
+fn parse(bytes: &[u8], strict: bool) -> Result<Recording, (u64, String)> {
+    if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+        return Err((0, "not an MCAP file (no MCAP magic at the start)".into()));
+    }
+    let mut out = Recording::default();
+    let mut topics: BTreeMap<u16, String> = BTreeMap::new();
+    let mut at = MAGIC.len();
+    loop {
+        let offset = at as u64;
+        if at == bytes.len() {
+            if strict {
+                return Err((offset, "the file ends without a footer (cut short?)".into()));
+            }
+            return Ok(out);
+        }
+        if bytes.len() - at < 9 {
+            return Err((offset, "a record header cut short (the file ends inside it)".into()));
+        }
+        let op = bytes[at];
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().expect("8 bytes"));
+        let body_start = at + 9;
+        let Some(body_end) = usize::try_from(len).ok().and_then(|l| body_start.checked_add(l)) else {
+            return Err((offset, format!("a record (opcode {op:#04x}) claims an impossible length {len}")));
+        };
+        if body_end > bytes.len() {
+            return Err((
+                offset,
+                format!(
+                    "a record (opcode {op:#04x}) of {len} bytes cut short: the file ends {} bytes into it",
+                    bytes.len() - body_start
+                ),
+            ));
+        }
+        let body = &bytes[body_start..body_end];
+        if op == OP_CHUNK {
+            return Err((offset, "a chunk: this reader takes the unchunked recordings uavloc writes".into()));
+        }
+        let record = mcap::read::parse_record(op, body)
+            .map_err(|e| (offset, format!("a corrupt record (opcode {op:#04x}): {e}")))?;
+        match record {
+            mcap::records::Record::Channel(c) => {
+                topics.insert(c.id, c.topic);
+            }
+            mcap::records::Record::Message { header, data } => {
+                let topic = topics.get(&header.channel_id).cloned().ok_or_else(|| {
+                    (offset, format!("a message on channel {} that was never declared", header.channel_id))
+                })?;
+                let json = serde_json::from_slice(&data)
+                    .map_err(|e| (offset, format!("a message on {topic} that is not JSON: {e}")))?;
+                out.messages.push(RecordedMessage { topic, log_time: header.log_time, json });
+            }
+            mcap::records::Record::Metadata(m) if m.name == METADATA_NAME => out.metadata = m.metadata,
+            _ => {}
+        }
+        at = body_end;
+        if op == OP_FOOTER {
+            if bytes.get(at..) != Some(MAGIC) {
+                return Err((at as u64, "no MCAP magic after the footer".into()));
+            }
+            return Ok(out);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::Fix;
+
+    const UAVS: [[f64; 2]; 3] = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("uavloc-mcap-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join("run.mcap")
+    }
+
+    fn measurement(k: u64) -> Measurement {
+        Measurement::new(k, 100 + k, &UAVS, &[0.1 + 0.2, -4010.9], &[28.7712; 3], &[0.1, 0.2, 0.3]).unwrap()
+    }
+
+    #[test]
+    fn what_is_recorded_reads_back_bit_for_bit_with_its_metadata() {
+        let path = scratch("roundtrip");
+        let meta = BTreeMap::from([("steps".to_string(), "2".to_string())]);
+        let mut r = Recorder::create(&path, meta.clone(), false).unwrap();
+        r.record(&measurement(0), 11);
+        let failed = Estimate::from_measurement(&measurement(0), 12, 1, 7, Fix::Failed).unwrap();
+        r.record(&failed, 13);
+        r.record(&measurement(1), 14);
+        r.finish().unwrap();
+        let back = read_recording(&path).unwrap();
+        assert_eq!(back.metadata, meta);
+        let topics: Vec<&str> = back.messages.iter().map(|m| m.topic.as_str()).collect();
+        assert_eq!(topics, ["/measurement", "/estimate", "/measurement"]);
+        let m = &back.messages[0].json;
+        assert_eq!(m["diffs"][0].as_f64().unwrap().to_bits(), (0.1f64 + 0.2).to_bits());
+        assert_eq!(m["uavs"].as_array().unwrap().len(), 3, "trimmed to the UAVs in use");
+        assert_eq!(back.messages[0].log_time, 11);
+        let e = &back.messages[1].json;
+        assert_eq!((e["status"].as_str(), e["position"][0].is_null()), (Some("failed"), true), "NaN is null");
+        std::fs::remove_dir_all(path.parent().unwrap()).ok();
+    }
+
+    #[test]
+    fn a_cut_or_corrupt_file_is_an_error_naming_the_offset_and_a_resume_keeps_what_was_flushed() {
+        let path = scratch("damage");
+        let mut r = Recorder::create(&path, BTreeMap::new(), false).unwrap();
+        for k in 0..5 {
+            r.record(&measurement(k), k);
+        }
+        r.finish().unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let cut = bytes.len() - 40;
+        std::fs::write(&path, &bytes[..cut]).unwrap();
+        let e = read_recording(&path).unwrap_err();
+        assert!(e.offset > 0 && e.offset < cut as u64, "{e}");
+        assert!(e.to_string().contains("byte offset"), "{e}");
+        // A flipped opcode in the middle: a corrupt record at its offset.
+        let mut bad = bytes.clone();
+        let mut first_message = MAGIC.len();
+        while bytes[first_message] != 0x05 {
+            let len = u64::from_le_bytes(bytes[first_message + 1..first_message + 9].try_into().unwrap());
+            first_message += 9 + len as usize;
+        }
+        bad[first_message + 1] = 0xff; // its length: now beyond the end of the file
+        std::fs::write(&path, &bad).unwrap();
+        let e = read_recording(&path).unwrap_err();
+        assert_eq!(e.offset, first_message as u64, "{e}");
+        std::fs::write(&path, b"not mcap").unwrap();
+        assert_eq!(read_recording(&path).unwrap_err().offset, 0);
+        // A monitor killed after 3 messages; its successor resumes the file and records on.
+        let mut r = Recorder::create(&path, BTreeMap::new(), false).unwrap();
+        for k in 0..3 {
+            r.record(&measurement(k), k);
+        }
+        r.flush();
+        std::mem::forget(r); // killed: no footer
+        assert!(read_recording(&path).is_err(), "no footer");
+        let mut r = Recorder::create(&path, BTreeMap::new(), true).unwrap();
+        r.record(&measurement(3), 3);
+        r.finish().unwrap();
+        let steps: Vec<u64> =
+            read_recording(&path).unwrap().messages.iter().map(|m| m.json["step"].as_u64().unwrap()).collect();
+        assert_eq!(steps, [0, 1, 2, 3]);
+        std::fs::remove_dir_all(path.parent().unwrap()).ok();
+    }
+}

@@ -1,0 +1,104 @@
+//! Runs recorded as MCAP (`uavloc launch --record FILE.mcap`) and replayed (`uavloc replay FILE`): the file
+//! is read back by the Python `mcap` package alone (channels, counts, values against the run's JSON), the
+//! replay with the recorded settings reproduces every recorded estimate bit for bit, another estimator
+//! gives other estimates, a monitor killed mid-run still leaves a whole recording, and a cut or corrupt
+//! file is refused naming the byte offset (exit 2).
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use common::{Launch, domain, json_of, kill, pid_of, python, scratch, uavloc};
+use serde_json::Value;
+
+const STEPS: u64 = 8;
+
+fn replay(file: &Path, extra: &[&str]) -> Value {
+    json_of(&[&["--json", "replay", file.to_str().unwrap()][..], extra].concat())
+}
+
+#[test]
+fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
+    let dir = scratch("record");
+    let file = dir.join("run.mcap");
+    let d = domain("rec", "py");
+    let steps = STEPS.to_string();
+    let run = Launch::start(&d, &dir, &["--steps", &steps, "--record", file.to_str().unwrap()]).finish_json();
+
+    // The Python `mcap` package reads it without uavloc.
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/read_recording.py");
+    let out = Command::new(python()).arg(script).arg(&file).output().expect("run the Python reader");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let read: Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let channels = &read["channels"];
+    for (topic, count) in
+        [("/measurement", STEPS + 1), ("/estimate", STEPS + 1), ("/truth", STEPS + 1), ("/command", STEPS)]
+    {
+        assert_eq!(channels[topic]["count"], count, "{topic}: {channels}");
+        assert_eq!(channels[topic]["message_encoding"], "json");
+        assert_eq!(channels[topic]["schema_encoding"], "jsonschema");
+    }
+    assert_eq!(channels["/estimate"]["schema"], "uavloc::Estimate/v3");
+    assert!(channels["/control"]["count"].as_u64().unwrap() >= 4, "every process said hello: {channels}");
+    assert_eq!(read["metadata"]["uavloc"]["steps"], steps);
+    for (k, s) in run["steps"].as_array().unwrap().iter().enumerate() {
+        let recorded = &read["estimates"][k.to_string()];
+        assert_eq!(recorded["position"], s["estimate"], "step {k}: the recorded estimate is the run's");
+        assert_eq!(recorded["status"], s["estimate_status"]);
+    }
+
+    // Replayed with the recorded settings: every estimate and every plan as recorded.
+    let same = replay(&file, &[]);
+    assert_eq!(same["steps"], STEPS + 1);
+    assert_eq!(same["estimates_compared"], STEPS + 1);
+    assert_eq!(same["estimates_equal"], STEPS + 1, "{same}");
+    assert_eq!(same["max_estimate_delta_m"], 0.0);
+    assert_eq!((same["plans_compared"].clone(), same["plans_equal"].clone()), (STEPS.into(), STEPS.into()));
+    // Another estimator on the same flight: other estimates (the first snapshot is Chan's in both).
+    let other = replay(&file, &["--estimator", "snapshot"]);
+    assert_eq!(other["estimator"], "snapshot");
+    assert!(other["estimates_equal"].as_u64().unwrap() < STEPS + 1, "{other}");
+    assert!(other["max_estimate_delta_m"].as_f64().unwrap() > 1.0, "{other}");
+
+    // Cut short, or not MCAP at all: exit 2, naming the offset.
+    let bytes = std::fs::read(&file).unwrap();
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let out = uavloc(&["replay", cut.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("cut short") && err.contains("at byte offset"), "{err}");
+    let junk = dir.join("junk.mcap");
+    std::fs::write(&junk, b"{\"not\": \"mcap\"}").unwrap();
+    let out = uavloc(&["replay", junk.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not an MCAP file"), "{out:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_monitor_killed_mid_run_still_leaves_a_whole_recording() {
+    let dir = scratch("record-kill");
+    let file = dir.join("run.mcap");
+    let d = domain("rec", "kill");
+    let steps = 30u64;
+    let mut launch =
+        Launch::start(&d, &dir, &["--steps", "30", "--step-delay-ms", "20", "--record", file.to_str().unwrap()]);
+    launch.wait_for_step(8, Duration::from_secs(30));
+    kill(pid_of(&d, "monitor").expect("the monitor"), libc::SIGKILL);
+    let run = launch.finish_json();
+    assert_eq!(run["restarts"], 1);
+    let recording = monitor::recording::read_recording(&file).expect("a whole recording");
+    for topic in ["/measurement", "/estimate", "/truth"] {
+        let mut seen: Vec<u64> =
+            recording.messages.iter().filter(|m| m.topic == topic).map(|m| m.json["step"].as_u64().unwrap()).collect();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen, (0..=steps).collect::<Vec<_>>(), "{topic}");
+    }
+    let same = replay(&file, &[]);
+    assert_eq!(same["estimates_equal"], steps + 1, "{same}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
