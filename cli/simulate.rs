@@ -31,6 +31,9 @@ Examples:
   uavloc simulate --objective single --solver ga --seed 7 --json
   uavloc simulate --scenario scenarios/nominal.toml --objective formation --out runs/formation
 
+--record FILE.mcap writes the messages the pipeline would carry (measurement, estimate, command, truth
+of every step) to an MCAP recording, like `uavloc launch --record`; `uavloc replay FILE` runs on it.
+
 --out DIR writes trajectory.csv, steps.csv, run.json and plots (trajectories.svg/.png like the paper's
 Figure 4, metrics.svg/.png with CRLB and RMSE per step).";
 
@@ -43,6 +46,10 @@ pub struct SimulateArgs {
     /// Directory to write CSVs, run.json and plots into (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Write the messages of every step (measurement, estimate, command, truth — as the pipeline would
+    /// carry them) to FILE as MCAP (see `uavloc launch --record`).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
 }
 
 /// Loads the scenario of the flags (file or default) with `--steps`/`--seed` applied, validated.
@@ -69,14 +76,69 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     if let Some(dir) = &args.out {
         crate::output::check_out_dir("--out", dir)?;
     }
-    let run = experiments::closed_loop::run_closed_loop(&sc, args.run.objective, args.run.solver, |_| {})
-        .map_err(|e| CliError::Failed(e.to_string()))?;
+    let mut recorder = match &args.record {
+        Some(file) => {
+            let file = crate::output::check_out_file("--record", file)?;
+            let metadata = monitor::recording::run_metadata(&sc, "simulate", "simulator");
+            Some(monitor::recording::Recorder::create(&file, metadata, false).map_err(CliError::Failed)?)
+        }
+        None => None,
+    };
+    let (objective, solver) = (args.run.objective, args.run.solver);
+    let run = experiments::closed_loop::run_closed_loop(&sc, objective, solver, |record, trace| {
+        if let Some(r) = &mut recorder {
+            record_step(r, record, trace, objective, solver);
+        }
+    })
+    .map_err(|e| CliError::Failed(e.to_string()))?;
+    if let Some(r) = recorder {
+        r.finish().map_err(CliError::Failed)?;
+    }
     let written = match &args.out {
         Some(dir) => monitor::export::write_run(&run, dir)
             .map_err(|e| CliError::Failed(format!("--out {}: {e}", dir.display())))?,
         None => Vec::new(),
     };
     Ok(SimulateReport { run, written })
+}
+
+/// Records the messages of one step of the closed loop, as the pipeline's processes would publish them
+/// (sequence numbers = the step; no latency stamps: nothing travelled).
+fn record_step(
+    r: &mut monitor::recording::Recorder,
+    record: &monitor::StepRecord,
+    trace: &experiments::closed_loop::StepTrace<'_>,
+    objective: planner::ObjectiveKind,
+    solver: planner::SolverKind,
+) {
+    use protocol::{Command, CommandOutcome, Estimate, Measurement, PlanInfo, Truth};
+    let k = record.step;
+    let now = protocol::now_ns();
+    let previous = if k == 0 { CommandOutcome::None } else { CommandOutcome::Flown };
+    r.record(&Truth::new(k, k, trace.truth).with_previous_command(previous), now);
+    let uavs = &record.uavs;
+    let Ok(m) = Measurement::new(k, k, uavs, trace.range_diffs, trace.sigmas, trace.measured_headings) else { return };
+    r.record(&m, now);
+    let reply = estimator::process::reply_of(trace.estimate);
+    if let Ok(e) = Estimate::from_measurement(&m, now, k, 0, reply.fix) {
+        r.record(&e.with_extra(&reply.extra).with_standing(reply.standing), now);
+    }
+    if let Some(plan) = trace.plan {
+        let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();
+        let info = PlanInfo {
+            headings: &plan.headings,
+            waypoints: &waypoints,
+            objective: if plan.objective_value.is_finite() { plan.objective_value } else { -1.0 },
+            solver: solver.name(),
+            objective_name: objective.name(),
+            plan_time_us: (plan.plan_time_ms * 1e3).round() as u64,
+            active_constraints: model::active_mask::encode(&plan.active_constraints),
+            violated_constraints: model::active_mask::encode_violated(&plan.active_constraints),
+        };
+        if let Ok(c) = Command::new(k, k, 0, &info) {
+            r.record(&c, now);
+        }
+    }
 }
 
 fn opt(v: Option<f64>, digits: usize) -> String {

@@ -62,6 +62,27 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
     assert!(other["estimates_equal"].as_u64().unwrap() < STEPS + 1, "{other}");
     assert!(other["max_estimate_delta_m"].as_f64().unwrap() > 1.0, "{other}");
 
+    // `simulate --record` writes the messages the pipeline carried: the same measurements and estimates.
+    let sim_file = dir.join("sim.mcap");
+    let out = uavloc(&["simulate", "--steps", &steps, "--record", sim_file.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let fields = |file: &Path, topic: &str, keys: &[&str]| -> Vec<Value> {
+        let r = monitor::recording::read_recording(file).unwrap();
+        let mut seen = std::collections::BTreeMap::new();
+        for m in r.messages.iter().filter(|m| m.topic == topic) {
+            let picked: Vec<Value> = keys.iter().map(|k| m.json[*k].clone()).collect();
+            seen.entry(m.json["step"].as_u64().unwrap()).or_insert(Value::Array(picked));
+        }
+        seen.into_values().collect()
+    };
+    let m_keys = ["uavs", "diffs", "sigmas", "headings"];
+    assert_eq!(fields(&sim_file, "/measurement", &m_keys), fields(&file, "/measurement", &m_keys));
+    let e_keys = ["status", "position", "covariance", "velocity"];
+    assert_eq!(fields(&sim_file, "/estimate", &e_keys), fields(&file, "/estimate", &e_keys));
+    let c_keys = ["headings", "waypoints", "active_constraints"];
+    assert_eq!(fields(&sim_file, "/command", &c_keys), fields(&file, "/command", &c_keys));
+    assert_eq!(replay(&sim_file, &[])["estimates_equal"], STEPS + 1);
+
     // Cut short, or not MCAP at all: exit 2, naming the offset.
     let bytes = std::fs::read(&file).unwrap();
     let cut = dir.join("cut.mcap");

@@ -689,7 +689,7 @@ mod tests {
         let (inputs, runs) = collect_inputs(&sc, 10).unwrap();
         assert_eq!((inputs.len(), runs), (10, 3));
         let run =
-            experiments::closed_loop::run_closed_loop(&sc, REFERENCE.0, REFERENCE.1, |_| {}).expect("closed loop");
+            experiments::closed_loop::run_closed_loop(&sc, REFERENCE.0, REFERENCE.1, |_, _| {}).expect("closed loop");
         for (k, input) in inputs[..4].iter().enumerate() {
             let rec = &run.steps[k];
             assert_eq!((input.run_seed, input.step), (sc.seed, k as u64));

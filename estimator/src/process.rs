@@ -379,27 +379,33 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply
         (Ok(noise), Ok(diffs)) => estimator.estimate(m.header.step, &uavs, &diffs, &noise).ok(),
         _ => None,
     };
-    let standing = || estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c));
     match outcome {
-        Some(out) => {
-            let (position, covariance) = tdoa::estimate_to_arrays(&out.position, &out.covariance);
-            let fix = match out.status {
-                EstimateStatus::Ok => Fix::Ok { position, covariance },
-                EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
-                EstimateStatus::Rejected { .. } => Fix::Rejected { position, covariance },
-                EstimateStatus::Failed { .. } => {
-                    // The library returned its previous estimate: the standing one.
-                    return Reply {
-                        fix: Fix::Failed,
-                        extra: PosteriorExtra::default(),
-                        standing: Some((position, covariance)),
-                    };
-                }
-            };
-            Reply { fix, extra: extra_of(out.posterior.as_ref(), out.rejected_run), standing: None }
-        }
-        None => Reply { fix: Fix::Failed, extra: PosteriorExtra::default(), standing: standing() },
+        Some(out) => reply_of(&out),
+        None => Reply {
+            fix: Fix::Failed,
+            extra: PosteriorExtra::default(),
+            standing: estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c)),
+        },
     }
+}
+
+/// The wire form of the library estimator's output.
+pub fn reply_of(out: &crate::EstimateOut) -> Reply {
+    let (position, covariance) = tdoa::estimate_to_arrays(&out.position, &out.covariance);
+    let fix = match out.status {
+        EstimateStatus::Ok => Fix::Ok { position, covariance },
+        EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
+        EstimateStatus::Rejected { .. } => Fix::Rejected { position, covariance },
+        EstimateStatus::Failed { .. } => {
+            // The library returned its previous estimate: the standing one.
+            return Reply {
+                fix: Fix::Failed,
+                extra: PosteriorExtra::default(),
+                standing: Some((position, covariance)),
+            };
+        }
+    };
+    Reply { fix, extra: extra_of(out.posterior.as_ref(), out.rejected_run), standing: None }
 }
 
 /// The estimator's handler: its ports, its state and the bookkeeping of a swap.

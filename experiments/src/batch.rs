@@ -166,7 +166,7 @@ impl Engine {
             .map(|m| {
                 let mut run_sc = sc.clone();
                 run_sc.seed = derive_seed(self.settings.seed, m as u64, Purpose::OuterRun);
-                let run = run_closed_loop(&run_sc, objective, solver, |_| {}).map_err(|e| ExperimentError::Run {
+                let run = run_closed_loop(&run_sc, objective, solver, |_, _| {}).map_err(|e| ExperimentError::Run {
                     config: format!("{label} {}/{}", objective.name(), solver.name()),
                     run: m,
                     message: e.to_string(),

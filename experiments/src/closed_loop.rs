@@ -26,14 +26,33 @@ fn rows(m: &Matrix2<f64>) -> [[f64; 2]; 2] {
     [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]]
 }
 
+/// What a step carried besides its record — what the pipeline's messages of the step would carry (the
+/// measurement's range differences and σ, the estimator's whole output, the plan), for `simulate
+/// --record`.
+#[derive(Debug)]
+pub struct StepTrace<'a> {
+    /// The true emitter position, metres.
+    pub truth: [f64; 2],
+    /// The UAV headings at the measurement, radians.
+    pub measured_headings: &'a [f64],
+    /// The measured range differences d_i = r_i − r_0, metres.
+    pub range_diffs: &'a [f64],
+    /// The range noise σ per UAV, metres.
+    pub sigmas: &'a [f64],
+    /// The estimator's output for the step.
+    pub estimate: &'a estimator::EstimateOut,
+    /// The plan of the step (`None` on the last step).
+    pub plan: Option<&'a planner::PlanOutput>,
+}
+
 /// The closed loop for `scenario` (its `steps` and `seed`), planning with `objective` × `solver`.
 /// Step 0 is the initial geometry; the last step is measured but not planned. `on_step` is called after
-/// every recorded step (for progress).
+/// every recorded step (for progress, or to record the step's messages).
 pub fn run_closed_loop(
     scenario: &Scenario,
     objective: ObjectiveKind,
     solver: SolverKind,
-    mut on_step: impl FnMut(&StepRecord),
+    mut on_step: impl FnMut(&StepRecord, &StepTrace<'_>),
 ) -> Result<RunRecord, LoopError> {
     let failed = |stage: String, e: &dyn std::fmt::Display| LoopError { stage, message: e.to_string() };
     let mut world = emitter_sim::World::from_scenario(scenario).map_err(|e| failed("world".into(), &e))?;
@@ -78,7 +97,8 @@ pub fn run_closed_loop(
             planner: None,
             criterion_ess: None,
         };
-        if k < scenario.steps as u64 {
+        let measured_headings = world.headings().to_vec();
+        let plan = if k < scenario.steps as u64 {
             let plan = plan_step(&PlanRequest {
                 positions: world.positions(),
                 headings: world.headings(),
@@ -98,8 +118,19 @@ pub fn run_closed_loop(
             // The wire form, as the pipeline's monitor records it (no violation magnitudes).
             record.active_constraints = planner::active_mask::labels(&plan.active_constraints, plan.headings.len());
             record.criterion_ess = plan.criterion_ess;
-        }
-        on_step(&record);
+            Some(plan)
+        } else {
+            None
+        };
+        let trace = StepTrace {
+            truth: pair(&truth),
+            measured_headings: &measured_headings,
+            range_diffs: meas.range_diffs.as_slice(),
+            sigmas: world.noise().sigmas(),
+            estimate: &est,
+            plan: plan.as_ref(),
+        };
+        on_step(&record, &trace);
         steps.push(record);
     }
     let mut run = RunRecord {

@@ -30,7 +30,7 @@ fn timings(engine: &Engine, sc: &Scenario, method: ObjectiveKind) -> Result<Vec<
     for m in 0..TIMING_RUNS.min(engine.settings().runs) {
         let mut run_sc = base.clone();
         run_sc.seed = derive_seed(engine.settings().seed, m as u64, Purpose::OuterRun);
-        let run = run_closed_loop(&run_sc, method, SolverKind::Pso, |_| {}).map_err(|e| ExperimentError::Run {
+        let run = run_closed_loop(&run_sc, method, SolverKind::Pso, |_, _| {}).map_err(|e| ExperimentError::Run {
             config: format!("table7 {}", method.name()),
             run: m,
             message: e.to_string(),

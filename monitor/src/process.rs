@@ -539,13 +539,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let stamps = args.stamps.as_deref().map(|p| StampsCsv::create(p, resumed)).transpose()?;
     let recorder = match &args.mcap {
         Some(path) => {
-            let metadata = std::collections::BTreeMap::from([
-                ("scenario".to_string(), serde_json::to_string(&scenario).unwrap_or_default()),
-                ("steps".to_string(), scenario.steps.to_string()),
-                ("seed".to_string(), scenario.seed.to_string()),
-                ("domain".to_string(), domain.to_string()),
-                ("source".to_string(), args.source.to_string()),
-            ]);
+            let metadata = crate::recording::run_metadata(&scenario, domain.as_str(), args.source.name());
             Some(Recorder::create(path, metadata, resumed.is_some()).map_err(ProcessError::Failed)?)
         }
         None => None,

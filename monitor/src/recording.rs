@@ -37,6 +37,18 @@ pub fn topic(kind: MessageKind) -> &'static str {
 /// The name of the metadata record that describes the run.
 pub const METADATA_NAME: &str = "uavloc";
 
+/// The `uavloc` metadata of a recording: the scenario (JSON), its steps and seed, the domain and the
+/// measurement source.
+pub fn run_metadata(scenario: &model::Scenario, domain: &str, source: &str) -> BTreeMap<String, String> {
+    BTreeMap::from([
+        ("scenario".to_string(), serde_json::to_string(scenario).unwrap_or_default()),
+        ("steps".to_string(), scenario.steps.to_string()),
+        ("seed".to_string(), scenario.seed.to_string()),
+        ("domain".to_string(), domain.to_string()),
+        ("source".to_string(), source.to_string()),
+    ])
+}
+
 /// A message type as it is recorded: its JSON and its JSON schema's properties.
 pub trait Recordable: Message {
     /// The message as JSON (see the module docs).
