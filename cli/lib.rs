@@ -16,6 +16,7 @@ pub mod error;
 pub mod fuse;
 pub mod global;
 pub mod launch;
+pub mod live;
 pub mod locate;
 pub mod output;
 pub mod paper;

@@ -34,8 +34,10 @@ fn main() -> ExitCode {
         Command::Global(a) => emit(global::run(a), json),
         Command::Locate(a) => emit(locate::run(a), json),
         Command::Rmse(a) => emit(rmse::run(a), json),
-        Command::Simulate(a) => emit(simulate::run(a), json),
-        Command::Launch(a) => emit(launch::run(a), json),
+        Command::Simulate(a) => {
+            emit(simulate::run(&simulate::SimulateArgs { live: a.live && !json, ..a.clone() }), json)
+        }
+        Command::Launch(a) => emit(launch::run_from_cli(a, json), json),
         Command::Swap(a) => emit(swap::run(a), json),
         Command::Replay(a) => emit(replay::run(a), json),
         Command::Paper(a) => emit(paper::run(a), json),

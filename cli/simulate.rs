@@ -46,6 +46,10 @@ pub struct SimulateArgs {
     /// Directory to write CSVs, run.json and plots into (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Show the run on the live view (map, errors) as it goes, a step every 100 ms; `q` skips to the end,
+    /// where the view waits for `q`. Needs a terminal (otherwise the table is printed as without it).
+    #[arg(long)]
+    pub live: bool,
     /// Write the messages of every step (measurement, estimate, command, truth — as the pipeline would
     /// carry them) to FILE as MCAP (see `uavloc launch --record`).
     #[arg(long, value_name = "FILE.mcap")]
@@ -85,12 +89,35 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
         None => None,
     };
     let (objective, solver) = (args.run.objective, args.run.solver);
+    let mut live = match args.live && crate::live::LiveTerminal::available() {
+        true => Some((
+            crate::live::LiveTerminal::start().map_err(|e| CliError::Failed(format!("--live: {e}")))?,
+            crate::live::LiveState {
+                planner: Some(format!("{}/{} (in this process)", solver.name(), objective.name())),
+                ..crate::live::LiveState::new("simulate", sc.steps as u64, sc.l_min)
+            },
+            false,
+        )),
+        false => None,
+    };
     let run = experiments::closed_loop::run_closed_loop(&sc, objective, solver, |record, trace| {
         if let Some(r) = &mut recorder {
             record_step(r, record, trace, objective, solver);
         }
+        if let Some((terminal, view, skip)) = &mut live {
+            view.apply_step(record);
+            if !*skip {
+                let _ = terminal.draw(view);
+                *skip = terminal.quit_pressed(std::time::Duration::from_millis(100));
+            }
+        }
     })
     .map_err(|e| CliError::Failed(e.to_string()))?;
+    if let Some((mut terminal, mut view, _)) = live {
+        view.note = "the run is over: q closes the view".into();
+        let _ = terminal.draw(&view);
+        while !terminal.quit_pressed(std::time::Duration::from_millis(200)) {}
+    }
     if let Some(r) = recorder {
         r.finish().map_err(CliError::Failed)?;
     }

@@ -329,6 +329,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
         link: LinkArgs { transport: config.transport, wait: Some(config.wait), spin_us: Some(flags.spin_us) },
         stamps: Some(stamps_file.clone()),
         idle_probe_ms: flags.idle_ms,
+        live: false,
         mode: emitter_sim::process::Mode::Lockstep,
         time_scale: None,
         estimate_deadline_ms: 0,

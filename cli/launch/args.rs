@@ -35,8 +35,13 @@ ms after the step's measurement, the planner holds course (commands the current 
 straight on); the step is recorded with active_constraints [\"estimate_stale\"] and counted in
 \"stale_steps\". Meant for realtime runs; a lock-step run with a deadline depends on timing.
 
-The monitor shows one line per step on stderr (CRLB and RMSE at the truth, estimate error, hop latencies,
-active planner, rejected messages) unless --headless. At the end the run is printed as a table, or with
+On a terminal (stdout and stderr) the launch shows a live view: the map with the UAV tracks, the true
+emitter (T), the estimate (E) with its 95 % ellipse and the L_min circle; beside it the RMSE and the CRLB
+at the truth over the steps, the processes (pid, restarts), the planner in charge, the rejected messages
+and the last hop latencies; `q` stops the run (as Ctrl-C: the steps done are kept, exit code 1). Not on a
+terminal, or with --headless or --json, the monitor shows one line per step on stderr instead (CRLB and
+RMSE at the truth, estimate error, hop latencies, active planner, rejected messages), or nothing with
+--headless. At the end the run is printed as a table, or with
 --json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\",
 \"missed_commands\" and \"processes\".
 
@@ -75,7 +80,7 @@ pub struct LaunchArgs {
     /// examples/python/; no truth, so the columns that need one are absent).
     #[arg(long, value_name = "SOURCE", default_value = "simulator")]
     pub source: runtime::Source,
-    /// No live view: the monitor and the other processes print only errors.
+    /// No live view and no status lines: the monitor and the other processes print only errors.
     #[arg(long)]
     pub headless: bool,
     /// Directory for the monitor's CSVs, run.json and plots (created if missing).
@@ -99,6 +104,9 @@ pub struct LaunchArgs {
     /// Write the raw stamps of every step as CSV (the monitor's --stamps; what `uavloc bench` reads).
     #[arg(long, value_name = "FILE")]
     pub stamps: Option<PathBuf>,
+    /// Show the live view (set by `uavloc launch` on a terminal without --headless or --json).
+    #[arg(skip)]
+    pub live: bool,
     /// For `uavloc bench`: before starting emitter-sim, measure the CPU use of the waiting monitor,
     /// planner and estimator over this many milliseconds (0: no probe).
     #[arg(skip)]

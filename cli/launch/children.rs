@@ -40,7 +40,7 @@ pub(super) fn child_flags(
             run: run.clone(),
             log: Some(log.to_path_buf()),
             out: args.out.clone(),
-            quiet: args.headless,
+            quiet: args.headless || args.live,
             ..defaults()
         }
         .to_flags(),
@@ -99,6 +99,7 @@ pub(super) fn start_and_run(
     domain: &Domain,
     state: &StateDir,
     log: &std::path::Path,
+    live: bool,
 ) -> Result<(), CliError> {
     for role in Role::started(args.source) {
         if role == Role::EmitterSim && args.idle_probe_ms > 0 {
@@ -120,7 +121,29 @@ pub(super) fn start_and_run(
             d
         );
     }
-    sup.wait_for_the_end(Duration::from_secs_f64(args.command_timeout_s))
+    let grace = Duration::from_secs_f64(args.command_timeout_s);
+    if !live {
+        return sup.wait_for_the_end(grace, &mut |_| {});
+    }
+    // The live view: the monitor's log as it grows, the children as the supervisor sees them; `q` stops.
+    let mut terminal =
+        crate::live::LiveTerminal::start().map_err(|e| CliError::Failed(format!("the live view: {e}")))?;
+    let title = format!("launch {domain} ({})", args.source);
+    let mut view = crate::live::LiveState::new(title, sc.steps as u64, sc.l_min);
+    let mut tail = crate::live::LogTail::new(log);
+    let mut on_tick = |sup: &Supervisor| {
+        for line in tail.poll() {
+            if let Ok(event) = serde_json::from_str::<serde_json::Value>(&line) {
+                view.apply_event(&event);
+            }
+        }
+        view.processes = sup.process_rows();
+        let _ = terminal.draw(&view);
+        if terminal.quit_pressed(Duration::ZERO) {
+            super::supervisor::stop_requested_by_user();
+        }
+    };
+    sup.wait_for_the_end(grace, &mut on_tick)
 }
 
 #[cfg(test)]

@@ -87,6 +87,13 @@ fn launch_domain(flag: Option<&str>) -> Result<Domain, CliError> {
     Domain::new(&name).map_err(|e| CliError::Input(format!("--domain: {e}")))
 }
 
+/// Runs `uavloc launch` as the command line asks: with the live view on a terminal, unless `--headless`
+/// or `--json`.
+pub fn run_from_cli(args: &LaunchArgs, json: bool) -> Result<LaunchReport, CliError> {
+    let live = !json && !args.headless && crate::live::LiveTerminal::available();
+    run(&LaunchArgs { live, ..args.clone() })
+}
+
 /// Runs `uavloc launch`.
 pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let start = Instant::now();
@@ -155,7 +162,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     })?;
     let log = args.log.clone().unwrap_or_else(|| state.path("monitor.jsonl"));
     let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts);
-    let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log);
+    let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log, args.live);
     sup.stop_all();
     // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown
     // message.
@@ -178,7 +185,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // was stopped — and printed with `"interrupted": true` (exit code 1).
     let interrupted = match result {
         Err(e) => match (supervisor::received_signal(), &sup.record) {
-            (Some(signal), Some(_)) => Some(format!("interrupted by {signal}: {e}")),
+            (Some(_), Some(_)) => Some(e.to_string()),
             _ => return Err(e),
         },
         Ok(()) => None,

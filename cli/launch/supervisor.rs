@@ -50,8 +50,20 @@ pub(super) fn received_signal() -> Option<&'static str> {
     }
 }
 
+/// The value of [`SIGNAL`] when the user pressed `q` in the live view.
+const QUIT_KEY: i32 = -1;
+
+/// Stops the launch as a signal would (the live view's `q`): every child stopped, the steps done kept.
+pub(super) fn stop_requested_by_user() {
+    SIGNAL.store(QUIT_KEY, Ordering::SeqCst);
+}
+
 fn signal_name(signal: i32) -> &'static str {
-    if signal == libc::SIGINT { "SIGINT" } else { "SIGTERM" }
+    match signal {
+        QUIT_KEY => "the q key",
+        libc::SIGINT => "SIGINT",
+        _ => "SIGTERM",
+    }
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -296,15 +308,38 @@ impl Supervisor {
         Ok(())
     }
 
+    /// The current instance of each role, as the live view lists them.
+    pub(super) fn process_rows(&self) -> Vec<crate::live::ProcessRow> {
+        let mut rows = Vec::new();
+        for role in Role::START_ORDER {
+            if let Some(i) = self.find(role) {
+                let p = &self.procs[i];
+                let restarts = self.procs.iter().filter(|q| q.role == role && q.replaced).count() as u64;
+                rows.push(crate::live::ProcessRow {
+                    role: role.to_string(),
+                    pid: p.child.id(),
+                    running: p.exit.is_none(),
+                    restarts,
+                });
+            }
+        }
+        rows
+    }
+
     /// Runs until emitter-sim and the monitor have finished, restarting the processes that crash; the
     /// monitor gets `monitor_grace` after emitter-sim's end (its `finished`, or its exit) to record the
     /// last step. A lingering emitter-sim (`--linger`) replays the run to a monitor that fell behind or was
     /// restarted while the run ended, and is stopped with the others afterwards.
-    pub(super) fn wait_for_the_end(&mut self, monitor_grace: Duration) -> Result<(), CliError> {
+    pub(super) fn wait_for_the_end(
+        &mut self,
+        monitor_grace: Duration,
+        on_tick: &mut dyn FnMut(&Supervisor),
+    ) -> Result<(), CliError> {
         let mut emitter_done_at = None;
         let mut checked_swapped = Instant::now();
         loop {
             self.pump()?;
+            on_tick(self);
             self.restart_crashed()?;
             if checked_swapped.elapsed() > SWAPPED_CHECK {
                 checked_swapped = Instant::now();

@@ -7,7 +7,6 @@
 
 #![allow(dead_code)]
 
-use std::io::{Read as _, Seek as _, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -256,34 +255,9 @@ pub fn read_events(path: &Path) -> Vec<Value> {
         .collect()
 }
 
-/// Follows a growing file of lines (a launch's JSON-lines log) from where it last stopped reading: a long
-/// run's log is large, and re-reading it all at every poll would cost more than the run.
-pub struct LineTail {
-    path: PathBuf,
-    offset: u64,
-    partial: Vec<u8>,
-}
-
-impl LineTail {
-    pub fn new(path: &Path) -> Self {
-        Self { path: path.to_path_buf(), offset: 0, partial: Vec::new() }
-    }
-
-    /// The complete lines appended since the last call (a line still being written waits for the next).
-    pub fn poll(&mut self) -> Vec<String> {
-        let Ok(mut f) = std::fs::File::open(&self.path) else { return Vec::new() };
-        if f.seek(SeekFrom::Start(self.offset)).is_err() {
-            return Vec::new();
-        }
-        let mut buf = Vec::new();
-        let Ok(n) = f.read_to_end(&mut buf) else { return Vec::new() };
-        self.offset += n as u64;
-        self.partial.extend_from_slice(&buf);
-        let Some(end) = self.partial.iter().rposition(|&b| b == b'\n') else { return Vec::new() };
-        let complete: Vec<u8> = self.partial.drain(..=end).collect();
-        complete[..end].split(|&b| b == b'\n').map(|l| String::from_utf8_lossy(l).into_owned()).collect()
-    }
-}
+/// Follows a growing file of lines (a launch's JSON-lines log): the live view's own reader.
+#[allow(unused_imports)]
+pub use uavloc::live::LogTail as LineTail;
 
 /// Asserts that the `step` events of a launch's log name every step `0..=steps` exactly once (the
 /// wrong ones, with how often they were logged, in the message).

@@ -1,0 +1,155 @@
+//! What the live view shows, as plain data: fed step by step from `StepRecord`s (`simulate --live`) or
+//! from the monitor's JSON-lines log events (`launch`), which carry the same records.
+
+use monitor::StepRecord;
+use serde_json::Value;
+
+/// One process of a launch, as the launcher sees it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ProcessRow {
+    /// Its role.
+    pub role: String,
+    /// The current instance's pid.
+    pub pid: u32,
+    /// Whether it runs.
+    pub running: bool,
+    /// Restarts of the role so far.
+    pub restarts: u64,
+}
+
+/// Everything the view draws.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LiveState {
+    /// What runs, e.g. `launch uavloc-123 (lockstep)`.
+    pub title: String,
+    /// The last step of the run.
+    pub last_step: u64,
+    /// Steps recorded so far.
+    pub steps: u64,
+    /// The UAVs' positions, one track per UAV, metres.
+    pub tracks: Vec<Vec<[f64; 2]>>,
+    /// The true emitter of the latest step (none with an external front end).
+    pub truth: Option<[f64; 2]>,
+    /// The latest estimate and its covariance, metres and m².
+    pub estimate: Option<([f64; 2], [[f64; 2]; 2])>,
+    /// The standoff radius L_min around the estimate, metres (0: none).
+    pub standoff_m: f64,
+    /// RMSE per step, metres (step, value).
+    pub rmse: Vec<(f64, f64)>,
+    /// PCRLB per step, metres.
+    pub pcrlb: Vec<(f64, f64)>,
+    /// CRLB at the truth per step, metres.
+    pub crlb: Vec<(f64, f64)>,
+    /// The processes (launch only).
+    pub processes: Vec<ProcessRow>,
+    /// Messages the monitor rejected.
+    pub rejected: u64,
+    /// The last hop latencies, µs: (name, value).
+    pub hops: Vec<(&'static str, Option<f64>)>,
+    /// The planner in charge, e.g. `pso/analytical #1a2b`.
+    pub planner: Option<String>,
+    /// The last line worth showing (a restart, a rejection, the end).
+    pub note: String,
+}
+
+impl LiveState {
+    /// A view of a run of `last_step + 1` steps with the standoff radius `standoff_m`.
+    pub fn new(title: impl Into<String>, last_step: u64, standoff_m: f64) -> Self {
+        Self { title: title.into(), last_step, standoff_m, ..Self::default() }
+    }
+
+    /// Takes a recorded step.
+    pub fn apply_step(&mut self, r: &StepRecord) {
+        if self.tracks.len() < r.uavs.len() {
+            self.tracks.resize(r.uavs.len(), Vec::new());
+        }
+        for (track, p) in self.tracks.iter_mut().zip(&r.uavs) {
+            track.push(*p);
+        }
+        self.truth = r.truth;
+        self.estimate = r.estimate.iter().all(|v| v.is_finite()).then_some((r.estimate, r.estimate_cov));
+        let k = r.step as f64;
+        let push = |series: &mut Vec<(f64, f64)>, v: Option<f64>| {
+            if let Some(v) = v.filter(|v| v.is_finite()) {
+                series.push((k, v));
+            }
+        };
+        push(&mut self.rmse, r.rmse_m);
+        push(&mut self.pcrlb, r.pcrlb_m);
+        push(&mut self.crlb, r.crlb_true_m);
+        if let Some(p) = &r.planner {
+            self.planner = Some(format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
+        }
+        self.steps = r.step + 1;
+    }
+
+    /// Takes one event of the monitor's log (`step`, `restart`, `rejected`; others are ignored).
+    pub fn apply_event(&mut self, e: &Value) {
+        match e["event"].as_str() {
+            Some("step") => {
+                let Ok(record) = serde_json::from_value::<StepRecord>(e["record"].clone()) else { return };
+                self.apply_step(&record);
+                let l = &e["latency_us"];
+                self.hops = ["measurement_hop", "estimate_hop", "command_hop", "estimator", "planner", "cycle"]
+                    .into_iter()
+                    .map(|k| (k, l[k].as_f64()))
+                    .collect();
+                if e["command_missed"] == true {
+                    self.note = format!("step {}: command missed (flew straight on)", record.step);
+                }
+            }
+            Some("restart") => {
+                self.note = format!(
+                    "{} restarted (attempt {}, {})",
+                    e["role"].as_str().unwrap_or("?"),
+                    e["attempt"],
+                    e["exit"].as_str().unwrap_or("?")
+                );
+            }
+            Some("rejected") => {
+                self.rejected += 1;
+                self.note =
+                    format!("rejected a {}: {}", e["kind"].as_str().unwrap_or("?"), e["detail"].as_str().unwrap_or(""));
+            }
+            Some("start") => {
+                if let Some(steps) = e["steps"].as_u64() {
+                    self.last_step = steps;
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn log_events_build_the_tracks_the_estimate_and_the_series() {
+        let mut s = LiveState::new("t", 2, 3000.0);
+        let step = |k: u64, x: f64| {
+            json!({"event": "step", "step": k, "record": {
+                "step": k, "uavs": [[x, 0.0], [x, 1000.0], [x, 2000.0]], "headings_rad": [0.0, 0.0, 0.0],
+                "estimate": [25000.0, 15000.0], "estimate_cov": [[4.0e4, 0.0], [0.0, 9.0e4]],
+                "estimate_status": "ok", "truth": [25100.0, 15000.0], "crlb_true_m": 900.0, "rmse_m": 950.0,
+                "pcrlb_m": null, "objective_value": 30.0, "plan_ms": 0.1, "active_constraints": [],
+                "planner": {"solver": "pso", "objective": "analytical", "instance": 0x1234_0000_0000u64}},
+                "latency_us": {"measurement_hop": 41.0, "cycle": 300.0}})
+        };
+        s.apply_event(&step(0, 1000.0));
+        s.apply_event(&step(1, 1500.0));
+        s.apply_event(&json!({"event": "restart", "role": "planner", "attempt": 1, "exit": "signal 9"}));
+        s.apply_event(&json!({"event": "rejected", "kind": "measurement", "detail": "diffs is not finite"}));
+        assert_eq!(s.tracks.len(), 3);
+        assert_eq!(s.tracks[0], vec![[1000.0, 0.0], [1500.0, 0.0]]);
+        assert_eq!(s.truth, Some([25100.0, 15000.0]));
+        assert_eq!(s.rmse, vec![(0.0, 950.0), (1.0, 950.0)]);
+        assert!(s.pcrlb.is_empty(), "null is no point");
+        assert_eq!(s.planner.as_deref(), Some("pso/analytical #1234"));
+        assert_eq!((s.steps, s.rejected), (2, 1));
+        assert!(s.note.contains("diffs is not finite"));
+        assert!(s.hops.contains(&("measurement_hop", Some(41.0))) && s.hops.contains(&("planner", None)));
+    }
+}
