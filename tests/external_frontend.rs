@@ -66,6 +66,9 @@ fn a_python_front_end_is_answered_every_step_and_its_emitter_is_localised() {
         }
         assert!(s["crlb_at_estimate_m"].as_f64().is_some_and(|c| c > 0.0), "{s}");
     }
+    // The information gathered, along the estimates: the bound shrinks over the run.
+    let bound = |s: &Value| s["pcrlb_at_estimate_m"].as_f64().unwrap();
+    assert!(bound(last) < 0.5 * bound(&steps[0]), "{} → {}", bound(&steps[0]), bound(last));
     // The estimate is within its expected error of the truth only the front end knows: the NEES of the
     // reported covariance below the 99.9 % point of χ²(2), and closer than the initial CRLB (1655.58 m).
     let truth = [fe["truth"][0].as_f64().unwrap(), fe["truth"][1].as_f64().unwrap()];

@@ -27,7 +27,8 @@ An external front end (--source external): the launch starts the estimator, the 
 only; a front end of your own (C, C++, Python, … through iceoryx2; docs/wire-format.md, and
 examples/python/frontend.py) publishes each step's Measurement on <domain>/measurement and reads the
 Command on <domain>/command. There is no truth: the record's truth-based fields (truth, crlb_true_m,
-rmse_m, estimate_error_m, nees, pcrlb_m) are absent or null, never zero; crlb_at_estimate_m is there.
+rmse_m, estimate_error_m, nees, pcrlb_m) are absent or null, never zero; crlb_at_estimate_m and
+pcrlb_at_estimate_m (the CRLB and the posterior CRLB at the estimates) are there.
 The run ends when the monitor has the last step (--steps N: steps 0..N), or on Ctrl-C.
 
 Staleness (--estimate-deadline-ms D, off by default): when a step's estimate has not reached the planner D

@@ -90,6 +90,7 @@ pub fn run_closed_loop(
             min_true_distance_m: None,
             crlb_true_m: Some(metrics.crlb_true_m),
             crlb_at_estimate_m: crlb_at(&sensors, &est.position),
+            pcrlb_at_estimate_m: None,
             rmse_m: metrics.rmse_m,
             objective_value: None,
             plan_ms: None,

@@ -351,6 +351,7 @@ impl Assembler {
             min_true_distance_m: None,
             crlb_true_m,
             crlb_at_estimate_m,
+            pcrlb_at_estimate_m: None,
             rmse_m,
             objective_value: None,
             plan_ms: None,

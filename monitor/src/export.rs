@@ -55,19 +55,20 @@ pub fn write_trajectory_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
 
 /// Writes one row per step: `step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,
 /// objective_value_m,plan_ms,active_constraints,pcrlb_m,estimate_error_m,nees,min_true_distance_m,
-/// estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m` (the active constraints
+/// estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,pcrlb_at_estimate_m` (the active constraints
 /// joined with `;`; the truth-based columns empty without a truth).
 pub fn write_steps_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
     let mut out = BufWriter::new(File::create(path)?);
     writeln!(
         out,
         "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints,\
-         pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m"
+         pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,\
+         pcrlb_at_estimate_m"
     )?;
     for s in &run.steps {
         writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             s.step,
             opt(s.crlb_true_m),
             opt(s.rmse_m),
@@ -85,6 +86,7 @@ pub fn write_steps_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
             s.estimate_cov[0][1],
             s.estimate_cov[1][1],
             opt(s.crlb_at_estimate_m),
+            opt(s.pcrlb_at_estimate_m),
         )?;
     }
     out.flush()

@@ -45,7 +45,9 @@ pub fn crlb_at(sensors: &Sensors, p: &Vector2<f64>) -> Option<f64> {
     crlb(sensors, p).ok().map(|c| c.crlb_m).filter(|c| c.is_finite())
 }
 
-/// Fills in what needs the whole run and the truth: per step `estimate_error_m`, `nees`, `pcrlb_m`
+/// Fills in what needs the whole run: per step `pcrlb_at_estimate_m` (the same recursion as `pcrlb_m`,
+/// each snapshot's information at that step's estimate); and what needs the truth: per step
+/// `estimate_error_m`, `nees`, `pcrlb_m`
 /// (the posterior CRLB from every snapshot so far, under the scenario's emitter model) and
 /// `min_true_distance_m`; for the run `rejected_snapshots` and `true_standoff_violations` (UAV, step
 /// pairs closer than `L_min` to the true emitter). Steps without a `truth` get `None`. The same pure
@@ -55,11 +57,24 @@ pub fn annotate(run: &mut crate::RunRecord) {
     let dynamics = sc.dynamics().unwrap_or_else(|_| tdoa::Dynamics::fixed());
     let noise = tdoa::NoiseModel::from_range_sigmas(&sc.range_sigmas()).ok();
     let mut bound = tdoa::InformationBound::new(dynamics);
+    let mut along_estimates = tdoa::InformationBound::new(dynamics);
+    let mut last_estimated: Option<u64> = None;
+    let sensors_of = |s: &crate::StepRecord| noise.as_ref().and_then(|noise| Sensors::new(&s.uavs, noise.clone()).ok());
     let mut last_step: Option<u64> = None;
     let mut violations = 0u64;
     let mut any_truth = false;
     run.rejected_snapshots = run.steps.iter().filter(|s| s.estimate_status == "rejected").count() as u64;
     for s in &mut run.steps {
+        let est = Vector2::new(s.estimate[0], s.estimate[1]);
+        s.pcrlb_at_estimate_m = if est.iter().all(|v| v.is_finite()) {
+            let fim = sensors_of(s).and_then(|sensors| tdoa::fim(&sensors, &est));
+            let elapsed = last_estimated.map_or(1, |l| s.step.saturating_sub(l).max(1));
+            last_estimated = Some(s.step);
+            let b = along_estimates.add(fim, elapsed);
+            b.is_finite().then_some(b)
+        } else {
+            None
+        };
         let Some(truth) = s.truth else {
             s.estimate_error_m = None;
             s.nees = None;
@@ -78,10 +93,7 @@ pub fn annotate(run: &mut crate::RunRecord) {
         );
         s.estimate_error_m = est.iter().all(|v| v.is_finite()).then(|| (est - z).norm());
         s.nees = tdoa::nees(&est, &cov, &z);
-        let fim = noise
-            .as_ref()
-            .and_then(|noise| Sensors::new(&s.uavs, noise.clone()).ok())
-            .and_then(|sensors| tdoa::fim(&sensors, &z));
+        let fim = sensors_of(s).and_then(|sensors| tdoa::fim(&sensors, &z));
         let elapsed = last_step.map_or(1, |l| s.step.saturating_sub(l).max(1));
         last_step = Some(s.step);
         let b = bound.add(fim, elapsed);
@@ -93,4 +105,59 @@ pub fn annotate(run: &mut crate::RunRecord) {
         }
     }
     run.true_standoff_violations = any_truth.then_some(violations);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::record::tests::record;
+
+    fn run_of(estimates: &[[f64; 2]], truth: Option<[f64; 2]>) -> crate::RunRecord {
+        let steps = estimates
+            .iter()
+            .enumerate()
+            .map(|(k, e)| crate::StepRecord {
+                uavs: vec![[1500.0 + 400.0 * k as f64, 500.0], [10000.0, 1500.0 + 300.0 * k as f64], [5000.0, 8500.0]],
+                estimate: *e,
+                truth,
+                estimate_status: "ok".into(),
+                ..record(k as u64, 1.0)
+            })
+            .collect();
+        crate::RunRecord {
+            scenario: model::Scenario::default(),
+            objective: "analytical".into(),
+            solver: "pso".into(),
+            seed: 1,
+            emitter: truth,
+            estimator: "fused".into(),
+            rejected_snapshots: 0,
+            true_standoff_violations: None,
+            steps,
+        }
+    }
+
+    #[test]
+    fn the_pcrlb_along_the_estimates_is_the_pcrlb_when_they_are_the_truth_and_is_there_without_one() {
+        let z = [25000.0, 15000.0];
+        let mut exact = run_of(&[z; 5], Some(z));
+        annotate(&mut exact);
+        for s in &exact.steps {
+            assert_eq!(s.pcrlb_at_estimate_m, s.pcrlb_m, "step {}", s.step);
+            assert!(s.pcrlb_m.is_some());
+        }
+        // Without a truth: only the bound along the estimates, shrinking as snapshots add information.
+        let moved =
+            [[24000.0, 14000.0], [24500.0, 14600.0], [24900.0, 15100.0], [25050.0, 15000.0], [25000.0, 15000.0]];
+        let mut blind = run_of(&moved, None);
+        annotate(&mut blind);
+        let b: Vec<f64> = blind.steps.iter().map(|s| s.pcrlb_at_estimate_m.unwrap()).collect();
+        assert!(b.windows(2).all(|w| w[1] < w[0]), "{b:?}");
+        assert!(blind.steps.iter().all(|s| s.pcrlb_m.is_none() && s.estimate_error_m.is_none()));
+        // A NaN estimate (failed, none standing) adds nothing and has no value.
+        let mut gap = run_of(&[z, [f64::NAN, f64::NAN], z], None);
+        annotate(&mut gap);
+        assert_eq!(gap.steps[1].pcrlb_at_estimate_m, None);
+        assert!(gap.steps[2].pcrlb_at_estimate_m.unwrap() < gap.steps[0].pcrlb_at_estimate_m.unwrap());
+    }
 }

@@ -57,6 +57,12 @@ pub struct StepRecord {
     /// without a truth can tell about its geometry (`null` where F is singular there or ẑ is unknown).
     #[serde(default)]
     pub crlb_at_estimate_m: Option<f64>,
+    /// Posterior CRLB along the estimates, metres: the recursion of `pcrlb_m` with each snapshot's
+    /// information taken at that step's estimate instead of the truth (the scenario's σ) — what a run
+    /// without a truth can say about the information gathered (`null` while singular, or without an
+    /// estimate).
+    #[serde(default)]
+    pub pcrlb_at_estimate_m: Option<f64>,
     /// RMSE of Chan over R noise resamples at this geometry (paper Section 5.3), metres.
     pub rmse_m: Option<f64>,
     /// Objective value of the chosen headings (the planner's criterion, as `sqrt` of its trace, m);
@@ -153,6 +159,7 @@ pub(crate) mod tests {
             min_true_distance_m: None,
             crlb_true_m: Some(crlb),
             crlb_at_estimate_m: None,
+            pcrlb_at_estimate_m: None,
             rmse_m: None,
             objective_value: None,
             plan_ms: None,

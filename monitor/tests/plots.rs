@@ -63,6 +63,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
                 min_true_distance_m: None,
                 crlb_true_m: Some(crlb),
                 crlb_at_estimate_m: None,
+                pcrlb_at_estimate_m: None,
                 rmse_m: (k != 2).then_some(1.2 * crlb + 5.0 * (k as f64).cos()),
                 objective_value: (k != 1 && k + 1 != n).then_some(0.9 * crlb),
                 plan_ms: (k + 1 != n).then_some(3.5 + k as f64),
@@ -315,11 +316,12 @@ fn csv_tables_have_one_row_per_step_and_empty_cells_for_none() {
     assert_eq!(
         lines[0],
         "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints,\
-         pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m"
+         pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,\
+         pcrlb_at_estimate_m"
     );
     assert_eq!(lines.len(), 1 + 5);
     let rows: Vec<Vec<String>> = lines[1..].iter().map(|l| cells(l)).collect();
-    assert!(rows.iter().all(|r| r.len() == 17), "{rows:?}");
+    assert!(rows.iter().all(|r| r.len() == 18), "{rows:?}");
     // No truth in these records: the truth-based columns are empty, not zero.
     assert!(rows.iter().all(|r| r[9..13].iter().all(String::is_empty)), "{rows:?}");
     assert_eq!(rows[2][2], "", "rmse None at step 2");
