@@ -284,25 +284,8 @@ impl Recorder {
 
     /// Records one message received at `received_ns`.
     pub fn record<T: Recordable>(&mut self, msg: &T, received_ns: u64) {
-        if self.error.is_some() {
-            return;
-        }
-        let data = serde_json::to_vec(&msg.to_json()).expect("a JSON value");
-        let result = channel_of::<T>(&mut self.writer, &mut self.channels).and_then(|channel_id| {
-            self.sequence = self.sequence.wrapping_add(1);
-            self.writer.write_to_known_channel(
-                &mcap::records::MessageHeader {
-                    channel_id,
-                    sequence: self.sequence,
-                    log_time: received_ns,
-                    publish_time: msg.header().stamps.published_ns,
-                },
-                &data,
-            )
-        });
-        if let Err(e) = result {
-            self.error = Some(format!("--mcap {}: {e}", self.path.display()));
-        }
+        let channel = channel_of::<T>(&mut self.writer, &mut self.channels);
+        self.write(channel, received_ns, msg.header().stamps.published_ns, &msg.to_json());
     }
 
     /// Re-writes a message read back from an earlier recording (its type from its topic).
@@ -315,7 +298,14 @@ impl Recorder {
             "/control" => channel_of::<Control>(&mut self.writer, &mut self.channels),
             _ => return,
         };
-        let publish_time = json["stamps"]["published_ns"].as_u64().unwrap_or(0);
+        self.write(channel, log_time, json["stamps"]["published_ns"].as_u64().unwrap_or(0), json);
+    }
+
+    /// Writes one message on `channel` (the first error is kept, and nothing is written after it).
+    fn write(&mut self, channel: mcap::McapResult<u16>, log_time: u64, publish_time: u64, json: &Value) {
+        if self.error.is_some() {
+            return;
+        }
         let data = serde_json::to_vec(json).expect("a JSON value");
         let result = channel.and_then(|channel_id| {
             self.sequence = self.sequence.wrapping_add(1);
