@@ -1,7 +1,7 @@
 //! The resources a running pipeline creates are its user's: every iceoryx2 file that belongs to the domain
 //! (found by name or content under `<temp>/iceoryx2` and `/dev/shm`), and the launch's private state
 //! directory (checkpoints), allow no access to group or others. (The socket transport's directories are
-//! checked in `protocol/tests/uds_transport.rs`.)
+//! checked in `protocol/tests/transports/uds.rs`.)
 
 mod common;
 

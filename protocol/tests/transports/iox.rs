@@ -12,7 +12,7 @@ use protocol::services::{self, Domain};
 use protocol::transport::{MAX_PUBLISHERS, SUBSCRIBER_BUFFER, TopicEvents};
 use protocol::{Command, Estimate, Link, Measurement, Message, Topic, TransportError, TransportKind, Truth, now_ns};
 
-/// A process link over iceoryx2 (these tests cover the iceoryx2 transport; `uds_transport.rs` the sockets).
+/// A process link over iceoryx2 (these tests cover the iceoryx2 transport; `uds.rs` the sockets).
 fn iox_link(name: &str) -> Result<Link, TransportError> {
     Link::open(TransportKind::Iceoryx2, name)
 }
@@ -281,7 +281,7 @@ fn a_killed_publisher_is_cleaned_up() {
     let subscriber = Topic::<Measurement>::subscriber(&node, &name).unwrap();
 
     let mut child = Process::new(std::env::current_exe().unwrap())
-        .args(["helper_publisher_process_to_be_killed", "--exact", "--nocapture", "--test-threads=1"])
+        .args(["iox::helper_publisher_process_to_be_killed", "--exact", "--nocapture", "--test-threads=1"])
         .env(CHILD_ENV, &name)
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
