@@ -92,9 +92,10 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     let mut live = match args.live && crate::live::LiveTerminal::available() {
         true => Some((
             crate::live::LiveTerminal::start().map_err(|e| CliError::Failed(format!("--live: {e}")))?,
-            crate::live::LiveState {
-                planner: Some(format!("{}/{} (in this process)", solver.name(), objective.name())),
-                ..crate::live::LiveState::new("simulate", sc.steps as u64, sc.l_min)
+            {
+                let mut view = crate::live::LiveState::new("simulate", sc.steps as u64, sc.l_min).with_bound(&sc);
+                view.planner = Some(format!("{}/{} (in this process)", solver.name(), objective.name()));
+                view
             },
             false,
         )),

@@ -129,7 +129,7 @@ pub(super) fn start_and_run(
     let mut terminal =
         crate::live::LiveTerminal::start().map_err(|e| CliError::Failed(format!("the live view: {e}")))?;
     let title = format!("launch {domain} ({})", args.source);
-    let mut view = crate::live::LiveState::new(title, sc.steps as u64, sc.l_min);
+    let mut view = crate::live::LiveState::new(title, sc.steps as u64, sc.l_min).with_bound(sc);
     let mut tail = crate::live::LogTail::new(log);
     let mut on_tick = |sup: &Supervisor| {
         for line in tail.poll() {

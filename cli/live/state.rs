@@ -17,8 +17,31 @@ pub struct ProcessRow {
     pub restarts: u64,
 }
 
+/// The posterior CRLB as the steps come in (the record's `pcrlb_m` is computed only at the end of a
+/// run): at the truth when there is one, else along the estimates (`pcrlb_at_estimate_m`).
+#[derive(Debug, Clone)]
+struct LiveBound {
+    noise: tdoa::NoiseModel,
+    bound: tdoa::InformationBound,
+    last_step: Option<u64>,
+}
+
+impl LiveBound {
+    fn add(&mut self, r: &StepRecord) -> Option<f64> {
+        let at = r.truth.unwrap_or(r.estimate);
+        let z = nalgebra::Vector2::new(at[0], at[1]);
+        if !z.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let fim = tdoa::Sensors::new(&r.uavs, self.noise.clone()).ok().and_then(|s| tdoa::fim(&s, &z));
+        let elapsed = self.last_step.map_or(1, |l| r.step.saturating_sub(l).max(1));
+        self.last_step = Some(r.step);
+        Some(self.bound.add(fim, elapsed)).filter(|b| b.is_finite())
+    }
+}
+
 /// Everything the view draws.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct LiveState {
     /// What runs, e.g. `launch uavloc-123 (lockstep)`.
     pub title: String,
@@ -50,12 +73,23 @@ pub struct LiveState {
     pub planner: Option<String>,
     /// The last line worth showing (a restart, a rejection, the end).
     pub note: String,
+    /// The running posterior CRLB (see [`LiveState::with_bound`]).
+    bound: Option<LiveBound>,
 }
 
 impl LiveState {
     /// A view of a run of `last_step + 1` steps with the standoff radius `standoff_m`.
     pub fn new(title: impl Into<String>, last_step: u64, standoff_m: f64) -> Self {
         Self { title: title.into(), last_step, standoff_m, ..Self::default() }
+    }
+
+    /// The same view computing the PCRLB series as the steps come in, with the scenario's σ and emitter
+    /// model (without it the series is what the records carry).
+    pub fn with_bound(mut self, scenario: &model::Scenario) -> Self {
+        if let (Ok(noise), Ok(dynamics)) = (scenario.noise_model(), scenario.dynamics()) {
+            self.bound = Some(LiveBound { noise, bound: tdoa::InformationBound::new(dynamics), last_step: None });
+        }
+        self
     }
 
     /// Takes a recorded step.
@@ -75,7 +109,11 @@ impl LiveState {
             }
         };
         push(&mut self.rmse, r.rmse_m);
-        push(&mut self.pcrlb, r.pcrlb_m);
+        let pcrlb = match &mut self.bound {
+            Some(b) => b.add(r),
+            None => r.pcrlb_m.or(r.pcrlb_at_estimate_m),
+        };
+        push(&mut self.pcrlb, pcrlb);
         push(&mut self.crlb, r.crlb_true_m);
         if let Some(p) = &r.planner {
             self.planner = Some(format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
@@ -147,6 +185,12 @@ mod tests {
         assert_eq!(s.truth, Some([25100.0, 15000.0]));
         assert_eq!(s.rmse, vec![(0.0, 950.0), (1.0, 950.0)]);
         assert!(s.pcrlb.is_empty(), "null is no point");
+        // With the scenario's bound: the PCRLB at the truth as the steps come in, shrinking.
+        let mut b = LiveState::new("t", 2, 3000.0).with_bound(&model::Scenario::default());
+        b.apply_event(&step(0, 1000.0));
+        b.apply_event(&step(1, 1500.0));
+        assert_eq!(b.pcrlb.len(), 2);
+        assert!(b.pcrlb[1].1 < b.pcrlb[0].1, "{:?}", b.pcrlb);
         assert_eq!(s.planner.as_deref(), Some("pso/analytical #1234"));
         assert_eq!((s.steps, s.rejected), (2, 1));
         assert!(s.note.contains("diffs is not finite"));

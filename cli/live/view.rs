@@ -126,8 +126,9 @@ fn draw_map(frame: &mut Frame, area: Rect, s: &LiveState) {
 fn draw_series(frame: &mut Frame, area: Rect, s: &LiveState) {
     let all = s.rmse.iter().chain(&s.pcrlb).chain(&s.crlb);
     let ymax = all.clone().map(|p| p.1).fold(1.0, f64::max) * 1.1;
+    let pcrlb_name = if s.truth.is_some() { "PCRLB" } else { "PCRLB at ẑ" };
     let datasets =
-        [("RMSE", &s.rmse, Color::Yellow), ("PCRLB", &s.pcrlb, Color::Cyan), ("CRLB", &s.crlb, Color::Green)]
+        [("RMSE", &s.rmse, Color::Yellow), (pcrlb_name, &s.pcrlb, Color::Cyan), ("CRLB", &s.crlb, Color::Green)]
             .into_iter()
             .filter(|(_, d, _)| !d.is_empty())
             .map(|(name, d, c)| {
