@@ -18,7 +18,13 @@ use nalgebra::Vector2;
 /// Wraps an angle into (−π, π], radians.
 #[inline]
 pub fn wrap_angle(a: f64) -> f64 {
-    let r = a.rem_euclid(TAU);
+    // `rem_euclid` is `fmod` then `+ TAU` for a negative remainder; `fmod(a, TAU)` is exactly `a` when
+    // |a| < TAU, so that case skips the `fmod` call and gives the same bits.
+    let r = if a.abs() < TAU {
+        if a < 0.0 { a + TAU } else { a }
+    } else {
+        a.rem_euclid(TAU)
+    };
     if r > PI { r - TAU } else { r }
 }
 
@@ -73,6 +79,27 @@ mod tests {
     use super::*;
 
     const EPS: f64 = 1e-9;
+
+    #[test]
+    fn wrap_skips_fmod_only_where_it_gives_the_same_bits() {
+        let reference = |a: f64| {
+            let r = a.rem_euclid(TAU);
+            if r > PI { r - TAU } else { r }
+        };
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut values = vec![0.0, -0.0, PI, -PI, TAU, -TAU, f64::MIN_POSITIVE, -f64::MIN_POSITIVE, 1e300, -1e300];
+        values.extend([TAU - 1e-15, -TAU + 1e-15, TAU.next_down(), (-TAU).next_up(), PI.next_up(), (-PI).next_down()]);
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            values.push((x as f64 / u64::MAX as f64 - 0.5) * 4.0 * TAU);
+        }
+        for a in values {
+            assert_eq!(wrap_angle(a).to_bits(), reference(a).to_bits(), "{a:e}");
+        }
+        assert!(wrap_angle(f64::NAN).is_nan() && wrap_angle(f64::INFINITY).is_nan());
+    }
 
     #[test]
     fn wrap_stays_in_half_open_interval() {

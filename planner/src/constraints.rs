@@ -92,6 +92,19 @@ pub struct Constraints {
     pub standoff_k: f64,
     /// The covariance M of ẑ, m² (used by the standoff chance constraint only).
     pub covariance: Matrix2<f64>,
+    /// The bearings to ẑ of one planning step's UAVs ([`Constraints::for_step`]).
+    bearings: Option<Bearings>,
+}
+
+/// The bearings `α_i` from the UAVs' current positions to ẑ, computed once for a planning step: every
+/// candidate of the step is checked against the same positions and ẑ, and `atan2` is the costliest part
+/// of a check. Used only for exactly those positions and that ẑ (the same bits as computing them again).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Bearings {
+    positions: [Vector2<f64>; tdoa::MAX_UAVS],
+    n: usize,
+    estimate: Vector2<f64>,
+    alpha: [f64; tdoa::MAX_UAVS],
 }
 
 /// `k(c) = Φ⁻¹(c)` for a standoff confidence `c` in [0, 1); `c = 0` gives 0 (the paper's constraint).
@@ -128,7 +141,33 @@ impl Constraints {
             delta_alpha: scenario.delta_alpha,
             standoff_k: standoff_k(scenario.standoff_confidence),
             covariance: Matrix2::zeros(),
+            bearings: None,
         }
+    }
+
+    /// These constraints with the bearings of the UAVs at `positions` to `estimate` computed once (see
+    /// [`Bearings`]); checks of other positions compute theirs as before.
+    pub fn for_step(self, positions: &[Vector2<f64>], estimate: Vector2<f64>) -> Self {
+        if positions.len() > tdoa::MAX_UAVS {
+            return self;
+        }
+        let mut b = Bearings {
+            positions: [Vector2::zeros(); tdoa::MAX_UAVS],
+            n: positions.len(),
+            estimate,
+            alpha: [0.0; tdoa::MAX_UAVS],
+        };
+        for (i, p) in positions.iter().enumerate() {
+            b.positions[i] = *p;
+            b.alpha[i] = bearing(*p, estimate);
+        }
+        Self { bearings: Some(b), ..self }
+    }
+
+    /// The kept bearings if they are those of `positions` and `estimate`.
+    fn bearings_of(&self, positions: &[Vector2<f64>], estimate: Vector2<f64>) -> Option<&[f64]> {
+        let b = self.bearings.as_ref()?;
+        (b.n == positions.len() && b.estimate == estimate && b.positions[..b.n] == *positions).then(|| &b.alpha[..b.n])
     }
 
     /// These constraints for an estimate with covariance `m` (m²): the standoff chance constraint's σ.
@@ -239,6 +278,7 @@ impl Constraints {
     ) {
         let n = positions.len().min(headings.len()).min(new_headings.len()).min(next.len());
         let theta_max = self.max_turn();
+        let kept = self.bearings_of(positions, estimate);
         let lower_bound = |kind, uav, other, value: f64, bound: f64| -> Option<ActiveConstraint> {
             (bound > 0.0 && value <= bound * (1.0 + BINDING_TOLERANCE)).then(|| ActiveConstraint {
                 kind,
@@ -263,7 +303,8 @@ impl Constraints {
                 });
             }
             // Heading cone around the bearing from the current position to ẑ.
-            let off = wrap_angle(new_headings[i] - bearing(positions[i], estimate)).abs();
+            let alpha = kept.map_or_else(|| bearing(positions[i], estimate), |a| a[i]);
+            let off = wrap_angle(new_headings[i] - alpha).abs();
             if off >= self.delta_alpha * (1.0 - BINDING_TOLERANCE) {
                 sink(ActiveConstraint {
                     kind: ConstraintKind::HeadingCone,
@@ -366,7 +407,24 @@ pub(crate) mod tests {
             delta_alpha: 25f64.to_radians(),
             standoff_k: 0.0,
             covariance: Matrix2::zeros(),
+            bearings: None,
         }
+    }
+
+    #[test]
+    fn kept_bearings_serve_their_step_only_and_change_nothing() {
+        let (p, h, z) = situation();
+        let c = constraints();
+        let kept = c.for_step(&p, z);
+        let phi = [0.4, -0.3, 0.1];
+        let next: Vec<_> = p.iter().zip(&h).zip(&phi).map(|((p, h), f)| next_position(*p, *h, *f, 50.0, 10.0)).collect();
+        assert_eq!(kept.check(&p, &h, z, &phi, &next), c.check(&p, &h, z, &phi, &next));
+        // Other positions or another estimate: their own bearings, not the kept ones.
+        let moved: Vec<_> = p.iter().map(|q| q + Vector2::new(0.0, 3000.0)).collect();
+        assert_eq!(kept.check(&moved, &h, z, &phi, &next), c.check(&moved, &h, z, &phi, &next));
+        let z2 = z + Vector2::new(0.0, 9000.0);
+        assert_eq!(kept.check(&p, &h, z2, &phi, &next), c.check(&p, &h, z2, &phi, &next));
+        assert!(kept.bearings_of(&moved, z).is_none() && kept.bearings_of(&p, z).is_some());
     }
 
     /// Three UAVs far apart, west of ẑ, all heading straight at it.

@@ -45,13 +45,17 @@ impl Solver for Pso {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut f = Counted::new(f);
         let vmax: Vec<f64> = (0..n).map(|i| (self.config.v_max_fraction * space.width(i)).max(0.0)).collect();
-        let mut x = space.initial_population(np, &mut rng);
-        let mut v: Vec<Vec<f64>> =
-            (0..np).map(|_| vmax.iter().map(|vm| (2.0 * rng.random::<f64>() - 1.0) * vm).collect()).collect();
-        let mut pfit: Vec<Fitness> = x.iter().map(|p| f.eval(p)).collect();
+        // The swarm as flat arrays, particle j at [j·n, (j+1)·n): positions, velocities, personal bests.
+        let mut x: Vec<f64> = space.initial_population(np, &mut rng).concat();
+        let mut v: Vec<f64> = Vec::with_capacity(np * n);
+        for _ in 0..np {
+            v.extend(vmax.iter().map(|vm| (2.0 * rng.random::<f64>() - 1.0) * vm));
+        }
+        // (A search space has at least one dimension.)
+        let mut pfit: Vec<Fitness> = x.chunks_exact(n).map(|p| f.eval(p)).collect();
         let mut pbest = x.clone();
         let g = argmin(&pfit);
-        let mut gbest = pbest[g].clone();
+        let mut gbest = pbest[g * n..(g + 1) * n].to_vec();
         let mut gfit = pfit[g];
         let mut tracker = self.stop.tracker(gfit);
         let mut iterations = 0;
@@ -59,26 +63,30 @@ impl Solver for Pso {
             let t = k as f64 / kmax as f64;
             let (xi, c1, c2) = (0.9 - 0.5 * t, 2.5 - 1.5 * t, 0.5 + 1.5 * t);
             for j in 0..np {
-                for i in 0..n {
-                    let r1: f64 = rng.random();
-                    let r2: f64 = rng.random();
-                    let u = xi * v[j][i] + c1 * r1 * (pbest[j][i] - x[j][i]) + c2 * r2 * (gbest[i] - x[j][i]);
-                    let u = u.clamp(-vmax[i], vmax[i]);
-                    let moved = x[j][i] + u;
-                    let clamped = space.clamp(i, moved);
-                    v[j][i] = if clamped == moved { u } else { 0.0 };
-                    x[j][i] = clamped;
+                let row = j * n..(j + 1) * n;
+                {
+                    let (xj, vj, pj) = (&mut x[row.clone()], &mut v[row.clone()], &pbest[row.clone()]);
+                    for i in 0..n {
+                        let r1: f64 = rng.random();
+                        let r2: f64 = rng.random();
+                        let u = xi * vj[i] + c1 * r1 * (pj[i] - xj[i]) + c2 * r2 * (gbest[i] - xj[i]);
+                        let u = u.clamp(-vmax[i], vmax[i]);
+                        let moved = xj[i] + u;
+                        let clamped = space.clamp(i, moved);
+                        vj[i] = if clamped == moved { u } else { 0.0 };
+                        xj[i] = clamped;
+                    }
                 }
-                let fit = f.eval(&x[j]);
+                let fit = f.eval(&x[row.clone()]);
                 if fit < pfit[j] {
                     pfit[j] = fit;
-                    pbest[j].clone_from(&x[j]);
+                    pbest[row.clone()].copy_from_slice(&x[row]);
                 }
             }
             let g = argmin(&pfit);
             if pfit[g] < gfit {
                 gfit = pfit[g];
-                gbest.clone_from(&pbest[g]);
+                gbest.copy_from_slice(&pbest[g * n..(g + 1) * n]);
             }
             iterations += 1;
             if tracker.observe(gfit) {

@@ -168,7 +168,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         check_finite(|| format!("heading of UAV {i}"), req.headings[i])?;
     }
     let (pos, psi, z) = (req.positions, req.headings, req.estimate);
-    let constraints = Constraints::from_scenario(sc).with_covariance(req.covariance);
+    let constraints = Constraints::from_scenario(sc).with_covariance(req.covariance).for_step(pos, req.estimate);
     let r_avg = pos.iter().map(|p| (p - z).norm()).sum::<f64>() / n as f64;
     let unc = Uncertainty::with_eq36_side(z, req.covariance, r_avg, sc.kappa)?;
     let objective = crate::objective::prepare(

@@ -52,10 +52,19 @@ pub(crate) fn check_finite(what: &str, value: f64) -> Result<(), TdoaError> {
 
 /// Per-UAV range noise and the covariance `Q` of the range differences (eq. 19):
 /// `Q_ii = s_i² + s_0²`, `Q_ij = s_0²` (i ≠ j), with `s_i` the range standard deviation of UAV i in metres.
+///
+/// `Q` and `Q⁻¹` are shared between clones (a planner builds a [`Sensors`] with the step's noise model for
+/// every candidate geometry: a clone is a reference count, not 800 bytes).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NoiseModel {
     sigmas: [f64; MAX_UAVS],
     n: usize,
+    mats: std::sync::Arc<QMatrices>,
+}
+
+/// `Q` and `Q⁻¹` of a [`NoiseModel`].
+#[derive(Debug, PartialEq)]
+struct QMatrices {
     q: SMatrix<f64, MAX_DIFFS, MAX_DIFFS>,
     q_inv: SMatrix<f64, MAX_DIFFS, MAX_DIFFS>,
 }
@@ -94,7 +103,7 @@ impl NoiseModel {
                 q_inv[(i, j)] = if i == j { di } else { 0.0 } - s0sq * di * dj / denom;
             }
         }
-        Ok(Self { sigmas: s, n, q, q_inv })
+        Ok(Self { sigmas: s, n, mats: std::sync::Arc::new(QMatrices { q, q_inv }) })
     }
 
     /// Equal range σ (metres) for all `n` UAVs.
@@ -126,13 +135,13 @@ impl NoiseModel {
     /// `Q` (eq. 19), m², as a dynamic matrix of size (N−1)×(N−1).
     pub fn q(&self) -> nalgebra::DMatrix<f64> {
         let m = self.n - 1;
-        nalgebra::DMatrix::from_fn(m, m, |i, j| self.q[(i, j)])
+        nalgebra::DMatrix::from_fn(m, m, |i, j| self.mats.q[(i, j)])
     }
 
     /// Entry (i, j) of `Q⁻¹`, 1/m²; i, j index range differences (0 ↔ d_1).
     #[inline]
     pub fn q_inv(&self, i: usize, j: usize) -> f64 {
-        self.q_inv[(i, j)]
+        self.mats.q_inv[(i, j)]
     }
 
     /// Same model with every σ multiplied by `factor` (> 0).
