@@ -18,21 +18,22 @@ const STEPS: u64 = 12;
 fn run(domain: &str, tag: &str, extra: &[&str]) -> (Value, Value) {
     let dir = scratch(tag);
     let steps = STEPS.to_string();
-    let launch = Launch::start(domain, &dir, &["--source", "external", "--steps", &steps]);
+    let mut launch = Launch::start(domain, &dir, &["--source", "external", "--steps", &steps]);
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/frontend.py");
     let out = Command::new(python())
         .arg(script)
         .args(["--domain", domain, "--steps", &steps, "--timeout-s", "60"])
         .args(extra)
-        .output()
-        .expect("run the Python front end");
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(
-        out.status.success(),
-        "the front end failed ({}):\n{stderr}\nlaunch:\n{}",
-        out.status,
-        launch.stderr_text()
-    );
+        .output();
+    // A launch with an external source waits for its front end: never leave one behind.
+    let out = match out {
+        Ok(out) if out.status.success() => out,
+        other => {
+            let _ = launch.child.kill();
+            let _ = launch.child.wait();
+            panic!("the front end failed: {other:?}\nlaunch:\n{}", launch.stderr_text());
+        }
+    };
     let summary: Value = serde_json::from_slice(&out.stdout).expect("the front end's JSON summary");
     let report = launch.finish_json();
     assert_nothing_left(domain);

@@ -20,11 +20,7 @@ use nalgebra::Vector2;
 pub fn wrap_angle(a: f64) -> f64 {
     // `rem_euclid` is `fmod` then `+ TAU` for a negative remainder; `fmod(a, TAU)` is exactly `a` when
     // |a| < TAU, so that case skips the `fmod` call and gives the same bits.
-    let r = if a.abs() < TAU {
-        if a < 0.0 { a + TAU } else { a }
-    } else {
-        a.rem_euclid(TAU)
-    };
+    let r = if a.abs() < TAU { if a < 0.0 { a + TAU } else { a } } else { a.rem_euclid(TAU) };
     if r > PI { r - TAU } else { r }
 }
 

@@ -417,7 +417,8 @@ pub(crate) mod tests {
         let c = constraints();
         let kept = c.for_step(&p, z);
         let phi = [0.4, -0.3, 0.1];
-        let next: Vec<_> = p.iter().zip(&h).zip(&phi).map(|((p, h), f)| next_position(*p, *h, *f, 50.0, 10.0)).collect();
+        let next: Vec<_> =
+            p.iter().zip(&h).zip(&phi).map(|((p, h), f)| next_position(*p, *h, *f, 50.0, 10.0)).collect();
         assert_eq!(kept.check(&p, &h, z, &phi, &next), c.check(&p, &h, z, &phi, &next));
         // Other positions or another estimate: their own bearings, not the kept ones.
         let moved: Vec<_> = p.iter().map(|q| q + Vector2::new(0.0, 3000.0)).collect();
