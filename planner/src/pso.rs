@@ -62,7 +62,7 @@ impl Solver for Pso {
         for k in 0..kmax {
             let t = k as f64 / kmax as f64;
             let (xi, c1, c2) = (0.9 - 0.5 * t, 2.5 - 1.5 * t, 0.5 + 1.5 * t);
-            for j in 0..np {
+            for (j, best_fit) in pfit.iter_mut().enumerate() {
                 let row = j * n..(j + 1) * n;
                 {
                     let (xj, vj, pj) = (&mut x[row.clone()], &mut v[row.clone()], &pbest[row.clone()]);
@@ -78,8 +78,8 @@ impl Solver for Pso {
                     }
                 }
                 let fit = f.eval(&x[row.clone()]);
-                if fit < pfit[j] {
-                    pfit[j] = fit;
+                if fit < *best_fit {
+                    *best_fit = fit;
                     pbest[row.clone()].copy_from_slice(&x[row]);
                 }
             }
