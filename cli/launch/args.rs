@@ -73,7 +73,8 @@ pub struct LaunchArgs {
     #[command(flatten)]
     pub run: crate::args::RunChoice,
     /// Pipeline domain, the prefix of every iceoryx2 service name (default: $UAVLOC_DOMAIN, else
-    /// `uavloc-<pid>`, unique per launch).
+    /// `uavloc-<pid>`, unique per launch; with --source external `uavloc`, the default of every process
+    /// and of examples/python/frontend.py).
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
     /// Where the measurements come from: simulator (emitter-sim, the simulated world) or external (a front

@@ -80,10 +80,15 @@ use crate::error::CliError;
 use state_dir::StateDir;
 use supervisor::{STOP_GRACE, Supervisor, TICK, catch_termination_signals};
 
-/// The domain of a launch: the flag, else `$UAVLOC_DOMAIN`, else `uavloc-<pid>`.
-fn launch_domain(flag: Option<&str>) -> Result<Domain, CliError> {
+/// The domain of a launch: the flag, else `$UAVLOC_DOMAIN`, else `uavloc-<pid>` — or, for an external
+/// front end, which must know it beforehand, `uavloc` (every process's default).
+fn launch_domain(flag: Option<&str>, source: runtime::Source) -> Result<Domain, CliError> {
     let env = std::env::var(DOMAIN_ENV).ok().filter(|v| !v.is_empty());
-    let name = flag.map(str::to_string).or(env).unwrap_or_else(|| format!("uavloc-{}", std::process::id()));
+    let fallback = match source {
+        runtime::Source::External => "uavloc".to_string(),
+        runtime::Source::Simulator => format!("uavloc-{}", std::process::id()),
+    };
+    let name = flag.map(str::to_string).or(env).unwrap_or(fallback);
     Domain::new(&name).map_err(|e| CliError::Input(format!("--domain: {e}")))
 }
 
@@ -133,7 +138,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     if let Some(file) = &args.record {
         crate::output::check_out_file("--record", file)?;
     }
-    let domain = launch_domain(args.domain.as_deref())?;
+    let domain = launch_domain(args.domain.as_deref(), args.source)?;
     // Held until the launch returns: a second launch into this domain is refused here, atomically.
     let _lock = state_dir::DomainLock::acquire(&domain)?;
     protocol::transport::quiet_logs();
@@ -285,4 +290,20 @@ fn wait_until_no_process_left(domain: &Domain) {
         }
     }
     eprintln!("warning: processes of domain {domain} are still running after the shutdown message");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_external_front_end_finds_the_default_domain_without_being_told() {
+        assert_eq!(launch_domain(Some("lab1"), runtime::Source::External).unwrap().as_str(), "lab1");
+        if std::env::var(DOMAIN_ENV).is_err() {
+            assert_eq!(launch_domain(None, runtime::Source::External).unwrap().as_str(), "uavloc");
+            let own = launch_domain(None, runtime::Source::Simulator).unwrap();
+            assert_eq!(own.as_str(), format!("uavloc-{}", std::process::id()));
+        }
+        assert!(launch_domain(Some("no spaces"), runtime::Source::External).is_err());
+    }
 }
