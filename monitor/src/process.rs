@@ -41,6 +41,10 @@
 //! complete again. The latency
 //! statistics of the summary cover the steps this instance saw.
 //!
+//! With `--source external` there is no truth (an external front end publishes the measurements): steps
+//! complete without one and the truth-based fields stay absent ([`crate::assemble`]); no replay is asked
+//! for (nobody could answer). With `--mcap FILE` every valid message is recorded ([`crate::recording`]).
+//!
 //! It exits 0 after the last step, or 130 on SIGINT/SIGTERM or a [`ControlKind::Shutdown`] before it
 //! (writing the partial record).
 
