@@ -123,3 +123,34 @@ fn a_monitor_killed_mid_run_still_leaves_a_whole_recording() {
     assert_eq!(same["estimates_equal"], steps + 1, "{same}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_recording_with_a_step_missing_or_without_its_scenario_is_refused() {
+    use monitor::recording::{Recorder, run_metadata};
+    let dir = scratch("record-gaps");
+    let uavs = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
+    let m =
+        |k: u64| protocol::Measurement::new(k, k + 1, &uavs, &[-2012.3, -4010.9], &[28.7712; 3], &[0.1; 3]).unwrap();
+    let write = |name: &str, metadata, steps: &[u64]| {
+        let path = dir.join(name);
+        let mut r = Recorder::create(&path, metadata, false).unwrap();
+        for &k in steps {
+            r.record(&m(k), k);
+        }
+        r.finish().unwrap();
+        path
+    };
+    let gap = write("gap.mcap", run_metadata(&planner::Scenario::default(), "d", "simulator"), &[0, 1, 2, 4]);
+    let out = uavloc(&["replay", gap.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("step 3 is missing"), "{out:?}");
+    let bare = write("bare.mcap", Default::default(), &[0, 1]);
+    let out = uavloc(&["replay", bare.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a uavloc recording"), "{out:?}");
+    // Whole and with its scenario: replayed (no estimate was recorded, so none is compared).
+    let whole = write("whole.mcap", run_metadata(&planner::Scenario::default(), "d", "simulator"), &[0, 1, 2]);
+    let r = replay(&whole, &[]);
+    assert_eq!((r["steps"].clone(), r["estimates_compared"].clone()), (3.into(), 0.into()));
+    let _ = std::fs::remove_dir_all(&dir);
+}
