@@ -46,7 +46,7 @@ impl Solver for Pso {
         let mut f = Counted::new(f);
         let vmax: Vec<f64> = (0..n).map(|i| (self.config.v_max_fraction * space.width(i)).max(0.0)).collect();
         // The swarm as flat arrays, particle j at [j·n, (j+1)·n): positions, velocities, personal bests.
-        let mut x: Vec<f64> = space.initial_population(np, &mut rng).concat();
+        let mut x: Vec<f64> = space.initial_population_flat(np, &mut rng);
         let mut v: Vec<f64> = Vec::with_capacity(np * n);
         for _ in 0..np {
             v.extend(vmax.iter().map(|vm| (2.0 * rng.random::<f64>() - 1.0) * vm));

@@ -95,21 +95,23 @@ impl SearchSpace {
         x.clamp(self.lo[i], self.hi[i])
     }
 
-    /// A point drawn uniformly from the box.
-    pub fn sample(&self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        (0..self.dim()).map(|i| self.lo[i] + rng.random::<f64>() * self.width(i)).collect()
+    /// The initial population of [`initial_population`](Self::initial_population) (the same points from
+    /// the same draws) in one flat array, point j at `[j·dim, (j+1)·dim)`: one allocation for the swarm.
+    pub fn initial_population_flat(&self, size: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let n = self.dim();
+        let mut flat = Vec::with_capacity(size * n);
+        if size > 0 {
+            flat.extend_from_slice(&self.start);
+        }
+        for _ in 1..size {
+            flat.extend((0..n).map(|i| self.lo[i] + rng.random::<f64>() * self.width(i)));
+        }
+        flat
     }
 
     /// The initial population shared by every solver: the start point, then `size − 1` uniform draws.
     pub fn initial_population(&self, size: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
-        let mut pop = Vec::with_capacity(size);
-        if size > 0 {
-            pop.push(self.start.clone());
-        }
-        while pop.len() < size {
-            pop.push(self.sample(rng));
-        }
-        pop
+        self.initial_population_flat(size, rng).chunks_exact(self.dim()).map(<[f64]>::to_vec).collect()
     }
 }
 
