@@ -154,6 +154,17 @@ fn invalid_messages_are_counted_ignored_and_change_nothing() {
     assert_eq!(by["emitter-sim"].as_u64(), Some(nc as u64), "{by}");
     assert_eq!(by["monitor"].as_u64(), Some((nm + ne + nc + nt) as u64), "{by}");
     assert_eq!(run["rejected"].as_u64(), Some((2 * (nm + ne + nc) + nt) as u64));
+    // Each process announced its count during the run (control `status`), and the monitor logged it: the
+    // live view shows it from there.
+    let events = common::read_events(&dir.join("run.jsonl"));
+    for role in ["estimator", "planner", "emitter-sim"] {
+        let last = events
+            .iter()
+            .filter(|e| e["event"] == "status" && e["role"] == role)
+            .filter_map(|e| e["rejected"].as_u64())
+            .max();
+        assert_eq!(last, by[role].as_u64(), "{role}'s status");
+    }
 
     // The monitor's log names every rejection by message type and reason.
     let mut expected: BTreeMap<(String, String), u64> = BTreeMap::new();

@@ -67,6 +67,8 @@ pub struct LiveState {
     pub processes: Vec<ProcessRow>,
     /// Messages the monitor rejected.
     pub rejected: u64,
+    /// Messages the other processes rejected, per (role, instance), from their `status` announcements.
+    pub rejected_by: std::collections::BTreeMap<(String, u64), u64>,
     /// The last hop latencies, µs: (name, value).
     pub hops: Vec<(&'static str, Option<f64>)>,
     /// The planner in charge, e.g. `pso/analytical #1a2b`.
@@ -90,6 +92,15 @@ impl LiveState {
             self.bound = Some(LiveBound { noise, bound: tdoa::InformationBound::new(dynamics), last_step: None });
         }
         self
+    }
+
+    /// Messages rejected by the processes of `role` so far (every instance's count; the monitor's are the
+    /// ones it logged).
+    pub fn rejected_of(&self, role: &str) -> u64 {
+        if role == "monitor" {
+            return self.rejected;
+        }
+        self.rejected_by.iter().filter(|((r, _), _)| r == role).map(|(_, n)| n).sum()
     }
 
     /// Takes a recorded step.
@@ -149,6 +160,13 @@ impl LiveState {
                 self.note =
                     format!("rejected a {}: {}", e["kind"].as_str().unwrap_or("?"), e["detail"].as_str().unwrap_or(""));
             }
+            Some("status") => {
+                if let (Some(role), Some(instance), Some(n)) =
+                    (e["role"].as_str(), e["instance"].as_u64(), e["rejected"].as_u64())
+                {
+                    self.rejected_by.insert((role.to_string(), instance), n);
+                }
+            }
             Some("start") => {
                 if let Some(steps) = e["steps"].as_u64() {
                     self.last_step = steps;
@@ -195,5 +213,10 @@ mod tests {
         assert_eq!((s.steps, s.rejected), (2, 1));
         assert!(s.note.contains("diffs is not finite"));
         assert!(s.hops.contains(&("measurement_hop", Some(41.0))) && s.hops.contains(&("planner", None)));
+        // Every process's rejections, summed over its instances (a restarted one counts from 0 again).
+        for (instance, n) in [(1u64, 2u64), (1, 3), (2, 1)] {
+            s.apply_event(&json!({"event": "status", "role": "estimator", "instance": instance, "rejected": n}));
+        }
+        assert_eq!((s.rejected_of("estimator"), s.rejected_of("monitor"), s.rejected_of("planner")), (4, 1, 0));
     }
 }

@@ -158,16 +158,20 @@ fn draw_processes(frame: &mut Frame, area: Rect, s: &LiveState) {
         .iter()
         .map(|p| {
             Line::from(format!(
-                "{:<12} pid {:<8} {:<8} restarts {}",
+                "{:<12} pid {:<8} {:<8} restarts {}  rejected {}",
                 p.role,
                 p.pid,
                 if p.running { "running" } else { "exited" },
-                p.restarts
+                p.restarts,
+                s.rejected_of(&p.role)
             ))
         })
         .collect();
     lines.push(Line::from(format!("planner in charge: {}", s.planner.as_deref().unwrap_or("-"))));
-    lines.push(Line::from(format!("rejected messages (monitor): {}", s.rejected)));
+    lines.push(Line::from(format!(
+        "rejected messages: {}",
+        ["monitor", "estimator", "planner", "emitter-sim"].iter().map(|r| s.rejected_of(r)).sum::<u64>()
+    )));
     let hops: Vec<String> =
         s.hops.iter().map(|(name, v)| format!("{name} {}", v.map_or("-".into(), |us| format!("{us:.0} µs")))).collect();
     if !hops.is_empty() {

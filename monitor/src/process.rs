@@ -332,6 +332,13 @@ impl State {
         if let Some(r) = &mut self.recorder {
             r.record(c, now_ns());
         }
+        if c.kind() == Some(ControlKind::Status) {
+            self.log.write(
+                "status",
+                json!({"role": c.role().unwrap_or("?"), "instance": c.instance, "rejected": c.header.step}),
+            );
+            return;
+        }
         let Some(kind) =
             c.kind().filter(|k| matches!(k, ControlKind::Hello | ControlKind::TakeOver | ControlKind::Replay))
         else {

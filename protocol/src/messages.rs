@@ -1002,6 +1002,9 @@ pub enum ControlKind {
     /// from that step, the planner (which keeps no state) for [`ControlKind::IN_FLIGHT`], the step in
     /// flight whose message it may have lost. emitter-sim replays from there.
     Replay = 4,
+    /// The sender's count of messages it rejected so far is `header.step` (v3; sent when it changes, so
+    /// that the monitor logs it and the live view shows every process's rejections during the run).
+    Status = 5,
 }
 
 impl ControlKind {
@@ -1017,6 +1020,7 @@ impl ControlKind {
             2 => Some(ControlKind::Shutdown),
             3 => Some(ControlKind::Progress),
             4 => Some(ControlKind::Replay),
+            5 => Some(ControlKind::Status),
             _ => None,
         }
     }
@@ -1029,6 +1033,7 @@ impl ControlKind {
             ControlKind::Shutdown => "shutdown",
             ControlKind::Progress => "progress",
             ControlKind::Replay => "replay",
+            ControlKind::Status => "status",
         }
     }
 }
@@ -1038,7 +1043,7 @@ impl ControlKind {
 /// Many processes publish on this topic, each with its own sequence numbers: a receiver tracks the last
 /// accepted sequence number per `instance`.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Control/v2")]
+#[type_name("uavloc::Control/v3")]
 #[repr(C)]
 pub struct Control {
     /// Common header; `step` depends on the kind (see [`ControlKind`]).
@@ -1057,7 +1062,7 @@ pub struct Control {
     pub detail: Name16,
 }
 
-impl_message!(Control, MessageKind::Control, 2, "uavloc::Control/v2");
+impl_message!(Control, MessageKind::Control, 3, "uavloc::Control/v3");
 
 impl Control {
     /// A control message of `kind` from `role` (`detail` may be empty).

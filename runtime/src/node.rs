@@ -94,6 +94,8 @@ pub struct Node {
     summary: NodeSummary,
     seq: u64,
     handover: Option<u64>,
+    /// The rejection count last announced ([`ControlKind::Status`]).
+    rejected_reported: u64,
 }
 
 impl Node {
@@ -129,6 +131,7 @@ impl Node {
             // predecessor.
             seq: started_ns,
             handover: None,
+            rejected_reported: 0,
         }))
     }
 
@@ -295,6 +298,17 @@ impl Node {
         Ok(None)
     }
 
+    /// Tells the domain how many messages this process has rejected, when that changed since it last
+    /// did ([`ControlKind::Status`]: the monitor logs it, the live view shows it).
+    fn report_rejections(&mut self) -> Result<(), ProcessError> {
+        let total = self.counter.total();
+        if total != self.rejected_reported {
+            self.rejected_reported = total;
+            self.announce(ControlKind::Status, total, "rejected")?;
+        }
+        Ok(())
+    }
+
     fn stopped(&self) -> Ended {
         self.summary.handed_over_at.map_or(Ended::Stopped, Ended::HandedOver)
     }
@@ -351,6 +365,7 @@ impl Node {
             if handler.on_wake(self)? == Flow::Stop {
                 return Ok(self.stopped());
             }
+            self.report_rejections()?;
             if let Some(f) = self.handover_due(handler.last_answered()) {
                 return Ok(Ended::HandedOver(f));
             }
