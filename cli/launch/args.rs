@@ -38,8 +38,8 @@ straight on); the step is recorded with active_constraints [\"estimate_stale\"] 
 
 On a terminal (stdout and stderr) the launch shows a live view: the map with the UAV tracks, the true
 emitter (T), the estimate (E) with its 95 % ellipse and the L_min circle; beside it the RMSE and the CRLB
-at the truth over the steps, the processes (pid, restarts), the planner in charge, the rejected messages
-and the last hop latencies; `q` stops the run (as Ctrl-C: the steps done are kept, exit code 1). Not on a
+at the truth over the steps, the processes (pid, restarts, rejected messages), the planner in charge and
+the last hop latencies; `q` stops the run (as Ctrl-C: the steps done are kept, exit code 1). Not on a
 terminal, or with --headless or --json, the monitor shows one line per step on stderr instead (CRLB and
 RMSE at the truth, estimate error, hop latencies, active planner, rejected messages), or nothing with
 --headless. At the end the run is printed as a table, or with

@@ -593,9 +593,10 @@ mod tests {
         let plain = Control::new(ControlKind::Shutdown, 0, 5, 9, 100, "launcher", "").unwrap();
         assert_eq!((plain.validate(None), plain.detail()), (Ok(()), ""));
         assert_eq!(c.validate(Some(5)).unwrap_err().kind(), "stale");
+        assert_eq!(with(c, |c| c.kind = 5).validate(None), Ok(()), "5 is a status (v3)");
         assert_eq!(
-            with(c, |c| c.kind = 5).validate(None),
-            Err(Rejection::UnknownKind { field: "control kind", kind: 5 })
+            with(c, |c| c.kind = 6).validate(None),
+            Err(Rejection::UnknownKind { field: "control kind", kind: 6 })
         );
         assert_eq!(with(c, |c| c.role.bytes = [0; 16]).validate(None), Err(Rejection::BadName { field: "role" }));
         assert_eq!(with(c, |c| c.detail.bytes[0] = 0x80).validate(None).unwrap_err().kind(), "bad_name");
