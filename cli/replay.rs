@@ -194,11 +194,6 @@ fn first_per_step<'a>(messages: &'a [RecordedMessage], topic: &str) -> BTreeMap<
     out
 }
 
-fn wrapped(d: f64) -> f64 {
-    let d = d.rem_euclid(std::f64::consts::TAU);
-    d.min(std::f64::consts::TAU - d)
-}
-
 /// Runs `uavloc replay`.
 pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
     let recording = read_recording(&args.file).map_err(|e| CliError::Input(e.to_string()))?;
@@ -244,10 +239,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         }
         let m = measurement_of(json)?;
         let reply = estimator::process::estimate_measurement(&mut estimator, &m);
-        let replayed = Estimate::from_measurement(&m, 0, 0, 0, reply.fix)
-            .map_err(|e| CliError::Failed(format!("step {step}: {e}")))?
-            .with_extra(&reply.extra)
-            .with_standing(reply.standing);
+        let replayed = reply.to_estimate(&m, 0, 0, 0).map_err(|e| CliError::Failed(format!("step {step}: {e}")))?;
         let replayed_view = view_of_estimate(&replayed);
         let recorded = estimates.get(&step).map(|e| view_of_json(e, step)).transpose()?;
         let estimate_equal = recorded.as_ref().is_some_and(|r| {
@@ -286,7 +278,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             commands.get(&step).filter(|_| planned).map(|c| f64s(&c["headings"], "headings", step)).transpose()?;
         let heading_delta_rad = match (&recorded_headings, &replayed_headings) {
             (Some(a), Some(b)) if a.len() == b.len() => {
-                Some(a.iter().zip(b).map(|(x, y)| wrapped(x - y)).fold(0.0, f64::max))
+                Some(a.iter().zip(b).map(|(x, y)| planner::wrap_angle(x - y).abs()).fold(0.0, f64::max))
             }
             _ => None,
         };

@@ -139,7 +139,7 @@ fn record_step(
     objective: planner::ObjectiveKind,
     solver: planner::SolverKind,
 ) {
-    use protocol::{Command, CommandOutcome, Estimate, Measurement, PlanInfo, Truth};
+    use protocol::{Command, CommandOutcome, Measurement, PlanInfo, Truth};
     let k = record.step;
     let now = protocol::now_ns();
     let previous = if k == 0 { CommandOutcome::None } else { CommandOutcome::Flown };
@@ -148,8 +148,8 @@ fn record_step(
     let Ok(m) = Measurement::new(k, k, uavs, trace.range_diffs, trace.sigmas, trace.measured_headings) else { return };
     r.record(&m, now);
     let reply = estimator::process::reply_of(trace.estimate);
-    if let Ok(e) = Estimate::from_measurement(&m, now, k, 0, reply.fix) {
-        r.record(&e.with_extra(&reply.extra).with_standing(reply.standing), now);
+    if let Ok(e) = reply.to_estimate(&m, now, k, 0) {
+        r.record(&e, now);
     }
     if let Some(plan) = trace.plan {
         let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();

@@ -99,7 +99,6 @@ pub(super) fn start_and_run(
     domain: &Domain,
     state: &StateDir,
     log: &std::path::Path,
-    live: bool,
 ) -> Result<(), CliError> {
     for role in Role::started(args.source) {
         if role == Role::EmitterSim && args.idle_probe_ms > 0 {
@@ -122,7 +121,7 @@ pub(super) fn start_and_run(
         );
     }
     let grace = Duration::from_secs_f64(args.command_timeout_s);
-    if !live {
+    if !args.live {
         return sup.wait_for_the_end(grace, &mut |_| {});
     }
     // The live view: the monitor's log as it grows, the children as the supervisor sees them; `q` stops.

@@ -167,7 +167,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     })?;
     let log = args.log.clone().unwrap_or_else(|| state.path("monitor.jsonl"));
     let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts);
-    let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log, args.live);
+    let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log);
     sup.stop_all();
     // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown
     // message.

@@ -17,29 +17,6 @@ pub struct ProcessRow {
     pub restarts: u64,
 }
 
-/// The posterior CRLB as the steps come in (the record's `pcrlb_m` is computed only at the end of a
-/// run): at the truth when there is one, else along the estimates (`pcrlb_at_estimate_m`).
-#[derive(Debug, Clone)]
-struct LiveBound {
-    noise: tdoa::NoiseModel,
-    bound: tdoa::InformationBound,
-    last_step: Option<u64>,
-}
-
-impl LiveBound {
-    fn add(&mut self, r: &StepRecord) -> Option<f64> {
-        let at = r.truth.unwrap_or(r.estimate);
-        let z = nalgebra::Vector2::new(at[0], at[1]);
-        if !z.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        let fim = tdoa::Sensors::new(&r.uavs, self.noise.clone()).ok().and_then(|s| tdoa::fim(&s, &z));
-        let elapsed = self.last_step.map_or(1, |l| r.step.saturating_sub(l).max(1));
-        self.last_step = Some(r.step);
-        Some(self.bound.add(fim, elapsed)).filter(|b| b.is_finite())
-    }
-}
-
 /// Everything the view draws.
 #[derive(Debug, Clone, Default)]
 pub struct LiveState {
@@ -75,8 +52,9 @@ pub struct LiveState {
     pub planner: Option<String>,
     /// The last line worth showing (a restart, a rejection, the end).
     pub note: String,
-    /// The running posterior CRLB (see [`LiveState::with_bound`]).
-    bound: Option<LiveBound>,
+    /// The posterior CRLB as the steps come in (the records' `pcrlb_m` is computed only at the end of a
+    /// run); see [`LiveState::with_bound`].
+    bound: Option<monitor::RunningBound>,
 }
 
 impl LiveState {
@@ -86,11 +64,9 @@ impl LiveState {
     }
 
     /// The same view computing the PCRLB series as the steps come in, with the scenario's σ and emitter
-    /// model (without it the series is what the records carry).
+    /// model ([`monitor::RunningBound`]; without it the series is what the records carry).
     pub fn with_bound(mut self, scenario: &model::Scenario) -> Self {
-        if let (Ok(noise), Ok(dynamics)) = (scenario.noise_model(), scenario.dynamics()) {
-            self.bound = Some(LiveBound { noise, bound: tdoa::InformationBound::new(dynamics), last_step: None });
-        }
+        self.bound = Some(monitor::RunningBound::new(scenario));
         self
     }
 
@@ -120,8 +96,12 @@ impl LiveState {
             }
         };
         push(&mut self.rmse, r.rmse_m);
+        // At the truth when there is one, else along the estimates (`pcrlb_at_estimate_m`).
+        let at = r.truth.unwrap_or(r.estimate);
+        let z = nalgebra::Vector2::new(at[0], at[1]);
         let pcrlb = match &mut self.bound {
-            Some(b) => b.add(r),
+            Some(b) if z.iter().all(|v| v.is_finite()) => b.add(r.step, &r.uavs, &z),
+            Some(_) => None,
             None => r.pcrlb_m.or(r.pcrlb_at_estimate_m),
         };
         push(&mut self.pcrlb, pcrlb);

@@ -234,6 +234,22 @@ pub struct Reply {
     pub standing: Option<([f64; 2], [[f64; 2]; 2])>,
 }
 
+impl Reply {
+    /// The wire estimate of measurement `m` with this answer (received at `received_ns`, sequence number
+    /// `seq`, from estimator instance `instance`): the fix, the fused state and the standing estimate.
+    pub fn to_estimate(
+        &self,
+        m: &Measurement,
+        received_ns: u64,
+        seq: u64,
+        instance: u64,
+    ) -> Result<Estimate, protocol::ProtocolError> {
+        Ok(Estimate::from_measurement(m, received_ns, seq, instance, self.fix)?
+            .with_extra(&self.extra)
+            .with_standing(self.standing))
+    }
+}
+
 /// What [`StepEstimator::handle`] did with a measurement.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Answer {
@@ -493,10 +509,9 @@ impl Handler for EstimatorNode<'_> {
                 node.warn(format_args!("step {step}: no fix (the previous estimate stands)"));
             }
             let seq = node.next_seq();
-            let estimate = Estimate::from_measurement(&m, received_ns, seq, node.instance(), reply.fix)
-                .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?
-                .with_extra(&reply.extra)
-                .with_standing(reply.standing);
+            let estimate = reply
+                .to_estimate(&m, received_ns, seq, node.instance())
+                .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;
             self.estimates.send(&estimate)?;
             node.summary().published += 1;
         }

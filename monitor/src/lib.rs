@@ -23,6 +23,6 @@ pub mod stamps;
 pub use assemble::{Assembler, CompletedStep};
 pub use chart::{BarGroup, Series, plot_bars, plot_curves};
 pub use export::{ExportError, write_run, write_steps_csv, write_trajectory_csv};
-pub use metrics::{StepMetrics, annotate, crlb_at, step_metrics};
+pub use metrics::{RunningBound, StepMetrics, annotate, crlb_at, step_metrics};
 pub use plot::{Metric, PlotError, PlotFormat, plot_comparison, plot_metrics, plot_trajectories};
 pub use record::{RunRecord, StepRecord};

@@ -45,6 +45,36 @@ pub fn crlb_at(sensors: &Sensors, p: &Vector2<f64>) -> Option<f64> {
     crlb(sensors, p).ok().map(|c| c.crlb_m).filter(|c| c.is_finite())
 }
 
+/// The posterior CRLB of a run as its snapshots come in (`pcrlb_m` at the truth, `pcrlb_at_estimate_m`
+/// along the estimates, the live view's series): each snapshot's information taken at a point `z`, under
+/// the scenario's σ and emitter model (Tichavský's recursion, [`tdoa::InformationBound`]).
+#[derive(Debug, Clone)]
+pub struct RunningBound {
+    noise: Option<tdoa::NoiseModel>,
+    bound: tdoa::InformationBound,
+    last_step: Option<u64>,
+}
+
+impl RunningBound {
+    /// No snapshot yet, for a run of `scenario`.
+    pub fn new(scenario: &model::Scenario) -> Self {
+        let dynamics = scenario.dynamics().unwrap_or_else(|_| tdoa::Dynamics::fixed());
+        let noise = tdoa::NoiseModel::from_range_sigmas(&scenario.range_sigmas()).ok();
+        Self { noise, bound: tdoa::InformationBound::new(dynamics), last_step: None }
+    }
+
+    /// The bound (m) after the snapshot of `step` from UAVs at `uavs`, its information taken at `z`;
+    /// `None` while the information is singular.
+    pub fn add(&mut self, step: u64, uavs: &[[f64; 2]], z: &Vector2<f64>) -> Option<f64> {
+        let fim =
+            self.noise.as_ref().and_then(|noise| Sensors::new(uavs, noise.clone()).ok()).and_then(|s| tdoa::fim(&s, z));
+        let elapsed = self.last_step.map_or(1, |l| step.saturating_sub(l).max(1));
+        self.last_step = Some(step);
+        let b = self.bound.add(fim, elapsed);
+        b.is_finite().then_some(b)
+    }
+}
+
 /// Fills in what needs the whole run: per step `pcrlb_at_estimate_m` (the same recursion as `pcrlb_m`,
 /// each snapshot's information at that step's estimate); and what needs the truth: per step
 /// `estimate_error_m`, `nees`, `pcrlb_m`
@@ -54,27 +84,15 @@ pub fn crlb_at(sensors: &Sensors, p: &Vector2<f64>) -> Option<f64> {
 /// function for `simulate` and the pipeline's monitor, so their records agree.
 pub fn annotate(run: &mut crate::RunRecord) {
     let sc = &run.scenario;
-    let dynamics = sc.dynamics().unwrap_or_else(|_| tdoa::Dynamics::fixed());
-    let noise = tdoa::NoiseModel::from_range_sigmas(&sc.range_sigmas()).ok();
-    let mut bound = tdoa::InformationBound::new(dynamics);
-    let mut along_estimates = tdoa::InformationBound::new(dynamics);
-    let mut last_estimated: Option<u64> = None;
-    let sensors_of = |s: &crate::StepRecord| noise.as_ref().and_then(|noise| Sensors::new(&s.uavs, noise.clone()).ok());
-    let mut last_step: Option<u64> = None;
+    let mut at_truth = RunningBound::new(sc);
+    let mut along_estimates = RunningBound::new(sc);
     let mut violations = 0u64;
     let mut any_truth = false;
     run.rejected_snapshots = run.steps.iter().filter(|s| s.estimate_status == "rejected").count() as u64;
     for s in &mut run.steps {
         let est = Vector2::new(s.estimate[0], s.estimate[1]);
-        s.pcrlb_at_estimate_m = if est.iter().all(|v| v.is_finite()) {
-            let fim = sensors_of(s).and_then(|sensors| tdoa::fim(&sensors, &est));
-            let elapsed = last_estimated.map_or(1, |l| s.step.saturating_sub(l).max(1));
-            last_estimated = Some(s.step);
-            let b = along_estimates.add(fim, elapsed);
-            b.is_finite().then_some(b)
-        } else {
-            None
-        };
+        s.pcrlb_at_estimate_m =
+            if est.iter().all(|v| v.is_finite()) { along_estimates.add(s.step, &s.uavs, &est) } else { None };
         let Some(truth) = s.truth else {
             s.estimate_error_m = None;
             s.nees = None;
@@ -84,7 +102,6 @@ pub fn annotate(run: &mut crate::RunRecord) {
         };
         any_truth = true;
         let z = Vector2::new(truth[0], truth[1]);
-        let est = Vector2::new(s.estimate[0], s.estimate[1]);
         let cov = nalgebra::Matrix2::new(
             s.estimate_cov[0][0],
             s.estimate_cov[0][1],
@@ -93,11 +110,7 @@ pub fn annotate(run: &mut crate::RunRecord) {
         );
         s.estimate_error_m = est.iter().all(|v| v.is_finite()).then(|| (est - z).norm());
         s.nees = tdoa::nees(&est, &cov, &z);
-        let fim = sensors_of(s).and_then(|sensors| tdoa::fim(&sensors, &z));
-        let elapsed = last_step.map_or(1, |l| s.step.saturating_sub(l).max(1));
-        last_step = Some(s.step);
-        let b = bound.add(fim, elapsed);
-        s.pcrlb_m = b.is_finite().then_some(b);
+        s.pcrlb_m = at_truth.add(s.step, &s.uavs, &z);
         let min = s.uavs.iter().map(|w| (w[0] - z.x).hypot(w[1] - z.y)).fold(f64::INFINITY, f64::min);
         s.min_true_distance_m = min.is_finite().then_some(min);
         if sc.l_min > 0.0 {

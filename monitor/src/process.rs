@@ -526,23 +526,19 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
     // With a log, the step records live there, not in memory (read back at the end); a restart takes the
     // steps its predecessor logged.
-    let external = args.source == runtime::Source::External;
-    let fresh = || {
-        let a = Assembler::new(scenario.clone());
-        if external { a.without_truth() } else { a }
-    };
     let (assembler, resumed) = match (&args.log, args.resume) {
         (Some(path), true) => {
             let LoggedRun { count, last, truth, names, .. } = read_log(path, false);
             match Assembler::resume_forgetting(scenario.clone(), count, last.as_ref(), truth, names) {
-                Some(a) if external => (a.without_truth(), Some(count)),
                 Some(a) => (a, Some(count)),
-                None => (fresh().forgetting(), Some(0)),
+                None => (Assembler::new(scenario.clone()).forgetting(), Some(0)),
             }
         }
-        (Some(_), false) => (fresh().forgetting(), None),
-        (None, _) => (fresh(), None),
+        (Some(_), false) => (Assembler::new(scenario.clone()).forgetting(), None),
+        (None, _) => (Assembler::new(scenario.clone()), None),
     };
+    let external = args.source == runtime::Source::External;
+    let assembler = if external { assembler.without_truth() } else { assembler };
     let Some(mut node) = Node::open(ROLE, args.domain.as_deref(), &args.link, args.supervised, args.quiet)? else {
         return Err(ProcessError::Interrupted);
     };
