@@ -656,9 +656,13 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     );
     // The record is the run's result: a failure to write files from it does not lose it (it still goes
     // to the supervisor), it is reported.
-    if let Err(e) = recorded.map_err(ProcessError::Failed).and_then(|()| write_outputs(args, &run)) {
+    // Each output is tried whatever became of the others.
+    let errors: Vec<String> =
+        [recorded.err(), write_outputs(args, &run).err().map(|e| e.to_string())].into_iter().flatten().collect();
+    if !errors.is_empty() {
+        let e = errors.join("; ");
         eprintln!("error: monitor: {e}");
-        summary.output_error = Some(e.to_string());
+        summary.output_error = Some(e);
     }
     if !args.quiet {
         let l = &summary.latency;
