@@ -110,6 +110,10 @@ pub struct PlannerBenchArgs {
     /// Times each planning call is repeated per step (≥ 1); every repeat is one timed sample.
     #[arg(long, value_name = "R", default_value_t = 1)]
     pub repeats: usize,
+    /// Steps of each closed-loop input run (≥ 1; default: the scenario's `steps`). Runs longer than the
+    /// paper's 24 steps reach the L_min ring, where the planner's standoff search runs.
+    #[arg(long, value_name = "N")]
+    pub run_steps: Option<usize>,
 }
 
 /// The timing of one objective × solver.
@@ -179,6 +183,45 @@ pub struct PlannerBenchReport {
     pub steps_per_run: usize,
     /// The scenario's solver sizes.
     pub settings: SolverSettings,
+    /// Each solver's plans against PSO's on the same inputs (empty when PSO was not timed).
+    pub quality: Vec<Quality>,
+}
+
+/// One solver's plans against PSO's, paired by input, for one objective (fitness: constraint violation
+/// first, then the criterion).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Quality {
+    pub objective: String,
+    pub solver: String,
+    /// Planning problems compared.
+    pub problems: usize,
+    /// Of them, in the standoff regime (PSO's plan gives up a constraint: the L_min ring).
+    pub standoff_problems: usize,
+    /// Problems where this solver's fitness is ≤ PSO's.
+    pub at_most_pso: usize,
+    /// `at_most_pso / problems`.
+    pub fraction_at_most_pso: f64,
+    /// Problems where it is strictly better.
+    pub better: usize,
+    /// The worst cases (largest excess over PSO), at most five.
+    pub worst: Vec<WorstCase>,
+}
+
+/// A problem where a solver's plan is worse than PSO's.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WorstCase {
+    /// Input index (0-based) and its closed-loop step.
+    pub input: usize,
+    pub step: u64,
+    /// `approach` or `standoff`.
+    pub regime: &'static str,
+    /// The fitness of each plan.
+    pub violation: f64,
+    pub pso_violation: f64,
+    pub objective_m2: f64,
+    pub pso_objective_m2: f64,
+    /// Relative excess: of the violation when either plan violates a constraint, else of the criterion.
+    pub excess: f64,
 }
 
 /// The exact inputs of one `plan_step` call, apart from the scenario, objective and solver.
@@ -231,11 +274,20 @@ fn parse_list<T: std::str::FromStr<Err = String> + PartialEq + Copy>(
 /// (analytical × PSO): run 0 with `sc.seed`, run r ≥ 1 with `derive_seed(sc.seed, r, OuterRun)`.
 /// The loop is `experiments::closed_loop::run_closed_loop`'s without the monitor's metrics.
 pub fn collect_inputs(sc: &Scenario, count: usize) -> Result<(Vec<PlanInput>, usize), CliError> {
+    collect_inputs_of_runs(sc, count, sc.steps)
+}
+
+/// [`collect_inputs`] from input runs of `run_steps` steps each.
+pub fn collect_inputs_of_runs(
+    sc: &Scenario,
+    count: usize,
+    run_steps: usize,
+) -> Result<(Vec<PlanInput>, usize), CliError> {
     let (objective, solver) = REFERENCE;
     let mut inputs = Vec::with_capacity(count);
     let mut runs = 0u64;
     while inputs.len() < count {
-        let mut run_sc = sc.clone();
+        let mut run_sc = Scenario { steps: run_steps, ..sc.clone() };
         if runs > 0 {
             run_sc.seed = derive_seed(sc.seed, runs, Purpose::OuterRun);
         }
@@ -341,8 +393,12 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
     }
     let objectives = parse_list("--objective", &args.objective, &ObjectiveKind::ALL)?;
     let solvers = parse_list("--solver", &args.solver, &SolverKind::ALL)?;
+    if args.run_steps == Some(0) {
+        return Err(CliError::Input("--run-steps must be at least 1, got 0".into()));
+    }
     let sc = scenario_from(args.scenario.as_ref(), None, args.seed)?;
-    let (inputs, input_runs) = collect_inputs(&sc, args.steps)?;
+    let run_steps = args.run_steps.unwrap_or(sc.steps);
+    let (inputs, input_runs) = collect_inputs_of_runs(&sc, args.steps, run_steps)?;
 
     let combos: Vec<(ObjectiveKind, SolverKind)> =
         objectives.iter().flat_map(|&o| solvers.iter().map(move |&s| (o, s))).collect();
@@ -360,6 +416,7 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
     let mut samples = vec![Vec::with_capacity(rounds); count];
     let mut evaluations = vec![0usize; count];
     let mut iterations = vec![0usize; count];
+    let mut fitness = vec![Vec::with_capacity(args.steps); count];
     let progress = std::io::stderr().is_terminal();
     let started = Instant::now();
     let mut shown = 0;
@@ -371,6 +428,9 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
             let ms = t.elapsed().as_secs_f64() * 1e3;
             let out = black_box(out);
             samples[j].push(ms);
+            if round % args.repeats == 0 {
+                fitness[j].push(out.fitness);
+            }
             evaluations[j] += out.evaluations;
             iterations[j] += out.iterations;
         }
@@ -426,7 +486,8 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
         scenario: args.scenario.as_ref().map_or("nominal".to_string(), |p| p.display().to_string()),
         seed: sc.seed,
         input_runs,
-        steps_per_run: sc.steps,
+        steps_per_run: run_steps,
+        quality: quality(&combos, &fitness, &inputs),
         settings: SolverSettings {
             pso: [sc.pso.particles, sc.pso.iterations],
             ga: [sc.ga.population, sc.ga.generations],
@@ -435,6 +496,62 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
             early_stop_window: sc.early_stop.window,
         },
     })
+}
+
+/// Every solver's plans against PSO's for the same objective and inputs (see [`Quality`]).
+pub fn quality(
+    combos: &[(ObjectiveKind, SolverKind)],
+    fitness: &[Vec<planner::Fitness>],
+    inputs: &[PlanInput],
+) -> Vec<Quality> {
+    let mut out = Vec::new();
+    for (j, &(o, s)) in combos.iter().enumerate() {
+        let Some(r) = combos.iter().position(|&c| c == (o, SolverKind::Pso)) else { continue };
+        if s == SolverKind::Pso || !o.is_optimised() {
+            continue;
+        }
+        let (mine, pso) = (&fitness[j], &fitness[r]);
+        let mut worst: Vec<WorstCase> = Vec::new();
+        let mut q = Quality {
+            objective: o.name().into(),
+            solver: s.name().into(),
+            problems: mine.len(),
+            standoff_problems: pso.iter().filter(|f| !f.is_feasible()).count(),
+            at_most_pso: 0,
+            fraction_at_most_pso: 0.0,
+            better: 0,
+            worst: Vec::new(),
+        };
+        for (i, (a, b)) in mine.iter().zip(pso).enumerate() {
+            if a <= b {
+                q.at_most_pso += 1;
+                q.better += usize::from(a < b);
+                continue;
+            }
+            let rel = |x: f64, y: f64| if y > 0.0 { (x - y) / y } else { f64::INFINITY };
+            let excess = if a.is_feasible() && b.is_feasible() {
+                rel(a.objective(), b.objective())
+            } else {
+                rel(a.violation(), b.violation())
+            };
+            worst.push(WorstCase {
+                input: i,
+                step: inputs[i].step,
+                regime: if b.is_feasible() { "approach" } else { "standoff" },
+                violation: a.violation(),
+                pso_violation: b.violation(),
+                objective_m2: a.objective(),
+                pso_objective_m2: b.objective(),
+                excess,
+            });
+        }
+        worst.sort_by(|x, y| y.excess.total_cmp(&x.excess));
+        worst.truncate(5);
+        q.worst = worst;
+        q.fraction_at_most_pso = q.at_most_pso as f64 / q.problems.max(1) as f64;
+        out.push(q);
+    }
+    out
 }
 
 /// A time in ms with about four significant digits.
@@ -575,6 +692,33 @@ impl Report for PlannerBenchReport {
             out += line.trim_end();
             out += "\n";
         }
+        for q in &self.quality {
+            out += &format!(
+                "\n{}/{} vs {}/pso: fitness <= PSO's on {} of {} problems ({:.2} %; {} standoff), better on {}",
+                q.objective,
+                q.solver,
+                q.objective,
+                q.at_most_pso,
+                q.problems,
+                100.0 * q.fraction_at_most_pso,
+                q.standoff_problems,
+                q.better
+            );
+            for w in &q.worst {
+                out += &format!(
+                    "\n  worse: input {} (step {}, {}): violation {:.3e} vs {:.3e}, criterion {:.6e} vs {:.6e} m² (+{:.2e})",
+                    w.input,
+                    w.step,
+                    w.regime,
+                    w.violation,
+                    w.pso_violation,
+                    w.objective_m2,
+                    w.pso_objective_m2,
+                    w.excess
+                );
+            }
+            out += "\n";
+        }
         out += &format!(
             "\nEach sample is one plan_step call (criterion preparation + solver + constraint check), wall clock,\n\
              one thread, release build; '× ref' = median / the median of {}. Paper Table 7 (PSO rows;\n\
@@ -599,6 +743,7 @@ mod tests {
             scenario: None,
             seed: None,
             repeats,
+            run_steps: None,
         }
     }
 

@@ -24,7 +24,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
     let mut crlb_groups = Vec::new();
     let mut rmse_groups = Vec::new();
     let mut all_beat_formation = true;
-    for solver in SolverKind::ALL {
+    for solver in SolverKind::PAPER {
         let b = batches(engine, "optimizers", &sc, solver, &METHODS)?;
         let stats: Vec<MethodStats> = b.iter().map(|x| MethodStats::of(x, Some(&b[1]))).collect();
         let p = paper::OPTIMIZERS.iter().find(|(s, _, _)| *s == solver.name());

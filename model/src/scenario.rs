@@ -23,7 +23,7 @@ use tdoa::{DEFAULT_KAPPA, Dynamics, EmitterModel, MAX_UAVS, NoiseModel};
 use thiserror::Error;
 
 use crate::kinematics::bearing;
-use crate::solver_config::{AcoConfig, EarlyStop, GaConfig, PsoConfig};
+use crate::solver_config::{AcoConfig, EarlyStop, GaConfig, GradientConfig, PsoConfig};
 
 /// Smallest covariance (m², times the identity) handed to the planner in controlled mode: at scale
 /// s = 0 the covariance `s² σ_t² I` would be zero, which no [`tdoa::Uncertainty`] accepts. (1 cm)² makes
@@ -189,6 +189,8 @@ pub struct Scenario {
     pub ga: GaConfig,
     /// ACO settings (`[aco]`).
     pub aco: AcoConfig,
+    /// Gradient solver settings (`[gradient]`).
+    pub gradient: GradientConfig,
 }
 
 impl Default for Scenario {
@@ -224,6 +226,7 @@ impl Default for Scenario {
             pso: PsoConfig::default(),
             ga: GaConfig::default(),
             aco: AcoConfig::default(),
+            gradient: GradientConfig::default(),
         }
     }
 }
@@ -365,6 +368,9 @@ impl Scenario {
         nonzero("aco.iterations", self.aco.iterations)?;
         positive("aco.evaporation", self.aco.evaporation)?;
         positive("aco.elite_fraction", self.aco.elite_fraction)?;
+        nonzero("gradient.starts", self.gradient.starts)?;
+        nonzero("gradient.iterations", self.gradient.iterations)?;
+        positive("gradient.tolerance", self.gradient.tolerance)?;
         Ok(())
     }
 

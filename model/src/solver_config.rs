@@ -1,4 +1,4 @@
-//! The solvers' settings as the scenario carries them (`[pso]`, `[ga]`, `[aco]`, `[early_stop]`): plain
+//! The solvers' settings as the scenario carries them (`[pso]`, `[ga]`, `[aco]`, `[gradient]`, `[early_stop]`): plain
 //! data, so that every process can read a scenario without the planner. The solvers themselves are in
 //! `uavloc-planner`.
 
@@ -76,6 +76,25 @@ pub struct AcoConfig {
 impl Default for AcoConfig {
     fn default() -> Self {
         Self { archive: 40, ants: 40, iterations: 15, evaporation: 0.35, elite_fraction: 0.25 }
+    }
+}
+
+/// Settings of the gradient solver (ours; not in the paper).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GradientConfig {
+    /// Local searches, from the best of the evaluated starts (current headings, cone centre, cone
+    /// corners) — 2.
+    pub starts: usize,
+    /// Most quasi-Newton iterations per local search — 40.
+    pub iterations: usize,
+    /// A local search stops when its step moves no heading by more than this, radians — 1e-7.
+    pub tolerance: f64,
+}
+
+impl Default for GradientConfig {
+    fn default() -> Self {
+        Self { starts: 2, iterations: 40, tolerance: 1e-7 }
     }
 }
 

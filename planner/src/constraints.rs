@@ -207,6 +207,17 @@ impl Constraints {
         self.l_min + self.standoff_k * var.max(0.0).sqrt()
     }
 
+    /// The normalised approach violation `(B − L)/B` of one UAV at waypoint `next` with heading `heading`
+    /// (0 when it holds, within [`FEASIBILITY_EPS`], or when `L_min` is off): `L` its
+    /// [`standoff_distance`](Self::standoff_distance), `B` its [`approach_bound`](Self::approach_bound).
+    pub fn approach_violation(&self, next: Vector2<f64>, heading: f64, estimate: Vector2<f64>) -> f64 {
+        let bound = self.approach_bound(next, estimate);
+        if bound.is_nan() || bound <= 0.0 {
+            return 0.0;
+        }
+        normalised(bound - self.standoff_distance(next, heading, estimate), bound)
+    }
+
     /// Largest turn per step that keeps `R ≥ R_min`: `min(π, L/R_min)`, radians.
     pub fn max_turn(&self) -> f64 {
         max_turn(self.arc_len, self.r_min)

@@ -11,7 +11,8 @@
 //! - [`fitness`]: the lexicographic penalised fitness (eq. 78);
 //! - [`objective`]: the criteria, one adapter over `tdoa`'s global CRLB methods;
 //! - [`formation`]: the traditional fixed-formation baseline;
-//! - [`solver`], [`pso`], [`ga`], [`aco`]: one solver trait, three solvers;
+//! - [`solver`], [`pso`], [`ga`], [`aco`], [`gradient`]: one solver trait, the paper's three solvers and
+//!   a deterministic gradient solver;
 //! - [`step`]: one planning step, [`plan_step`];
 //! - [`process`]: the planner process (estimate in → `plan_step` → command out over iceoryx2).
 //!
@@ -24,6 +25,8 @@ pub mod constraints;
 pub mod fitness;
 pub mod formation;
 pub mod ga;
+pub mod gradient;
+pub mod heading_interval;
 pub mod objective;
 pub mod process;
 pub mod pso;
@@ -36,6 +39,7 @@ pub use constraints::{ActiveConstraint, ConstraintKind, ConstraintReport, Constr
 pub use fitness::Fitness;
 pub use formation::formation_headings;
 pub use ga::{Ga, GaConfig};
+pub use gradient::{Gradient, GradientConfig};
 pub use kinematics::{bearing, next_position, turn_angle, turn_radius, wrap_angle};
 pub use objective::{CrlbObjective, ObjectiveKind, PlanObjective};
 pub use pso::{Pso, PsoConfig};

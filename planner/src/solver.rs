@@ -13,10 +13,12 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
-use crate::aco::{Aco, AcoConfig};
+use crate::aco::Aco;
 use crate::fitness::Fitness;
-use crate::ga::{Ga, GaConfig};
-use crate::pso::{Pso, PsoConfig};
+use crate::ga::Ga;
+use crate::gradient::Gradient;
+use crate::pso::Pso;
+use crate::scenario::Scenario;
 
 /// Why a search space was refused.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -228,11 +230,15 @@ pub enum SolverKind {
     Ga,
     /// Ant colony optimisation for continuous domains, ACO_R (paper Section 5.4).
     Aco,
+    /// Multi-start projected quasi-Newton descent (ours; [`crate::gradient`]).
+    Gradient,
 }
 
 impl SolverKind {
     /// All solvers.
-    pub const ALL: [SolverKind; 3] = [SolverKind::Pso, SolverKind::Ga, SolverKind::Aco];
+    pub const ALL: [SolverKind; 4] = [SolverKind::Pso, SolverKind::Ga, SolverKind::Aco, SolverKind::Gradient];
+    /// The paper's solvers (what `uavloc paper` compares).
+    pub const PAPER: [SolverKind; 3] = [SolverKind::Pso, SolverKind::Ga, SolverKind::Aco];
 
     /// The lower-case name.
     pub fn name(self) -> &'static str {
@@ -240,15 +246,18 @@ impl SolverKind {
             SolverKind::Pso => "pso",
             SolverKind::Ga => "ga",
             SolverKind::Aco => "aco",
+            SolverKind::Gradient => "gradient",
         }
     }
 
-    /// The solver with the given settings.
-    pub fn build(self, pso: PsoConfig, ga: GaConfig, aco: AcoConfig, stop: EarlyStop) -> Box<dyn Solver> {
+    /// The solver with the scenario's settings for it.
+    pub fn build(self, sc: &Scenario) -> Box<dyn Solver> {
+        let stop = sc.early_stop;
         match self {
-            SolverKind::Pso => Box::new(Pso { config: pso, stop }),
-            SolverKind::Ga => Box::new(Ga { config: ga, stop }),
-            SolverKind::Aco => Box::new(Aco { config: aco, stop }),
+            SolverKind::Pso => Box::new(Pso { config: sc.pso, stop }),
+            SolverKind::Ga => Box::new(Ga { config: sc.ga, stop }),
+            SolverKind::Aco => Box::new(Aco { config: sc.aco, stop }),
+            SolverKind::Gradient => Box::new(Gradient { config: sc.gradient }),
         }
     }
 }
@@ -265,7 +274,7 @@ impl FromStr for SolverKind {
         SolverKind::ALL
             .into_iter()
             .find(|k| k.name() == s)
-            .ok_or_else(|| format!("unknown solver '{s}' (expected one of: pso, ga, aco)"))
+            .ok_or_else(|| format!("unknown solver '{s}' (expected one of: pso, ga, aco, gradient)"))
     }
 }
 

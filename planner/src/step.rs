@@ -24,7 +24,14 @@
 //!    thousands of steps, fly turns tighter than `R_min` through the emitter's neighbourhood and into each
 //!    other (the 100 000-step soak found two UAVs 0.6 mm apart). With it they orbit at the standoff
 //!    distance: the heading cone is then reported violated;
-//! 5. the chosen headings (wrapped into (−π, π]), the waypoints they lead to, the criterion there and
+//! 5. with `--solver gradient` (ours) steps 3–4 are one search instead: every UAV's own constraints —
+//!    turn radius, approach distance, heading cone — are settled first, each UAV alone
+//!    ([`crate::heading_interval`]: its box of the reachable headings that keep the approach distance in
+//!    the cone, or the one heading that keeps it closest to the cone), then [`Gradient`] minimises the
+//!    tiered fitness of step 4 over the product of those boxes (the criterion, with the spacing as a
+//!    constraint; a second search over every reachable heading when the spacing cannot hold there). The
+//!    tiers being the same, its plans rank by the same order as the two searches';
+//! 6. the chosen headings (wrapped into (−π, π]), the waypoints they lead to, the criterion there and
 //!    the violated or binding constraints are returned with the iteration and evaluation counts and
 //!    the wall-clock planning time.
 
@@ -38,6 +45,8 @@ use thiserror::Error;
 use crate::constraints::{ActiveConstraint, ConstraintKind, Constraints};
 use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
+use crate::gradient::Gradient;
+use crate::heading_interval::{HeadingInterval, Uav, heading_interval};
 use crate::kinematics::{next_position, turn_angle, wrap_angle};
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError};
@@ -108,7 +117,8 @@ pub struct PlanOutput {
     pub waypoints: Vec<Vector2<f64>>,
     /// The criterion at the waypoints, m² (`formation`: the single-point `tr F⁻¹(ẑ)`).
     pub objective_value: f64,
-    /// Violation and criterion of the plan.
+    /// Violation and criterion of the plan; after a standoff search (see the module docs) the violation
+    /// by its priority tiers, the order that search ranked the plans by.
     pub fitness: Fitness,
     /// Violated or binding constraints of the plan.
     pub active_constraints: Vec<ActiveConstraint>,
@@ -151,6 +161,52 @@ fn standoff_tiers(by_kind: [f64; 4]) -> [f64; TIERS] {
     ]
 }
 
+/// The gradient planner's search (`--solver gradient`; see the module docs): the product of the UAVs'
+/// own heading boxes ([`heading_interval`]), searched for the criterion by [`Gradient`] from the current
+/// headings moved into the boxes, their centre and their corners; when the spacing (the one coupling
+/// constraint) is violated there, a second search over every reachable heading from that plan. Returns
+/// the headings, iterations and evaluations.
+fn gradient_search(
+    constraints: &Constraints,
+    pos: &[Vector2<f64>],
+    psi: &[f64],
+    z: Vector2<f64>,
+    sc: &Scenario,
+    tiered: &mut dyn FnMut(&[f64]) -> Fitness,
+) -> Result<(Vec<f64>, usize, usize), PlanError> {
+    let n = pos.len();
+    let solver = Gradient { config: sc.gradient };
+    let boxes: Vec<HeadingInterval> = (0..n)
+        .map(|i| {
+            let uav = Uav { position: pos[i], heading: psi[i], speed: sc.speed, dt: sc.dt };
+            heading_interval(constraints, &uav, z)
+        })
+        .collect();
+    let lo: Vec<f64> = boxes.iter().map(|b| b.lo).collect();
+    let hi: Vec<f64> = boxes.iter().map(|b| b.hi).collect();
+    let moved: Vec<f64> = (0..n).map(|i| psi[i].clamp(lo[i], hi[i])).collect();
+    let mut starts = vec![moved.clone(), (0..n).map(|i| 0.5 * (lo[i] + hi[i])).collect()];
+    if n <= crate::gradient::MAX_CORNER_DIM {
+        starts.extend((0..1usize << n).map(|b| (0..n).map(|i| if b >> i & 1 == 1 { hi[i] } else { lo[i] }).collect()));
+    }
+    let space = SearchSpace::new(lo, hi, moved)?;
+    let first = solver.minimize_from(tiered, &space, &starts);
+    if first.fitness.tiers()[0] == 0.0 {
+        return Ok((first.best, first.iterations, first.evaluations));
+    }
+    // The spacing is violated: every reachable heading, from that plan and from straight on.
+    let theta = constraints.max_turn();
+    let reach = SearchSpace::new(
+        psi.iter().map(|p| p - theta).collect(),
+        psi.iter().map(|p| p + theta).collect(),
+        first.best.clone(),
+    )?;
+    let second = solver.minimize_from(tiered, &reach, &[first.best.clone(), psi.to_vec()]);
+    let (iterations, evaluations) = (first.iterations + second.iterations, first.evaluations + second.evaluations);
+    let best = if second.fitness < first.fitness { second.best } else { first.best };
+    Ok((best, iterations, evaluations))
+}
+
 /// Plans one step; see the module docs.
 pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
     let start = Instant::now();
@@ -181,7 +237,16 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         req.step,
     )?;
 
-    let (chosen, iterations, evaluations) = if req.objective.is_optimised() {
+    let mut standoff_ran = false;
+    let (chosen, iterations, evaluations) = if req.objective.is_optimised() && req.solver == SolverKind::Gradient {
+        standoff_ran = true;
+        let mut tiered = |phi: &[f64]| {
+            let next = waypoints_of(pos, psi, phi, sc);
+            let by_kind = constraints.violations_by_kind(pos, psi, z, phi, &next[..n]);
+            Fitness::tiered(standoff_tiers(by_kind), objective.evaluate(&next[..n]))
+        };
+        gradient_search(&constraints, pos, psi, z, sc, &mut tiered)?
+    } else if req.objective.is_optimised() {
         let mut lo = Vec::with_capacity(n);
         let mut hi = Vec::with_capacity(n);
         let mut start_point = Vec::with_capacity(n);
@@ -193,7 +258,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             start_point.push(alpha + turn_angle(alpha, psi[i]));
         }
         let space = SearchSpace::new(lo, hi, start_point)?;
-        let solver = req.solver.build(sc.pso, sc.ga, sc.aco, sc.early_stop);
+        let solver = req.solver.build(sc);
         let mut fitness = |phi: &[f64]| {
             let next = waypoints_of(pos, psi, phi, sc);
             Fitness::new(constraints.violation(pos, psi, z, phi, &next[..n]), objective.evaluate(&next[..n]))
@@ -201,6 +266,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         let result = solver.minimize(&mut fitness, &space, derive_seed(req.run_seed, req.step, Purpose::Solver));
         let (mut best, mut iterations, mut evaluations) = (result.best, result.iterations, result.evaluations);
         if !result.fitness.is_feasible() {
+            standoff_ran = true;
             let theta = constraints.max_turn();
             let lo = psi.iter().map(|p| p - theta).collect();
             let hi = psi.iter().map(|p| p + theta).collect();
@@ -228,11 +294,19 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
     let waypoints = next[..n].to_vec();
     let report = constraints.check(pos, psi, z, &chosen, &waypoints);
     let objective_value = objective.evaluate(&waypoints);
+    let fitness = if standoff_ran && report.violation > 0.0 {
+        Fitness::tiered(
+            standoff_tiers(constraints.violations_by_kind(pos, psi, z, &chosen, &waypoints)),
+            objective_value,
+        )
+    } else {
+        Fitness::new(report.violation, objective_value)
+    };
     Ok(PlanOutput {
         headings: chosen.iter().map(|h| wrap_angle(*h)).collect(),
         waypoints,
         objective_value,
-        fitness: Fitness::new(report.violation, objective_value),
+        fitness,
         active_constraints: report.active,
         iterations,
         evaluations,
@@ -377,7 +451,7 @@ mod tests {
         // distance, giving up only the cone.
         let case = orbiting();
         let constraints = Constraints::from_scenario(&case.sc);
-        for solver in [SolverKind::Pso, SolverKind::Ga, SolverKind::Aco] {
+        for solver in SolverKind::ALL {
             let out = plan_step(&case.request(ObjectiveKind::Analytical, solver)).unwrap();
             let label = format!("{solver:?}");
             let by_kind = constraints.violations_by_kind(&case.pos, &case.psi, case.z, &out.headings, &out.waypoints);

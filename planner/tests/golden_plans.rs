@@ -39,7 +39,7 @@ fn bits_of_all() -> Vec<String> {
     for k in 0..PROBLEMS {
         let (pos, psi, z, m) = problem(k);
         for objective in [ObjectiveKind::Analytical, ObjectiveKind::PosteriorCubature, ObjectiveKind::Single] {
-            for solver in SolverKind::ALL {
+            for solver in SolverKind::PAPER {
                 let out = plan_step(&PlanRequest {
                     positions: &pos,
                     headings: &psi,
