@@ -232,8 +232,9 @@ pub struct RunChoice {
     /// formation (the fixed-formation baseline).
     #[arg(long, default_value = "analytical")]
     pub objective: planner::ObjectiveKind,
-    /// Solver: pso | ga | aco (ignored by the formation baseline).
-    #[arg(long, default_value = "pso")]
+    /// Solver: gradient (ours: each UAV's own constraints settled exactly, then projected quasi-Newton
+    /// on the criterion; deterministic) | pso | ga | aco (the paper's). Ignored by the formation baseline.
+    #[arg(long, default_value = "gradient")]
     pub solver: planner::SolverKind,
     /// Number of planning steps (default: the scenario's, 24 for the paper).
     #[arg(long, value_name = "N")]

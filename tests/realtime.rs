@@ -174,7 +174,11 @@ fn an_extreme_time_scale_misses_commands_and_completes() {
     let missed = check_missed_steps(&run);
     assert!(!missed.is_empty(), "{run}");
     assert_eq!(run["steps"].as_array().unwrap().len(), 7);
-    assert_eq!((run["objective"].as_str(), run["solver"].as_str()), (Some("mc"), Some("pso")));
+    assert_eq!(
+        (run["objective"].as_str(), run["solver"].as_str()),
+        (Some("mc"), Some("gradient")),
+        "the default solver"
+    );
     assert_eq!(run["restarts"].as_u64(), Some(0));
 }
 

@@ -38,7 +38,7 @@ fn the_planner_is_swapped_from_pso_to_ga_mid_run() {
     let d = domain("swap", "planner");
     let dir = scratch("swap-planner");
     let steps = STEPS.to_string();
-    let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "40"]);
+    let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "40", "--solver", "pso"]);
     launch.wait_for_step(5, Duration::from_secs(30));
     let old = pid_of(&d, "planner").expect("the launch's planner");
 
@@ -78,7 +78,7 @@ fn the_planner_is_swapped_from_pso_to_ga_mid_run() {
     );
 
     // Up to the swap the run is pso's, i.e. simulate's; from there on the ga planner flew it.
-    let sim = json_of(&["simulate", "--json", "--steps", &steps]);
+    let sim = json_of(&["simulate", "--json", "--steps", &steps, "--solver", "pso"]);
     let prefix = |v: &Value, n: u64| {
         let mut v = v.clone();
         v["steps"] = Value::Array(v["steps"].as_array().unwrap()[..n as usize].to_vec());

@@ -78,6 +78,9 @@ pub struct RunFlags {
     /// Planning objective: single | mc | analytical | cubature | formation.
     #[arg(long, default_value = "analytical")]
     pub objective: ObjectiveKind,
+    /// Solver: gradient (the default of `launch`) | pso | ga | aco.
+    #[arg(long, default_value = "gradient")]
+    pub solver: planner::SolverKind,
     /// Scenario TOML file (default: the paper's nominal case).
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
@@ -314,7 +317,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
         run: crate::args::RunChoice {
             scenario: flags.scenario.clone(),
             objective: flags.objective,
-            solver: planner::SolverKind::Pso,
+            solver: flags.solver,
             steps: Some(config.steps),
             seed: None,
             estimator: None,

@@ -89,8 +89,8 @@ pub struct PlannerArgs {
     /// Planning objective: single | mc | analytical | cubature | formation.
     #[arg(long, default_value = "analytical")]
     pub objective: ObjectiveKind,
-    /// Solver: pso | ga | aco (ignored by formation).
-    #[arg(long, default_value = "pso")]
+    /// Solver: gradient | pso | ga | aco (ignored by formation).
+    #[arg(long, default_value = "gradient")]
     pub solver: SolverKind,
     /// Transport and waiting.
     #[command(flatten)]

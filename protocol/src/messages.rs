@@ -1065,7 +1065,7 @@ pub struct Control {
 impl_message!(Control, MessageKind::Control, 3, "uavloc::Control/v3");
 
 impl Control {
-    /// A control message of `kind` from `role` (`detail` may be empty).
+    /// A control message of `kind` from `role` (`detail` may be empty; beyond 16 characters it is cut).
     pub fn new(
         kind: ControlKind,
         step: u64,
@@ -1082,8 +1082,18 @@ impl Control {
             kind: kind as u32,
             reserved: 0,
             role: Name16::new("role", role)?,
-            detail: if detail.is_empty() { Name16::default() } else { Name16::new("detail", detail)? },
+            detail: if detail.is_empty() { Name16::default() } else { Name16::new("detail", Self::cut(detail))? },
         })
+    }
+
+    /// `detail` cut to the 16 bytes the field holds (at a character boundary): it is free text for
+    /// humans, and a planner's `solver/objective` (e.g. `pso/posterior-cubature`) may be longer.
+    fn cut(detail: &str) -> &str {
+        let mut end = detail.len().min(16);
+        while !detail.is_char_boundary(end) {
+            end -= 1;
+        }
+        &detail[..end]
     }
 
     /// The decoded kind (`None` for an unknown wire value).

@@ -590,6 +590,10 @@ mod tests {
         let c = Control::new(ControlKind::Hello, 0, 5, 9, 100, "planner", "ga/analytical").unwrap();
         assert_eq!(c.validate(Some(4)), Ok(()));
         assert_eq!((c.kind(), c.role(), c.detail()), (Some(ControlKind::Hello), Some("planner"), "ga/analytical"));
+        // A planner's `solver/objective` longer than the field is cut, not refused (it stopped the
+        // planner of `--solver gradient` and of `--objective posterior-cubature` at start).
+        let long = Control::new(ControlKind::Hello, 0, 1, 7, 1, "planner", "gradient/posterior-cubature").unwrap();
+        assert_eq!((long.validate(None), long.detail()), (Ok(()), "gradient/posteri"));
         let plain = Control::new(ControlKind::Shutdown, 0, 5, 9, 100, "launcher", "").unwrap();
         assert_eq!((plain.validate(None), plain.detail()), (Ok(()), ""));
         assert_eq!(c.validate(Some(5)).unwrap_err().kind(), "stale");

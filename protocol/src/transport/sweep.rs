@@ -181,15 +181,12 @@ impl Sender for IoxSender {
 
     fn ack(&mut self) -> Result<Ack, TransportError> {
         let p = &self.ports;
+        let deadline = std::time::Instant::now() + PATIENCE;
         loop {
             if let Some(s) = p.acks.receive().map_err(|e| failed("receiving an ack", &self.name, e))? {
                 return Ok(Ack::from_words(*s.payload()));
             }
-            match p.listener.timed_wait(|_| {}, PATIENCE) {
-                Ok(0) => return Err(timeout("waiting for an ack", &self.name)),
-                Ok(_) => {}
-                Err(e) => return Err(failed("waiting for an ack", &self.name, e)),
-            }
+            wait_until(&p.listener, deadline, "waiting for an ack", &self.name)?;
         }
     }
 }
@@ -235,6 +232,7 @@ impl IoxReceiver {
 
 impl Receiver for IoxReceiver {
     fn echo(&mut self) -> Result<bool, TransportError> {
+        let deadline = std::time::Instant::now() + PATIENCE;
         loop {
             if let Some(sample) = self.data.receive().map_err(|e| failed("receiving", &self.name, e))? {
                 let received_ns = now_ns();
@@ -246,13 +244,25 @@ impl Receiver for IoxReceiver {
                 self.answer(Ack { seq, sent_ns, received_ns, cpu_ns: cpu_ns() })?;
                 return Ok(true);
             }
-            match self.listener.timed_wait(|_| {}, PATIENCE) {
-                Ok(0) => return Err(timeout("waiting for a payload", &self.name)),
-                Ok(_) => {}
-                Err(e) => return Err(failed("waiting for a payload", &self.name, e)),
-            }
+            wait_until(&self.listener, deadline, "waiting for a payload", &self.name)?;
         }
     }
+}
+
+/// Waits on `listener` for a notification until `deadline`: a wait that returns early without one (a
+/// signal, a spurious wake-up) is no timeout — the caller looks for its sample and waits again — only
+/// reaching the deadline is.
+fn wait_until(
+    listener: &iceoryx2::port::listener::Listener<ipc::Service>,
+    deadline: std::time::Instant,
+    what: &'static str,
+    name: &str,
+) -> Result<(), TransportError> {
+    let left = deadline.saturating_duration_since(std::time::Instant::now());
+    if left.is_zero() {
+        return Err(timeout(what, name));
+    }
+    listener.timed_wait(|_| {}, left).map(|_| ()).map_err(|e| failed(what, name, e))
 }
 
 /// Waits until a receiver has connected to `sender` (its readiness ack, numbered [`STOP`], came).
