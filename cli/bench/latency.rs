@@ -474,28 +474,39 @@ fn pair(runs: &[RunResult], w: WaitMode) -> Option<(Percentiles, Percentiles)> {
     Some((find(TransportKind::Iceoryx2)?, find(TransportKind::Uds)?))
 }
 
+/// The hops of the control loop (measurement → estimate → command → world).
+const LOOP_HOPS: [&str; 3] = ["emitter→estimator", "estimator→planner", "planner→emitter"];
+
+/// The mean p50 of the control loop's hops (µs), when all were measured.
+fn loop_hop_p50(r: &RunResult) -> Option<f64> {
+    let p: Option<Vec<f64>> = LOOP_HOPS.iter().map(|h| r.hops.get(*h).copied().flatten().map(|p| p.p50_us)).collect();
+    p.map(|p| p.iter().sum::<f64>() / p.len() as f64)
+}
+
+/// The goals of issue 17 (sections 3 and 4) for the runs measured.
 fn goals(runs: &[RunResult], objective: ObjectiveKind) -> Vec<Goal> {
     let mut out = Vec::new();
+    let note = if objective == ObjectiveKind::Analytical { "" } else { " (goal stated for the analytical objective)" };
     for r in runs {
         if let Some(e) = &r.end_to_end {
-            let analytical = objective == ObjectiveKind::Analytical;
+            let block = r.wait == "block";
+            let p50_goal = if block { 200.0 } else { f64::INFINITY };
             out.push(Goal {
-                goal: format!("end-to-end p99 ≤ 500 µs ({})", r.label()),
-                met: e.p99_us <= 500.0,
-                detail: format!(
-                    "p99 {:.0} µs{}{}",
-                    e.p99_us,
-                    if e.p99_us > 500.0 { format!(", {:.0} µs over", e.p99_us - 500.0) } else { String::new() },
-                    if analytical { "" } else { " (goal stated for the analytical objective)" }
-                ),
+                goal: if block {
+                    format!("end-to-end p50 ≤ 200 µs and p99 ≤ 500 µs ({})", r.label())
+                } else {
+                    format!("end-to-end p99 ≤ 500 µs ({})", r.label())
+                },
+                met: e.p50_us <= p50_goal && e.p99_us <= 500.0,
+                detail: format!("p50 {:.0} µs, p99 {:.0} µs{note}", e.p50_us, e.p99_us),
             });
         }
         if r.wait == "block" && !r.idle_cpu_pct.is_empty() {
             let worst =
                 r.idle_cpu_pct.iter().max_by(|a, b| a.1.total_cmp(b.1)).map_or(("-", 0.0), |(k, v)| (k.as_str(), *v));
             out.push(Goal {
-                goal: format!("idle CPU < 10 % per process ({})", r.label()),
-                met: worst.1 < 10.0,
+                goal: format!("idle CPU < 1 % per process ({})", r.label()),
+                met: worst.1 < 1.0,
                 detail: format!("highest {:.2} % ({})", worst.1, worst.0),
             });
         }
@@ -505,10 +516,29 @@ fn goals(runs: &[RunResult], objective: ObjectiveKind) -> Vec<Goal> {
             detail: format!("{} lost", r.lost),
         });
     }
+    let find = |t: TransportKind, w: WaitMode| runs.iter().find(|r| r.transport == t.name() && r.wait == w.name());
     for w in WaitMode::ALL {
+        let (Some(i), Some(u)) = (find(TransportKind::Iceoryx2, w), find(TransportKind::Uds, w)) else { continue };
+        let hops = loop_hop_p50(i).zip(loop_hop_p50(u));
+        let detail = |(hi, hu): (f64, f64)| {
+            format!("control-loop hops, mean p50: iceoryx2 {hi:.1} µs, uds {hu:.1} µs ({:.2}×)", hi / hu)
+        };
+        match (w, hops) {
+            (WaitMode::SpinThenBlock, Some((hi, hu))) => out.push(Goal {
+                goal: format!("iceoryx2 hops ≤ 5 µs p50 and ≤ ½ of uds ({w})"),
+                met: hi <= 5.0 && hi <= 0.5 * hu,
+                detail: detail((hi, hu)),
+            }),
+            (WaitMode::Block, Some((hi, hu))) => out.push(Goal {
+                goal: format!("iceoryx2 hops within 10 % of uds at p50 ({w})"),
+                met: hi <= 1.1 * hu,
+                detail: detail((hi, hu)),
+            }),
+            _ => {}
+        }
         if let Some((a, b)) = pair(runs, w) {
             out.push(Goal {
-                goal: format!("iceoryx2 ahead of uds at p50 and p99 ({w})"),
+                goal: format!("iceoryx2 ahead of uds end to end at p50 and p99 ({w})"),
                 met: a.p50_us < b.p50_us && a.p99_us < b.p99_us,
                 detail: format!("p50 {:.1} vs {:.1} µs, p99 {:.1} vs {:.1} µs", a.p50_us, b.p50_us, a.p99_us, b.p99_us),
             });
@@ -793,16 +823,44 @@ mod tests {
             histograms: Vec::new(),
             rounds: 1,
         };
+        let hops = |p50s: [f64; 3]| -> BTreeMap<String, Option<Percentiles>> {
+            LOOP_HOPS
+                .iter()
+                .zip(p50s)
+                .map(|(h, p)| {
+                    let q = Percentiles { p50_us: p, p90_us: p, p99_us: p, p999_us: p, max_us: p, n: 10 };
+                    (h.to_string(), Some(q))
+                })
+                .collect()
+        };
         let runs = [mk("iceoryx2", "block", 100.0, 400.0, 0), mk("uds", "block", 200.0, 300.0, 1)];
         let r = ratios(&runs);
         assert_eq!(r.len(), 1);
         assert!((r[0].p50 - 0.5).abs() < 1e-12 && (r[0].p99 - 400.0 / 300.0).abs() < 1e-12);
         let g = goals(&runs, ObjectiveKind::Analytical);
-        let find = |s: &str| g.iter().find(|x| x.goal.contains(s)).unwrap().clone();
-        assert!(find("p99 ≤ 500 µs (iceoryx2 block)").met);
-        assert!(!find("idle CPU < 10 % per process (uds block)").met);
-        assert!(find("idle CPU < 10 % per process (uds block)").detail.contains("monitor"));
-        assert!(!find("no lost messages (uds block)").met);
-        assert!(!find("iceoryx2 ahead of uds").met, "p99 is behind");
+        let find = |g: &[Goal], s: &str| g.iter().find(|x| x.goal.contains(s)).unwrap_or_else(|| panic!("{s}")).clone();
+        assert!(find(&g, "p50 ≤ 200 µs and p99 ≤ 500 µs (iceoryx2 block)").met);
+        assert!(find(&g, "p50 ≤ 200 µs and p99 ≤ 500 µs (uds block)").met, "the bounds are inclusive");
+        assert!(!find(&g, "idle CPU < 1 % per process (uds block)").met);
+        assert!(find(&g, "idle CPU < 1 % per process (uds block)").detail.contains("monitor"));
+        assert!(!find(&g, "no lost messages (uds block)").met);
+        assert!(!find(&g, "iceoryx2 ahead of uds").met, "p99 is behind");
+        // The hop goals of 17.4: spin-then-block ≤ 5 µs and ≤ ½ of uds; block within 10 %.
+        let mut runs = vec![
+            mk("iceoryx2", "spin-then-block", 50.0, 100.0, 0),
+            mk("uds", "spin-then-block", 60.0, 100.0, 0),
+            mk("iceoryx2", "block", 150.0, 300.0, 0),
+            mk("uds", "block", 150.0, 300.0, 0),
+        ];
+        for (r, p) in runs.iter_mut().zip([[4.0, 5.0, 6.0], [12.0, 10.0, 8.0], [45.0, 46.0, 47.0], [40.0, 40.0, 40.0]])
+        {
+            r.hops = hops(p);
+        }
+        let g = goals(&runs, ObjectiveKind::Analytical);
+        assert!(find(&g, "≤ 5 µs p50 and ≤ ½ of uds (spin-then-block)").met, "5.0 ≤ 5 and 5 ≤ 5");
+        assert!(!find(&g, "within 10 % of uds at p50 (block)").met, "46 > 1.1 × 40");
+        runs[2].hops = hops([43.0, 44.0, 44.0]);
+        let g = goals(&runs, ObjectiveKind::Analytical);
+        assert!(find(&g, "within 10 % of uds at p50 (block)").met, "43.67 ≤ 44");
     }
 }
