@@ -121,7 +121,9 @@ pub fn heading_interval(c: &Constraints, uav: &Uav, estimate: Vector2<f64>) -> H
     }
 
     // The allowed headings in the cone (the cone modulo 2π, unwrapped around ψ).
-    let centre = psi + turn_angle(psi, alpha);
+    // α itself when ψ is within π of it (the very bounds `α ± Δα` of the cone search, bit for bit),
+    // else shifted by whole turns towards ψ.
+    let centre = alpha + TAU * ((psi - alpha) / TAU).round();
     let mut in_cone: Vec<(f64, f64)> = Vec::new();
     for (a, b) in &allowed {
         for shift in [-TAU, 0.0, TAU] {
