@@ -148,8 +148,9 @@ fn record_step(
     let Ok(m) = Measurement::new(k, k, uavs, trace.range_diffs, trace.sigmas, trace.measured_headings) else { return };
     r.record(&m, now);
     let reply = estimator::process::reply_of(trace.estimate);
-    if let Ok(e) = reply.to_estimate(&m, now, k, 0) {
-        r.record(&e, now);
+    let estimate = reply.to_estimate(&m, now, k, 0).ok();
+    if let Some(e) = &estimate {
+        r.record(e, now);
     }
     if let Some(plan) = trace.plan {
         let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();
@@ -164,7 +165,8 @@ fn record_step(
             violated_constraints: model::active_mask::encode_violated(&plan.active_constraints),
         };
         if let Ok(c) = Command::new(k, k, 0, &info) {
-            r.record(&c, now);
+            // The planner echoes the estimator's state in every command planned from an estimate.
+            r.record(&estimate.map_or(c, |e| c.with_state_of(&e)), now);
         }
     }
 }

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::mem::{align_of, offset_of, size_of};
 use std::process::Command;
 
-use protocol::{Command as Cmd, Control, Estimate, Header, Measurement, Message, Name16, Stamps, Truth};
+use protocol::{Command as Cmd, Control, Estimate, Header, Measurement, Message, Name16, Stamps, StateEcho, Truth};
 
 /// One struct: its C name, Rust size and alignment, and (field, Rust offset) pairs.
 struct Layout {
@@ -83,6 +83,24 @@ fn layouts() -> Vec<Layout> {
                 waypoints,
                 solver,
                 objective_name,
+                state,
+            ]
+        ),
+        layout!(
+            StateEcho,
+            "uavloc_state_echo",
+            [
+                step,
+                kind,
+                estimator,
+                model,
+                rejected_run,
+                reserved,
+                position,
+                covariance,
+                velocity,
+                cross_cov,
+                velocity_cov
             ]
         ),
         layout!(Truth, "uavloc_truth", [header, position, previous_command, reserved]),
@@ -170,7 +188,8 @@ fn every_field_of_every_type_is_listed() {
         ("uavloc_name16", vec![16]),
         ("uavloc_measurement", vec![size_of::<Header>(), 4, 4, 128, 56, 64, 64]),
         ("uavloc_estimate", vec![size_of::<Header>(), 8, 4, 1, 1, 1, 1, 16, 32, 128, 64, 16, 32, 32]),
-        ("uavloc_command", vec![size_of::<Header>(), 8, 8, 8, 8, 4, 4, 8, 64, 128, 16, 16]),
+        ("uavloc_command", vec![size_of::<Header>(), 8, 8, 8, 8, 4, 4, 8, 64, 128, 16, 16, size_of::<StateEcho>()]),
+        ("uavloc_state_echo", vec![8, 1, 1, 1, 1, 4, 16, 32, 16, 32, 32]),
         ("uavloc_truth", vec![size_of::<Header>(), 16, 4, 4]),
         ("uavloc_control", vec![size_of::<Header>(), 8, 8, 4, 4, 16, 16]),
     ]);

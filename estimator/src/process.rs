@@ -6,26 +6,25 @@
 //! one the world drew the noise with). The estimate carries the measurement's UAV geometry and stamps
 //! forward ([`Estimate::from_measurement`]).
 //!
-//! - A step-0 measurement starts a new run: the estimator forgets its prior (as `uavloc simulate` starts
-//!   with a fresh [`Estimator`]).
-//! - The estimate of step k depends on the estimates before it (the previous one is the prior that
-//!   resolves Chan's two-root ambiguity). So the estimator computes step k only right after step k − 1
-//!   (or at step 0); a measurement out of that chain — e.g. the current step, seen by an estimator
-//!   restarted mid-run — is counted (`out_of_chain`) and dropped. At start-up the estimator announces
-//!   itself on the control topic ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`],
-//!   from step 0), and emitter-sim replays the run
-//!   from step 0, which rebuilds exactly the state of the estimator it replaces.
-//! - Each step's answer is kept: a measurement seen again (a replay, or a restarted emitter-sim running
-//!   the same scenario from step 0) gets the same estimate again, without touching the state
-//!   (`resent`). A measurement of a known step with other content is a new run (at step 0) or out of
-//!   chain.
-//! - With `--checkpoint FILE` it writes its state (the last step estimated and the previous estimate) to
+//! - A step-0 measurement starts a new run (or the run replayed from its start): the estimator forgets its
+//!   prior (as `uavloc simulate` starts with a fresh [`Estimator`]).
+//! - The estimate of step k depends on the state after step k − 1 (the fused posterior, or the previous
+//!   estimate as the prior that resolves Chan's two-root ambiguity). The estimator continues its own
+//!   chain (step k right after step k − 1, or step 0); for any other step it takes the state after
+//!   k − 1 from the messages: every command echoes the state of the estimate it was planned from
+//!   ([`protocol::StateEcho`]), and the estimator reads the command topic (without waking for it) and
+//!   keeps those states for the last [`MAX_ECHOES`] steps. So a step seen again — a replay for a
+//!   restarted monitor, a world rewound to an older emitter-sim snapshot — is estimated again from the
+//!   state before it, bit for bit the estimate it had (`resent` counts them); no answer is kept. A step
+//!   whose predecessor's state it has neither made nor seen echoed is counted (`out_of_chain`) and
+//!   dropped, and the replay it asks for brings it. At start-up the estimator announces itself on the
+//!   control topic ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`]) from the step
+//!   after its checkpoint, or from step 0.
+//! - With `--checkpoint FILE` it writes its state (the last step estimated and the state after it) to
 //!   FILE every [`checkpoint::CHECKPOINT_EVERY`] steps, right before it estimates such a step; started
-//!   again with the same FILE (a restart) it resumes from it and asks for the replay from that step
-//!   instead of step 0 (see [`runtime::checkpoint`]). It keeps its last checkpoints and rewinds to one
-//!   when the world was rewound there (a restarted emitter-sim re-publishing a checkpoint step it has no
-//!   answer for). Answers are kept for the last [`MAX_CACHED_STEPS`] steps, so
-//!   its memory does not grow with the run.
+//!   again with the same FILE (a restart) it resumes from the newest and keeps every one kept in the file
+//!   as a state to go on from (the steps a restarted emitter-sim's snapshots can rewind the world to,
+//!   older than any command the new estimator has seen; see [`runtime::checkpoint`]).
 //! - When Chan fails the library keeps its previous estimate; on the wire that is a `failed` estimate
 //!   carrying that standing estimate (v3), which the planner plans from and the monitor records — the
 //!   numbers of `uavloc simulate`, with no fallback state in either.
@@ -49,8 +48,8 @@ use clap::Args;
 use nalgebra::{Matrix4, Vector2, Vector4};
 use protocol::services;
 use protocol::{
-    ControlKind, Estimate, EstimateStatus as WireStatus, Fix, Measurement, PosteriorExtra, Topic, TopicPublisher,
-    TopicSubscriber, Waitable,
+    Command, ControlKind, EchoedState, Estimate, EstimateStatus as WireStatus, Fix, Measurement, PosteriorExtra, Topic,
+    TopicPublisher, TopicSubscriber, Waitable,
 };
 use runtime::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
 use runtime::{Flow, Handler, Node};
@@ -205,21 +204,43 @@ pub fn posterior_of(position: &[f64; 2], covariance: &[[f64; 2]; 2], extra: &Pos
     Posterior::new(model, mean, cov).ok()
 }
 
-/// The content of a measurement (everything but header and stamps), bit for bit.
-fn content_key(m: &Measurement) -> Vec<u64> {
-    let mut key = vec![u64::from(m.count)];
-    key.extend(m.uavs().iter().flatten().chain(m.diffs()).chain(m.sigmas()).chain(m.headings()).map(|v| v.to_bits()));
-    key
-}
+/// Echoed states kept (the oldest is forgotten beyond): emitter-sim's replay history.
+pub const MAX_ECHOES: usize = HISTORY_STEPS as usize;
 
-/// The estimator's per-run state: the library estimator, the last step estimated, each step's answer and
-/// the last checkpoints (the state before each checkpoint step).
+/// Where the estimator's chain is: the library estimator and the last step it estimated.
 #[derive(Debug, Default)]
-pub struct StepEstimator {
+struct Chain {
     estimator: Estimator,
     last_step: Option<u64>,
-    answers: BTreeMap<u64, (Vec<u64>, Reply)>,
+}
+
+impl Chain {
+    /// The chain of an estimator of `config` after `step`, as `state` says it was.
+    fn from_echo(config: EstimatorConfig, state: &EchoedState) -> Self {
+        match *state {
+            EchoedState::State { step, estimate: (position, covariance), extra } => {
+                let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
+                let posterior = posterior_of(&position, &covariance, &extra);
+                let estimator = Estimator::resume(config, step, z, m, posterior).with_rejected_run(extra.rejected_run);
+                Self { estimator, last_step: Some(step) }
+            }
+            EchoedState::Empty { step } => Self { estimator: Estimator::with_config(config), last_step: Some(step) },
+        }
+    }
+}
+
+/// The estimator's per-run state: its chain, and the states after earlier steps that the messages carried
+/// (each command echoes the state it was planned from, [`protocol::StateEcho`]; the checkpoints are
+/// states too), so that a step seen again — a replay, or a world rewound to an older snapshot — is
+/// estimated again from the state before it, giving the same estimate bit for bit. No answer is kept.
+#[derive(Debug, Default)]
+pub struct StepEstimator {
+    config: EstimatorConfig,
+    chain: Chain,
+    echoes: BTreeMap<u64, EchoedState>,
     checkpoints: Vec<Checkpoint>,
+    /// The highest step estimated (a step at or below it is estimated again).
+    highest: Option<u64>,
 }
 
 /// The estimate of one step as it goes on the wire: the fix, the fused state beyond the position, and
@@ -253,9 +274,9 @@ impl Reply {
 /// What [`StepEstimator::handle`] did with a measurement.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Answer {
-    /// Estimated now.
+    /// A step estimated for the first time.
     New(Reply),
-    /// The answer given before to the same measurement.
+    /// A step estimated again (a replay, a rewound world), from the state before it.
     Again(Reply),
     /// Not estimated: the step before it was not (see the module docs).
     OutOfChain,
@@ -269,7 +290,7 @@ impl StepEstimator {
 
     /// A fresh state of an estimator of `config`.
     pub fn with_config(config: EstimatorConfig) -> Self {
-        Self { estimator: Estimator::with_config(config), ..Self::default() }
+        Self { config, chain: Chain { estimator: Estimator::with_config(config), last_step: None }, ..Self::default() }
     }
 
     /// The state of an estimator of `config` whose estimate of `step` was `position` with `covariance`
@@ -281,40 +302,45 @@ impl StepEstimator {
         covariance: [[f64; 2]; 2],
         extra: &PosteriorExtra,
     ) -> Self {
-        let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
-        let posterior = posterior_of(&position, &covariance, extra);
-        Self {
-            estimator: Estimator::resume(config, step, z, m, posterior).with_rejected_run(extra.rejected_run),
-            last_step: Some(step),
-            answers: BTreeMap::new(),
-            checkpoints: Vec::new(),
-        }
+        let state = EchoedState::State { step, estimate: (position, covariance), extra: *extra };
+        Self { config, chain: Chain::from_echo(config, &state), highest: Some(step), ..Self::default() }
     }
 
     /// The last step estimated.
     pub fn last_step(&self) -> Option<u64> {
-        self.last_step
+        self.chain.last_step
     }
 
     /// The state to checkpoint (`None` before the first step).
     pub fn checkpoint(&self) -> Option<Checkpoint> {
-        let step = self.last_step?;
-        let previous = self.estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c));
-        let extra = extra_of(self.estimator.posterior().as_ref(), self.estimator.rejected_run());
+        let step = self.chain.last_step?;
+        let e = &self.chain.estimator;
+        let previous = e.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c));
+        let extra = extra_of(e.posterior().as_ref(), e.rejected_run());
         Some(Checkpoint { step, previous, extra })
     }
 
-    /// The state a checkpoint was written from (no answers kept: a replay from `step + 1` follows).
-    pub fn from_checkpoint(config: EstimatorConfig, c: &Checkpoint) -> Self {
+    /// The state a checkpoint holds, as an echoed state.
+    fn echo_of(c: &Checkpoint) -> EchoedState {
         match c.previous {
-            Some((position, covariance)) => Self::resume(config, c.step, position, covariance, &c.extra),
-            None => Self { last_step: Some(c.step), ..Self::with_config(config) },
+            Some((position, covariance)) => {
+                EchoedState::State { step: c.step, estimate: (position, covariance), extra: c.extra }
+            }
+            None => EchoedState::Empty { step: c.step },
         }
     }
 
-    /// The state of the newest of `kept` checkpoints (oldest first), keeping them all as rewind points.
+    /// The state of the newest of `kept` checkpoints (oldest first); every one of them is a state to
+    /// estimate the step after it from.
     pub fn from_checkpoints(config: EstimatorConfig, kept: Vec<Checkpoint>) -> Self {
-        let mut s = kept.last().map_or_else(|| Self::with_config(config), |c| Self::from_checkpoint(config, c));
+        let mut s = Self::with_config(config);
+        for c in &kept {
+            s.remember(Self::echo_of(c));
+        }
+        if let Some(c) = kept.last() {
+            s.chain = Chain::from_echo(config, &Self::echo_of(c));
+            s.highest = Some(c.step);
+        }
         s.checkpoints = kept;
         s
     }
@@ -334,56 +360,31 @@ impl StepEstimator {
         true
     }
 
-    /// Moves the state on to the one after step `step` (the next step) whose answer was `fix`: a usable
-    /// fix is the next prior (exactly [`Estimator::estimate`]'s update), a failed one leaves it.
-    fn advance_to(&mut self, step: u64, fix: &Fix, extra: &PosteriorExtra) {
-        if let Some((position, covariance)) = fix.usable() {
-            let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
-            let posterior = posterior_of(&position, &covariance, extra);
-            self.estimator = Estimator::resume(*self.estimator.config(), step, z, m, posterior)
-                .with_rejected_run(extra.rejected_run);
+    /// Keeps a state a message carried (the first one per step; the last [`MAX_ECHOES`] steps).
+    pub fn remember(&mut self, state: EchoedState) {
+        self.echoes.entry(state.step()).or_insert(state);
+        if self.echoes.len() > MAX_ECHOES {
+            self.echoes.pop_first();
         }
-        self.last_step = Some(step);
     }
 
     /// The answer to a (validated) measurement; see the module docs.
     pub fn handle(&mut self, m: &Measurement) -> Answer {
         let step = m.header.step;
-        let key = content_key(m);
-        if let Some((known, reply)) = self.answers.get(&step)
-            && *known == key
-        {
-            let reply = *reply;
-            // The answer is known, but the state may be behind it (rewound to an older checkpoint, then
-            // replayed up to answers kept from before): the answer *is* the state after its step.
-            if self.last_step.is_some_and(|last| step == last + 1) {
-                self.advance_to(step, &reply.fix, &reply.extra);
-            }
-            return Answer::Again(reply);
-        }
-        let config = *self.estimator.config();
+        let again = self.highest.is_some_and(|h| step <= h);
         if step == 0 {
-            *self = Self::with_config(config); // a new run
-        } else if self.last_step.is_none_or(|last| step != last + 1) {
-            // A checkpoint step we have the state before, but no answer for: the world was rewound there.
-            match self.checkpoints.iter().rev().find(|c| c.step + 1 == step).copied() {
-                Some(c) if self.last_step.is_some_and(|last| step <= last) => {
-                    let kept = std::mem::take(&mut self.checkpoints);
-                    let answers = std::mem::take(&mut self.answers);
-                    *self = Self::from_checkpoint(config, &c);
-                    self.checkpoints = kept;
-                    self.answers = answers;
-                }
-                _ => return Answer::OutOfChain,
+            // A new run (or the run replayed from its start).
+            self.chain = Chain { estimator: Estimator::with_config(self.config), last_step: None };
+        } else if self.chain.last_step != Some(step - 1) {
+            match self.echoes.get(&(step - 1)) {
+                Some(state) => self.chain = Chain::from_echo(self.config, state),
+                None => return Answer::OutOfChain,
             }
         }
-        let reply = estimate_measurement(&mut self.estimator, m);
-        self.last_step = Some(step);
-        self.answers.insert(step, (key, reply));
-        if self.answers.len() > MAX_CACHED_STEPS {
-            self.answers.pop_first();
-        }
-        Answer::New(reply)
+        let reply = estimate_measurement(&mut self.chain.estimator, m);
+        self.chain.last_step = Some(step);
+        self.highest = self.highest.max(Some(step));
+        if again { Answer::Again(reply) } else { Answer::New(reply) }
     }
 }
 
@@ -397,9 +398,10 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply
     };
     match outcome {
         Some(out) => reply_of(&out),
+        // The standing estimate and the posterior beyond it: the state the next step goes on from.
         None => Reply {
             fix: Fix::Failed,
-            extra: PosteriorExtra::default(),
+            extra: extra_of(estimator.posterior().as_ref(), estimator.rejected_run()),
             standing: estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c)),
         },
     }
@@ -416,7 +418,7 @@ pub fn reply_of(out: &crate::EstimateOut) -> Reply {
             // The library returned its previous estimate: the standing one.
             return Reply {
                 fix: Fix::Failed,
-                extra: PosteriorExtra::default(),
+                extra: extra_of(out.posterior.as_ref(), out.rejected_run),
                 standing: Some((position, covariance)),
             };
         }
@@ -429,6 +431,9 @@ struct EstimatorNode<'a> {
     args: &'a EstimatorArgs,
     config: EstimatorConfig,
     measurements: &'a TopicSubscriber<Measurement>,
+    /// The planner's commands, for the states they echo (read on every wake-up, never waited on).
+    commands: &'a TopicSubscriber<Command>,
+    command_seq: Option<u64>,
     estimates: &'a TopicPublisher<Estimate>,
     /// With --takeover: the running estimator's estimates (its state to take over), and the last sequence
     /// number of each of its instances.
@@ -482,6 +487,10 @@ impl EstimatorNode<'_> {
 impl Handler for EstimatorNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
         self.follow_predecessor(node)?;
+        let (commands, _) = node.receive(self.commands, &mut self.command_seq, "a command")?;
+        for state in commands.iter().filter_map(|c| c.state.decode()) {
+            self.state.remember(state);
+        }
         let (batch, received_ns) = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
         for m in batch {
             let step = m.header.step;
@@ -532,6 +541,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     let domain = node.domain().clone();
     let measurements = Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain))?;
     let estimates = Topic::<Estimate>::publisher(node.link(), &services::estimate(&domain))?;
+    let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
     let predecessor =
         args.takeover.then(|| Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))).transpose()?;
     // A restart in the same run resumes from its checkpoint.
@@ -557,6 +567,8 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         args,
         config,
         measurements: &measurements,
+        commands: &commands,
+        command_seq: None,
         estimates: &estimates,
         predecessor: predecessor.as_ref(),
         predecessor_seq: HashMap::new(),
@@ -601,13 +613,6 @@ mod tests {
         Measurement::new(step, step + 1, &uavs, &diffs, &[28.7712; 3], &[0.0; 3]).unwrap()
     }
 
-    fn fix(a: Answer) -> Fix {
-        match a {
-            Answer::New(r) | Answer::Again(r) => r.fix,
-            Answer::OutOfChain => panic!("out of chain"),
-        }
-    }
-
     #[test]
     fn the_summary_keeps_its_flat_keys() {
         // The launcher reads `rejected` and `handed_over_at` from every summary line, whatever the role.
@@ -650,50 +655,76 @@ mod tests {
     }
 
     #[test]
-    fn a_rewind_to_an_older_checkpoint_goes_on_past_the_answers_kept() {
+    fn steps_seen_again_are_estimated_again_from_the_states_the_messages_carry() {
         let cv = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 0.05, 20.0).unwrap();
         for config in
             [EstimatorConfig::snapshot(), EstimatorConfig::fused(Dynamics::fixed()), EstimatorConfig::fused(cv)]
         {
-            rewind_case(config);
+            echo_case(config);
         }
     }
 
-    /// The checkpoint, restart and rewind of one estimator configuration give the undisturbed answers
-    /// bit for bit (fused: the posterior, velocity block included, rides the checkpoint).
-    fn rewind_case(config: EstimatorConfig) {
-        // The long kill storm: an estimator restarted from its newest checkpoint, then rewound to an older
-        // one by a restarted emitter-sim, answered the replay up to the steps it had answered since its
-        // restart from those answers — but its state stayed at the step before them, so the first new
-        // step was "out of chain" and the run stalled.
+    fn reply(a: Answer) -> Reply {
+        match a {
+            Answer::New(r) | Answer::Again(r) => r,
+            Answer::OutOfChain => panic!("out of chain"),
+        }
+    }
+
+    /// Replays, restarts and rewinds of one estimator configuration give the undisturbed estimates bit for
+    /// bit, with no answer kept: every step seen again is estimated again from the state before it, which
+    /// a command echoed (fused: the posterior, velocity block included) or a checkpoint held.
+    fn echo_case(config: EstimatorConfig) {
+        let label = format!("{:?}", config.kind);
         let mut straight = StepEstimator::with_config(config);
         let mut kept = Vec::new();
-        let mut reference = Vec::new();
+        let (mut reference, mut echoes) = (Vec::new(), Vec::new());
         for k in 0..=12 {
             if k == 4 || k == 8 {
                 assert!(straight.take_checkpoint());
                 kept = straight.checkpoints().to_vec();
             }
             let answer = straight.handle(&measurement(k));
+            assert!(matches!(answer, Answer::New(..)), "{label} step {k}");
+            let r = reply(answer);
             if config.kind == EstimatorKind::Fused && k > 0 {
-                assert!(matches!(answer, Answer::New(r) if r.extra.estimator == 1), "step {k}: {answer:?}");
+                assert_eq!(r.extra.estimator, 1, "{label} step {k}");
             }
-            reference.push(fix(answer));
+            // What the planner's command of step k echoes.
+            let estimate = r.to_estimate(&measurement(k), 0, k + 1, 1).unwrap();
+            echoes.push(protocol::StateEcho::of(&estimate).unwrap().decode().unwrap());
+            reference.push(r);
         }
         assert_eq!(kept.iter().map(|c| c.step).collect::<Vec<_>>(), vec![3, 7]);
 
-        // Restarted from the newest checkpoint (after step 7); the run is replayed to it from step 8.
-        let mut restarted = StepEstimator::from_checkpoints(config, kept);
-        for k in 8..=9 {
-            assert!(matches!(restarted.handle(&measurement(k)), Answer::New(r) if r.fix == reference[k as usize]));
+        // A replay of steps 5..=12 to an estimator that saw every command: the same estimates again.
+        let mut live = StepEstimator::with_config(config);
+        for k in 0..=12 {
+            live.handle(&measurement(k));
+            live.remember(echoes[k as usize]);
         }
-        // The world is rewound to step 4 (an older emitter-sim snapshot) and flies on past step 9.
+        for k in 5..=12 {
+            let answer = live.handle(&measurement(k));
+            assert!(matches!(answer, Answer::Again(..)), "{label} step {k}");
+            assert_eq!(reply(answer), reference[k as usize], "{label} step {k} replayed");
+        }
+        // Without the state before it, a step seen again is out of chain (the estimator waits).
+        let mut bare = StepEstimator::with_config(config);
+        for k in 0..=12 {
+            let _ = bare.handle(&measurement(k));
+        }
+        assert_eq!(bare.handle(&measurement(5)), Answer::OutOfChain, "{label}");
+
+        // Restarted from the newest checkpoint (after step 7), replayed from step 8 …
+        let mut restarted = StepEstimator::from_checkpoints(config, kept);
+        assert_eq!(restarted.last_step(), Some(7));
+        for k in 8..=9 {
+            assert_eq!(reply(restarted.handle(&measurement(k))), reference[k as usize], "{label} step {k}");
+        }
+        // … then the world rewound to step 4 (an older emitter-sim snapshot, an older checkpoint) flies on
+        // past step 12: every estimate as the undisturbed one.
         for k in 4..=12 {
-            let answer = restarted.handle(&measurement(k));
-            assert_eq!(fix(answer), reference[k as usize], "step {k}");
-            if (8..=9).contains(&k) {
-                assert!(matches!(answer, Answer::Again(..)), "step {k} is answered from what was kept");
-            }
+            assert_eq!(reply(restarted.handle(&measurement(k))), reference[k as usize], "{label} step {k} rewound");
         }
         assert_eq!(restarted.last_step(), Some(12));
     }

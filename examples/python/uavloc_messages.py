@@ -84,6 +84,24 @@ class Measurement(ctypes.Structure):
         return "uavloc::Measurement/v1"
 
 
+class StateEcho(ctypes.Structure):
+    """The estimator's state after `step`, echoed in a Command (a front end may ignore it)."""
+
+    _fields_ = [
+        ("step", ctypes.c_uint64),
+        ("kind", ctypes.c_uint8),
+        ("estimator", ctypes.c_uint8),
+        ("model", ctypes.c_uint8),
+        ("rejected_run", ctypes.c_uint8),
+        ("reserved", ctypes.c_uint32),
+        ("position", ctypes.c_double * 2),
+        ("covariance", (ctypes.c_double * 2) * 2),
+        ("velocity", ctypes.c_double * 2),
+        ("cross_cov", (ctypes.c_double * 2) * 2),
+        ("velocity_cov", (ctypes.c_double * 2) * 2),
+    ]
+
+
 class Command(ctypes.Structure):
     """planner -> front end, monitor: the headings (and where they lead) for step k."""
 
@@ -100,15 +118,16 @@ class Command(ctypes.Structure):
         ("waypoints", (ctypes.c_double * 2) * MAX_UAVS),
         ("solver", Name16),
         ("objective_name", Name16),
+        ("state", StateEcho),
     ]
 
     @staticmethod
     def type_name() -> str:
-        return "uavloc::Command/v3"
+        return "uavloc::Command/v4"
 
 
 # Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/wire_layout.rs).
-SIZES = {Measurement: 408, Command: 360}
+SIZES = {Measurement: 408, Command: 504}
 
 
 def check_layout() -> None:

@@ -28,13 +28,13 @@ extern "C" {
 /* Layout versions (the header's `version` must equal the type's). */
 #define UAVLOC_MEASUREMENT_VERSION 1u
 #define UAVLOC_ESTIMATE_VERSION 3u
-#define UAVLOC_COMMAND_VERSION 3u
+#define UAVLOC_COMMAND_VERSION 4u
 #define UAVLOC_TRUTH_VERSION 2u
 #define UAVLOC_CONTROL_VERSION 3u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v1"
 #define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v3"
-#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v3"
+#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v4"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v3"
 
@@ -102,6 +102,26 @@ typedef struct uavloc_estimate {
 /* uavloc_command.flags */
 #define UAVLOC_COMMAND_FLAG_HOLD 1u
 
+/* uavloc_state_echo.kind */
+#define UAVLOC_STATE_NONE 0u   /* a hold: planned from no estimate */
+#define UAVLOC_STATE_STATE 1u  /* the estimator's state is in the fields */
+#define UAVLOC_STATE_EMPTY 2u  /* no usable estimate yet after `step` */
+
+/* The estimator's state after step `step`, echoed by the planner from the estimate it planned from. */
+typedef struct uavloc_state_echo {
+    uint64_t step;
+    uint8_t kind;                       /* UAVLOC_STATE_* */
+    uint8_t estimator;                  /* as uavloc_estimate */
+    uint8_t model;
+    uint8_t rejected_run;
+    uint32_t reserved;                  /* 0 */
+    double position[2];                 /* m */
+    double covariance[2][2];            /* m^2 */
+    double velocity[2];                 /* m/s */
+    double cross_cov[2][2];             /* m^2/s */
+    double velocity_cov[2][2];          /* m^2/s^2 */
+} uavloc_state_echo;
+
 /* planner -> front end (emitter-sim), monitor: the headings for step k. */
 typedef struct uavloc_command {
     uavloc_header header;
@@ -116,6 +136,7 @@ typedef struct uavloc_command {
     double waypoints[UAVLOC_MAX_UAVS][2]; /* where they lead after one interval, m */
     uavloc_name16 solver;               /* e.g. "pso" */
     uavloc_name16 objective_name;       /* e.g. "analytical" */
+    uavloc_state_echo state;            /* the estimator's state it was planned from (v4) */
 } uavloc_command;
 
 /* uavloc_truth.previous_command */

@@ -776,7 +776,7 @@ pub struct PlanInfo<'a> {
 
 /// planner → emitter-sim, monitor: the headings to fly for the next step.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Command/v3")]
+#[type_name("uavloc::Command/v4")]
 #[repr(C)]
 pub struct Command {
     /// Common header (step of the estimate it was planned from).
@@ -804,15 +804,134 @@ pub struct Command {
     pub solver: Name16,
     /// Objective name.
     pub objective_name: Name16,
+    /// The estimator's state after the step this command was planned from, echoed from that estimate
+    /// (v4): where a restarted, rewound or replayed-to estimator finds it (see [`StateEcho`]).
+    pub state: StateEcho,
 }
 
-impl_message!(Command, MessageKind::Command, 3, "uavloc::Command/v3");
+impl_message!(Command, MessageKind::Command, 4, "uavloc::Command/v4");
+
+/// The estimator's state after step `step` as an [`Estimate`] carries it — the estimate the step is
+/// planned from ([`Estimate::plan_from`]: the fix, or a failed step's standing estimate) and the fused
+/// posterior beyond the position — echoed in the [`Command`] planned from it. With it an estimator
+/// continues the chain at step `step + 1` exactly as the one that made the estimate would have
+/// (`uavloc-estimator`), so no estimator keeps its answers or needs a checkpoint to answer a replay.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("uavloc::StateEcho/v1")]
+#[repr(C)]
+pub struct StateEcho {
+    /// The step of the estimate.
+    pub step: u64,
+    /// [`StateEcho::NONE`] (a hold: planned from no estimate), [`StateEcho::STATE`] (position, covariance
+    /// and the posterior fields hold the state) or [`StateEcho::EMPTY`] (the estimator had no usable
+    /// estimate yet after `step`).
+    pub kind: u8,
+    /// As [`Estimate::estimator`].
+    pub estimator: u8,
+    /// As [`Estimate::model`].
+    pub model: u8,
+    /// As [`Estimate::rejected_run`].
+    pub rejected_run: u8,
+    /// Explicit padding; 0 when sent.
+    pub reserved: u32,
+    /// The estimate, metres.
+    pub position: [f64; 2],
+    /// Its covariance, m², row-major.
+    pub covariance: [[f64; 2]; 2],
+    /// As [`Estimate::velocity`], m/s.
+    pub velocity: [f64; 2],
+    /// As [`Estimate::cross_cov`], m²/s.
+    pub cross_cov: [[f64; 2]; 2],
+    /// As [`Estimate::velocity_cov`], m²/s².
+    pub velocity_cov: [[f64; 2]; 2],
+}
+
+/// What a [`StateEcho`] says, decoded.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum EchoedState {
+    /// The estimator's state after `step`: the estimate and the posterior beyond the position.
+    State {
+        /// The step.
+        step: u64,
+        /// Position (m) and covariance (m²).
+        estimate: ([f64; 2], [[f64; 2]; 2]),
+        /// The fused posterior beyond the position.
+        extra: PosteriorExtra,
+    },
+    /// After `step` the estimator had no usable estimate yet.
+    Empty {
+        /// The step.
+        step: u64,
+    },
+}
+
+impl EchoedState {
+    /// The step the state is after.
+    pub fn step(&self) -> u64 {
+        match *self {
+            EchoedState::State { step, .. } | EchoedState::Empty { step } => step,
+        }
+    }
+}
+
+impl StateEcho {
+    /// [`StateEcho::kind`]: no state (a hold).
+    pub const NONE: u8 = 0;
+    /// [`StateEcho::kind`]: the state is in the fields.
+    pub const STATE: u8 = 1;
+    /// [`StateEcho::kind`]: no usable estimate yet after `step`.
+    pub const EMPTY: u8 = 2;
+
+    /// The state an estimate carries (see the type's docs); `None` for an unknown status.
+    pub fn of(e: &Estimate) -> Option<Self> {
+        e.status()?;
+        let mut echo = StateEcho { step: e.header.step, ..StateEcho::default() };
+        match e.plan_from() {
+            Some((position, covariance)) => {
+                echo.kind = Self::STATE;
+                echo.position = position;
+                echo.covariance = covariance;
+                let x = e.extra();
+                (echo.estimator, echo.model, echo.rejected_run) = (x.estimator, x.model, x.rejected_run);
+                (echo.velocity, echo.cross_cov, echo.velocity_cov) = (x.velocity, x.cross_cov, x.velocity_cov);
+            }
+            None => echo.kind = Self::EMPTY,
+        }
+        Some(echo)
+    }
+
+    /// The decoded state (`None` for a hold or an unknown kind).
+    pub fn decode(&self) -> Option<EchoedState> {
+        match self.kind {
+            Self::STATE => Some(EchoedState::State {
+                step: self.step,
+                estimate: (self.position, self.covariance),
+                extra: PosteriorExtra {
+                    estimator: self.estimator,
+                    model: self.model,
+                    rejected_run: self.rejected_run,
+                    velocity: self.velocity,
+                    cross_cov: self.cross_cov,
+                    velocity_cov: self.velocity_cov,
+                },
+            }),
+            Self::EMPTY => Some(EchoedState::Empty { step: self.step }),
+            _ => None,
+        }
+    }
+}
 
 impl Command {
     /// [`Command::flags`] bit: a *hold*, not a plan — no fresh estimate of the step reached the planner
     /// within its deadline (`planner --estimate-deadline-ms`), so it commands the UAVs' current headings
     /// (they fly straight on); `objective` is then −1 (no value) and `plan_time_us` 0.
     pub const FLAG_HOLD: u32 = 1;
+
+    /// This command with the estimator state `estimate` carries echoed ([`StateEcho::of`]).
+    pub fn with_state_of(mut self, estimate: &Estimate) -> Self {
+        self.state = StateEcho::of(estimate).unwrap_or_default();
+        self
+    }
 
     /// Whether this is a hold ([`Command::FLAG_HOLD`]).
     pub fn is_hold(&self) -> bool {
@@ -836,13 +955,15 @@ impl Command {
             waypoints: [[0.0; 2]; MAX_UAVS],
             solver: Name16::new("solver", plan.solver)?,
             objective_name: Name16::new("objective_name", plan.objective_name)?,
+            state: StateEcho::default(),
         };
         c.headings[..n].copy_from_slice(plan.headings);
         c.waypoints[..n].copy_from_slice(plan.waypoints);
         Ok(c)
     }
 
-    /// The command planned from `estimate` (received at `received_ns`): same step, stamps carried forward.
+    /// The command planned from `estimate` (received at `received_ns`): same step, stamps carried forward,
+    /// the estimator's state echoed ([`Command::with_state_of`]).
     pub fn from_estimate(
         estimate: &Estimate,
         received_ns: u64,
@@ -850,7 +971,9 @@ impl Command {
         planner_instance: u64,
         plan: &PlanInfo<'_>,
     ) -> Result<Self, ProtocolError> {
-        Ok(Command::new(estimate.header.step, seq, planner_instance, plan)?.carrying(estimate, received_ns))
+        Ok(Command::new(estimate.header.step, seq, planner_instance, plan)?
+            .carrying(estimate, received_ns)
+            .with_state_of(estimate))
     }
 
     /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
@@ -1125,7 +1248,8 @@ mod tests {
         assert_eq!((size_of::<Name16>(), align_of::<Name16>()), (16, 1));
         assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (408, 8));
         assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (424, 8));
-        assert_eq!((size_of::<Command>(), align_of::<Command>()), (360, 8));
+        assert_eq!((size_of::<Command>(), align_of::<Command>()), (504, 8));
+        assert_eq!((size_of::<StateEcho>(), align_of::<StateEcho>()), (144, 8));
         assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
         assert_eq!((size_of::<Control>(), align_of::<Control>()), (144, 8));
     }
@@ -1143,7 +1267,10 @@ mod tests {
         assert_eq!(offset_of!(Estimate, velocity_cov) + 32, size_of::<Estimate>());
         assert_eq!(offset_of!(Estimate, rejected_run) + 1, offset_of!(Estimate, position));
         assert_eq!(offset_of!(Command, objective), 88 + 40);
-        assert_eq!(offset_of!(Command, objective_name) + 16, size_of::<Command>());
+        assert_eq!(offset_of!(Command, objective_name) + 16, offset_of!(Command, state));
+        assert_eq!(offset_of!(Command, state) + size_of::<StateEcho>(), size_of::<Command>());
+        assert_eq!(offset_of!(StateEcho, reserved) + 4, offset_of!(StateEcho, position));
+        assert_eq!(offset_of!(StateEcho, velocity_cov) + 32, size_of::<StateEcho>());
         assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));
         assert_eq!(offset_of!(Truth, reserved) + 4, size_of::<Truth>());
         assert_eq!(offset_of!(Control, role), 88 + 24);

@@ -226,7 +226,37 @@ impl Command {
         check_finite("objective", [&self.objective])?;
         check_finite("headings", &self.headings[..n])?;
         check_finite("waypoints", self.waypoints[..n].iter().flatten())?;
+        self.state.validate()?;
         check_seq(self.header.seq, last_seq)
+    }
+}
+
+impl crate::messages::StateEcho {
+    /// Checks an echoed estimator state as [`Estimate::validate`] checks the estimate it came from.
+    pub fn validate(&self) -> Result<(), Rejection> {
+        if self.kind > Self::EMPTY {
+            return Err(Rejection::UnknownKind { field: "state kind", kind: u32::from(self.kind) });
+        }
+        if self.kind != Self::STATE {
+            return Ok(());
+        }
+        check_finite("state position", &self.position)?;
+        check_finite("state covariance", self.covariance.iter().flatten())?;
+        if !is_symmetric_positive_definite(&self.covariance) {
+            return Err(Rejection::NotPositiveDefinite);
+        }
+        if self.estimator > 1 {
+            return Err(Rejection::UnknownKind { field: "state estimator", kind: u32::from(self.estimator) });
+        }
+        if self.model > 1 {
+            return Err(Rejection::UnknownKind { field: "state model", kind: u32::from(self.model) });
+        }
+        if self.model == 1 {
+            check_finite("state velocity", &self.velocity)?;
+            check_finite("state cross_cov", self.cross_cov.iter().flatten())?;
+            check_finite("state velocity_cov", self.velocity_cov.iter().flatten())?;
+        }
+        Ok(())
     }
 }
 
@@ -583,6 +613,45 @@ mod tests {
         assert_eq!(estimate().validate(Some(11)), Err(Rejection::Stale { seq: 10, last: 11 }));
         assert_eq!(command().validate(Some(u64::MAX)), Err(Rejection::Stale { seq: 10, last: u64::MAX }));
         assert_eq!(truth().validate(Some(10)).unwrap_err().kind(), "stale");
+    }
+
+    #[test]
+    fn the_echoed_state_is_the_estimate_planned_from_and_is_checked_like_it() {
+        use crate::messages::{EchoedState, StateEcho};
+        // A usable estimate: its fix and posterior fields.
+        let e = estimate().with_extra(&crate::PosteriorExtra {
+            estimator: 1,
+            model: 1,
+            rejected_run: 2,
+            velocity: [1.0, -2.0],
+            cross_cov: [[0.1, 0.2], [0.3, 0.4]],
+            velocity_cov: [[5.0, 0.5], [0.5, 6.0]],
+        });
+        let c = command().with_state_of(&e);
+        assert_eq!(c.validate(None), Ok(()));
+        match c.state.decode() {
+            Some(EchoedState::State { step, estimate: (p, m), extra }) => {
+                assert_eq!((step, p, m), (3, e.position, e.covariance));
+                assert_eq!(extra, e.extra());
+            }
+            other => panic!("{other:?}"),
+        }
+        // A failed one: its standing estimate, or no state yet.
+        let failed = Estimate::new(4, 11, 42, &UAVS, &[0.1; 4], Fix::Failed).unwrap();
+        let standing = failed.with_standing(Some(([7.0, 8.0], [[2.0, 0.0], [0.0, 2.0]])));
+        assert!(matches!(
+            StateEcho::of(&standing).unwrap().decode(),
+            Some(EchoedState::State { step: 4, estimate: ([7.0, 8.0], _), .. })
+        ));
+        assert_eq!(StateEcho::of(&failed).unwrap().decode(), Some(EchoedState::Empty { step: 4 }));
+        // A hold echoes nothing; a bad echo is rejected with the command.
+        assert_eq!(command().state.decode(), None);
+        assert_eq!(command().validate(None), Ok(()));
+        let bad = |f: fn(&mut StateEcho)| with(c, |c| f(&mut c.state)).validate(None).unwrap_err().kind();
+        assert_eq!(bad(|s| s.position[1] = f64::NAN), "not_finite");
+        assert_eq!(bad(|s| s.covariance[1][1] = -1.0), "not_positive_definite");
+        assert_eq!(bad(|s| s.kind = 3), "unknown_kind");
+        assert_eq!(bad(|s| s.velocity_cov[0][0] = f64::INFINITY), "not_finite");
     }
 
     #[test]
