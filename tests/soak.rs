@@ -1,9 +1,10 @@
 //! Long runs through the four processes: memory stays flat, nothing is lost, and a crash after the replay
 //! history has wrapped is recovered from the checkpoints (see `runtime::checkpoint`).
 //!
-//! - `soak_flat_memory_and_no_lost_message` (in `cargo test`): 12 000 lock-step steps (≈ 6 s), three
-//!   times the replay history (4 096 steps), RSS of every process sampled at step 5 000 (after the
-//!   history and the answer caches are full) and 100 steps before the end.
+//! - `soak_flat_memory_and_no_lost_message` (in `cargo test`): 12 000 lock-step steps (≈ 3 s), three
+//!   times the replay history (4 096 steps), the private resident memory (`RssAnon`) of every process
+//!   sampled at step 5 000 (after the history and the estimator's echoed states are full) and 100 steps
+//!   before the end.
 //! - `soak_100k_steps` (`cargo test --release --test soak -- --ignored`): the same over 100 000 steps
 //!   (≈ 1 min on 2 cores; the monitor's log grows to ≈ 170 MB on disk, in the test's scratch directory,
 //!   removed at the end).
@@ -64,7 +65,10 @@ fn rss_of_all(d: &str) -> BTreeMap<&'static str, (u32, u64)> {
         .iter()
         .map(|r| {
             let pid = pid_of(d, r).unwrap_or_else(|| panic!("no {r} of {d}"));
-            (*r, (pid, uavloc::bench::sys::rss_bytes(pid).unwrap_or_else(|e| panic!("RSS of {r}: {e}"))))
+            // The private memory: a process whose memory grew with the run shows there. (The total RSS also
+            // counts the iceoryx2 sample pages a subscriber touched, which grow — up to the segments' fixed
+            // size — whenever it falls further behind than before.)
+            (*r, (pid, uavloc::bench::sys::anon_rss_bytes(pid).unwrap_or_else(|e| panic!("RSS of {r}: {e}"))))
         })
         .collect()
 }
@@ -91,7 +95,7 @@ fn soak(steps: u64, first_sample: u64) {
         let ((p0, a), (p1, b)) = (start[r], end[r]);
         assert_eq!(p0, p1, "{r} was restarted");
         table += &format!(
-            "{r:>12}: RSS {:.1} MiB at step {first_sample}, {:.1} MiB at step {}, {:+.2} %\n",
+            "{r:>12}: private RSS {:.1} MiB at step {first_sample}, {:.1} MiB at step {}, {:+.2} %\n",
             a as f64 / 1048576.0,
             b as f64 / 1048576.0,
             steps - 100,
@@ -99,9 +103,13 @@ fn soak(steps: u64, first_sample: u64) {
         );
     }
     eprintln!("{table}");
+    // At most 5 %, or 768 KiB (what 5 % of the total RSS allowed before): the allocator's high-water mark
+    // still rises when a loaded machine lets the monitor lag (up to its 128-step window of pending steps),
+    // a bounded amount; a leak of 112 bytes per step would exceed it over these steps.
     for r in ROLES {
         let (a, b) = (start[r].1, end[r].1);
-        assert!(b as f64 <= a as f64 * 1.05, "{r}: RSS grew by more than 5 %:\n{table}");
+        let allowed = (a as f64 * 0.05).max(768.0 * 1024.0);
+        assert!(b as f64 <= a as f64 + allowed, "{r}: private RSS grew by more than 5 % and 768 KiB:\n{table}");
     }
 
     // Every step recorded, nothing lost, nothing replayed or rejected.

@@ -170,10 +170,37 @@ pub fn rss_bytes(pid: u32) -> Result<u64, String> {
     Ok(pages.saturating_mul(page_size))
 }
 
+/// The private (anonymous) resident memory of process `pid`, bytes (`RssAnon` of `/proc/<pid>/status`):
+/// its heap and stacks, without the shared memory it has touched (iceoryx2's segments are fixed in size,
+/// but a subscriber that falls behind touches more of its publishers' sample pages, which counts in the
+/// total RSS) or the mapped files.
+pub fn anon_rss_bytes(pid: u32) -> Result<u64, String> {
+    let path = format!("/proc/{pid}/status");
+    let status = std::fs::read_to_string(&path).map_err(|e| format!("cannot read {path}: {e}"))?;
+    let kib: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("RssAnon:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .ok_or_else(|| format!("no RssAnon in {path}"))?;
+    Ok(kib * 1024)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::process::Command;
+
+    #[test]
+    fn the_private_resident_memory_grows_with_a_heap_allocation() {
+        let me = std::process::id();
+        let before = anon_rss_bytes(me).unwrap();
+        let block = vec![1u8; 64 << 20];
+        std::hint::black_box(&block);
+        let during = anon_rss_bytes(me).unwrap();
+        assert!(during >= before + (60 << 20), "{before} -> {during}");
+        assert!(during <= rss_bytes(me).unwrap());
+        assert!(anon_rss_bytes(u32::MAX).is_err());
+    }
 
     #[test]
     fn parses_core_lists() {
