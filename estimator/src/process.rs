@@ -124,9 +124,6 @@ pub struct EstimatorSummary {
     pub out_of_chain: u64,
 }
 
-/// Steps whose answers are kept (the oldest is forgotten beyond): emitter-sim's replay history.
-pub const MAX_CACHED_STEPS: usize = HISTORY_STEPS as usize;
-
 /// What the estimator writes to its `--checkpoint` file.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Checkpoint {

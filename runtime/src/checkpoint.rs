@@ -2,11 +2,12 @@
 //! process gets back into a run that is older than what is kept.
 //!
 //! - emitter-sim keeps the truth and measurement of the last [`HISTORY_STEPS`] steps for replays; the
-//!   estimator keeps its answers for as many steps. The planner keeps nothing across steps (it plans from
-//!   what each estimate carries). Nothing else grows with the run (the monitor writes each step to its
+//!   estimator keeps the states the planner's commands echoed for as many steps (it keeps no answers: a
+//!   step seen again is estimated again from the state before it). The planner keeps nothing across
+//!   steps (it plans from what each estimate carries). Nothing else grows with the run (the monitor writes each step to its
 //!   log as it completes and keeps no per-step record in memory when it has a log).
 //! - Every [`CHECKPOINT_EVERY`] steps (at the *checkpoint steps* c = 256, 512, …) the estimator writes its
-//!   state before step c to its `--checkpoint` file before it publishes that step's answer, keeping the
+//!   state before step c to its `--checkpoint` file before it publishes that step's estimate, keeping the
 //!   last [`PROCESS_CHECKPOINTS`]; emitter-sim writes the world before step c once the command of step c
 //!   has come back (so the estimator has checkpointed c by then), keeping the last [`EMITTER_SNAPSHOTS`].
 //! - A restarted estimator resumes from its newest checkpoint and asks emitter-sim for a replay from the
@@ -14,17 +15,17 @@
 //!   monitor asks from the checkpoint step at or below the first step it lacks. A restarted emitter-sim
 //!   flies on from its *older* snapshot b (from step 0 while it has fewer than two), re-publishing steps
 //!   it had published before.
-//! - When a step c arrives that the estimator has no answer for, although it is past it, and c is one of
-//!   its checkpoints, the world was rewound there (a restarted emitter-sim): it rewinds to that checkpoint
-//!   and goes on from it, so its answers stay exactly those of the run.
+//! - When a step arrives that the estimator is past (a replay, or the world rewound by a restarted
+//!   emitter-sim), it estimates it again from the state before it — echoed by a command it saw or, after
+//!   its own restart, held by one of its checkpoints — so its estimates stay exactly those of the run.
 //!
 //! - A lock-step emitter-sim does not publish step k while the monitor's progress (the first step it lacks,
 //!   [`protocol::ControlKind::Progress`]) is k − [`MONITOR_WINDOW`] or less: a monitor restarted many times
 //!   cannot fall further behind (the window is below [`CHECKPOINT_EVERY`], so the first step it lacks is
 //!   always newer than the older snapshot a restarted emitter-sim flies on from).
 //!
-//! With these orders every request lies within emitter-sim's history and every rewind point within the
-//! checkpoints kept, for any single crash and for two processes crashing at once. A request that is not (a
+//! With these orders every request lies within emitter-sim's history and the state before every step
+//! seen again within the echoed states or the checkpoints kept, for any single crash and for two processes crashing at once. A request that is not (a
 //! process restarted without its checkpoint in a run longer than the history, or a monitor left more than
 //! [`CHECKPOINT_EVERY`] steps behind with `--monitor-window 0` or in real-time mode) is refused with an
 //! error naming the steps.
@@ -37,7 +38,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
-/// Steps emitter-sim keeps for replays, and the estimator and planner keep answers for.
+/// Steps emitter-sim keeps for replays, and the estimator keeps echoed states for.
 pub const HISTORY_STEPS: u64 = 4096;
 
 /// Steps between two checkpoints.
