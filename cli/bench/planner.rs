@@ -59,6 +59,12 @@ JSON also has solver iterations; both 0 for formation, which runs no solver; ear
 vary), and the median as a multiple of analytical/pso's median (the reference; '-' when it is not among
 the combinations timed).
 
+Quality: every solver's plan of each input is compared with PSO's plan of the same input and objective
+(paired; fitness = the constraint violation by priority tier, then the criterion): how often its fitness
+is at most PSO's, how often strictly better, and the five worst cases (JSON: `quality`). --run-steps N
+makes the input runs N steps long: runs longer than the paper's 24 steps reach the L_min ring, where the
+planner gives up the heading cone to keep the standoff.
+
 Paper Table 7 (single, mc and analytical, all with PSO) gives, per planning step and in seconds, the
 time of the displayed CRLB, the optimisation and their total (mean and max). The PSO optimisation is
 what is timed here, so 'paper opt' is the comparable number and 'paper total' is printed beside it
@@ -74,8 +80,9 @@ Examples:
   uavloc bench planner --objective analytical,mc --solver pso --steps 48 --json
   uavloc bench planner --objective single --objective analytical --solver pso,ga,aco --repeats 3
   uavloc bench planner --scenario scenarios/nominal.toml --seed 7
+  uavloc bench planner --objective analytical --solver pso,gradient --steps 1000 --run-steps 200
 
-The default (5 objectives × 3 solvers × 200 steps, one repeat) takes a few seconds (≈ 2 s on a 2-CPU
+The default (5 objectives × 4 solvers × 200 steps, one repeat) takes a few seconds (≈ 2 s on a 2-CPU
 VM), most of it in mc, whose criterion averages the scenario's mc_samples points per candidate. For
 steadier tails raise --repeats (each repeat is one more sample of the same step) rather than --steps.";
 
@@ -93,9 +100,9 @@ pub struct PlannerBenchArgs {
         default_values = ["single", "mc", "analytical", "cubature", "formation"]
     )]
     pub objective: Vec<String>,
-    /// Solvers to time, repeatable or comma-separated: pso | ga | aco (formation runs none, but is timed
+    /// Solvers to time, repeatable or comma-separated: pso | ga | aco | gradient (formation runs none, but is timed
     /// once per solver like every objective).
-    #[arg(long, value_name = "NAME,..", value_delimiter = ',', default_values = ["pso", "ga", "aco"])]
+    #[arg(long, value_name = "NAME,..", value_delimiter = ',', default_values = ["pso", "ga", "aco", "gradient"])]
     pub solver: Vec<String>,
     /// Planning steps timed per combination (≥ 1); taken from consecutive closed-loop runs of the
     /// scenario when it has fewer.
@@ -821,7 +828,10 @@ mod tests {
         }
         use clap::Parser as _;
         let w = Wrap::try_parse_from(["x"]).unwrap();
-        assert_eq!(w.a, args(&["single", "mc", "analytical", "cubature", "formation"], &["pso", "ga", "aco"], 200, 1));
+        assert_eq!(
+            w.a,
+            args(&["single", "mc", "analytical", "cubature", "formation"], &["pso", "ga", "aco", "gradient"], 200, 1)
+        );
         let w = Wrap::try_parse_from(["x", "--objective", "analytical,single", "--objective", "mc", "--solver=ga"])
             .unwrap();
         assert_eq!(w.a.objective, ["analytical", "single", "mc"]);
