@@ -54,7 +54,7 @@ pub struct ReplayArgs {
     /// Planning objective (default: the recorded commands').
     #[arg(long, value_name = "NAME")]
     pub objective: Option<ObjectiveKind>,
-    /// Solver: pso | ga | aco (default: the recorded commands').
+    /// Solver: gradient | pso | ga | aco (default: the recorded commands').
     #[arg(long, value_name = "NAME")]
     pub solver: Option<SolverKind>,
 }
