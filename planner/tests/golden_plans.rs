@@ -8,8 +8,8 @@
 
 mod problems;
 
-use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
-use problems::{PROBLEMS, problem};
+use planner::{ObjectiveKind, Scenario, SolverKind};
+use problems::{PROBLEMS, plan};
 
 const FILE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/golden_plans.txt");
 
@@ -17,21 +17,9 @@ fn bits_of_all() -> Vec<String> {
     let sc = Scenario::default();
     let mut lines = Vec::new();
     for k in 0..PROBLEMS {
-        let (pos, psi, z, m) = problem(k);
         for objective in [ObjectiveKind::Analytical, ObjectiveKind::PosteriorCubature, ObjectiveKind::Single] {
             for solver in SolverKind::PAPER {
-                let out = plan_step(&PlanRequest {
-                    positions: &pos,
-                    headings: &psi,
-                    estimate: z,
-                    covariance: m,
-                    scenario: &sc,
-                    objective,
-                    solver,
-                    run_seed: 7,
-                    step: k as u64,
-                })
-                .unwrap();
+                let out = plan(&sc, k, objective, solver);
                 let mut v: Vec<String> = out.headings.iter().map(|h| format!("{:016x}", h.to_bits())).collect();
                 v.extend(out.waypoints.iter().flat_map(|w| [w.x, w.y]).map(|x| format!("{:016x}", x.to_bits())));
                 v.push(format!("{:016x}", out.objective_value.to_bits()));

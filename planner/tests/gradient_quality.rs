@@ -6,8 +6,8 @@
 
 mod problems;
 
-use planner::{Fitness, ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
-use problems::{PROBLEMS, problem};
+use planner::{Fitness, ObjectiveKind, Scenario, SolverKind};
+use problems::{PROBLEMS, plan};
 
 fn at_most(a: Fitness, b: Fitness) -> bool {
     a <= b || (a.tiers() == b.tiers() && a.objective() <= b.objective() * (1.0 + 1e-12))
@@ -19,22 +19,8 @@ fn gradient_plans_are_at_least_as_good_as_the_papers_solvers() {
     let mut worse = Vec::new();
     let (mut compared, mut standoff, mut better) = (0, 0, 0);
     for k in 0..PROBLEMS {
-        let (pos, psi, z, m) = problem(k);
         for objective in [ObjectiveKind::Analytical, ObjectiveKind::PosteriorCubature, ObjectiveKind::Single] {
-            let plan = |solver| {
-                plan_step(&PlanRequest {
-                    positions: &pos,
-                    headings: &psi,
-                    estimate: z,
-                    covariance: m,
-                    scenario: &sc,
-                    objective,
-                    solver,
-                    run_seed: 7,
-                    step: k as u64,
-                })
-                .unwrap()
-            };
+            let plan = |solver| plan(&sc, k, objective, solver);
             let g = plan(SolverKind::Gradient);
             for solver in SolverKind::PAPER {
                 let other = plan(solver);

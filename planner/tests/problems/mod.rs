@@ -2,6 +2,7 @@
 //! UAVs around the emitter's estimate, far from it (approach) or within 1.5 L_min (standoff).
 
 use nalgebra::{Matrix2, Vector2};
+use planner::{ObjectiveKind, PlanOutput, PlanRequest, Scenario, SolverKind, plan_step};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -25,4 +26,21 @@ pub fn problem(k: usize) -> (Vec<Vector2<f64>>, Vec<f64>, Vector2<f64>, Matrix2<
         (rng.random_range(1.0e3..4.0e5), rng.random_range(-0.8..0.8), rng.random_range(1.0e3..4.0e5));
     let m = Matrix2::new(a, b * (a * c).sqrt(), b * (a * c).sqrt(), c);
     (pos, psi, z, m)
+}
+
+/// The plan of problem `k` with `objective` and `solver` in scenario `sc` (run seed 7, step `k`).
+pub fn plan(sc: &Scenario, k: usize, objective: ObjectiveKind, solver: SolverKind) -> PlanOutput {
+    let (pos, psi, z, m) = problem(k);
+    plan_step(&PlanRequest {
+        positions: &pos,
+        headings: &psi,
+        estimate: z,
+        covariance: m,
+        scenario: sc,
+        objective,
+        solver,
+        run_seed: 7,
+        step: k as u64,
+    })
+    .unwrap()
 }
