@@ -712,6 +712,8 @@ mod tests {
             ("[ga]\nmutation_rate = 2.0", "ga.mutation_rate"),
             ("[ga]\nelites = 40", "ga.elites"),
             ("[aco]\nants = 0", "aco.ants"),
+            ("[gradient]\nstarts = 0", "gradient.starts"),
+            ("[gradient]\ntolerance = 0", "gradient.tolerance"),
             ("[aco]\nevaporation = 0", "aco.evaporation"),
             ("[early_stop]\ntolerance = -1", "early_stop.tolerance"),
         ];
