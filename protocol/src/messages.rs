@@ -583,6 +583,40 @@ pub struct PosteriorExtra {
     pub velocity_cov: [[f64; 2]; 2],
 }
 
+/// The fused posterior's fields beyond the position, as every message that carries an estimator state
+/// lays them out (`estimator`, `model`, `rejected_run`, `velocity`, `cross_cov`, `velocity_cov`): one
+/// mapping to and from [`PosteriorExtra`] for [`Estimate`] and [`StateEcho`].
+macro_rules! impl_posterior_fields {
+    ($ty:ident) => {
+        impl $ty {
+            /// The fused estimator's state beyond the position.
+            pub fn extra(&self) -> PosteriorExtra {
+                PosteriorExtra {
+                    estimator: self.estimator,
+                    model: self.model,
+                    rejected_run: self.rejected_run,
+                    velocity: self.velocity,
+                    cross_cov: self.cross_cov,
+                    velocity_cov: self.velocity_cov,
+                }
+            }
+
+            /// Sets the fused estimator's state beyond the position.
+            fn set_extra(&mut self, extra: &PosteriorExtra) {
+                self.estimator = extra.estimator;
+                self.model = extra.model;
+                self.rejected_run = extra.rejected_run;
+                self.velocity = extra.velocity;
+                self.cross_cov = extra.cross_cov;
+                self.velocity_cov = extra.velocity_cov;
+            }
+        }
+    };
+}
+
+impl_posterior_fields!(Estimate);
+impl_posterior_fields!(StateEcho);
+
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("uavloc::Estimate/v3")]
@@ -672,12 +706,7 @@ impl Estimate {
 
     /// This estimate with the fused estimator's state beyond the position.
     pub fn with_extra(mut self, extra: &PosteriorExtra) -> Self {
-        self.estimator = extra.estimator;
-        self.model = extra.model;
-        self.rejected_run = extra.rejected_run;
-        self.velocity = extra.velocity;
-        self.cross_cov = extra.cross_cov;
-        self.velocity_cov = extra.velocity_cov;
+        self.set_extra(extra);
         self
     }
 
@@ -697,18 +726,6 @@ impl Estimate {
         match self.status()? {
             EstimateStatus::Failed if !self.position.iter().all(|v| v.is_finite()) => None,
             _ => Some((self.position, self.covariance)),
-        }
-    }
-
-    /// The fused estimator's state beyond the position.
-    pub fn extra(&self) -> PosteriorExtra {
-        PosteriorExtra {
-            estimator: self.estimator,
-            model: self.model,
-            rejected_run: self.rejected_run,
-            velocity: self.velocity,
-            cross_cov: self.cross_cov,
-            velocity_cov: self.velocity_cov,
         }
     }
 
@@ -891,9 +908,7 @@ impl StateEcho {
                 echo.kind = Self::STATE;
                 echo.position = position;
                 echo.covariance = covariance;
-                let x = e.extra();
-                (echo.estimator, echo.model, echo.rejected_run) = (x.estimator, x.model, x.rejected_run);
-                (echo.velocity, echo.cross_cov, echo.velocity_cov) = (x.velocity, x.cross_cov, x.velocity_cov);
+                echo.set_extra(&e.extra());
             }
             None => echo.kind = Self::EMPTY,
         }
@@ -906,14 +921,7 @@ impl StateEcho {
             Self::STATE => Some(EchoedState::State {
                 step: self.step,
                 estimate: (self.position, self.covariance),
-                extra: PosteriorExtra {
-                    estimator: self.estimator,
-                    model: self.model,
-                    rejected_run: self.rejected_run,
-                    velocity: self.velocity,
-                    cross_cov: self.cross_cov,
-                    velocity_cov: self.velocity_cov,
-                },
+                extra: self.extra(),
             }),
             Self::EMPTY => Some(EchoedState::Empty { step: self.step }),
             _ => None,

@@ -191,23 +191,9 @@ impl Estimate {
         check_finite("headings", &self.headings[..n])?;
         // A failed estimate carries the standing estimate, or none (all NaN).
         if status != EstimateStatus::Failed || self.position.iter().any(|v| v.is_finite()) {
-            check_finite("position", &self.position)?;
-            check_finite("covariance", self.covariance.iter().flatten())?;
-            if !is_symmetric_positive_definite(&self.covariance) {
-                return Err(Rejection::NotPositiveDefinite);
-            }
+            ESTIMATE_FIELDS.check_estimate(&self.position, &self.covariance)?;
         }
-        if self.estimator > 1 {
-            return Err(Rejection::UnknownKind { field: "estimator", kind: u32::from(self.estimator) });
-        }
-        if self.model > 1 {
-            return Err(Rejection::UnknownKind { field: "model", kind: u32::from(self.model) });
-        }
-        if self.model == 1 {
-            check_finite("velocity", &self.velocity)?;
-            check_finite("cross_cov", self.cross_cov.iter().flatten())?;
-            check_finite("velocity_cov", self.velocity_cov.iter().flatten())?;
-        }
+        ESTIMATE_FIELDS.check_posterior(&self.extra())?;
         check_seq(self.header.seq, last_seq)
     }
 }
@@ -240,21 +226,66 @@ impl crate::messages::StateEcho {
         if self.kind != Self::STATE {
             return Ok(());
         }
-        check_finite("state position", &self.position)?;
-        check_finite("state covariance", self.covariance.iter().flatten())?;
-        if !is_symmetric_positive_definite(&self.covariance) {
+        STATE_FIELDS.check_estimate(&self.position, &self.covariance)?;
+        STATE_FIELDS.check_posterior(&self.extra())
+    }
+}
+
+/// The names a rejection gives the fields of an estimator state, in the message that carries it.
+struct StateFields {
+    position: &'static str,
+    covariance: &'static str,
+    estimator: &'static str,
+    model: &'static str,
+    velocity: &'static str,
+    cross_cov: &'static str,
+    velocity_cov: &'static str,
+}
+
+const ESTIMATE_FIELDS: StateFields = StateFields {
+    position: "position",
+    covariance: "covariance",
+    estimator: "estimator",
+    model: "model",
+    velocity: "velocity",
+    cross_cov: "cross_cov",
+    velocity_cov: "velocity_cov",
+};
+
+const STATE_FIELDS: StateFields = StateFields {
+    position: "state position",
+    covariance: "state covariance",
+    estimator: "state estimator",
+    model: "state model",
+    velocity: "state velocity",
+    cross_cov: "state cross_cov",
+    velocity_cov: "state velocity_cov",
+};
+
+impl StateFields {
+    /// A position and its covariance: finite, the covariance symmetric positive definite.
+    fn check_estimate(&self, position: &[f64; 2], covariance: &[[f64; 2]; 2]) -> Result<(), Rejection> {
+        check_finite(self.position, position)?;
+        check_finite(self.covariance, covariance.iter().flatten())?;
+        if !is_symmetric_positive_definite(covariance) {
             return Err(Rejection::NotPositiveDefinite);
         }
-        if self.estimator > 1 {
-            return Err(Rejection::UnknownKind { field: "state estimator", kind: u32::from(self.estimator) });
+        Ok(())
+    }
+
+    /// The posterior beyond the position: a known estimator and model, and for the constant-velocity
+    /// model a finite velocity block.
+    fn check_posterior(&self, x: &crate::PosteriorExtra) -> Result<(), Rejection> {
+        if x.estimator > 1 {
+            return Err(Rejection::UnknownKind { field: self.estimator, kind: u32::from(x.estimator) });
         }
-        if self.model > 1 {
-            return Err(Rejection::UnknownKind { field: "state model", kind: u32::from(self.model) });
+        if x.model > 1 {
+            return Err(Rejection::UnknownKind { field: self.model, kind: u32::from(x.model) });
         }
-        if self.model == 1 {
-            check_finite("state velocity", &self.velocity)?;
-            check_finite("state cross_cov", self.cross_cov.iter().flatten())?;
-            check_finite("state velocity_cov", self.velocity_cov.iter().flatten())?;
+        if x.model == 1 {
+            check_finite(self.velocity, &x.velocity)?;
+            check_finite(self.cross_cov, x.cross_cov.iter().flatten())?;
+            check_finite(self.velocity_cov, x.velocity_cov.iter().flatten())?;
         }
         Ok(())
     }
