@@ -468,9 +468,13 @@ pub struct Goal {
 
 /// The end-to-end percentiles of the iceoryx2 and the uds run of wait mode `w`, when both were measured.
 fn pair(runs: &[RunResult], w: WaitMode) -> Option<(Percentiles, Percentiles)> {
-    let find = |t: TransportKind| {
-        runs.iter().find(|r| r.transport == t.name() && r.wait == w.name()).and_then(|r| r.end_to_end)
-    };
+    let (i, u) = pair_runs(runs, w)?;
+    Some((i.end_to_end?, u.end_to_end?))
+}
+
+/// The iceoryx2 and the uds run of wait mode `w`, when both were measured.
+fn pair_runs(runs: &[RunResult], w: WaitMode) -> Option<(&RunResult, &RunResult)> {
+    let find = |t: TransportKind| runs.iter().find(|r| r.transport == t.name() && r.wait == w.name());
     Some((find(TransportKind::Iceoryx2)?, find(TransportKind::Uds)?))
 }
 
@@ -516,9 +520,8 @@ fn goals(runs: &[RunResult], objective: ObjectiveKind) -> Vec<Goal> {
             detail: format!("{} lost", r.lost),
         });
     }
-    let find = |t: TransportKind, w: WaitMode| runs.iter().find(|r| r.transport == t.name() && r.wait == w.name());
     for w in WaitMode::ALL {
-        let (Some(i), Some(u)) = (find(TransportKind::Iceoryx2, w), find(TransportKind::Uds, w)) else { continue };
+        let Some((i, u)) = pair_runs(runs, w) else { continue };
         let hops = loop_hop_p50(i).zip(loop_hop_p50(u));
         let detail = |(hi, hu): (f64, f64)| {
             format!("control-loop hops, mean p50: iceoryx2 {hi:.1} µs, uds {hu:.1} µs ({:.2}×)", hi / hu)

@@ -254,7 +254,8 @@ impl Gradient {
             prev = Some((merit, free.clone(), gf.clone()));
             let mut d: Vec<f64> = h.times(&gf).iter().zip(&free).map(|(v, fr)| if *fr { -v } else { 0.0 }).collect();
             project(&mut d, &normals);
-            if dot(&d, &gf).is_nan() || dot(&d, &gf) >= 0.0 {
+            let slope = dot(&d, &gf);
+            if slope.is_nan() || slope >= 0.0 {
                 // No descent left along the active constraints (or BFGS lost it): steepest descent afresh.
                 normals.clear();
                 h = InverseHessian::scaled_identity(n, scale / gnorm);

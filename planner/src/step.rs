@@ -50,7 +50,7 @@ use crate::heading_interval::{HeadingInterval, Uav, heading_interval};
 use crate::kinematics::{next_position, turn_angle, wrap_angle};
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError};
-use crate::solver::{SearchSpace, SearchSpaceError, SolverKind};
+use crate::solver::{SearchSpace, SearchSpaceError, Solver as _, SolverKind};
 
 /// Why a planning step could not run.
 #[derive(Debug, Error)]
@@ -185,12 +185,8 @@ fn gradient_search(
     let lo: Vec<f64> = boxes.iter().map(|b| b.lo).collect();
     let hi: Vec<f64> = boxes.iter().map(|b| b.hi).collect();
     let moved: Vec<f64> = (0..n).map(|i| psi[i].clamp(lo[i], hi[i])).collect();
-    let mut starts = vec![moved.clone(), (0..n).map(|i| 0.5 * (lo[i] + hi[i])).collect()];
-    if n <= crate::gradient::MAX_CORNER_DIM {
-        starts.extend((0..1usize << n).map(|b| (0..n).map(|i| if b >> i & 1 == 1 { hi[i] } else { lo[i] }).collect()));
-    }
-    let space = SearchSpace::new(lo, hi, moved)?;
-    let first = solver.minimize_from(tiered, &space, &starts);
+    // The solver's own starts: the current headings moved into the boxes, their centre, their corners.
+    let first = solver.minimize(tiered, &SearchSpace::new(lo, hi, moved)?, 0);
     if first.fitness.tiers()[0] == 0.0 {
         return Ok((first.best, first.iterations, first.evaluations));
     }
