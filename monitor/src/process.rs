@@ -300,7 +300,10 @@ impl State {
         let batch = sub.receive_all()?;
         let received_ns = now_ns();
         for msg in batch {
-            if msg.header().stamps.published_ns != 0 {
+            // Receive times of steps still to be recorded only: a message of a step already recorded (seen
+            // again, or late) is never accounted, and its entry stayed for the rest of the run — 30 000
+            // entries and +2 MiB of private memory over 40 000 steps of a loaded machine.
+            if msg.header().stamps.published_ns != 0 && msg.header().step >= self.assembler.next_step() {
                 self.received.entry((T::KIND, msg.header().step)).or_insert(received_ns);
             }
             let slot = &mut self.last_seq[T::KIND.index()];
