@@ -13,6 +13,7 @@ pub mod export;
 pub mod latency;
 pub mod metrics;
 pub mod plot;
+pub mod png;
 pub mod process;
 pub mod record;
 pub mod recording;

@@ -173,9 +173,13 @@ pub(crate) fn render(path: &Path, figure: &impl Figure) -> Result<(), PlotError>
             root.present().map_err(|e| draw_error(&e))
         }
         PlotFormat::Png => {
-            let root = BitMapBackend::new(path, FIGURE_SIZE).into_drawing_area();
-            figure.draw(&root).map_err(|e| draw_error(&e))?;
-            root.present().map_err(|e| draw_error(&e))
+            let mut rgb = vec![0; 3 * FIGURE_SIZE.0 as usize * FIGURE_SIZE.1 as usize];
+            {
+                let root = BitMapBackend::with_buffer(&mut rgb, FIGURE_SIZE).into_drawing_area();
+                figure.draw(&root).map_err(|e| draw_error(&e))?;
+                root.present().map_err(|e| draw_error(&e))?;
+            }
+            crate::png::write(path, FIGURE_SIZE, &rgb).map_err(|e| draw_error(&e))
         }
     }
 }

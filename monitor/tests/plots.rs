@@ -7,6 +7,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use monitor::export::RUN_FILES;
+use monitor::png::Raster;
 use monitor::{
     ExportError, Metric, PlotError, RunRecord, StepRecord, plot_comparison, plot_metrics, plot_trajectories, write_run,
     write_steps_csv, write_trajectory_csv,
@@ -137,25 +138,23 @@ fn data_line_strokes(svg: &str) -> Vec<String> {
 }
 
 /// Checks the PNG signature and IHDR size, decodes it and returns the RGB image.
-fn check_png(path: &Path) -> image::RgbImage {
+fn check_png(path: &Path) -> Raster {
     let bytes = fs::read(path).unwrap();
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}: not a PNG", path.display());
     assert_eq!(&bytes[12..16], b"IHDR");
     let width = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
     let height = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
     assert_eq!((width, height), (WIDTH, HEIGHT), "{}", path.display());
-    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png).unwrap().to_rgb8();
+    let img = monitor::png::read(path).unwrap();
     assert_eq!(img.dimensions(), (WIDTH, HEIGHT));
-    let first = *img.get_pixel(0, 0);
-    assert!(img.pixels().any(|p| *p != first), "{}: a single colour", path.display());
+    let first = img.pixel(0, 0);
+    assert!(img.pixels().any(|(_, _, p)| p != first), "{}: a single colour", path.display());
     img
 }
 
 /// Pixels within `tol` (per channel) of `rgb` in rows `rows`.
-fn count_near(img: &image::RgbImage, rgb: [u8; 3], tol: u8, rows: std::ops::Range<u32>) -> usize {
-    img.enumerate_pixels()
-        .filter(|(_, y, p)| rows.contains(y) && p.0.iter().zip(rgb).all(|(&a, b)| a.abs_diff(b) <= tol))
-        .count()
+fn count_near(img: &Raster, rgb: [u8; 3], tol: u8, rows: std::ops::Range<u32>) -> usize {
+    img.pixels().filter(|(_, y, p)| rows.contains(y) && p.iter().zip(rgb).all(|(&a, b)| a.abs_diff(b) <= tol)).count()
 }
 
 #[test]

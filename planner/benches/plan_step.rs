@@ -1,6 +1,6 @@
 //! One planning step (PSO 40 particles × 15 iterations, early stop as configured) with each objective,
 //! 3 UAVs, at the paper's nominal start with ẑ = truth and M = F⁻¹(truth).
-//! Run: `cargo bench -p uavloc-planner --bench plan_step`.
+//! Run: `cargo bench -p uavloc-planner --features criterion --bench plan_step`.
 
 use std::time::Duration;
 

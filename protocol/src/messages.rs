@@ -17,6 +17,7 @@ use core::mem::size_of;
 
 use iceoryx2::prelude::ZeroCopySend;
 
+use crate::transport::{Link, PublishPort, SubscribePort, TransportError};
 use crate::validate::Rejection;
 use crate::{MAX_UAVS, MIN_UAVS, ProtocolError};
 
@@ -277,6 +278,19 @@ pub trait Message: AnyBitPattern + ZeroCopySend + fmt::Debug + Copy + Send + 'st
         self.header_mut().stamps = Stamps::carried_from(U::KIND, &upstream.header().stamps, received_ns);
         self
     }
+
+    /// The transport's sending port for this type; use [`Topic::publisher`](crate::Topic::publisher).
+    ///
+    /// Implemented per message type in this crate (non-generic), so the iceoryx2 and socket port code is
+    /// compiled once, here, and not again in every crate that opens a topic (it is most of a process
+    /// crate's machine code otherwise: build time).
+    #[doc(hidden)]
+    fn publish_port(link: &Link, name: &str) -> Result<Box<dyn PublishPort<Self>>, TransportError>;
+
+    /// The transport's receiving port for this type; use [`Topic::subscriber`](crate::Topic::subscriber).
+    /// Implemented per type here, as [`Message::publish_port`].
+    #[doc(hidden)]
+    fn subscribe_port(link: &Link, name: &str) -> Result<Box<dyn SubscribePort<Self>>, TransportError>;
 }
 
 macro_rules! impl_message {
@@ -305,6 +319,14 @@ macro_rules! impl_message {
 
             fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
                 $ty::validate(self, last_seq)
+            }
+
+            fn publish_port(link: &Link, name: &str) -> Result<Box<dyn PublishPort<Self>>, TransportError> {
+                crate::transport::open_publish_port(link, name)
+            }
+
+            fn subscribe_port(link: &Link, name: &str) -> Result<Box<dyn SubscribePort<Self>>, TransportError> {
+                crate::transport::open_subscribe_port(link, name)
             }
         }
     };

@@ -272,7 +272,7 @@ impl Node {
     }
 
     /// The control messages since the last wake-up; `Some` when one ends the loop.
-    fn on_control(&mut self, handler: &mut impl Handler) -> Result<Option<Ended>, ProcessError> {
+    fn on_control(&mut self, handler: &mut dyn Handler) -> Result<Option<Ended>, ProcessError> {
         for msg in self.control.receive(&mut self.counter)? {
             let c = match msg {
                 Ok(c) => c,
@@ -315,7 +315,7 @@ impl Node {
 
     /// Runs `handler` over the wake-ups of `inputs` and the control topic until it stops, hands over, a
     /// shutdown comes or SIGINT/SIGTERM (see the module docs).
-    pub fn run(&mut self, inputs: &[&dyn Waitable], handler: &mut impl Handler) -> Result<Ended, ProcessError> {
+    pub fn run(&mut self, inputs: &[&dyn Waitable], handler: &mut dyn Handler) -> Result<Ended, ProcessError> {
         // The guards borrow this handle of the control channel (declared first, dropped last), so the
         // handler may use the node meanwhile.
         let control = Rc::clone(&self.control);

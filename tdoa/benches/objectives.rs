@@ -1,6 +1,6 @@
 //! One evaluation of each global-CRLB objective (prepared once, as the planner does per step) with 3, 4
 //! and 5 UAVs at the paper's nominal geometry, plus one Chan solve.
-//! Run: `cargo bench -p uavloc-tdoa --bench objectives`.
+//! Run: `cargo bench -p uavloc-tdoa --features criterion --bench objectives`.
 
 use std::time::Duration;
 

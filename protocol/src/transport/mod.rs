@@ -396,21 +396,36 @@ pub struct Topic<T: Message>(PhantomData<T>);
 impl<T: Message> Topic<T> {
     /// Opens (or creates) the topic `name` on the link's transport and adds a publisher to it.
     pub fn publisher(link: &Link, name: &str) -> Result<TopicPublisher<T>, TransportError> {
-        let port: Box<dyn PublishPort<T>> = match link.kind {
-            TransportKind::Iceoryx2 => Box::new(iox::IoxPublisher::create(&link.node, name)?),
-            TransportKind::Uds => Box::new(uds::UdsPublisher::create(name)?),
-        };
-        Ok(TopicPublisher { name: name.to_owned(), port })
+        Ok(TopicPublisher { name: name.to_owned(), port: T::publish_port(link, name)? })
     }
 
     /// Opens (or creates) the topic `name` on the link's transport and adds a subscriber to it.
     pub fn subscriber(link: &Link, name: &str) -> Result<TopicSubscriber<T>, TransportError> {
-        let port: Box<dyn SubscribePort<T>> = match link.kind {
-            TransportKind::Iceoryx2 => Box::new(iox::IoxSubscriber::create(&link.node, name)?),
-            TransportKind::Uds => Box::new(uds::UdsSubscriber::create(name)?),
-        };
-        Ok(TopicSubscriber { name: name.to_owned(), port })
+        Ok(TopicSubscriber { name: name.to_owned(), port: T::subscribe_port(link, name)? })
     }
+}
+
+/// The sending port of `link`'s transport for `T` (called only by the per-type [`Message::publish_port`]).
+pub(crate) fn open_publish_port<T: Message>(
+    link: &Link,
+    name: &str,
+) -> Result<Box<dyn PublishPort<T>>, TransportError> {
+    Ok(match link.kind {
+        TransportKind::Iceoryx2 => Box::new(iox::IoxPublisher::create(&link.node, name)?),
+        TransportKind::Uds => Box::new(uds::UdsPublisher::create(name)?),
+    })
+}
+
+/// The receiving port of `link`'s transport for `T` (called only by the per-type
+/// [`Message::subscribe_port`]).
+pub(crate) fn open_subscribe_port<T: Message>(
+    link: &Link,
+    name: &str,
+) -> Result<Box<dyn SubscribePort<T>>, TransportError> {
+    Ok(match link.kind {
+        TransportKind::Iceoryx2 => Box::new(iox::IoxSubscriber::create(&link.node, name)?),
+        TransportKind::Uds => Box::new(uds::UdsSubscriber::create(name)?),
+    })
 }
 
 /// What [`TopicPublisher::send`] did.
