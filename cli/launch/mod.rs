@@ -30,7 +30,7 @@
 //!    does not fall behind what can be replayed to it. A child that exits
 //!    with code 2 (bad input) or 3 (the run cannot go on: two UAVs collided, so the world cannot measure),
 //!    or crashes more than `--max-restarts` times, stops the others and fails the
-//!    launch. (`tests/crash_restart.rs`.)
+//!    launch. (`tests/e2e/crash_restart.rs`.)
 //! 5. At the end (or on an error or a signal), once its children are stopped, the launcher publishes a
 //!    shutdown on the domain's control topic if processes of the domain are still alive — processes
 //!    swapped in by `uavloc swap` are not its children and stop on it — and waits for them. A planner or estimator that exits because a swapped-in one took over (`handed_over_at` in
@@ -47,11 +47,11 @@
 //! Every child runs in its own process group (a terminal's Ctrl-C reaches only the launcher, which stops
 //! the children in order) with `PR_SET_PDEATHSIG = SIGTERM`, so none outlives a launcher that dies.
 //! SIGINT/SIGTERM on the launcher stop all children (exit code 1) and remove the iceoryx2 resources any of
-//! them left behind (`tests/shutdown.rs`).
+//! them left behind (`tests/e2e/shutdown.rs`).
 //!
 //! The output is the monitor's run record, i.e. the JSON of `uavloc simulate --json` (built only from what
 //! the monitor received), plus `restarts`, `rejected` (invalid messages counted by all four processes),
-//! `rejected_by` (the same per process role; `tests/bad_messages.rs`) and `processes` (every instance
+//! `rejected_by` (the same per process role; `tests/e2e/bad_messages.rs`) and `processes` (every instance
 //! started: role, pid, exit, whether it was restarted, its summary).
 
 mod args;

@@ -126,7 +126,7 @@ class Command(ctypes.Structure):
         return "uavloc::Command/v4"
 
 
-# Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/wire_layout.rs).
+# Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/e2e/wire_layout.rs).
 SIZES = {Measurement: 408, Command: 504}
 
 

@@ -3,7 +3,7 @@
  * publish or subscribe through iceoryx2's C/C++ API.
  *
  * The layouts equal the Rust `#[repr(C)]` types of `protocol/src/messages.rs` byte for byte; the test
- * `tests/wire_layout.rs` compiles this header and checks every struct's size and alignment and every
+ * `tests/e2e/wire_layout.rs` compiles this header and checks every struct's size and alignment and every
  * field's offset against the Rust types. The contract (units, validation, service names, versions) is
  * docs/wire-format.md. Every padding is spelled out as a `reserved` field: any bit pattern is a value,
  * and receivers validate before they trust one.

@@ -8,6 +8,7 @@
 //! [`resources`] lists (and cleans up) a domain's iceoryx2 nodes and services.
 
 pub mod assemble;
+mod canvas;
 pub mod chart;
 pub mod export;
 pub mod latency;

@@ -24,6 +24,7 @@ use plotters::style::register_font;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use thiserror::Error;
 
+use crate::canvas::Canvas;
 use crate::record::{RunRecord, StepRecord};
 
 /// Width and height of every figure, pixels (PNG) or SVG user units.
@@ -166,21 +167,22 @@ pub(crate) fn render(path: &Path, figure: &impl Figure) -> Result<(), PlotError>
         PlotFormat::from_path(path).ok_or_else(|| PlotError::UnsupportedFormat { path: path.to_path_buf() })?;
     ensure_font()?;
     let draw_error = |e: &dyn std::fmt::Display| PlotError::Draw { path: path.to_path_buf(), message: e.to_string() };
-    match format {
-        PlotFormat::Svg => {
-            let root = SVGBackend::new(path, FIGURE_SIZE).into_drawing_area();
-            figure.draw(&root).map_err(|e| draw_error(&e))?;
-            root.present().map_err(|e| draw_error(&e))
-        }
+    let mut rgb = Vec::new();
+    let canvas = match format {
+        PlotFormat::Svg => Canvas::Svg(SVGBackend::new(path, FIGURE_SIZE)),
         PlotFormat::Png => {
-            let mut rgb = vec![0; 3 * FIGURE_SIZE.0 as usize * FIGURE_SIZE.1 as usize];
-            {
-                let root = BitMapBackend::with_buffer(&mut rgb, FIGURE_SIZE).into_drawing_area();
-                figure.draw(&root).map_err(|e| draw_error(&e))?;
-                root.present().map_err(|e| draw_error(&e))?;
-            }
-            crate::png::write(path, FIGURE_SIZE, &rgb).map_err(|e| draw_error(&e))
+            rgb = vec![0; 3 * FIGURE_SIZE.0 as usize * FIGURE_SIZE.1 as usize];
+            Canvas::Bitmap(BitMapBackend::with_buffer(&mut rgb, FIGURE_SIZE))
         }
+    };
+    {
+        let root = canvas.into_drawing_area();
+        figure.draw(&root).map_err(|e| draw_error(&e))?;
+        root.present().map_err(|e| draw_error(&e))?;
+    }
+    match format {
+        PlotFormat::Svg => Ok(()),
+        PlotFormat::Png => crate::png::write(path, FIGURE_SIZE, &rgb).map_err(|e| draw_error(&e)),
     }
 }
 

@@ -30,7 +30,7 @@
 //!   leave it off.
 //! - `--plan-delay-ms` (with `--plan-delay-steps`) is a test / fault-injection aid: the planner sleeps
 //!   before planning those steps, like a slow one, e.g. to make its commands miss their step in
-//!   emitter-sim's real-time mode (`tests/realtime.rs`).
+//!   emitter-sim's real-time mode (`tests/e2e/realtime.rs`).
 //! - SIGINT/SIGTERM, or a [`ControlKind::Shutdown`] on the control topic, end the loop cleanly (exit 0);
 //!   the iceoryx2 resources are released on the way out.
 //!

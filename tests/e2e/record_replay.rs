@@ -4,7 +4,7 @@
 //! gives other estimates, a monitor killed mid-run still leaves a whole recording, and a cut or corrupt
 //! file is refused naming the byte offset (exit 2).
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;
@@ -21,6 +21,7 @@ fn replay(file: &Path, extra: &[&str]) -> Value {
 
 #[test]
 fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
+    let _scenario = common::scenario(module_path!());
     let dir = scratch("record");
     let file = dir.join("run.mcap");
     let d = domain("rec", "py");
@@ -101,6 +102,7 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
 
 #[test]
 fn a_monitor_killed_mid_run_still_leaves_a_whole_recording() {
+    let _scenario = common::scenario(module_path!());
     let dir = scratch("record-kill");
     let file = dir.join("run.mcap");
     let d = domain("rec", "kill");
@@ -126,6 +128,7 @@ fn a_monitor_killed_mid_run_still_leaves_a_whole_recording() {
 
 #[test]
 fn a_recording_with_a_step_missing_or_without_its_scenario_is_refused() {
+    let _scenario = common::scenario(module_path!());
     use monitor::recording::{Recorder, run_metadata};
     let dir = scratch("record-gaps");
     let uavs = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];

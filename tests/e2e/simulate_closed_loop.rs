@@ -30,6 +30,7 @@ fn without_timing(mut run: Value) -> Value {
 
 #[test]
 fn json_has_the_documented_shape() {
+    let _scenario = crate::common::scenario(module_path!());
     let run = simulate(&["--steps", "3"]);
     for key in ["scenario", "objective", "solver", "seed", "steps", "emitter"] {
         assert!(run.get(key).is_some(), "missing {key}");
@@ -61,6 +62,7 @@ fn json_has_the_documented_shape() {
 
 #[test]
 fn same_seed_same_trajectory_other_seed_other_trajectory() {
+    let _scenario = crate::common::scenario(module_path!());
     for solver in ["pso", "ga", "aco"] {
         let a = without_timing(simulate(&["--steps", "6", "--solver", solver, "--seed", "5"]));
         let b = without_timing(simulate(&["--steps", "6", "--solver", solver, "--seed", "5"]));
@@ -72,6 +74,7 @@ fn same_seed_same_trajectory_other_seed_other_trajectory() {
 
 #[test]
 fn every_objective_and_solver_beats_the_fixed_formation() {
+    let _scenario = crate::common::scenario(module_path!());
     let formation = final_crlb(&simulate(&["--objective", "formation"]));
     for solver in ["pso", "ga", "aco"] {
         for objective in ["single", "mc", "analytical", "cubature"] {
@@ -83,6 +86,7 @@ fn every_objective_and_solver_beats_the_fixed_formation() {
 
 #[test]
 fn bad_scenarios_and_flags_are_clear_errors() {
+    let _scenario = crate::common::scenario(module_path!());
     let dir = std::env::temp_dir().join(format!("uavloc-sim-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let cases = [

@@ -40,6 +40,7 @@ fn assert_consistent(label: &str, runs: &[monitor::RunRecord], ratio: (f64, f64)
 
 #[test]
 fn fusion_beats_the_per_step_chan_of_the_paper() {
+    let _scenario = crate::common::scenario(module_path!());
     let runs = batch(60, &Scenario::default());
     assert!(runs.iter().all(|r| r.estimator == "fused"));
     // The paper's per-step Chan on the same seeds is far from the bound at the end.
@@ -55,12 +56,14 @@ fn fusion_beats_the_per_step_chan_of_the_paper() {
 
 #[test]
 fn fused_default_scenario_is_efficient_and_consistent() {
+    let _scenario = crate::common::scenario(module_path!());
     let runs = batch(200, &Scenario::default());
     assert_consistent("fused, 200 runs", &runs, (0.9, 1.2), 0.9, 100.0);
 }
 
 #[test]
 fn constant_velocity_model_tracks_a_moving_emitter_and_the_static_model_shows_its_lag() {
+    let _scenario = crate::common::scenario(module_path!());
     let moving = Scenario { emitter_velocity: [10.0, 0.0], ..Scenario::default() };
     // The model matched to the truth: a 10 m/s emitter flying straight, prior σ_v = 10 m/s per axis and a
     // small process noise. (With the defaults, σ_v = 20 m/s and σ_a = 0.05 m/s², the model is looser than
@@ -99,6 +102,7 @@ fn true_violations(runs: &[monitor::RunRecord]) -> (f64, f64) {
 
 #[test]
 fn the_standoff_chance_constraint_is_calibrated_on_60_step_runs() {
+    let _scenario = crate::common::scenario(module_path!());
     // 200 runs of 60 steps: the UAVs reach the L_min ring at about step 38 and orbit it.
     let long = Scenario { steps: 60, ..Scenario::default() };
     let (inside, depth) = true_violations(&batch(200, &long));

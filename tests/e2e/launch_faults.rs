@@ -1,7 +1,7 @@
 //! The faults an adversarial user found in `uavloc launch` (issue 16), each reproduced here first: two
 //! launches into one domain at the same instant; state directories left by a SIGKILLed launcher.
 
-mod common;
+use crate::common;
 
 use std::process::{Command, Stdio};
 
@@ -13,6 +13,7 @@ use serde_json::Value;
 /// one launch exited 0 with a trajectory that was neither seed's).
 #[test]
 fn two_launches_into_one_domain_at_once_refuse_one_and_keep_the_other_exact() {
+    let _scenario = common::scenario(module_path!());
     for attempt in 0..3 {
         let d = domain("race", &attempt.to_string());
         let start = |seed: &str| {
@@ -48,6 +49,7 @@ fn two_launches_into_one_domain_at_once_refuse_one_and_keep_the_other_exact() {
 /// forever, with the monitor's log in it).
 #[test]
 fn a_dead_launchers_state_directory_is_removed_by_the_next_launch() {
+    let _scenario = common::scenario(module_path!());
     // SAFETY: getuid has no preconditions.
     let uid = unsafe { libc::getuid() };
     let root = std::env::temp_dir().join(format!("uavloc-{uid}"));
@@ -76,6 +78,7 @@ fn a_dead_launchers_state_directory_is_removed_by_the_next_launch() {
 /// ground for a minute through five emitter-sim restarts and ended with a misleading "no command").
 #[test]
 fn a_start_that_cannot_be_localised_is_refused_up_front() {
+    let _scenario = common::scenario(module_path!());
     let dir = common::scratch("unlocalisable");
     for (name, text, key) in [
         ("collinear", "uavs = [[0.0, 0.0], [5000.0, 0.0], [10000.0, 0.0]]\n", "uavs"),
@@ -109,6 +112,7 @@ fn a_start_that_cannot_be_localised_is_refused_up_front() {
 /// at the end no longer loses the run: the JSON is printed, the exit code is 1, the error names the path.
 #[test]
 fn out_is_checked_before_the_run_and_a_late_failure_keeps_the_json() {
+    let _scenario = common::scenario(module_path!());
     let dir = common::scratch("out-checks");
     let file = dir.join("f");
     std::fs::write(&file, "not a directory").unwrap();
@@ -147,6 +151,7 @@ fn out_is_checked_before_the_run_and_a_late_failure_keeps_the_json() {
 /// misleading "the log has 10 of 201 steps" after five restarts; for the stamps, exit 0 with a short file).
 #[test]
 fn a_full_disk_under_the_log_or_the_stamps_is_reported_naming_the_file() {
+    let _scenario = common::scenario(module_path!());
     for (flag, needle) in [("--log", "--log /dev/full"), ("--stamps", "--stamps /dev/full")] {
         let d = domain("full", &flag[2..]);
         let out = Command::new(UAVLOC)
@@ -165,6 +170,7 @@ fn a_full_disk_under_the_log_or_the_stamps_is_reported_naming_the_file() {
 /// a SIGKILL at 0.6 s left steps 90–200 only, and the run exited 0): one row per step, in order.
 #[test]
 fn a_monitor_restart_keeps_the_stamps_written_before_it() {
+    let _scenario = common::scenario(module_path!());
     let dir = common::scratch("stamps-restart");
     let d = domain("stamps", "restart");
     let stamps = dir.join("s.csv");
@@ -190,6 +196,7 @@ fn a_monitor_restart_keeps_the_stamps_written_before_it() {
 /// mask had one violation flag per kind).
 #[test]
 fn constraint_labels_of_launch_and_simulate_agree() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("labels", "seed7");
     let run = json_of(&["launch", "--headless", "--json", "--steps", "200", "--seed", "7", "--domain", &d]);
     let sim = json_of(&["simulate", "--json", "--steps", "200", "--seed", "7"]);
@@ -213,6 +220,7 @@ fn constraint_labels_of_launch_and_simulate_agree() {
 /// instead of nothing, and exits 1.
 #[test]
 fn an_interrupted_launch_prints_the_steps_done() {
+    let _scenario = common::scenario(module_path!());
     let dir = common::scratch("sigint");
     let d = domain("sigint", "partial");
     let mut launch = common::Launch::start(&d, &dir, &["--steps", "400", "--step-delay-ms", "10"]);
@@ -241,6 +249,7 @@ fn an_interrupted_launch_prints_the_steps_done() {
 /// next launch — holding the domain's lock, with no live node in the domain — removes it and runs.
 #[test]
 fn a_service_left_half_created_by_kill_9_is_removed_by_the_next_launch() {
+    let _scenario = common::scenario(module_path!());
     use std::os::unix::fs::PermissionsExt;
     let d = domain("half", "created");
     let [pubsub, event] = monitor::resources::static_config_files(&format!("{d}/measurement")).unwrap();

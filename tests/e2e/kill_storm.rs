@@ -23,10 +23,10 @@
 //! builds) is ignored by default:
 //!
 //! ```text
-//! cargo test --release --test kill_storm -- --ignored
+//! cargo test --release --test e2e kill_storm:: -- --ignored
 //! ```
 
-mod common;
+use crate::common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -390,12 +390,14 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
 
 #[test]
 fn quick_storm_two_kills_per_process_and_one_pair() {
+    let _scenario = common::scenario(module_path!());
     storm("quick", 2, 1, 300, 10);
 }
 
 #[test]
-#[ignore = "long (minutes): cargo test --release --test kill_storm -- --ignored"]
+#[ignore = "long (minutes): cargo test --release --test e2e kill_storm:: -- --ignored"]
 fn ten_kills_per_process_and_pairs() {
+    let _scenario = common::scenario(module_path!());
     storm("long", 10, 3, 1500, 5);
 }
 
@@ -407,6 +409,7 @@ fn ten_kills_per_process_and_pairs() {
 /// step, so the monitor cannot log it yet), left behind for a while, then killed.
 #[test]
 fn a_monitor_restarted_at_a_failed_estimate_records_the_command_flown() {
+    let _scenario = common::scenario(module_path!());
     let steps = "300";
     let d = domain("storm", "failed");
     let dir = scratch("storm-failed");
@@ -466,6 +469,7 @@ fn a_monitor_restarted_at_a_failed_estimate_records_the_command_flown() {
 /// record the last step within …").
 #[test]
 fn emitter_sim_killed_while_the_planner_restarts_is_not_the_end_of_the_run() {
+    let _scenario = common::scenario(module_path!());
     let steps = "600";
     let d = domain("storm", "during");
     let dir = scratch("storm-during");

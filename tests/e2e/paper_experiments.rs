@@ -6,7 +6,7 @@
 //! intervals, the paper's numbers are carried beside ours, and every setting is stated. Also: results
 //! do not depend on the thread count, `--out` writes readable files, bad input exits 2.
 
-mod common;
+use crate::common;
 
 use std::sync::OnceLock;
 
@@ -42,6 +42,7 @@ fn interval(v: &Value) -> [f64; 3] {
 
 #[test]
 fn all_experiments_run_in_order_with_their_settings() {
+    let _scenario = common::scenario(module_path!());
     let names: Vec<&str> =
         all_quick()["experiments"].as_array().unwrap().iter().map(|e| e["experiment"].as_str().unwrap()).collect();
     assert_eq!(
@@ -64,6 +65,7 @@ fn all_experiments_run_in_order_with_their_settings() {
 
 #[test]
 fn table2_rows_have_the_papers_columns_and_paired_differences() {
+    let _scenario = common::scenario(module_path!());
     let t = experiment("table2");
     let rows = t["rows"].as_array().unwrap();
     let methods: Vec<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
@@ -105,6 +107,7 @@ fn table2_rows_have_the_papers_columns_and_paired_differences() {
 
 #[test]
 fn every_solver_beats_the_formation() {
+    let _scenario = common::scenario(module_path!());
     let rows = experiment("optimizers")["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 12, "3 solvers × 4 methods");
     for solver in ["pso", "ga", "aco"] {
@@ -117,6 +120,7 @@ fn every_solver_beats_the_formation() {
 
 #[test]
 fn table9_rmse_tracks_the_crlb_which_is_linear_in_the_noise() {
+    let _scenario = common::scenario(module_path!());
     let t = experiment("table9");
     let rows = t["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 4);
@@ -137,6 +141,7 @@ fn table9_rmse_tracks_the_crlb_which_is_linear_in_the_noise() {
 
 #[test]
 fn criteria_are_checked_against_the_quadrature() {
+    let _scenario = common::scenario(module_path!());
     let t4 = experiment("table4");
     let rows = t4["rows"].as_array().unwrap();
     let get = |m: &str| rows.iter().find(|r| r["metric"] == m).unwrap_or_else(|| panic!("no {m}"));
@@ -162,6 +167,7 @@ fn criteria_are_checked_against_the_quadrature() {
 
 #[test]
 fn table6_table10_and_sensitivity_report_their_cases() {
+    let _scenario = common::scenario(module_path!());
     let t6 = experiment("table6")["rows"].as_array().unwrap().clone();
     assert_eq!(t6.len(), 5);
     assert_eq!(f(&t6[0]["single"]["degradation_pct"]), 0.0, "s = 0 is the reference");
@@ -185,6 +191,7 @@ fn table6_table10_and_sensitivity_report_their_cases() {
 
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
+    let _scenario = common::scenario(module_path!());
     let run = |threads: &str| {
         let out = std::process::Command::new(UAVLOC)
             .args(["paper", "table2", "--runs", "4", "--json"])
@@ -204,6 +211,7 @@ fn results_do_not_depend_on_the_thread_count() {
 
 #[test]
 fn out_writes_tables_and_figures() {
+    let _scenario = common::scenario(module_path!());
     let dir = scratch("paper-out");
     let out = uavloc(&["paper", "table9", "--runs", "3", "--out", dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -228,6 +236,7 @@ fn out_writes_tables_and_figures() {
 
 #[test]
 fn bad_input_is_one_line_and_exit_2() {
+    let _scenario = common::scenario(module_path!());
     for args in [
         vec!["paper", "table3"],
         vec!["paper"],
@@ -256,6 +265,7 @@ fn bad_input_is_one_line_and_exit_2() {
 
 #[test]
 fn help_answers_the_questions() {
+    let _scenario = common::scenario(module_path!());
     let out = uavloc(&["paper", "--help"]);
     let text = String::from_utf8_lossy(&out.stdout);
     for needle in [

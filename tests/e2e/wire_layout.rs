@@ -134,6 +134,7 @@ fn c_source(layouts: &[Layout]) -> String {
 
 #[test]
 fn the_c_header_has_the_layout_of_the_rust_types() {
+    let _scenario = crate::common::scenario(module_path!());
     let layouts = layouts();
     let dir = std::env::temp_dir().join(format!("uavloc-wire-layout-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -179,6 +180,7 @@ fn the_c_header_has_the_layout_of_the_rust_types() {
 
 #[test]
 fn every_field_of_every_type_is_listed() {
+    let _scenario = crate::common::scenario(module_path!());
     // A field added to a Rust type without its line here (and in the header) would escape the check: the
     // listed fields must tile the struct (each starts where the previous one ends, up to its size), which
     // also holds only if no padding is hidden.

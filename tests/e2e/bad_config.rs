@@ -3,7 +3,7 @@
 //! with exactly one `error:` line on stderr that names the problem (the key or the flag), exit code 2,
 //! nothing on stdout, and no process started.
 
-mod common;
+use crate::common;
 
 use common::{scratch, uavloc};
 
@@ -60,6 +60,7 @@ const BAD_SCENARIOS: [(&str, &str); 35] = [
 
 #[test]
 fn malformed_scenarios_are_refused_by_every_entry_point() {
+    let _scenario = common::scenario(module_path!());
     let dir = scratch("bad-config");
     // Each file through one entry point, rotating, so every entry point sees several kinds of error.
     let entry_points: [&[&str]; 5] = [
@@ -88,6 +89,7 @@ fn malformed_scenarios_are_refused_by_every_entry_point() {
 
 #[test]
 fn malformed_flags_are_refused() {
+    let _scenario = common::scenario(module_path!());
     let cases: &[(&[&str], &str)] = &[
         (&["launch", "--steps", "-3"], "-3"),
         (&["launch", "--steps=-3"], "--steps"),

@@ -8,7 +8,7 @@
 //! pipeline tests. Timing margins are wide (≥ 100 ms where the outcome depends on them): these are not
 //! timing benchmarks.
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 
@@ -89,6 +89,7 @@ fn check_missed_steps(run: &Value) -> Vec<u64> {
 
 #[test]
 fn with_every_command_in_time_the_run_equals_simulate_and_keeps_the_schedule() {
+    let _scenario = common::scenario(module_path!());
     // 6 steps of 10 s at ×50: 0.2 s per step, 1.2 s in all; a command takes well under 10 ms.
     let (steps, scale) = (6u64, 50.0);
     let interval = Duration::from_secs_f64(10.0 / scale);
@@ -122,6 +123,7 @@ fn with_every_command_in_time_the_run_equals_simulate_and_keeps_the_schedule() {
 
 #[test]
 fn a_slow_planner_misses_a_step_and_the_uavs_fly_straight_on() {
+    let _scenario = common::scenario(module_path!());
     // ×50: 0.2 s per step. The planner sleeps 300 ms before planning step 2, so its command comes after step
     // 3 is due: step 2 is missed, the command is late (ignored), the other steps are flown as planned.
     let (run, events, _) = launch(
@@ -168,6 +170,7 @@ fn a_slow_planner_misses_a_step_and_the_uavs_fly_straight_on() {
 
 #[test]
 fn an_extreme_time_scale_misses_commands_and_completes() {
+    let _scenario = common::scenario(module_path!());
     // ×1e6: 10 µs per step, far less than any cycle (the mc objective plans for milliseconds).
     let (run, _, _) =
         launch("extreme", &["--steps", "6", "--mode", "realtime", "--time-scale", "1e6", "--objective", "mc"]);
@@ -184,6 +187,7 @@ fn an_extreme_time_scale_misses_commands_and_completes() {
 
 #[test]
 fn a_crashed_estimator_is_restarted_and_replayed_to_between_the_steps() {
+    let _scenario = common::scenario(module_path!());
     // ×20: 0.5 s per step. The estimator is killed mid-run; the launcher restarts it (≈ 0.1 s), it says
     // hello and emitter-sim replays the run to it between two scheduled steps: nothing is missed and the
     // run is still simulate's.
@@ -205,6 +209,7 @@ fn a_crashed_estimator_is_restarted_and_replayed_to_between_the_steps() {
 
 #[test]
 fn bad_time_scales_and_modes_are_refused() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("bad");
     for value in ["0", "-1", "-0.5", "nan", "inf", "-inf", "1e-320"] {
         for mode in ["realtime", "lockstep"] {

@@ -27,6 +27,7 @@ fn num(v: &Value, key: &str) -> f64 {
 
 #[test]
 fn bench_planner_json_has_every_combination() {
+    let _scenario = crate::common::scenario(module_path!());
     let out = uavloc(&[
         "bench",
         "planner",
@@ -84,6 +85,7 @@ fn bench_planner_json_has_every_combination() {
 
 #[test]
 fn bench_planner_bad_flag_exits_2_with_one_error_line() {
+    let _scenario = crate::common::scenario(module_path!());
     for (args, flag) in [
         (&["bench", "planner", "--steps", "0"][..], "--steps"),
         (&["bench", "planner", "--steps", "2", "--objective", "fastest"][..], "--objective"),

@@ -4,7 +4,7 @@
 //! Every launch runs in its own domain (`--domain launch-test-<pid>-<tag>`), so the tests run in parallel
 //! with each other and with anything else on the machine.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -26,6 +26,7 @@ fn launch(domain: &str, extra: &[&str]) -> (Value, Duration) {
 
 #[test]
 fn six_steps_equal_simulate_for_analytical_and_mc() {
+    let _scenario = common::scenario(module_path!());
     for objective in ["analytical", "mc"] {
         let d = domain(&format!("six-{objective}"));
         let (run, _) = launch(&d, &["--steps", "6", "--objective", objective]);
@@ -40,6 +41,7 @@ fn six_steps_equal_simulate_for_analytical_and_mc() {
 
 #[test]
 fn the_default_24_step_run_equals_simulate() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("default");
     let (run, took) = launch(&d, &[]);
     let sim = json_of(&["simulate", "--json"]);
@@ -53,6 +55,7 @@ fn the_default_24_step_run_equals_simulate() {
 
 #[test]
 fn the_table_and_a_second_seed() {
+    let _scenario = common::scenario(module_path!());
     // Another seed and solver through the table output: it runs and reports the run.
     let d = domain("table");
     let out = uavloc(&["launch", "--headless", "--steps", "2", "--seed", "7", "--solver", "ga", "--domain", &d]);
@@ -66,6 +69,7 @@ fn the_table_and_a_second_seed() {
 
 #[test]
 fn controlled_scenarios_and_bad_domains_are_refused() {
+    let _scenario = common::scenario(module_path!());
     let dir = std::env::temp_dir().join(format!("uavloc-launch-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("controlled.toml");
@@ -82,6 +86,7 @@ fn controlled_scenarios_and_bad_domains_are_refused() {
 
 #[test]
 fn a_domain_in_use_is_refused() {
+    let _scenario = common::scenario(module_path!());
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
 

@@ -3,7 +3,7 @@
 //! started by hand, each exits on its own (estimator and planner 0, emitter-sim and monitor 130: the run
 //! was cut short) and takes its iceoryx2 resources with it.
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
@@ -25,6 +25,7 @@ fn wait_exit(child: &mut Child, timeout: Duration, what: &str) -> std::process::
 
 #[test]
 fn sigterm_to_the_launcher_mid_run_stops_everything() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("shutdown", "launch");
     let dir = scratch("shutdown-launch");
     let mut launch = Launch::start(&d, &dir, &["--steps", "500", "--step-delay-ms", "20"]);
@@ -64,6 +65,7 @@ fn start(role: &str, d: &str, extra: &[&str]) -> Child {
 
 #[test]
 fn sigterm_to_processes_started_by_hand() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("shutdown", "hand");
     let dir = scratch("shutdown-hand");
     let log = dir.join("run.jsonl");
@@ -98,6 +100,7 @@ fn sigterm_to_processes_started_by_hand() {
 /// (PR_SET_PDEATHSIG), stop cleanly and leave no process and no iceoryx2 resource behind.
 #[test]
 fn sigkill_to_the_launcher_leaves_no_child_behind() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("shutdown", "launcher-killed");
     let dir = scratch("shutdown-launcher-killed");
     let mut launch = Launch::start(&d, &dir, &["--steps", "500", "--step-delay-ms", "20"]);

@@ -324,3 +324,33 @@ pub fn python() -> PathBuf {
     assert!(usable(&py), "{} cannot import iceoryx2 and mcap", py.display());
     py
 }
+
+/// The scenario running now and how many of its tests are running.
+static RUNNING: std::sync::Mutex<(Option<&'static str>, usize)> = std::sync::Mutex::new((None, 0));
+static CHANGED: std::sync::Condvar = std::sync::Condvar::new();
+
+/// Held while a test of `scenario` (its module path) runs: tests of one scenario run in parallel, tests
+/// of different scenarios one after the other (see the crate docs).
+#[must_use]
+pub struct ScenarioGuard;
+
+/// Waits until no test of another scenario runs, then counts this one in until the guard drops.
+pub fn scenario(scenario: &'static str) -> ScenarioGuard {
+    let mut running = RUNNING.lock().unwrap_or_else(|e| e.into_inner());
+    while running.0.is_some_and(|s| s != scenario) {
+        running = CHANGED.wait(running).unwrap_or_else(|e| e.into_inner());
+    }
+    *running = (Some(scenario), running.1 + 1);
+    ScenarioGuard
+}
+
+impl Drop for ScenarioGuard {
+    fn drop(&mut self) {
+        let mut running = RUNNING.lock().unwrap_or_else(|e| e.into_inner());
+        running.1 -= 1;
+        if running.1 == 0 {
+            running.0 = None;
+            CHANGED.notify_all();
+        }
+    }
+}

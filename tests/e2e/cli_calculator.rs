@@ -84,6 +84,7 @@ fn crlb_json(extra: &[&str]) -> Value {
 
 #[test]
 fn crlb_nominal_matches_the_paper() {
+    let _scenario = crate::common::scenario(module_path!());
     let v = crlb_json(&["--sigma", NOMINAL_SIGMA]);
     assert_eq!(keys(&v), key_set(&["crlb_m", "trace_m2", "cond", "fim"]));
     assert!((f(&v, "crlb_m") - 1655.58).abs() < 0.01, "{v}");
@@ -101,6 +102,7 @@ fn crlb_nominal_matches_the_paper() {
 
 #[test]
 fn crlb_sigma_ns_equals_metres_and_lists_work() {
+    let _scenario = crate::common::scenario(module_path!());
     let metres = 28.7712;
     let ns = metres * 1e9 / SPEED_OF_LIGHT;
     let by_m = crlb_json(&["--sigma", "28.7712"]);
@@ -117,6 +119,7 @@ fn crlb_sigma_ns_equals_metres_and_lists_work() {
 
 #[test]
 fn crlb_table_is_aligned_with_units() {
+    let _scenario = crate::common::scenario(module_path!());
     let mut a = args(&["crlb"]);
     a.extend(nominal());
     a.extend(args(&["--target", "25000,15000", "--sigma", NOMINAL_SIGMA]));
@@ -136,6 +139,7 @@ fn crlb_table_is_aligned_with_units() {
 
 #[test]
 fn negative_coordinates_are_accepted_in_every_spelling() {
+    let _scenario = crate::common::scenario(module_path!());
     let v = uavloc(&[
         "crlb",
         "--uav",
@@ -181,6 +185,7 @@ fn assert_at(v: &Value, target: [f64; 2], tol: f64) {
 
 #[test]
 fn locate_noise_free_returns_the_target() {
+    let _scenario = crate::common::scenario(module_path!());
     let v = locate(&NOMINAL_UAVS, NOMINAL_TARGET, &["--sigma", NOMINAL_SIGMA]);
     assert_eq!(keys(&v), key_set(&["x", "y", "cov", "ambiguous", "candidates"]));
     assert_at(&v, NOMINAL_TARGET, 1e-6);
@@ -194,6 +199,7 @@ fn locate_noise_free_returns_the_target() {
 
 #[test]
 fn locate_translated_to_negative_coordinates() {
+    let _scenario = crate::common::scenario(module_path!());
     let shift = |p: [f64; 2]| [p[0] - 30000.0, p[1] - 20000.0];
     let uavs: Vec<[f64; 2]> = NOMINAL_UAVS.iter().map(|&p| shift(p)).collect();
     let target = shift(NOMINAL_TARGET);
@@ -210,6 +216,7 @@ fn locate_translated_to_negative_coordinates() {
 
 #[test]
 fn locate_ambiguity_is_reported_and_resolved_by_the_prior() {
+    let _scenario = crate::common::scenario(module_path!());
     let uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, 1000.0]];
     let target = [-2000.0, -500.0];
     let mut a = args(&["locate", "--json", "--sigma", "1", "--range-diff", &range_diffs(&uavs, target)]);
@@ -245,6 +252,7 @@ const METHODS: [&str; 5] = ["single", "mc", "analytical", "quadrature", "cubatur
 
 #[test]
 fn global_all_methods_at_the_nominal_geometry() {
+    let _scenario = crate::common::scenario(module_path!());
     let mut values = std::collections::BTreeMap::new();
     for m in METHODS {
         let v = global(&NOMINAL_UAVS, "25000,15000", PD_COV, NOMINAL_SIGMA, &["--method", m]).json();
@@ -284,6 +292,7 @@ fn global_all_methods_at_the_nominal_geometry() {
 
 #[test]
 fn global_support_side_follows_eq36_unless_given() {
+    let _scenario = crate::common::scenario(module_path!());
     let v = global(&NOMINAL_UAVS, "25000,15000", PD_COV, NOMINAL_SIGMA, &["--method", "single"]).json();
     // eq. 36 by hand: σ_t = sqrt(λ_max(M)), r_avg = mean UAV–estimate distance, κ = 0.1.
     let (a, b, c) = (250000.0_f64, 100000.0_f64, 160000.0_f64);
@@ -301,6 +310,7 @@ fn global_support_side_follows_eq36_unless_given() {
 
 #[test]
 fn global_mc_is_seeded() {
+    let _scenario = crate::common::scenario(module_path!());
     let run = |seed: &str, samples: &str| {
         global(
             &NOMINAL_UAVS,
@@ -323,6 +333,7 @@ fn global_mc_is_seeded() {
 
 #[test]
 fn global_support_reaching_the_singular_locus_is_infinite() {
+    let _scenario = crate::common::scenario(module_path!());
     let uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, 1000.0]];
     for m in METHODS {
         let out = global(&uavs, "3000,10", "10000,0,10000", "10", &["--method", m]);
@@ -358,6 +369,7 @@ fn global_support_reaching_the_singular_locus_is_infinite() {
 
 #[test]
 fn global_singular_distance_is_null_without_a_singular_set() {
+    let _scenario = crate::common::scenario(module_path!());
     // Four UAVs on a square: opposite sides are parallel and the diagonals cross between the UAVs, so
     // the FIM is regular everywhere off the UAVs.
     let uavs = [[0.0, 0.0], [1000.0, 0.0], [1000.0, 1000.0], [0.0, 1000.0]];
@@ -378,6 +390,7 @@ fn rmse(seed: &str, extra: &[&str]) -> Output {
 
 #[test]
 fn rmse_nominal_is_close_to_the_crlb_and_seeded() {
+    let _scenario = crate::common::scenario(module_path!());
     let a = rmse("3", &["--draws", "2000"]);
     let v = a.json();
     assert_eq!(keys(&v), key_set(&["rmse_m", "crlb_m", "ratio", "failures", "draws"]));
@@ -396,6 +409,7 @@ fn rmse_nominal_is_close_to_the_crlb_and_seeded() {
 
 #[test]
 fn rmse_all_draws_failing_exits_1_with_nulls() {
+    let _scenario = crate::common::scenario(module_path!());
     // Every noisy measurement of this emitter leaves Chan's 3-UAV ambiguity unresolved.
     let mut a = args(&["rmse", "--json", "--target", "-2000,-500", "--sigma", "0.1", "--draws", "20", "--seed", "1"]);
     a.extend(uav_args(&[[0.0, 0.0], [1000.0, 0.0], [0.0, 1000.0]]));
@@ -438,6 +452,7 @@ const T: [&str; 2] = ["--target", "25000,15000"];
 
 #[test]
 fn bad_input_is_one_error_line_and_exit_2() {
+    let _scenario = crate::common::scenario(module_path!());
     let crlb = |uavs: &[&str], rest: &[&str]| with("crlb", uavs, rest);
     let t_s1 = ["--target", "25000,15000", "--sigma", "1"];
     let nine: Vec<String> = (0..9).map(|i| format!("{},{}", i * 100, i * i * 10)).collect();
@@ -536,6 +551,7 @@ fn bad_input_is_one_error_line_and_exit_2() {
 
 #[test]
 fn error_lines_name_the_flag_and_value() {
+    let _scenario = crate::common::scenario(module_path!());
     let cases: Vec<(Vec<String>, &[&str])> = vec![
         (with("crlb", &["1,2,3", N3[1], N3[2]], &[T[0], T[1], "--sigma", "1"]), &["--uav", "1,2,3"]),
         (with("crlb", &["nan,0", N3[1], N3[2]], &[T[0], T[1], "--sigma", "1"]), &["--uav", "nan"]),
@@ -561,6 +577,7 @@ fn error_lines_name_the_flag_and_value() {
 
 #[test]
 fn a_flag_after_a_negative_value_is_still_a_flag() {
+    let _scenario = crate::common::scenario(module_path!());
     let v = uavloc(&[
         "crlb",
         "--uav",
@@ -597,6 +614,7 @@ fn a_flag_after_a_negative_value_is_still_a_flag() {
 
 #[test]
 fn help_answers_the_usual_questions() {
+    let _scenario = crate::common::scenario(module_path!());
     let top = uavloc(&["--help"]);
     assert_eq!(top.code, 0);
     for needle in ["TDOA", "UAV", "crlb", "global", "locate", "rmse", "--json", "metres"] {
@@ -624,6 +642,7 @@ fn help_answers_the_usual_questions() {
 /// JSON agree exactly, and a malformed line is refused naming its number.
 #[test]
 fn locate_fuses_recorded_snapshots() {
+    let _scenario = crate::common::scenario(module_path!());
     let dir = std::env::temp_dir().join(format!("uavloc-fuse-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let z = NOMINAL_TARGET;

@@ -6,12 +6,13 @@
 //! for 10 s steps, and the planner is slowed down (`--plan-delay-ms`) in a real-time run, so its first
 //! command misses its step and the UAVs fly straight on — into the same point.
 
-mod common;
+use crate::common;
 
 use common::{assert_nothing_left, domain, read_events, scratch, uavloc};
 
 #[test]
 fn uavs_flown_into_each_other_end_the_launch_at_once_with_a_clear_error() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("collision", "head-on");
     let dir = scratch("collision-head-on");
     let scenario = dir.join("head_on.toml");

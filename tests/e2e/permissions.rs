@@ -3,7 +3,7 @@
 //! directory (checkpoints), allow no access to group or others. (The socket transport's directories are
 //! checked in `protocol/tests/transports/uds.rs`.)
 
-mod common;
+use crate::common;
 
 use std::os::unix::fs::{MetadataExt as _, PermissionsExt as _};
 use std::path::Path;
@@ -13,6 +13,7 @@ use common::{Launch, assert_nothing_left, domain, files_mentioning, scratch};
 
 #[test]
 fn the_resources_of_a_running_pipeline_are_private_to_its_user() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("perm", "launch");
     let dir = scratch("perm-launch");
     let mut launch = Launch::start(&d, &dir, &["--steps", "400", "--step-delay-ms", "5"]);

@@ -3,7 +3,7 @@
 //! definite, an unknown version, and valid-looking messages with a stale sequence number. Every receiver of
 //! a topic counts and ignores each of them; the run completes with exactly `simulate`'s trajectory.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::time::Duration;
@@ -126,6 +126,7 @@ fn send_batch(domain: &str, b: &Batch) {
 
 #[test]
 fn invalid_messages_are_counted_ignored_and_change_nothing() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("bad-msg", "all");
     let dir = scratch("bad-messages");
     let steps = "30";

@@ -3,7 +3,7 @@
 //! shows and records which planner produced each step, and the swapped-in process stops with the launch.
 //! Swapping the estimator hands its state over exactly: the run still equals `simulate`.
 
-mod common;
+use crate::common;
 
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -35,6 +35,7 @@ fn gone(pid: u32) -> bool {
 
 #[test]
 fn the_planner_is_swapped_from_pso_to_ga_mid_run() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("swap", "planner");
     let dir = scratch("swap-planner");
     let steps = STEPS.to_string();
@@ -106,6 +107,7 @@ fn the_planner_is_swapped_from_pso_to_ga_mid_run() {
 
 #[test]
 fn the_estimator_is_swapped_and_the_run_is_unchanged() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("swap", "estimator");
     let dir = scratch("swap-estimator");
     let steps = STEPS.to_string();
@@ -133,6 +135,7 @@ fn the_estimator_is_swapped_and_the_run_is_unchanged() {
 
 #[test]
 fn a_swap_without_a_pipeline_is_refused() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("swap", "nothing");
     let out = common::uavloc(&["swap", "planner", "--domain", &d]);
     assert_eq!(out.status.code(), Some(2));
@@ -149,6 +152,7 @@ fn launch_events(dir: &std::path::Path) -> Vec<Value> {
 /// fails at once saying so (before, it stalled and failed after 41 s with "no command").
 #[test]
 fn a_killed_swapped_in_planner_fails_the_run_at_once_with_a_clear_message() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("swap", "killed");
     let dir = scratch("swap-killed");
     let mut launch = Launch::start(&d, &dir, &["--steps", "100", "--step-delay-ms", "30"]);
@@ -169,6 +173,7 @@ fn a_killed_swapped_in_planner_fails_the_run_at_once_with_a_clear_message() {
 /// without `--steps` it takes the run's.
 #[test]
 fn a_swap_with_other_run_settings_is_refused_and_the_run_goes_on() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("swap", "mismatch");
     let dir = scratch("swap-mismatch");
     let mut launch = Launch::start(&d, &dir, &["--steps", "60", "--step-delay-ms", "20"]);

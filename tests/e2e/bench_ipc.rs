@@ -3,7 +3,7 @@
 //! statistics, CPU per message, the ratios), the files of `--out`, that nothing of the sweep is left, and
 //! the exit code on bad input. No assertion is made on how fast anything is.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 
@@ -16,6 +16,7 @@ fn num(v: &Value, key: &str) -> f64 {
 
 #[test]
 fn a_small_sweep_reports_every_transport_and_size() {
+    let _scenario = common::scenario(module_path!());
     let dir = common::scratch("bench-ipc");
     let out = Command::new(UAVLOC)
         .args(["bench", "ipc", "--messages", "60", "--sizes", "256,65536", "--json", "--out"])
@@ -48,6 +49,7 @@ fn a_small_sweep_reports_every_transport_and_size() {
 
 #[test]
 fn bad_sweeps_are_one_line_errors_with_exit_2() {
+    let _scenario = common::scenario(module_path!());
     for args in [
         &["bench", "ipc", "--sizes", "8"][..],
         &["bench", "ipc", "--sizes", "256,999999999999"],

@@ -5,7 +5,7 @@
 //! thaws (SIGCONT) it works off its backlog; the late estimates are answered with the holds, and planning
 //! goes on from the fresh ones.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 
@@ -24,6 +24,7 @@ fn uavs(step: &Value) -> Vec<[f64; 2]> {
 
 #[test]
 fn a_frozen_estimator_makes_the_planner_hold_course_and_the_monitor_show_it() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("stale", "freeze");
     let dir = scratch("stale-freeze");
     let steps = STEPS.to_string();
@@ -93,6 +94,7 @@ fn a_frozen_estimator_makes_the_planner_hold_course_and_the_monitor_show_it() {
 
 #[test]
 fn a_deadline_flag_that_is_not_a_number_is_a_clear_error() {
+    let _scenario = common::scenario(module_path!());
     let out = common::uavloc(&["launch", "--estimate-deadline-ms", "soon"]);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);

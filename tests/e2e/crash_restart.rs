@@ -4,7 +4,7 @@
 //! `emitter_sim::process`), and the run completes all its steps with exactly `simulate`'s trajectory,
 //! estimates and metrics — each step recorded once, one command applied per step.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 
@@ -74,26 +74,31 @@ fn kill_once(role: &str) {
 
 #[test]
 fn the_estimator_is_restarted() {
+    let _scenario = common::scenario(module_path!());
     kill_once("estimator");
 }
 
 #[test]
 fn the_planner_is_restarted() {
+    let _scenario = common::scenario(module_path!());
     kill_once("planner");
 }
 
 #[test]
 fn the_monitor_is_restarted_and_rebuilds_from_its_log() {
+    let _scenario = common::scenario(module_path!());
     kill_once("monitor");
 }
 
 #[test]
 fn emitter_sim_is_restarted_and_fast_forwards() {
+    let _scenario = common::scenario(module_path!());
     kill_once("emitter-sim");
 }
 
 #[test]
 fn a_process_that_keeps_crashing_fails_the_launch_after_the_bounded_restarts() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("crash", "always");
     let dir = scratch("crash-always");
     let mut launch = Launch::start(&d, &dir, &["--steps", "400", "--step-delay-ms", "20", "--max-restarts", "2"]);

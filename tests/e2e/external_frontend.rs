@@ -3,7 +3,7 @@
 //! official Python bindings (PyPI `iceoryx2` 0.10) — plays the default scenario's world: it publishes each
 //! step's measurement and flies each command.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;
@@ -43,6 +43,7 @@ fn run(domain: &str, tag: &str, extra: &[&str]) -> (Value, Value) {
 
 #[test]
 fn a_python_front_end_is_answered_every_step_and_its_emitter_is_localised() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("ext", "py");
     let (report, fe) = run(&d, "ext-py", &[]);
     assert_eq!(fe["steps_published"], STEPS + 1);
@@ -84,6 +85,7 @@ fn a_python_front_end_is_answered_every_step_and_its_emitter_is_localised() {
 
 #[test]
 fn malformed_messages_from_the_python_front_end_are_rejected_and_counted() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("ext", "bad");
     let (report, fe) = run(&d, "ext-bad", &["--inject-bad"]);
     assert_eq!(fe["bad_sent"], serde_json::json!(["nan", "count", "stale"]));
@@ -96,6 +98,7 @@ fn malformed_messages_from_the_python_front_end_are_rejected_and_counted() {
 
 #[test]
 fn pacing_flags_of_emitter_sim_are_refused_with_an_external_source() {
+    let _scenario = common::scenario(module_path!());
     for flags in [&["--mode", "realtime"][..], &["--step-delay-ms", "5"]] {
         let out = common::uavloc(&[&["launch", "--source", "external", "--headless"][..], flags].concat());
         assert_eq!(out.status.code(), Some(2), "{flags:?}");

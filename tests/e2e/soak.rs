@@ -5,14 +5,14 @@
 //!   times the replay history (4 096 steps), the private resident memory (`RssAnon`) of every process
 //!   sampled at step 5 000 (after the history and the estimator's echoed states are full) and 100 steps
 //!   before the end.
-//! - `soak_100k_steps` (`cargo test --release --test soak -- --ignored`): the same over 100 000 steps
+//! - `soak_100k_steps` (`cargo test --release --test e2e soak:: -- --ignored`): the same over 100 000 steps
 //!   (≈ 1 min on 2 cores; the monitor's log grows to ≈ 170 MB on disk, in the test's scratch directory,
 //!   removed at the end).
 //! - `a_crash_after_the_history_wrapped_resumes_from_the_checkpoints`: 5 000 steps; the estimator, the
 //!   planner, emitter-sim and the monitor are each killed once after step 4 096 — a replay from step 0 is
 //!   impossible then — and the run still equals `uavloc simulate`'s, bit for bit.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -135,17 +135,20 @@ fn soak(steps: u64, first_sample: u64) {
 
 #[test]
 fn soak_flat_memory_and_no_lost_message() {
+    let _scenario = common::scenario(module_path!());
     soak(12_000, 5_000);
 }
 
 #[test]
 #[ignore = "long: 100 000 steps, about two minutes; run with --ignored"]
 fn soak_100k_steps() {
+    let _scenario = common::scenario(module_path!());
     soak(100_000, 5_000);
 }
 
 #[test]
 fn a_crash_after_the_history_wrapped_resumes_from_the_checkpoints() {
+    let _scenario = common::scenario(module_path!());
     const STEPS: u64 = 5_000;
     let d = domain("soak", "wrapped");
     let dir = scratch("soak-wrapped");

@@ -3,7 +3,7 @@
 //! checks); what is asserted is that the measurement is complete and coherent, and that the transport and
 //! wait mode change nothing but the timing.
 
-mod common;
+use crate::common;
 
 use common::{assert_nothing_left, assert_same_run, json_of, scratch, uavloc};
 use serde_json::Value;
@@ -62,6 +62,7 @@ fn check_run(run: &Value, steps: u64) {
 
 #[test]
 fn compare_measures_every_transport_and_wait_mode() {
+    let _scenario = common::scenario(module_path!());
     let dir = scratch("bench-compare");
     let steps = 150u64;
     let out = uavloc(&[
@@ -128,6 +129,7 @@ fn compare_measures_every_transport_and_wait_mode() {
 
 #[test]
 fn latency_over_sockets_with_a_text_report() {
+    let _scenario = common::scenario(module_path!());
     let out = uavloc(&["bench", "latency", "--transport", "uds", "--wait", "spin-then-block", "--steps", "100"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8_lossy(&out.stdout);
@@ -141,6 +143,7 @@ fn latency_over_sockets_with_a_text_report() {
 
 #[test]
 fn the_transport_and_wait_mode_change_nothing_but_timing() {
+    let _scenario = common::scenario(module_path!());
     let sim = json_of(&["simulate", "--json", "--steps", "8"]);
     for (transport, wait) in [("uds", "block"), ("uds", "spin"), ("iceoryx2", "spin-then-block")] {
         let d = domain(&format!("{transport}-{wait}"));
@@ -165,6 +168,7 @@ fn the_transport_and_wait_mode_change_nothing_but_timing() {
 
 #[test]
 fn bad_bench_flags_exit_2_with_one_line() {
+    let _scenario = common::scenario(module_path!());
     for args in [
         vec!["bench", "latency", "--cores", "99999"],
         vec!["bench", "latency", "--cores", "1-0"],
@@ -189,6 +193,7 @@ fn bad_bench_flags_exit_2_with_one_line() {
 
 #[test]
 fn bench_help_answers_what_is_measured() {
+    let _scenario = common::scenario(module_path!());
     let out = uavloc(&["bench", "latency", "--help"]);
     let text = String::from_utf8_lossy(&out.stdout);
     for needle in ["--cores", "--transport", "--wait", "--steps", "--out", "p99.9", "end to end", "CPU", "lost"] {

@@ -6,7 +6,7 @@
 //! fraction of that. Thawed, the monitor catches up and the run ends complete and equal to
 //! `uavloc simulate`, every step logged once, with nothing restarted.
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 
@@ -36,6 +36,7 @@ fn newest_step(sub: &TopicSubscriber<Measurement>, how_long: Duration, quiet: Du
 
 #[test]
 fn a_frozen_monitor_holds_emitter_sim_within_the_window() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("backpressure", "frozen");
     let dir = scratch("backpressure-frozen");
     let steps = STEPS.to_string();

@@ -3,7 +3,7 @@
 //! take the thaw for a termination request (a signal interrupting a sleep is not SIGINT/SIGTERM): nothing
 //! is restarted, no step is lost or doubled, and the run equals `uavloc simulate` bit for bit.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 
@@ -13,6 +13,7 @@ const STEPS: u64 = 300;
 
 #[test]
 fn every_process_stopped_and_continued_goes_on_without_a_restart() {
+    let _scenario = common::scenario(module_path!());
     let d = domain("stopcont", "all");
     let dir = scratch("stopcont-all");
     let steps = STEPS.to_string();
