@@ -143,17 +143,21 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
             if let Some((settings, file)) = &run {
                 reconcile(&mut a, settings, file)?;
             }
-            planner::process::PlannerArgs { domain: Some(domain.to_string()), takeover: true, supervised: true, ..a }
-                .to_flags()
+            runtime::flags::to_flags(&planner::process::PlannerArgs {
+                domain: Some(domain.to_string()),
+                takeover: true,
+                supervised: true,
+                ..a
+            })
         }
-        SwapRole::Estimator(a) => estimator::process::EstimatorArgs {
+        SwapRole::Estimator(a) => runtime::flags::to_flags(&estimator::process::EstimatorArgs {
             domain: Some(domain.to_string()),
             takeover: true,
             supervised: true,
             ..a.clone()
-        }
-        .to_flags(),
-    };
+        }),
+    }
+    .map_err(|e| CliError::Input(format!("{role}: {e}")))?;
 
     let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("cannot find this executable: {e}")))?;
     let mut command = std::process::Command::new(exe);

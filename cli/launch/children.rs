@@ -4,6 +4,7 @@ use std::time::Duration;
 
 use planner::Scenario;
 use protocol::services::Domain;
+use runtime::flags::to_flags;
 
 use super::args::LaunchArgs;
 use super::role::Role;
@@ -26,12 +27,12 @@ pub(super) fn child_flags(
     domain: &Domain,
     state: &StateDir,
     log: &std::path::Path,
-) -> Vec<String> {
+) -> Result<Vec<String>, CliError> {
     let domain = Some(domain.to_string());
     let checkpoint = role.checkpoints().then(|| state.path(&format!("{role}.ckpt")));
     let run = runtime::RunArgs { scenario: args.run.scenario.clone(), steps: args.run.steps, seed: args.run.seed };
-    match role {
-        Role::Monitor => monitor::process::MonitorArgs {
+    let flags = match role {
+        Role::Monitor => to_flags(&monitor::process::MonitorArgs {
             domain,
             link: args.link,
             source: args.source,
@@ -42,9 +43,8 @@ pub(super) fn child_flags(
             out: args.out.clone(),
             quiet: args.headless || args.live,
             ..defaults()
-        }
-        .to_flags(),
-        Role::Planner => planner::process::PlannerArgs {
+        }),
+        Role::Planner => to_flags(&planner::process::PlannerArgs {
             domain,
             run: run.clone(),
             objective: args.run.objective,
@@ -55,9 +55,8 @@ pub(super) fn child_flags(
             plan_delay_steps: if args.plan_delay_ms > 0 { args.plan_delay_steps.clone() } else { Vec::new() },
             quiet: true,
             ..defaults()
-        }
-        .to_flags(),
-        Role::Estimator => estimator::process::EstimatorArgs {
+        }),
+        Role::Estimator => to_flags(&estimator::process::EstimatorArgs {
             domain,
             link: args.link,
             estimator: sc.estimator,
@@ -68,9 +67,8 @@ pub(super) fn child_flags(
             checkpoint,
             quiet: true,
             ..defaults()
-        }
-        .to_flags(),
-        Role::EmitterSim => emitter_sim::process::EmitterSimArgs {
+        }),
+        Role::EmitterSim => to_flags(&emitter_sim::process::EmitterSimArgs {
             domain,
             run: run.clone(),
             command_timeout_s: args.command_timeout_s,
@@ -86,9 +84,9 @@ pub(super) fn child_flags(
             // Stays after the last step to replay it to a monitor behind.
             linger: true,
             ..defaults()
-        }
-        .to_flags(),
-    }
+        }),
+    };
+    flags.map_err(|e| CliError::Input(format!("{role}: {e}")))
 }
 
 /// Starts the children in order, each after the previous one is ready, and waits for the end of the run.
@@ -104,7 +102,7 @@ pub(super) fn start_and_run(
         if role == Role::EmitterSim && args.idle_probe_ms > 0 {
             sup.idle_cpu = probe_idle_cpu(sup, Duration::from_millis(args.idle_probe_ms));
         }
-        sup.spawn(role, child_flags(role, args, sc, domain, state, log))?;
+        sup.spawn(role, child_flags(role, args, sc, domain, state, log)?)?;
         sup.wait_ready(role)?;
     }
     if args.source == runtime::Source::External {
@@ -151,15 +149,16 @@ mod tests {
 
     use super::*;
 
-    /// `parse(to_flags(a)) == a` (the link with its policy spelled out): the type that parses a
-    /// process's flags writes them, and loses nothing on the way.
-    fn round_trip<T>(a: T, normalized: T, to_flags: impl Fn(&T) -> Vec<String>)
+    /// `parse(to_flags(a)) == a`: the type that parses a process's flags writes them, and loses nothing
+    /// on the way.
+    fn round_trip<T>(a: T)
     where
-        T: clap::Args + FromArgMatches + PartialEq + std::fmt::Debug,
+        T: clap::Args + FromArgMatches + serde::Serialize + PartialEq + std::fmt::Debug,
     {
         let cmd = T::augment_args(clap::Command::new("p"));
-        let matches = cmd.try_get_matches_from(std::iter::once("p".to_string()).chain(to_flags(&a))).unwrap();
-        assert_eq!(T::from_arg_matches(&matches).unwrap(), normalized);
+        let flags = to_flags(&a).unwrap();
+        let matches = cmd.try_get_matches_from(std::iter::once("p".to_string()).chain(flags)).unwrap();
+        assert_eq!(T::from_arg_matches(&matches).unwrap(), a);
     }
 
     #[test]
@@ -180,7 +179,7 @@ mod tests {
             quiet: true,
             supervised: true,
         };
-        round_trip(m.clone(), monitor::process::MonitorArgs { link: link.normalized(), ..m }, |a| a.to_flags());
+        round_trip(m);
         let p = planner::process::PlannerArgs {
             domain: Some("d".into()),
             run: runtime::RunArgs { scenario: None, steps: Some(3), seed: None },
@@ -194,7 +193,7 @@ mod tests {
             quiet: false,
             supervised: true,
         };
-        round_trip(p.clone(), planner::process::PlannerArgs { link: link.normalized(), ..p }, |a| a.to_flags());
+        round_trip(p);
         let e = emitter_sim::process::EmitterSimArgs {
             domain: Some("d".into()),
             run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
@@ -212,7 +211,7 @@ mod tests {
             monitor_window: 17,
             supervised: false,
         };
-        round_trip(e.clone(), emitter_sim::process::EmitterSimArgs { link: link.normalized(), ..e }, |a| a.to_flags());
+        round_trip(e);
         // The launch's children: every one parses its command line (no flag it does not know).
         #[derive(Parser)]
         struct Cli {
@@ -224,7 +223,7 @@ mod tests {
         let domain = Domain::new("t").unwrap();
         let state = StateDir::create(&domain).unwrap();
         for role in Role::START_ORDER {
-            let flags = child_flags(role, &args, &sc, &domain, &state, std::path::Path::new("log.jsonl"));
+            let flags = child_flags(role, &args, &sc, &domain, &state, std::path::Path::new("log.jsonl")).unwrap();
             let line = ["uavloc".to_string(), role.name().to_string()].into_iter().chain(flags.clone());
             assert!(Cli::try_parse_from(line).is_ok(), "{role}: {flags:?}");
         }

@@ -89,7 +89,8 @@ Examples:
   emitter-sim --domain lab1 --mode realtime --time-scale 100";
 
 /// How emitter-sim paces the run (`--mode`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Mode {
     /// The next step as soon as the command for the current one arrives (benchmarks, tests, exact
     /// reproduction of `uavloc simulate`).
@@ -107,29 +108,6 @@ impl Mode {
             Mode::Lockstep => "lockstep",
             Mode::Realtime => "realtime",
         }
-    }
-}
-
-impl EmitterSimArgs {
-    /// The command line of these flags (see [`runtime::flags`]).
-    pub fn to_flags(&self) -> Vec<String> {
-        runtime::Flags::new()
-            .opt("--domain", self.domain.as_deref())
-            .extend(self.run.to_flags())
-            .float("--command-timeout-s", self.command_timeout_s)
-            .value("--retry-interval-ms", self.retry_interval_ms)
-            .float("--connect-timeout-s", self.connect_timeout_s)
-            .value("--min-subscribers", self.min_subscribers)
-            .extend(self.link.to_flags())
-            .value("--step-delay-ms", self.step_delay_ms)
-            .value("--mode", self.mode.name())
-            .opt("--time-scale", self.time_scale.map(|x| format!("{x:?}")))
-            .path("--checkpoint", self.checkpoint.as_deref())
-            .switch("--quiet", self.quiet)
-            .switch("--linger", self.linger)
-            .value("--monitor-window", self.monitor_window)
-            .switch("--supervised", self.supervised)
-            .into_vec()
     }
 }
 
@@ -173,19 +151,22 @@ pub fn step_interval(dt: f64, time_scale: f64, steps: usize) -> Result<Duration,
 }
 
 /// Flags of the emitter-sim process (`emitter-sim [FLAGS]` or `uavloc process emitter-sim [FLAGS]`).
-#[derive(Args, Debug, Clone, PartialEq)]
+/// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
+#[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct EmitterSimArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
     /// The run: scenario, steps, seed.
     #[command(flatten)]
+    #[serde(flatten)]
     pub run: runtime::RunArgs,
     /// Give up (exit 1) when the command for a step has not arrived after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     pub command_timeout_s: f64,
-    /// Replay the run from step 0 when the command for a step has not arrived this many milliseconds
-    /// after the step was published (a process died or lost it).
+    /// Replay the steps from the checkpoint step at or below the current one (from step 0 before step
+    /// 256) when the command for a step has not arrived this many milliseconds after the step was
+    /// published (a process died or lost it).
     #[arg(long, value_name = "MS", default_value_t = 1000)]
     pub retry_interval_ms: u64,
     /// Give up (exit 1) when the pipeline is not connected after this many seconds.
@@ -196,6 +177,7 @@ pub struct EmitterSimArgs {
     pub min_subscribers: usize,
     /// Transport and waiting.
     #[command(flatten)]
+    #[serde(flatten)]
     pub link: runtime::LinkArgs,
     /// Wait this many milliseconds before each step after step 0 (slows a lock-step run down for a demo or
     /// a test; the results do not change). 0: lock-step at full speed. Lock-step mode only.

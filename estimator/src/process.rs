@@ -70,13 +70,15 @@ Examples:
   UAVLOC_DOMAIN=lab1 estimator --spin-us 50";
 
 /// Flags of the estimator process (`estimator [FLAGS]` or `uavloc process estimator [FLAGS]`).
-#[derive(Args, Debug, Clone, PartialEq)]
+/// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
+#[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct EstimatorArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
     /// Transport and waiting.
     #[command(flatten)]
+    #[serde(flatten)]
     pub link: runtime::LinkArgs,
     /// Take over from the running estimator at the next step (see `uavloc swap estimator`).
     #[arg(long)]
@@ -84,9 +86,11 @@ pub struct EstimatorArgs {
     /// The estimator: fused (the posterior of every measurement so far, χ²-gated) or snapshot (the
     /// paper's Chan fix of each measurement alone).
     #[arg(long, value_name = "KIND", default_value = "fused")]
+    #[serde(serialize_with = "runtime::flags::display")]
     pub estimator: EstimatorKind,
     /// The fused estimator's emitter model: static or constant_velocity.
     #[arg(long, value_name = "MODEL", default_value = "static")]
+    #[serde(serialize_with = "runtime::flags::display")]
     pub emitter_model: EmitterModel,
     /// constant_velocity: white-acceleration process noise σ_a, m/s² (≥ 0).
     #[arg(long, value_name = "M/S2", default_value_t = 0.05)]
@@ -137,23 +141,6 @@ pub struct Checkpoint {
 }
 
 impl EstimatorArgs {
-    /// The command line of these flags (see [`runtime::flags`]).
-    pub fn to_flags(&self) -> Vec<String> {
-        runtime::Flags::new()
-            .opt("--domain", self.domain.as_deref())
-            .extend(self.link.to_flags())
-            .switch("--takeover", self.takeover)
-            .value("--estimator", self.estimator)
-            .value("--emitter-model", self.emitter_model)
-            .float("--process-noise-accel", self.process_noise_accel)
-            .float("--velocity-prior-sigma", self.velocity_prior_sigma)
-            .float("--interval-s", self.interval_s)
-            .path("--checkpoint", self.checkpoint.as_deref())
-            .switch("--quiet", self.quiet)
-            .switch("--supervised", self.supervised)
-            .into_vec()
-    }
-
     /// The estimator configuration of the flags; errors name the flag.
     pub fn config(&self) -> Result<EstimatorConfig, ProcessError> {
         let dynamics =
@@ -647,8 +634,9 @@ mod tests {
             quiet: true,
             supervised: false,
         };
-        let back = Cli::try_parse_from(std::iter::once("estimator".to_string()).chain(a.to_flags())).unwrap().args;
-        assert_eq!(back, EstimatorArgs { link: a.link.normalized(), ..a.clone() });
+        let flags = runtime::flags::to_flags(&a).unwrap();
+        let back = Cli::try_parse_from(std::iter::once("estimator".to_string()).chain(flags)).unwrap().args;
+        assert_eq!(back, a);
     }
 
     #[test]

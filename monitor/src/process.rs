@@ -100,16 +100,19 @@ Examples:
   monitor --domain lab1 --steps 6 --seed 3 --out runs/lab1 --quiet";
 
 /// Flags of the monitor process (`monitor [FLAGS]` or `uavloc process monitor [FLAGS]`).
-#[derive(Args, Debug, Clone, PartialEq)]
+/// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
+#[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct MonitorArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
     /// The run: scenario, steps, seed.
     #[command(flatten)]
+    #[serde(flatten)]
     pub run: runtime::RunArgs,
     /// Transport and waiting.
     #[command(flatten)]
+    #[serde(flatten)]
     pub link: runtime::LinkArgs,
     /// Where the measurements come from: simulator (emitter-sim, which also publishes the truth) or
     /// external (a front end outside uavloc; no truth: the columns that need one are absent, not zero).
@@ -202,27 +205,6 @@ fn fmt_us(ns: Option<u64>) -> String {
 
 fn fmt_m(v: Option<f64>) -> String {
     v.map_or("-".into(), |x| format!("{x:.1}"))
-}
-
-impl MonitorArgs {
-    /// The command line of these flags (see [`runtime::flags`]).
-    pub fn to_flags(&self) -> Vec<String> {
-        runtime::Flags::new()
-            .opt("--domain", self.domain.as_deref())
-            .extend(self.run.to_flags())
-            .extend(self.link.to_flags())
-            .value("--source", self.source)
-            .path("--stamps", self.stamps.as_deref())
-            .path("--log", self.log.as_deref())
-            .path("--mcap", self.mcap.as_deref())
-            .path("--record", self.record.as_deref())
-            .path("--out", self.out.as_deref())
-            .switch("--print-record", self.print_record)
-            .switch("--resume", self.resume)
-            .switch("--quiet", self.quiet)
-            .switch("--supervised", self.supervised)
-            .into_vec()
-    }
 }
 
 /// One status line of a completed step.

@@ -78,22 +78,27 @@ Examples:
   UAVLOC_DOMAIN=lab1 planner --spin-us 50";
 
 /// Flags of the planner process (`planner [FLAGS]` or `uavloc process planner [FLAGS]`).
-#[derive(Args, Debug, Clone, PartialEq)]
+/// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
+#[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct PlannerArgs {
     /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
     #[arg(long, value_name = "NAME")]
     pub domain: Option<String>,
     /// The run: scenario, steps, seed.
     #[command(flatten)]
+    #[serde(flatten)]
     pub run: runtime::RunArgs,
     /// Planning objective: single | mc | analytical | cubature | formation.
     #[arg(long, default_value = "analytical")]
+    #[serde(serialize_with = "runtime::flags::display")]
     pub objective: ObjectiveKind,
     /// Solver: gradient | pso | ga | aco (ignored by formation).
     #[arg(long, default_value = "gradient")]
+    #[serde(serialize_with = "runtime::flags::display")]
     pub solver: SolverKind,
     /// Transport and waiting.
     #[command(flatten)]
+    #[serde(flatten)]
     pub link: runtime::LinkArgs,
     /// Take over from the running planner at the next step (see `uavloc swap planner`).
     #[arg(long)]
@@ -121,25 +126,6 @@ pub struct PlannerArgs {
 }
 
 pub use runtime::ProcessError;
-
-impl PlannerArgs {
-    /// The command line of these flags (see [`runtime::flags`]).
-    pub fn to_flags(&self) -> Vec<String> {
-        runtime::Flags::new()
-            .opt("--domain", self.domain.as_deref())
-            .extend(self.run.to_flags())
-            .value("--objective", self.objective)
-            .value("--solver", self.solver)
-            .extend(self.link.to_flags())
-            .switch("--takeover", self.takeover)
-            .value("--estimate-deadline-ms", self.estimate_deadline_ms)
-            .value("--plan-delay-ms", self.plan_delay_ms)
-            .list("--plan-delay-steps", &self.plan_delay_steps)
-            .switch("--quiet", self.quiet)
-            .switch("--supervised", self.supervised)
-            .into_vec()
-    }
-}
 
 pub use model::scenario::load_scenario;
 

@@ -6,7 +6,7 @@ use protocol::{TransportKind, WaitMode, WaitPolicy};
 
 /// The run every process of a pipeline must agree on: the scenario and the overrides of its steps and
 /// seed (each process loads it with `model::load_scenario`, the same rule as `uavloc simulate`).
-#[derive(clap::Args, Debug, Clone, Default, PartialEq, Eq)]
+#[derive(clap::Args, serde::Serialize, Debug, Clone, Default, PartialEq, Eq)]
 pub struct RunArgs {
     /// Scenario TOML file (default: the paper's nominal case; see scenarios/nominal.toml).
     #[arg(long, value_name = "FILE")]
@@ -17,17 +17,6 @@ pub struct RunArgs {
     /// Run seed (default: the scenario's): every random stream of step k derives from (seed, k).
     #[arg(long, value_name = "N")]
     pub seed: Option<u64>,
-}
-
-impl RunArgs {
-    /// The flags that reproduce these settings.
-    pub fn to_flags(&self) -> Vec<String> {
-        crate::Flags::new()
-            .path("--scenario", self.scenario.as_deref())
-            .opt("--steps", self.steps)
-            .opt("--seed", self.seed)
-            .into_vec()
-    }
 }
 
 /// Where a pipeline's measurements come from (`uavloc launch --source`, `monitor --source`).
@@ -62,16 +51,18 @@ impl std::fmt::Display for Source {
 pub const DEFAULT_SPIN_US: u64 = 100;
 
 /// The transport and wait flags every process (and `uavloc launch`, which passes them on) takes.
-#[derive(clap::Args, Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(clap::Args, serde::Serialize, Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct LinkArgs {
     /// Transport of the topics: iceoryx2 (zero-copy shared memory) | uds (Unix-domain datagram sockets,
     /// the benchmark baseline). Every process of a domain must use the same one.
     #[arg(long, value_name = "KIND", default_value = "iceoryx2")]
+    #[serde(serialize_with = "crate::flags::display")]
     pub transport: TransportKind,
     /// How to wait for the next message: block (no CPU while idle) | spin (busy-poll, yielding the CPU;
     /// never blocks) | spin-then-block (busy-poll --spin-us, then block). Default: block, or
     /// spin-then-block when --spin-us is given.
     #[arg(long, value_name = "MODE")]
+    #[serde(serialize_with = "crate::flags::display_opt")]
     pub wait: Option<WaitMode>,
     /// Busy-poll budget of spin-then-block, microseconds (default 100 with --wait spin-then-block).
     #[arg(long, value_name = "US")]
@@ -86,22 +77,6 @@ impl LinkArgs {
             _ => WaitMode::Block,
         });
         WaitPolicy::new(mode, self.spin_us.unwrap_or(DEFAULT_SPIN_US))
-    }
-
-    /// The same settings with the policy spelled out (what [`to_flags`](Self::to_flags) parses back to).
-    pub fn normalized(&self) -> Self {
-        let policy = self.policy();
-        LinkArgs { transport: self.transport, wait: Some(policy.mode), spin_us: Some(policy.spin.as_micros() as u64) }
-    }
-
-    /// The flags that reproduce these settings on a child process's command line (the policy spelled
-    /// out: `--wait` and `--spin-us` always).
-    pub fn to_flags(&self) -> Vec<String> {
-        let policy = self.policy();
-        let mut flags = vec!["--transport".to_string(), self.transport.name().into(), "--wait".into()];
-        flags.push(policy.mode.name().into());
-        flags.extend(["--spin-us".to_string(), policy.spin.as_micros().to_string()]);
-        flags
     }
 }
 
@@ -119,6 +94,6 @@ mod tests {
         let a = LinkArgs { wait: Some(WaitMode::SpinThenBlock), ..LinkArgs::default() };
         assert_eq!(a.policy().spin, Duration::from_micros(DEFAULT_SPIN_US));
         let a = LinkArgs { transport: TransportKind::Uds, wait: Some(WaitMode::Spin), spin_us: None };
-        assert_eq!(a.to_flags(), ["--transport", "uds", "--wait", "spin", "--spin-us", "100"]);
+        assert_eq!(crate::flags::to_flags(&a).unwrap(), ["--transport", "uds", "--wait", "spin"]);
     }
 }

@@ -47,7 +47,7 @@ pub const CHECKPOINT_EVERY: u64 = 256;
 /// World snapshots emitter-sim keeps in its checkpoint (it restarts from the oldest).
 pub const EMITTER_SNAPSHOTS: usize = 2;
 
-/// Checkpoints the estimator and the planner keep (they rewind to any of them).
+/// Checkpoints the estimator keeps in its file (each a state it can estimate the step after from).
 pub const PROCESS_CHECKPOINTS: usize = 3;
 
 /// How many steps a lock-step emitter-sim may run ahead of the monitor's progress (the default of its

@@ -1,71 +1,62 @@
-//! Command lines built from a process's own argument type (`to_flags`), so a supervisor never spells a
-//! child's flags itself: the type that parses them also writes them, and a round-trip test of each type
-//! (`parse(to_flags(a)) == a`) keeps the two from drifting apart.
+//! Command lines built from a process's own argument type, so a supervisor never spells a child's flags
+//! itself: the type that parses them (clap) also writes them ([`to_flags`], through its `Serialize`
+//! derive), and a round-trip test of each type (`parse(to_flags(a)) == a`) keeps the two from drifting
+//! apart.
+//!
+//! The rules, which every argument type follows: a field `foo_bar` is the flag `--foo-bar` (clap's default
+//! `long`); a flattened group (`#[command(flatten)]`) is `#[serde(flatten)]`; a value is written as clap
+//! parses it — numbers in full precision (`f64` as the shortest text that parses back to the same bits),
+//! enums by their flag name ([`display`]), lists comma-joined; `true` is the bare switch, and `false`,
+//! `None` and an empty list are left out.
 
-use std::fmt::Debug;
-use std::path::Path;
+use std::fmt::Display;
 
-/// Builds a command line flag by flag.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct Flags(Vec<String>);
+use serde::{Serialize, Serializer};
+use serde_json::Value;
 
-impl Flags {
-    /// No flags.
-    pub fn new() -> Self {
-        Self::default()
+/// The command line of `args`: `--name value` per field set (see the module docs). An error only for a
+/// type that breaks the rules (not a flat record of values), which the round-trip tests catch.
+pub fn to_flags(args: &impl Serialize) -> Result<Vec<String>, String> {
+    let Value::Object(fields) = serde_json::to_value(args).map_err(|e| e.to_string())? else {
+        return Err("argument type is not a record of flags".into());
+    };
+    let mut out = Vec::new();
+    for (name, value) in fields {
+        let flag = format!("--{}", name.replace('_', "-"));
+        let text = match value {
+            Value::Null | Value::Bool(false) => continue,
+            Value::Bool(true) => {
+                out.push(flag);
+                continue;
+            }
+            Value::Array(items) if items.is_empty() => continue,
+            Value::Array(items) => items.iter().map(scalar).collect::<Result<Vec<_>, _>>()?.join(","),
+            other => scalar(&other)?,
+        };
+        out.extend([flag, text]);
     }
+    Ok(out)
+}
 
-    /// `--name value` (any `Display`).
-    pub fn value(mut self, name: &str, value: impl std::fmt::Display) -> Self {
-        self.0.extend([name.to_string(), value.to_string()]);
-        self
+fn scalar(v: &Value) -> Result<String, String> {
+    match v {
+        Value::String(s) => Ok(s.clone()),
+        Value::Number(n) => Ok(n.to_string()),
+        other => Err(format!("not a flag value: {other}")),
     }
+}
 
-    /// `--name value` with a float written so that it parses back to the same bits (`{:?}`).
-    pub fn float(mut self, name: &str, value: f64) -> Self {
-        self.0.extend([name.to_string(), format!("{value:?}")]);
-        self
-    }
+/// `#[serde(serialize_with = "runtime::flags::display")]`: a value written as its `Display` text (an
+/// enum's flag name).
+pub fn display<T: Display, S: Serializer>(value: &T, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(value)
+}
 
-    /// `--name value` when `value` is `Some`.
-    pub fn opt(self, name: &str, value: Option<impl std::fmt::Display>) -> Self {
-        match value {
-            Some(v) => self.value(name, v),
-            None => self,
-        }
-    }
-
-    /// `--name path` when `path` is `Some`.
-    pub fn path(self, name: &str, path: Option<&Path>) -> Self {
-        self.opt(name, path.map(|p| p.display()))
-    }
-
-    /// `--name` when `on`.
-    pub fn switch(mut self, name: &str, on: bool) -> Self {
-        if on {
-            self.0.push(name.to_string());
-        }
-        self
-    }
-
-    /// `--name a,b,c` when the list is not empty.
-    pub fn list<T: Debug + std::fmt::Display>(mut self, name: &str, values: &[T]) -> Self {
-        if !values.is_empty() {
-            let joined: Vec<String> = values.iter().map(ToString::to_string).collect();
-            self.0.extend([name.to_string(), joined.join(",")]);
-        }
-        self
-    }
-
-    /// These flags followed by `more`.
-    pub fn extend(mut self, more: impl IntoIterator<Item = String>) -> Self {
-        self.0.extend(more);
-        self
-    }
-
-    /// The command line.
-    pub fn into_vec(self) -> Vec<String> {
-        self.0
+/// [`display`] for an optional value.
+pub fn display_opt<T: Display, S: Serializer>(value: &Option<T>, s: S) -> Result<S::Ok, S::Error> {
+    match value {
+        Some(v) => s.collect_str(v),
+        None => s.serialize_none(),
     }
 }
 
@@ -73,32 +64,57 @@ impl Flags {
 mod tests {
     use super::*;
 
+    #[derive(Serialize)]
+    struct Inner {
+        seed: Option<u64>,
+        steps: Option<usize>,
+    }
+
+    #[derive(Serialize)]
+    struct Example {
+        domain: String,
+        time_scale: f64,
+        #[serde(flatten)]
+        inner: Inner,
+        quiet: bool,
+        linger: bool,
+        plan_delay_steps: Vec<u64>,
+        none: Vec<u64>,
+        #[serde(serialize_with = "display")]
+        mode: std::net::Ipv4Addr,
+    }
+
     #[test]
     fn builds_the_command_line() {
-        let f = Flags::new()
-            .value("--domain", "lab")
-            .float("--time-scale", 0.1 + 0.2)
-            .opt("--seed", None::<u64>)
-            .opt("--steps", Some(5))
-            .switch("--quiet", true)
-            .switch("--linger", false)
-            .list("--plan-delay-steps", &[3u64, 5])
-            .list::<u64>("--none", &[])
-            .into_vec();
-        assert_eq!(
-            f,
-            [
-                "--domain",
-                "lab",
-                "--time-scale",
-                "0.30000000000000004",
-                "--steps",
-                "5",
-                "--quiet",
-                "--plan-delay-steps",
-                "3,5"
-            ]
-        );
+        let e = Example {
+            domain: "lab".into(),
+            time_scale: 0.1 + 0.2,
+            inner: Inner { seed: None, steps: Some(5) },
+            quiet: true,
+            linger: false,
+            plan_delay_steps: vec![3, 5],
+            none: vec![],
+            mode: std::net::Ipv4Addr::LOCALHOST,
+        };
+        // The order of the flags is not part of the contract: compare (flag, value) pairs.
+        let f = to_flags(&e).unwrap();
+        let mut pairs = std::collections::BTreeMap::new();
+        let mut it = f.iter().peekable();
+        while let Some(flag) = it.next() {
+            assert!(flag.starts_with("--"), "{f:?}");
+            pairs.insert(flag.as_str(), it.next_if(|v| !v.starts_with("--")).map(String::as_str));
+        }
+        let want = std::collections::BTreeMap::from([
+            ("--domain", Some("lab")),
+            ("--time-scale", Some("0.30000000000000004")),
+            ("--steps", Some("5")),
+            ("--quiet", None),
+            ("--plan-delay-steps", Some("3,5")),
+            ("--mode", Some("127.0.0.1")),
+        ]);
+        assert_eq!(pairs, want);
         assert_eq!("0.30000000000000004".parse::<f64>().unwrap(), 0.1 + 0.2);
+        assert!(to_flags(&5).is_err());
+        assert!(to_flags(&vec![vec![1]]).is_err());
     }
 }

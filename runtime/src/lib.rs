@@ -15,6 +15,5 @@ pub mod supervisor;
 
 pub use args::{DEFAULT_SPIN_US, LinkArgs, RunArgs, Source};
 pub use exit::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError, cpu_seconds};
-pub use flags::Flags;
 pub use node::{Ended, Flow, Handler, IDLE_WAKEUP, Node};
 pub use supervisor::{NodeSummary, SupervisorLine, exit_with, tell};
