@@ -118,9 +118,9 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     let timeout = Duration::from_secs_f64(args.timeout_s);
     let (role, domain_flag, planner) = match &args.role {
         SwapRole::Planner(a) => {
-            ("planner", a.domain.as_deref(), Some(format!("{}/{}", a.solver.name(), a.objective.name())))
+            ("planner", a.node.domain.as_deref(), Some(format!("{}/{}", a.solver.name(), a.objective.name())))
         }
-        SwapRole::Estimator(a) => ("estimator", a.domain.as_deref(), None),
+        SwapRole::Estimator(a) => ("estimator", a.node.domain.as_deref(), None),
     };
     protocol::transport::quiet_logs();
     let domain = Domain::resolve(domain_flag).map_err(|e| CliError::Input(format!("--domain: {e}")))?;
@@ -143,19 +143,13 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
             if let Some((settings, file)) = &run {
                 reconcile(&mut a, settings, file)?;
             }
-            runtime::flags::to_flags(&planner::process::PlannerArgs {
-                domain: Some(domain.to_string()),
-                takeover: true,
-                supervised: true,
-                ..a
-            })
+            let node = runtime::NodeArgs { domain: Some(domain.to_string()), supervised: true, ..a.node.clone() };
+            runtime::flags::to_flags(&planner::process::PlannerArgs { node, takeover: true, ..a })
         }
-        SwapRole::Estimator(a) => runtime::flags::to_flags(&estimator::process::EstimatorArgs {
-            domain: Some(domain.to_string()),
-            takeover: true,
-            supervised: true,
-            ..a.clone()
-        }),
+        SwapRole::Estimator(a) => {
+            let node = runtime::NodeArgs { domain: Some(domain.to_string()), supervised: true, ..a.node.clone() };
+            runtime::flags::to_flags(&estimator::process::EstimatorArgs { node, takeover: true, ..a.clone() })
+        }
     }
     .map_err(|e| CliError::Input(format!("{role}: {e}")))?;
 

@@ -28,59 +28,52 @@ pub(super) fn child_flags(
     state: &StateDir,
     log: &std::path::Path,
 ) -> Result<Vec<String>, CliError> {
-    let domain = Some(domain.to_string());
+    let node =
+        |quiet| runtime::NodeArgs { domain: Some(domain.to_string()), link: args.link, quiet, supervised: false };
     let checkpoint = role.checkpoints().then(|| state.path(&format!("{role}.ckpt")));
     let run = runtime::RunArgs { scenario: args.run.scenario.clone(), steps: args.run.steps, seed: args.run.seed };
     let flags = match role {
         Role::Monitor => to_flags(&monitor::process::MonitorArgs {
-            domain,
-            link: args.link,
             source: args.source,
             mcap: args.record.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
             stamps: args.stamps.clone(),
             run: run.clone(),
             log: Some(log.to_path_buf()),
             out: args.out.clone(),
-            quiet: args.headless || args.live,
+            node: node(args.headless || args.live),
             ..defaults()
         }),
         Role::Planner => to_flags(&planner::process::PlannerArgs {
-            domain,
             run: run.clone(),
             objective: args.run.objective,
             solver: args.run.solver,
-            link: args.link,
             estimate_deadline_ms: args.estimate_deadline_ms,
             plan_delay_ms: args.plan_delay_ms,
             plan_delay_steps: if args.plan_delay_ms > 0 { args.plan_delay_steps.clone() } else { Vec::new() },
-            quiet: true,
+            node: node(true),
             ..defaults()
         }),
         Role::Estimator => to_flags(&estimator::process::EstimatorArgs {
-            domain,
-            link: args.link,
             estimator: sc.estimator,
             emitter_model: sc.emitter_model,
             process_noise_accel: sc.process_noise_accel,
             velocity_prior_sigma: sc.velocity_prior_sigma,
             interval_s: sc.dt,
             checkpoint,
-            quiet: true,
+            node: node(true),
             ..defaults()
         }),
         Role::EmitterSim => to_flags(&emitter_sim::process::EmitterSimArgs {
-            domain,
             run: run.clone(),
             command_timeout_s: args.command_timeout_s,
             retry_interval_ms: args.retry_interval_ms,
             // The estimator and the monitor.
             min_subscribers: 2,
-            link: args.link,
             step_delay_ms: args.step_delay_ms,
             mode: args.mode,
             time_scale: args.time_scale,
             checkpoint,
-            quiet: true,
+            node: node(true),
             // Stays after the last step to replay it to a monitor behind.
             linger: true,
             ..defaults()
@@ -165,8 +158,7 @@ mod tests {
     fn every_process_writes_its_own_flags_back() {
         let link = runtime::LinkArgs { transport: protocol::TransportKind::Uds, wait: None, spin_us: Some(30) };
         let m = monitor::process::MonitorArgs {
-            domain: Some("d".into()),
-            link,
+            node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: true },
             source: runtime::Source::External,
             mcap: Some("run.mcap".into()),
             stamps: Some("s.csv".into()),
@@ -176,40 +168,32 @@ mod tests {
             out: Some("o".into()),
             print_record: true,
             resume: true,
-            quiet: true,
-            supervised: true,
         };
         round_trip(m);
         let p = planner::process::PlannerArgs {
-            domain: Some("d".into()),
+            node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: false, supervised: true },
             run: runtime::RunArgs { scenario: None, steps: Some(3), seed: None },
             objective: planner::ObjectiveKind::PosteriorCubature,
             solver: planner::SolverKind::Aco,
-            link,
             takeover: true,
             estimate_deadline_ms: 12,
             plan_delay_ms: 5,
             plan_delay_steps: vec![1, 4],
-            quiet: false,
-            supervised: true,
         };
         round_trip(p);
         let e = emitter_sim::process::EmitterSimArgs {
-            domain: Some("d".into()),
+            node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: false },
             run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
             command_timeout_s: 0.1 + 0.2,
             retry_interval_ms: 77,
             connect_timeout_s: 3.5,
             min_subscribers: 2,
-            link,
             step_delay_ms: 4,
             mode: emitter_sim::process::Mode::Realtime,
             time_scale: Some(1.0 / 3.0),
             checkpoint: None,
-            quiet: true,
             linger: true,
             monitor_window: 17,
-            supervised: false,
         };
         round_trip(e);
         // The launch's children: every one parses its command line (no flag it does not know).

@@ -154,9 +154,10 @@ pub fn step_interval(dt: f64, time_scale: f64, steps: usize) -> Result<Duration,
 /// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
 #[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct EmitterSimArgs {
-    /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
-    #[arg(long, value_name = "NAME")]
-    pub domain: Option<String>,
+    /// The node: domain, link (transport and waiting), quiet, supervised.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub node: runtime::NodeArgs,
     /// The run: scenario, steps, seed.
     #[command(flatten)]
     #[serde(flatten)]
@@ -175,10 +176,6 @@ pub struct EmitterSimArgs {
     /// Subscribers the measurement topic needs before step 0 (estimator, plus 1 for a monitor).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub min_subscribers: usize,
-    /// Transport and waiting.
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub link: runtime::LinkArgs,
     /// Wait this many milliseconds before each step after step 0 (slows a lock-step run down for a demo or
     /// a test; the results do not change). 0: lock-step at full speed. Lock-step mode only.
     #[arg(long, value_name = "MS", default_value_t = 0)]
@@ -197,9 +194,6 @@ pub struct EmitterSimArgs {
     /// before a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
     #[arg(long, value_name = "FILE")]
     pub checkpoint: Option<PathBuf>,
-    /// Print nothing but errors.
-    #[arg(long)]
-    pub quiet: bool,
     /// After the last step, stay: replay the run to a process that asks (a monitor that fell behind or
     /// was restarted while the run ended) until SIGINT/SIGTERM or a shutdown on the control topic, which
     /// end it normally (exit code 0). `uavloc launch` passes it and stops emitter-sim once the monitor has
@@ -214,10 +208,6 @@ pub struct EmitterSimArgs {
     /// the monitor. No effect before a monitor has announced itself, nor in real-time mode.
     #[arg(long, value_name = "N", default_value_t = checkpoint::MONITOR_WINDOW)]
     pub monitor_window: u64,
-    /// Under a launcher: print `ready` on stdout once connected, `finished` after the last step (with
-    /// --linger), and `summary {json}` at exit.
-    #[arg(long, hide = true)]
-    pub supervised: bool,
 }
 
 pub use runtime::ProcessError;
@@ -398,7 +388,7 @@ impl EmitterNode<'_> {
             Action::Publish(k) => {
                 self.publish(node, k)?;
                 if self.schedule.is_done() && self.args.linger {
-                    runtime::tell(self.args.supervised, &SupervisorLine::Finished);
+                    runtime::tell(self.args.node.supervised, &SupervisorLine::Finished);
                 }
             }
             Action::Republish(j) => self.publish_again(node, j)?,
@@ -489,7 +479,7 @@ fn check_args(args: &EmitterSimArgs) -> Result<(), ProcessError> {
 /// Runs the world to the end of the run.
 pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     check_args(args)?;
-    let domain = Domain::resolve(args.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
+    let domain = Domain::resolve(args.node.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
     let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let pacing = match args.mode {
@@ -526,7 +516,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             scenario.steps
         )));
     }
-    let Some(mut node) = Node::open(ROLE, Some(domain.as_str()), &args.link, args.supervised, args.quiet)? else {
+    let Some(mut node) = Node::open(ROLE, &args.node)? else {
         return Err(ProcessError::Interrupted);
     };
     let truths = Topic::<Truth>::publisher(node.link(), &services::truth(&domain))?;
@@ -602,7 +592,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         started_at: start_step,
         cpu_s: node_summary.cpu_s,
     };
-    if !args.quiet {
+    if !args.node.quiet {
         eprintln!(
             "emitter-sim: done: {} steps, {} measurements, rejected {}, {} ignored, {} replays ({} retries)",
             summary.steps, summary.measurements, summary.rejected, summary.ignored, summary.replays, summary.retries
@@ -621,5 +611,5 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
 /// Runs emitter-sim and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &EmitterSimArgs) -> ExitCode {
-    runtime::exit_with(ROLE, args.supervised, run(args))
+    runtime::exit_with(ROLE, args.node.supervised, run(args))
 }

@@ -73,13 +73,10 @@ Examples:
 /// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
 #[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct EstimatorArgs {
-    /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
-    #[arg(long, value_name = "NAME")]
-    pub domain: Option<String>,
-    /// Transport and waiting.
+    /// The node: domain, link (transport and waiting), quiet, supervised.
     #[command(flatten)]
     #[serde(flatten)]
-    pub link: runtime::LinkArgs,
+    pub node: runtime::NodeArgs,
     /// Take over from the running estimator at the next step (see `uavloc swap estimator`).
     #[arg(long)]
     pub takeover: bool,
@@ -106,12 +103,6 @@ pub struct EstimatorArgs {
     /// a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
     #[arg(long, value_name = "FILE")]
     pub checkpoint: Option<PathBuf>,
-    /// Print nothing but errors.
-    #[arg(long)]
-    pub quiet: bool,
-    /// Under a launcher: print `ready` on stdout once subscribed, and `summary {json}` at exit.
-    #[arg(long, hide = true)]
-    pub supervised: bool,
 }
 
 pub use runtime::ProcessError;
@@ -519,7 +510,7 @@ impl Handler for EstimatorNode<'_> {
 /// Runs the estimator until SIGINT/SIGTERM, a shutdown request or a hand-over.
 pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     let config = args.config()?;
-    let Some(mut node) = Node::open(ROLE, args.domain.as_deref(), &args.link, args.supervised, args.quiet)? else {
+    let Some(mut node) = Node::open(ROLE, &args.node)? else {
         return Ok(EstimatorSummary { node: runtime::NodeSummary::new(ROLE, 0), ..EstimatorSummary::default() });
     };
     let domain = node.domain().clone();
@@ -578,7 +569,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
 /// Runs the estimator and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &EstimatorArgs) -> ExitCode {
-    runtime::exit_with(ROLE, args.supervised, run(args))
+    runtime::exit_with(ROLE, args.node.supervised, run(args))
 }
 
 #[cfg(test)]
@@ -622,8 +613,7 @@ mod tests {
         }
         use clap::Parser as _;
         let a = EstimatorArgs {
-            domain: Some("lab".into()),
-            link: runtime::LinkArgs::default(),
+            node: runtime::NodeArgs { domain: Some("lab".into()), quiet: true, ..runtime::NodeArgs::default() },
             takeover: true,
             estimator: EstimatorKind::Snapshot,
             emitter_model: EmitterModel::ConstantVelocity,
@@ -631,8 +621,6 @@ mod tests {
             velocity_prior_sigma: 7.5,
             interval_s: 1.0 / 3.0,
             checkpoint: Some("/tmp/e.ckpt".into()),
-            quiet: true,
-            supervised: false,
         };
         let flags = runtime::flags::to_flags(&a).unwrap();
         let back = Cli::try_parse_from(std::iter::once("estimator".to_string()).chain(flags)).unwrap().args;

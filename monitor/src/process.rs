@@ -103,17 +103,14 @@ Examples:
 /// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
 #[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct MonitorArgs {
-    /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
-    #[arg(long, value_name = "NAME")]
-    pub domain: Option<String>,
+    /// The node: domain, link (transport and waiting), quiet, supervised.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub node: runtime::NodeArgs,
     /// The run: scenario, steps, seed.
     #[command(flatten)]
     #[serde(flatten)]
     pub run: runtime::RunArgs,
-    /// Transport and waiting.
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub link: runtime::LinkArgs,
     /// Where the measurements come from: simulator (emitter-sim, which also publishes the truth) or
     /// external (a front end outside uavloc; no truth: the columns that need one are absent, not zero).
     #[arg(long, value_name = "SOURCE", default_value = "simulator")]
@@ -145,13 +142,6 @@ pub struct MonitorArgs {
     /// emitter-sim replay the rest of the run.
     #[arg(long)]
     pub resume: bool,
-    /// No status lines on stderr.
-    #[arg(long)]
-    pub quiet: bool,
-    /// Under a launcher: print `ready` on stdout once subscribed, `record {json}` and `summary {json}` at
-    /// the end.
-    #[arg(long, hide = true)]
-    pub supervised: bool,
 }
 
 pub use runtime::ProcessError;
@@ -524,7 +514,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     };
     let external = args.source == runtime::Source::External;
     let assembler = if external { assembler.without_truth() } else { assembler };
-    let Some(mut node) = Node::open(ROLE, args.domain.as_deref(), &args.link, args.supervised, args.quiet)? else {
+    let Some(mut node) = Node::open(ROLE, &args.node)? else {
         return Err(ProcessError::Interrupted);
     };
     let domain = node.domain().clone();
@@ -550,7 +540,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             planners: 0,
             missed: 0,
             stale: 0,
-            quiet: args.quiet,
+            quiet: args.node.quiet,
             received: HashMap::new(),
             missing: 0,
             stamps,
@@ -649,7 +639,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         eprintln!("error: monitor: {e}");
         summary.output_error = Some(e);
     }
-    if !args.quiet {
+    if !args.node.quiet {
         let l = &summary.latency;
         let p50 = |s: &Option<LatencyStat>| s.map_or("-".into(), |s| format!("{:.0} µs", s.p50_us));
         eprintln!(
@@ -678,9 +668,9 @@ pub fn main_with(args: &MonitorArgs) -> ExitCode {
     match run(args) {
         Ok((run, summary)) => {
             let record = serde_json::to_string(&run).unwrap_or_default();
-            runtime::tell(args.supervised, &runtime::SupervisorLine::Record(record));
+            runtime::tell(args.node.supervised, &runtime::SupervisorLine::Record(record));
             let summary_json = serde_json::to_value(&summary).unwrap_or_default();
-            runtime::tell(args.supervised, &runtime::SupervisorLine::Summary(summary_json));
+            runtime::tell(args.node.supervised, &runtime::SupervisorLine::Summary(summary_json));
             if args.print_record {
                 println!("{}", serde_json::to_string_pretty(&run).unwrap_or_default());
             }

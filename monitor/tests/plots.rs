@@ -1,5 +1,6 @@
 //! Plots and exports of a run record: files written, their shape and content, robustness to missing or
-//! non-finite values, empty records and bad paths.
+//! non-finite values, empty records and bad paths; and the generic charts (`monitor::chart`: curves
+//! with bands, grouped bars) — texts, element counts, colours, sizes, bad values, mismatched inputs.
 //!
 //! Set `UAVLOC_PLOT_CHECK_DIR=/some/dir` to keep a rendered set of figures for a visual check.
 
@@ -9,8 +10,8 @@ use std::path::{Path, PathBuf};
 use monitor::export::RUN_FILES;
 use monitor::png::Raster;
 use monitor::{
-    ExportError, Metric, PlotError, RunRecord, StepRecord, plot_comparison, plot_metrics, plot_trajectories, write_run,
-    write_steps_csv, write_trajectory_csv,
+    BarGroup, ExportError, Metric, PlotError, RunRecord, Series, StepRecord, plot_bars, plot_comparison, plot_curves,
+    plot_metrics, plot_trajectories, write_run, write_steps_csv, write_trajectory_csv,
 };
 
 const WIDTH: u32 = 900;
@@ -454,4 +455,215 @@ fn render_for_visual_check() {
     plot_metrics(&narrow, &dir.join("metrics-linear.png")).unwrap();
     plot_trajectories(&synthetic(0, "mc", "pso", 1), &dir.join("empty-trajectories.png")).unwrap();
     plot_metrics(&synthetic(0, "mc", "pso", 1), &dir.join("empty-metrics.png")).unwrap();
+}
+
+// The generic charts.
+
+/// Step numbers 0..n.
+fn steps(n: usize) -> Vec<f64> {
+    (0..n).map(|k| k as f64).collect()
+}
+
+/// Two methods, 20 steps, CRLB falling from 2 km, the first with a CI95 band.
+fn crlb_series() -> Vec<Series> {
+    let x = steps(20);
+    let a: Vec<f64> = x.iter().map(|k| 2000.0 * 0.8f64.powf(*k) + 20.0).collect();
+    let b: Vec<f64> = a.iter().map(|v| 1.4 * v).collect();
+    let lo = a.iter().map(|v| 0.8 * v).collect();
+    let hi = a.iter().map(|v| 1.25 * v).collect();
+    vec![Series::new("A-optimal", x.clone(), a).with_band(lo, hi), Series::new("D-optimal", x, b)]
+}
+
+fn count(svg: &str, needle: &str) -> usize {
+    svg.matches(needle).count()
+}
+
+/// The number of `<polyline>` elements with `attribute` (the axes and ticks are 1 px black polylines).
+fn polylines(svg: &str, attribute: &str) -> usize {
+    svg.split("<polyline").skip(1).filter(|el| el.split('>').next().unwrap_or("").contains(attribute)).count()
+}
+
+#[test]
+fn curves_svg_has_title_labels_and_a_translucent_band() {
+    let dir = scratch("curves-svg");
+    for log_y in [false, true] {
+        let path = dir.join(format!("curves-{log_y}.svg"));
+        plot_curves("Mean CRLB per step", "step", "CRLB (m)", &crlb_series(), log_y, &path).unwrap();
+        let svg = read(&path);
+        for text in ["Mean CRLB per step", "A-optimal", "D-optimal", "step", "CRLB (m)"] {
+            assert!(svg.contains(text), "{text} missing");
+        }
+        assert!(!svg.contains("(no data)"));
+        // The band is one filled, translucent polygon; the lines are 2 px polylines.
+        let bands: Vec<&str> = svg.lines().filter(|l| l.contains("<polygon")).collect();
+        assert_eq!(bands.len(), 1, "{bands:?}");
+        assert!(bands[0].contains(r#"opacity="0.2""#) && bands[0].contains(r##"fill="#1F77B4""##), "{}", bands[0]);
+        assert_eq!(polylines(&svg, r#"stroke-width="2""#), 2);
+    }
+    // Without a band, no polygon.
+    let path = dir.join("no-band.svg");
+    let plain: Vec<Series> = crlb_series().into_iter().map(|s| Series { band: None, ..s }).collect();
+    plot_curves("t", "x", "y", &plain, false, &path).unwrap();
+    assert_eq!(count(&read(&path), "<polygon"), 0);
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn curves_and_bars_png_decode_to_the_figure_size() {
+    let dir = scratch("png");
+    let path = dir.join("curves.png");
+    plot_curves("Mean CRLB per step", "step", "CRLB (m)", &crlb_series(), true, &path).unwrap();
+    check_png(&path);
+    let path = dir.join("bars.PNG");
+    plot_bars("Final CRLB", "CRLB (m)", &labels(2), &bar_groups(), false, &path).unwrap();
+    check_png(&path);
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_values_and_empty_inputs_still_write_figures() {
+    let dir = scratch("robust");
+    let nan = f64::NAN;
+    let messy = vec![
+        Series::new("gappy", vec![0.0, 1.0, nan, 3.0, 4.0, f64::INFINITY], vec![5.0, nan, 2.0, 0.0, -1.0, 3.0])
+            .with_band(vec![4.0, 1.0, 1.0, nan, -2.0, 1.0], vec![6.0, 2.0, 3.0, 1.0, 0.0, f64::NEG_INFINITY]),
+        Series::new("single", vec![2.0], vec![1.0]).with_band(vec![0.5], vec![2.0]),
+        Series::new("all NaN", vec![nan, nan], vec![nan, nan]),
+        Series::new("empty", vec![], vec![]),
+        Series::new("huge", vec![-1e308, 1e308], vec![1e308, f64::MIN_POSITIVE]),
+        Series::new("wide", vec![-1e300, 1e300], vec![1e300, 1e-300]),
+        Series::new("close", vec![1e15, 1e15 + 1.0], vec![1e10, 1e10 + 1e-5]),
+    ];
+    let all_nan = vec![Series::new("nan", vec![nan, 1.0], vec![nan, nan]).with_band(vec![nan; 2], vec![nan; 2])];
+    let zeros = vec![Series::new("zeros", steps(3), vec![0.0; 3]).with_band(vec![0.0; 3], vec![1.0; 3])];
+    let cases: [(&str, &[Series], bool); 3] =
+        [("messy", &messy, false), ("all-nan", &all_nan, true), ("zeros", &zeros, true)];
+    for (name, series, no_data) in cases {
+        for log_y in [false, true] {
+            for ext in ["svg", "png"] {
+                let path = dir.join(format!("{name}-{log_y}.{ext}"));
+                plot_curves("Messy", "x", "y", series, log_y, &path).unwrap();
+                if ext == "svg" {
+                    let svg = read(&path);
+                    assert_eq!(
+                        svg.contains("Messy (no data)"),
+                        no_data && (log_y || name == "all-nan"),
+                        "{name} {log_y}"
+                    );
+                } else {
+                    check_png(&path);
+                }
+            }
+        }
+    }
+    for log_y in [false, true] {
+        let path = dir.join(format!("empty-curves-{log_y}.svg"));
+        plot_curves("Nothing", "x", "y", &[], log_y, &path).unwrap();
+        assert!(read(&path).contains("Nothing (no data)"));
+        let path = dir.join(format!("empty-bars-{log_y}.svg"));
+        plot_bars("No bars", "y", &[], &[], log_y, &path).unwrap();
+        assert!(read(&path).contains("No bars (no data)"));
+        let path = dir.join(format!("empty-bars-{log_y}.png"));
+        plot_bars("No bars", "y", &labels(3), &[], log_y, &path).unwrap();
+        check_png(&path);
+        let groups = vec![BarGroup {
+            label: "g".to_owned(),
+            values: vec![Some(nan), None, Some(0.0), Some(-3.0), Some(1e308)],
+            errors: vec![
+                Some((nan, 1.0)),
+                Some((1.0, 2.0)),
+                Some((-1.0, 1.0)),
+                Some((-4.0, -2.0)),
+                Some((0.0, f64::MAX)),
+            ],
+        }];
+        let path = dir.join(format!("messy-bars-{log_y}.svg"));
+        plot_bars("Messy bars", "y", &labels(5), &groups, log_y, &path).unwrap();
+    }
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn mismatched_lengths_are_invalid_data() {
+    let dir = scratch("invalid");
+    let path = dir.join("c.svg");
+    let short_y = [Series::new("s", steps(3), vec![1.0, 2.0])];
+    let short_band = [Series::new("s", steps(2), vec![1.0, 2.0]).with_band(vec![0.5], vec![1.5, 2.5])];
+    for series in [&short_y[..], &short_band[..]] {
+        let err = plot_curves("t", "x", "y", series, false, &path).unwrap_err();
+        assert!(matches!(err, PlotError::InvalidData { .. }), "{err:?}");
+    }
+    let mut groups = bar_groups();
+    groups[1].values.pop();
+    let err = plot_bars("t", "y", &labels(2), &groups, false, &path).unwrap_err();
+    assert!(matches!(err, PlotError::InvalidData { .. }), "{err:?}");
+    let mut groups = bar_groups();
+    groups[0].errors.push(None);
+    assert!(matches!(plot_bars("t", "y", &labels(2), &groups, false, &path), Err(PlotError::InvalidData { .. })));
+    assert!(!path.exists());
+    let bad_ext = dir.join("c.pdf");
+    assert!(matches!(
+        plot_curves("t", "x", "y", &crlb_series(), false, &bad_ext),
+        Err(PlotError::UnsupportedFormat { .. })
+    ));
+    let _ = fs::remove_dir_all(&dir);
+}
+
+fn labels(n: usize) -> Vec<String> {
+    (0..n).map(|i| format!("method {i}")).collect()
+}
+
+/// Three groups of two series; 5 finite values, one whisker missing.
+fn bar_groups() -> Vec<BarGroup> {
+    vec![
+        BarGroup {
+            label: "s = 0.25".to_owned(),
+            values: vec![Some(120.0), Some(150.0)],
+            errors: vec![Some((100.0, 140.0)), Some((130.0, 170.0))],
+        },
+        BarGroup { label: "s = 0.5".to_owned(), values: vec![Some(80.0), None], errors: vec![] },
+        BarGroup {
+            label: "s = 1".to_owned(),
+            values: vec![Some(60.0), Some(90.0)],
+            errors: vec![None, Some((70.0, 110.0))],
+        },
+    ]
+}
+
+#[test]
+fn bar_chart_draws_one_rectangle_per_finite_value() {
+    let dir = scratch("bars");
+    let labels = labels(2);
+    let groups = bar_groups();
+    let none: Vec<BarGroup> =
+        groups.iter().map(|g| BarGroup { values: vec![None; 2], errors: vec![], ..g.clone() }).collect();
+    for log_y in [false, true] {
+        let path = dir.join(format!("bars-{log_y}.svg"));
+        plot_bars("Final CRLB", "CRLB (m)", &labels, &groups, log_y, &path).unwrap();
+        let svg = read(&path);
+        for text in ["Final CRLB", "CRLB (m)", "method 0", "method 1", "s = 0.25", "s = 0.5", "s = 1"] {
+            assert!(svg.contains(text), "{text} missing");
+        }
+        let empty_path = dir.join(format!("none-{log_y}.svg"));
+        plot_bars("Final CRLB", "CRLB (m)", &labels, &none, log_y, &empty_path).unwrap();
+        let empty = read(&empty_path);
+        assert!(empty.contains("Final CRLB (no data)"));
+        assert_eq!(count(&svg, "<rect") - count(&empty, "<rect"), 5);
+        // Series colours are consistent across groups: 3 bars of the first colour, 2 of the second.
+        assert_eq!(count(&svg, r##"fill="#1F77B4""##) - count(&empty, r##"fill="#1F77B4""##), 3);
+        assert_eq!(count(&svg, r##"fill="#FF7F0E""##) - count(&empty, r##"fill="#FF7F0E""##), 2);
+        // Three whiskers.
+        assert_eq!(polylines(&svg, r##"stroke="#202020""##), 3);
+    }
+    // Zero and negative values: bars in linear mode, skipped in log mode.
+    let signed = vec![BarGroup { label: "g".to_owned(), values: vec![Some(0.0), Some(-2.0)], errors: vec![] }];
+    let empty = vec![BarGroup { label: "g".to_owned(), values: vec![None, None], errors: vec![] }];
+    for (log_y, bars) in [(false, 2), (true, 0)] {
+        let path = dir.join(format!("signed-{log_y}.svg"));
+        plot_bars("Signed", "y", &labels, &signed, log_y, &path).unwrap();
+        let empty_path = dir.join(format!("signed-none-{log_y}.svg"));
+        plot_bars("Signed", "y", &labels, &empty, log_y, &empty_path).unwrap();
+        assert_eq!(count(&read(&path), "<rect") - count(&read(&empty_path), "<rect"), bars);
+    }
+    let _ = fs::remove_dir_all(&dir);
 }

@@ -81,9 +81,10 @@ Examples:
 /// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
 #[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct PlannerArgs {
-    /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
-    #[arg(long, value_name = "NAME")]
-    pub domain: Option<String>,
+    /// The node: domain, link (transport and waiting), quiet, supervised.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub node: runtime::NodeArgs,
     /// The run: scenario, steps, seed.
     #[command(flatten)]
     #[serde(flatten)]
@@ -96,10 +97,6 @@ pub struct PlannerArgs {
     #[arg(long, default_value = "gradient")]
     #[serde(serialize_with = "runtime::flags::display")]
     pub solver: SolverKind,
-    /// Transport and waiting.
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub link: runtime::LinkArgs,
     /// Take over from the running planner at the next step (see `uavloc swap planner`).
     #[arg(long)]
     pub takeover: bool,
@@ -117,12 +114,6 @@ pub struct PlannerArgs {
     /// step).
     #[arg(long, value_name = "K,..", value_delimiter = ',')]
     pub plan_delay_steps: Vec<u64>,
-    /// Print nothing but errors.
-    #[arg(long)]
-    pub quiet: bool,
-    /// Under a launcher: print `ready` on stdout once subscribed, and `summary {json}` at exit.
-    #[arg(long, hide = true)]
-    pub supervised: bool,
 }
 
 pub use runtime::ProcessError;
@@ -337,7 +328,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 .into(),
         ));
     }
-    let Some(mut node) = Node::open(ROLE, args.domain.as_deref(), &args.link, args.supervised, args.quiet)? else {
+    let Some(mut node) = Node::open(ROLE, &args.node)? else {
         return Ok(PlannerSummary { node: runtime::NodeSummary::new(ROLE, 0), ..PlannerSummary::default() });
     };
     let domain = node.domain().clone();
@@ -429,5 +420,5 @@ fn hold_command(
 /// Runs the planner and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &PlannerArgs) -> ExitCode {
-    runtime::exit_with(ROLE, args.supervised, run(args))
+    runtime::exit_with(ROLE, args.node.supervised, run(args))
 }

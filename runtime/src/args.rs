@@ -1,4 +1,5 @@
-//! The flags every process takes for its link (and `uavloc launch` passes on): transport and waiting.
+//! The flags every process takes: its node (domain, link: transport and waiting, quiet, supervised) and
+//! the run (scenario, steps, seed).
 
 use std::path::PathBuf;
 
@@ -49,6 +50,25 @@ impl std::fmt::Display for Source {
 
 /// Default busy-poll budget of `--wait spin-then-block` when `--spin-us` is not given, µs.
 pub const DEFAULT_SPIN_US: u64 = 100;
+
+/// The flags every process takes for its node: domain, link, and how it talks.
+#[derive(clap::Args, serde::Serialize, Debug, Clone, Default, PartialEq, Eq)]
+pub struct NodeArgs {
+    /// Pipeline domain: prefix of every service name (default: $UAVLOC_DOMAIN, else "uavloc").
+    #[arg(long, value_name = "NAME")]
+    pub domain: Option<String>,
+    /// Transport and waiting.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub link: LinkArgs,
+    /// Print nothing but errors (no status lines on stderr).
+    #[arg(long)]
+    pub quiet: bool,
+    /// Under a launcher: print `ready` on stdout once connected and `summary {json}` at exit (and what
+    /// the role tells its supervisor besides: emitter-sim's `finished`, the monitor's `record {json}`).
+    #[arg(long, hide = true)]
+    pub supervised: bool,
+}
 
 /// The transport and wait flags every process (and `uavloc launch`, which passes them on) takes.
 #[derive(clap::Args, serde::Serialize, Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -30,7 +30,7 @@ use protocol::{
     Waitable, now_ns,
 };
 
-use crate::{LinkArgs, NodeSummary, ProcessError, SupervisorLine};
+use crate::{NodeArgs, NodeSummary, ProcessError, SupervisorLine};
 
 /// The longest a wait lasts without a message or a deadline (an interval attachment): the loop then
 /// re-checks for a termination request that arrived between two waits (a signal during a wait
@@ -99,17 +99,12 @@ pub struct Node {
 }
 
 impl Node {
-    /// Opens the node of `role` in `domain` (default: `$UAVLOC_DOMAIN`, else `uavloc`) on the link of
-    /// `link`; `Ok(None)` when SIGINT/SIGTERM came while it opened (the process then ends cleanly).
-    pub fn open(
-        role: &'static str,
-        domain: Option<&str>,
-        link: &LinkArgs,
-        supervised: bool,
-        quiet: bool,
-    ) -> Result<Option<Self>, ProcessError> {
+    /// Opens the node of `role` in the domain of `args` (default: `$UAVLOC_DOMAIN`, else `uavloc`) on
+    /// its link; `Ok(None)` when SIGINT/SIGTERM came while it opened (the process then ends cleanly).
+    pub fn open(role: &'static str, args: &NodeArgs) -> Result<Option<Self>, ProcessError> {
+        let NodeArgs { domain, link, quiet, supervised } = args;
         protocol::transport::quiet_logs();
-        let domain = Domain::resolve(domain).map_err(|e| ProcessError::Input(e.to_string()))?;
+        let domain = Domain::resolve(domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
         let opened = Link::open(link.transport, &services::node_name(&domain, role))?;
         // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
         if opened.interrupted() {
@@ -123,8 +118,8 @@ impl Node {
             domain,
             control,
             policy: link.policy(),
-            supervised,
-            quiet,
+            supervised: *supervised,
+            quiet: *quiet,
             counter: RejectionCounter::new(),
             summary: NodeSummary::new(role, instance),
             // Sequence numbers start at the monotonic clock: a restarted process numbers above its
