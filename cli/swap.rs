@@ -19,7 +19,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use clap::{Args, Subcommand};
-use monitor::resources;
+use protocol::resources;
 use protocol::services::Domain;
 use serde::Serialize;
 

@@ -67,8 +67,8 @@ use std::time::Instant;
 
 use emitter_sim::process::Mode;
 use monitor::RunRecord;
-use monitor::resources;
 use planner::TargetMode;
+use protocol::resources;
 use protocol::services::{self, DOMAIN_ENV, Domain};
 
 pub use args::{AFTER_HELP, LONG_ABOUT, LaunchArgs};

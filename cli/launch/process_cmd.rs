@@ -4,7 +4,7 @@
 use std::process::ExitCode;
 
 use clap::{Args, Subcommand};
-use monitor::resources;
+use protocol::resources;
 use protocol::services::Domain;
 
 use crate::error::CliError;

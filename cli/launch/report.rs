@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 
 use monitor::RunRecord;
-use monitor::resources::DomainResources;
+use protocol::resources::DomainResources;
 use serde::Serialize;
 
 use crate::output::{Diagnostic, Report, Table};

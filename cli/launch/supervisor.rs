@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicI32, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant};
 
-use monitor::resources;
+use protocol::resources;
 use protocol::services::Domain;
 use runtime::SupervisorLine;
 

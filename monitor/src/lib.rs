@@ -18,7 +18,6 @@ pub mod png;
 pub mod process;
 pub mod record;
 pub mod recording;
-pub mod resources;
 pub mod runlog;
 pub mod stamps;
 

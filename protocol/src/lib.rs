@@ -24,6 +24,7 @@
 
 pub mod control;
 pub mod messages;
+pub mod resources;
 pub mod services;
 pub mod transport;
 pub mod validate;

@@ -252,7 +252,7 @@ fn a_service_left_half_created_by_kill_9_is_removed_by_the_next_launch() {
     let _scenario = common::scenario(module_path!());
     use std::os::unix::fs::PermissionsExt;
     let d = domain("half", "created");
-    let [pubsub, event] = monitor::resources::static_config_files(&format!("{d}/measurement")).unwrap();
+    let [pubsub, event] = protocol::resources::static_config_files(&format!("{d}/measurement")).unwrap();
     std::fs::create_dir_all(pubsub.parent().unwrap()).unwrap();
     for f in [&pubsub, &event] {
         std::fs::write(f, b"").unwrap();

@@ -8,9 +8,9 @@
 
 use core::time::Duration;
 
+use crate::services::Domain;
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
-use protocol::services::Domain;
 
 /// A node of a domain.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
@@ -142,7 +142,7 @@ pub fn remove_half_created_services(domain: &Domain) -> Result<Vec<String>, Stri
     use std::os::unix::fs::PermissionsExt;
 
     let mut removed = Vec::new();
-    for (_, name) in protocol::services::all(domain) {
+    for (_, name) in crate::services::all(domain) {
         for file in static_config_files(&name)? {
             let Ok(meta) = std::fs::metadata(&file) else { continue };
             let in_creation = meta.permissions().mode() & 0o777 == 0o600;
