@@ -195,7 +195,12 @@ mod tests {
             linger: true,
             monitor_window: 17,
         };
-        round_trip(e);
+        round_trip(e.clone());
+        // A value that is not a finite number is an error, not a flag left out (the child's default).
+        let nan = emitter_sim::process::EmitterSimArgs { time_scale: Some(f64::NAN), ..e.clone() };
+        assert!(to_flags(&nan).unwrap_err().contains("finite"));
+        let inf = emitter_sim::process::EmitterSimArgs { command_timeout_s: f64::INFINITY, ..e };
+        assert!(to_flags(&inf).is_err());
         // The launch's children: every one parses its command line (no flag it does not know).
         #[derive(Parser)]
         struct Cli {

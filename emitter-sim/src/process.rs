@@ -164,6 +164,7 @@ pub struct EmitterSimArgs {
     pub run: runtime::RunArgs,
     /// Give up (exit 1) when the command for a step has not arrived after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 10.0)]
+    #[serde(serialize_with = "runtime::flags::finite")]
     pub command_timeout_s: f64,
     /// Replay the steps from the checkpoint step at or below the current one (from step 0 before step
     /// 256) when the command for a step has not arrived this many milliseconds after the step was
@@ -172,6 +173,7 @@ pub struct EmitterSimArgs {
     pub retry_interval_ms: u64,
     /// Give up (exit 1) when the pipeline is not connected after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 60.0)]
+    #[serde(serialize_with = "runtime::flags::finite")]
     pub connect_timeout_s: f64,
     /// Subscribers the measurement topic needs before step 0 (estimator, plus 1 for a monitor).
     #[arg(long, value_name = "N", default_value_t = 1)]
@@ -188,6 +190,7 @@ pub struct EmitterSimArgs {
     /// Real-time mode: simulated seconds per real second, > 0. A step lasts dt/X real seconds (the paper's
     /// 10 s interval takes 0.1 s at --time-scale 100; default 1). Refused in lock-step mode.
     #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    #[serde(serialize_with = "runtime::flags::finite_opt")]
     pub time_scale: Option<f64>,
     /// Checkpoint file: a world snapshot is written there every 256 steps, and a start that finds it (a
     /// restart in the same run) flies on from the oldest snapshot kept instead of from step 0. Remove it

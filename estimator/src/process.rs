@@ -91,12 +91,15 @@ pub struct EstimatorArgs {
     pub emitter_model: EmitterModel,
     /// constant_velocity: white-acceleration process noise σ_a, m/s² (≥ 0).
     #[arg(long, value_name = "M/S2", default_value_t = 0.05)]
+    #[serde(serialize_with = "runtime::flags::finite")]
     pub process_noise_accel: f64,
     /// constant_velocity: σ per axis of the initial velocity (0 ± this), m/s (> 0).
     #[arg(long, value_name = "M/S", default_value_t = 20.0)]
+    #[serde(serialize_with = "runtime::flags::finite")]
     pub velocity_prior_sigma: f64,
     /// constant_velocity: the time between two steps' measurements, s (the scenario's dt).
     #[arg(long, value_name = "S", default_value_t = 10.0)]
+    #[serde(serialize_with = "runtime::flags::finite")]
     pub interval_s: f64,
     /// Checkpoint file: the state is written there every 256 steps, and a start that finds it (a restart
     /// in the same run) resumes from it instead of having the run replayed from step 0. Remove it before

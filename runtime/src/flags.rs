@@ -5,8 +5,9 @@
 //!
 //! The rules, which every argument type follows: a field `foo_bar` is the flag `--foo-bar` (clap's default
 //! `long`); a flattened group (`#[command(flatten)]`) is `#[serde(flatten)]`; a value is written as clap
-//! parses it — numbers in full precision (`f64` as the shortest text that parses back to the same bits),
-//! enums by their flag name ([`display`]), lists comma-joined; `true` is the bare switch, and `false`,
+//! parses it — numbers in full precision (`f64` as the shortest text that parses back to the same bits;
+//! every `f64` flag is marked [`finite`], so a NaN is an error, not a flag left out), enums by their flag
+//! name ([`display`]), lists comma-joined; `true` is the bare switch, and `false`,
 //! `None` and an empty list are left out.
 
 use std::fmt::Display;
@@ -43,6 +44,25 @@ fn scalar(v: &Value) -> Result<String, String> {
         Value::String(s) => Ok(s.clone()),
         Value::Number(n) => Ok(n.to_string()),
         other => Err(format!("not a flag value: {other}")),
+    }
+}
+
+/// `#[serde(serialize_with = "runtime::flags::finite")]` on every `f64` flag: a NaN or an infinity is an
+/// error. (Serialized plainly it would become JSON `null`, indistinguishable from an absent value, and
+/// the child would silently take its default.)
+pub fn finite<S: Serializer>(value: &f64, s: S) -> Result<S::Ok, S::Error> {
+    if value.is_finite() {
+        s.serialize_f64(*value)
+    } else {
+        Err(serde::ser::Error::custom(format!("a flag value must be a finite number, got {value}")))
+    }
+}
+
+/// [`finite`] for an optional value.
+pub fn finite_opt<S: Serializer>(value: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+    match value {
+        Some(v) => finite(v, s),
+        None => s.serialize_none(),
     }
 }
 
@@ -84,6 +104,14 @@ mod tests {
         mode: std::net::Ipv4Addr,
     }
 
+    #[derive(Serialize)]
+    struct Floats {
+        #[serde(serialize_with = "finite")]
+        x: f64,
+        #[serde(serialize_with = "finite_opt")]
+        y: Option<f64>,
+    }
+
     #[test]
     fn builds_the_command_line() {
         let e = Example {
@@ -115,6 +143,10 @@ mod tests {
         assert_eq!(pairs, want);
         assert_eq!("0.30000000000000004".parse::<f64>().unwrap(), 0.1 + 0.2);
         assert!(to_flags(&5).is_err());
+        assert_eq!(to_flags(&Floats { x: -1.5, y: None }).unwrap(), ["--x", "-1.5"]);
+        for (x, y) in [(f64::NAN, None), (1.0, Some(f64::INFINITY)), (f64::NEG_INFINITY, Some(1.0))] {
+            assert!(to_flags(&Floats { x, y }).unwrap_err().contains("finite"), "{x} {y:?}");
+        }
         assert!(to_flags(&vec![vec![1]]).is_err());
     }
 }
