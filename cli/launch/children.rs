@@ -165,7 +165,8 @@ mod tests {
             run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
             log: Some("l.jsonl".into()),
             record: Some("r.json".into()),
-            out: Some("o".into()),
+            // A value that begins with `-` (written `--out=-o`, not taken for a flag).
+            out: Some("-o".into()),
             print_record: true,
             resume: true,
         };

@@ -114,6 +114,6 @@ mod tests {
         let a = LinkArgs { wait: Some(WaitMode::SpinThenBlock), ..LinkArgs::default() };
         assert_eq!(a.policy().spin, Duration::from_micros(DEFAULT_SPIN_US));
         let a = LinkArgs { transport: TransportKind::Uds, wait: Some(WaitMode::Spin), spin_us: None };
-        assert_eq!(crate::flags::to_flags(&a).unwrap(), ["--transport", "uds", "--wait", "spin"]);
+        assert_eq!(crate::flags::to_flags(&a).unwrap(), ["--transport=uds", "--wait=spin"]);
     }
 }
