@@ -137,19 +137,22 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     let old_pids = resources::list(&domain).map_err(CliError::Failed)?.alive_pids(&node_name);
     // The run's settings, when a launch runs the domain: a swapped-in planner runs the same scenario.
     let run = crate::launch::state_dir::find_run_settings(&domain);
+    // The new process runs in the domain found above, under this command's supervision.
+    let node =
+        |a: &runtime::NodeArgs| runtime::NodeArgs { domain: Some(domain.to_string()), supervised: true, ..a.clone() };
     let flags = match &args.role {
         SwapRole::Planner(a) => {
             let mut a = a.clone();
             if let Some((settings, file)) = &run {
                 reconcile(&mut a, settings, file)?;
             }
-            let node = runtime::NodeArgs { domain: Some(domain.to_string()), supervised: true, ..a.node.clone() };
-            runtime::flags::to_flags(&planner::process::PlannerArgs { node, takeover: true, ..a })
+            runtime::flags::to_flags(&planner::process::PlannerArgs { node: node(&a.node), takeover: true, ..a })
         }
-        SwapRole::Estimator(a) => {
-            let node = runtime::NodeArgs { domain: Some(domain.to_string()), supervised: true, ..a.node.clone() };
-            runtime::flags::to_flags(&estimator::process::EstimatorArgs { node, takeover: true, ..a.clone() })
-        }
+        SwapRole::Estimator(a) => runtime::flags::to_flags(&estimator::process::EstimatorArgs {
+            node: node(&a.node),
+            takeover: true,
+            ..a.clone()
+        }),
     }
     .map_err(|e| CliError::Input(format!("{role}: {e}")))?;
 

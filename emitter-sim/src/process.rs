@@ -89,8 +89,7 @@ Examples:
   emitter-sim --domain lab1 --mode realtime --time-scale 100";
 
 /// How emitter-sim paces the run (`--mode`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
 pub enum Mode {
     /// The next step as soon as the command for the current one arrives (benchmarks, tests, exact
     /// reproduction of `uavloc simulate`).
@@ -108,6 +107,12 @@ impl Mode {
             Mode::Lockstep => "lockstep",
             Mode::Realtime => "realtime",
         }
+    }
+}
+
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -186,6 +191,7 @@ pub struct EmitterSimArgs {
     /// reproduction of `uavloc simulate`) or realtime (step k at t0 + k·dt/X; a late command is missed and
     /// the UAVs keep their headings).
     #[arg(long, value_enum, value_name = "MODE", default_value_t = Mode::Lockstep)]
+    #[serde(serialize_with = "runtime::flags::display")]
     pub mode: Mode,
     /// Real-time mode: simulated seconds per real second, > 0. A step lasts dt/X real seconds (the paper's
     /// 10 s interval takes 0.1 s at --time-scale 100; default 1). Refused in lock-step mode.

@@ -193,6 +193,11 @@ struct Chain {
 }
 
 impl Chain {
+    /// A fresh estimator of `config`, before any step.
+    fn fresh(config: EstimatorConfig) -> Self {
+        Self { estimator: Estimator::with_config(config), last_step: None }
+    }
+
     /// The chain of an estimator of `config` after `step`, as `state` says it was.
     fn from_echo(config: EstimatorConfig, state: &EchoedState) -> Self {
         match *state {
@@ -202,7 +207,7 @@ impl Chain {
                 let estimator = Estimator::resume(config, step, z, m, posterior).with_rejected_run(extra.rejected_run);
                 Self { estimator, last_step: Some(step) }
             }
-            EchoedState::Empty { step } => Self { estimator: Estimator::with_config(config), last_step: Some(step) },
+            EchoedState::Empty { step } => Self { last_step: Some(step), ..Self::fresh(config) },
         }
     }
 }
@@ -268,7 +273,7 @@ impl StepEstimator {
 
     /// A fresh state of an estimator of `config`.
     pub fn with_config(config: EstimatorConfig) -> Self {
-        Self { config, chain: Chain { estimator: Estimator::with_config(config), last_step: None }, ..Self::default() }
+        Self { config, chain: Chain::fresh(config), ..Self::default() }
     }
 
     /// The state of an estimator of `config` whose estimate of `step` was `position` with `covariance`
@@ -352,7 +357,7 @@ impl StepEstimator {
         let again = self.highest.is_some_and(|h| step <= h);
         if step == 0 {
             // A new run (or the run replayed from its start).
-            self.chain = Chain { estimator: Estimator::with_config(self.config), last_step: None };
+            self.chain = Chain::fresh(self.config);
         } else if self.chain.last_step != Some(step - 1) {
             match self.echoes.get(&(step - 1)) {
                 Some(state) => self.chain = Chain::from_echo(self.config, state),

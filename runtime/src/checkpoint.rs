@@ -4,8 +4,9 @@
 //! - emitter-sim keeps the truth and measurement of the last [`HISTORY_STEPS`] steps for replays; the
 //!   estimator keeps the states the planner's commands echoed for as many steps (it keeps no answers: a
 //!   step seen again is estimated again from the state before it). The planner keeps nothing across
-//!   steps (it plans from what each estimate carries). Nothing else grows with the run (the monitor writes each step to its
-//!   log as it completes and keeps no per-step record in memory when it has a log).
+//!   steps (it plans from what each estimate carries). Nothing else grows with the run (the monitor
+//!   writes each step to its log as it completes and keeps no per-step record in memory when it has a
+//!   log).
 //! - Every [`CHECKPOINT_EVERY`] steps (at the *checkpoint steps* c = 256, 512, …) the estimator writes its
 //!   state before step c to its `--checkpoint` file before it publishes that step's estimate, keeping the
 //!   last [`PROCESS_CHECKPOINTS`]; emitter-sim writes the world before step c once the command of step c
