@@ -59,7 +59,6 @@ pub(super) fn child_flags(
             process_noise_accel: sc.process_noise_accel,
             velocity_prior_sigma: sc.velocity_prior_sigma,
             interval_s: sc.dt,
-            checkpoint,
             node: node(true),
             ..defaults()
         }),

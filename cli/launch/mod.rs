@@ -24,8 +24,9 @@
 //!    the same role starts again with the same flags (a monitor with `--resume`: it takes the steps of its
 //!    log). The new process announces itself on the control topic and emitter-sim replays the run to it (see
 //!    `emitter_sim::process`), so the run resumes exactly where it was; a restarted emitter-sim starts
-//!    from the older world snapshot of its checkpoint (step 0 in a run younger than 512 steps) and
-//!    fast-forwards through the answers the estimator and planner kept. In lock-step mode emitter-sim runs
+//!    from the older world snapshot of its checkpoint (step 0 in a run younger than 512 steps) and flies
+//!    on from there; the estimator and the planner keep no state of their own (it rides the messages, see
+//!    `runtime::recovery`). In lock-step mode emitter-sim runs
 //!    at most 128 steps ahead of the monitor (its `--monitor-window`), so a monitor restarted many times
 //!    does not fall behind what can be replayed to it. A child that exits
 //!    with code 2 (bad input) or 3 (the run cannot go on: two UAVs collided, so the world cannot measure),

@@ -2,7 +2,7 @@
 //!
 //! The monitor reports its progress on the control topic ([`ControlKind::Progress`]: the first step it
 //! lacks). emitter-sim does not publish step k while the monitor lacks step k − window or an older one
-//! (`--monitor-window`, [`runtime::checkpoint::MONITOR_WINDOW`] by default), so a monitor restarted again
+//! (`--monitor-window`, [`runtime::recovery::MONITOR_WINDOW`] by default), so a monitor restarted again
 //! and again stays within reach of a restarted emitter-sim's replays (see [`runtime::checkpoint`]).
 
 use protocol::{Control, ControlKind};

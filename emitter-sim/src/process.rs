@@ -52,7 +52,7 @@ use protocol::transport::{Link, TopicPublisher};
 use protocol::{
     Command, CommandOutcome, Control, ControlKind, Measurement, Message, Stamps, Topic, TopicSubscriber, Truth,
 };
-use runtime::checkpoint::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
+use runtime::recovery::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 use runtime::{Ended, Flow, Handler, Node, SupervisorLine};
 
 use crate::schedule::{Action, Config, Other, Pacing, Schedule};
@@ -215,7 +215,7 @@ pub struct EmitterSimArgs {
     /// --command-timeout-s without progress. A monitor restarted again and again then stays within reach
     /// of a restarted emitter-sim's replays. Must be below 256 (the checkpoint interval). 0: never wait for
     /// the monitor. No effect before a monitor has announced itself, nor in real-time mode.
-    #[arg(long, value_name = "N", default_value_t = checkpoint::MONITOR_WINDOW)]
+    #[arg(long, value_name = "N", default_value_t = recovery::MONITOR_WINDOW)]
     pub monitor_window: u64,
 }
 
@@ -260,7 +260,7 @@ pub struct EmitterSummary {
 /// whether the command of the step before it was missed.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Saved {
-    /// At most [`EMITTER_SNAPSHOTS`], one every [`checkpoint::CHECKPOINT_EVERY`] steps.
+    /// At most [`EMITTER_SNAPSHOTS`], one every [`recovery::SNAPSHOT_EVERY`] steps.
     pub snapshots: Vec<(Snapshot, bool)>,
 }
 
@@ -329,7 +329,7 @@ impl EmitterNode<'_> {
 
     /// Measures and publishes step `k`, keeping it for replays.
     fn publish(&mut self, node: &mut Node, k: u64) -> Result<(), ProcessError> {
-        if self.args.checkpoint.is_some() && checkpoint::is_checkpoint_step(k) {
+        if self.args.checkpoint.is_some() && recovery::is_snapshot_step(k) {
             self.before = Some((self.world.snapshot(), self.previous == CommandOutcome::Missed));
         }
         // A geometry the world cannot measure (two UAVs on top of each other: a collision) is where the
@@ -383,9 +383,9 @@ impl EmitterNode<'_> {
         if let (Some(path), Some(snapshot)) = (&self.args.checkpoint, self.before.take())
             && self.snapshots.last().is_none_or(|(s, _)| s.step < snapshot.0.step)
         {
-            checkpoint::push_kept(&mut self.snapshots, snapshot, EMITTER_SNAPSHOTS);
+            recovery::push_kept(&mut self.snapshots, snapshot, EMITTER_SNAPSHOTS);
             let saved = Saved { snapshots: self.snapshots.clone() };
-            if let Err(e) = checkpoint::save(path, ROLE, node.domain().as_str(), &saved) {
+            if let Err(e) = recovery::save(path, ROLE, node.domain().as_str(), &saved) {
                 node.warn(format_args!("{e}"));
             }
         }
@@ -472,10 +472,10 @@ fn check_args(args: &EmitterSimArgs) -> Result<(), ProcessError> {
     if !(args.connect_timeout_s >= 0.0 && args.connect_timeout_s.is_finite()) {
         return Err(ProcessError::Input(format!("--connect-timeout-s must be ≥ 0, got {}", args.connect_timeout_s)));
     }
-    if args.monitor_window >= checkpoint::CHECKPOINT_EVERY {
+    if args.monitor_window >= recovery::SNAPSHOT_EVERY {
         return Err(ProcessError::Input(format!(
             "--monitor-window must be below {} (the checkpoint interval; 0 turns it off), got {}",
-            checkpoint::CHECKPOINT_EVERY,
+            recovery::SNAPSHOT_EVERY,
             args.monitor_window
         )));
     }
@@ -502,7 +502,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     };
     // A restart in the same run flies on from the oldest snapshot of its checkpoint.
     let saved = match &args.checkpoint {
-        Some(path) => checkpoint::load::<Saved>(path, ROLE, domain.as_str())
+        Some(path) => recovery::load::<Saved>(path, ROLE, domain.as_str())
             .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?,
         None => None,
     };

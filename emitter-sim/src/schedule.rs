@@ -32,7 +32,7 @@
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
-use runtime::checkpoint::{HISTORY_STEPS, checkpoint_step_at_or_below};
+use runtime::recovery::{HISTORY_STEPS, snapshot_step_at_or_below};
 
 use crate::backpressure::MonitorProgress;
 
@@ -264,7 +264,7 @@ impl Schedule {
     /// Where a replay that must reach step `k` starts: the checkpoint step at or below it (every process
     /// can answer from there), or the oldest step kept.
     fn replay_start(&self, k: u64) -> u64 {
-        checkpoint_step_at_or_below(k).max(self.kept_from())
+        snapshot_step_at_or_below(k).max(self.kept_from())
     }
 
     /// The next instant [`poll`](Self::poll) has something to do without a new event.

@@ -9,22 +9,20 @@
 //! - A step-0 measurement starts a new run (or the run replayed from its start): the estimator forgets its
 //!   prior (as `uavloc simulate` starts with a fresh [`Estimator`]).
 //! - The estimate of step k depends on the state after step k − 1 (the fused posterior, or the previous
-//!   estimate as the prior that resolves Chan's two-root ambiguity). The estimator continues its own
-//!   chain (step k right after step k − 1, or step 0); for any other step it takes the state after
-//!   k − 1 from the messages: every command echoes the state of the estimate it was planned from
-//!   ([`protocol::StateEcho`]), and the estimator reads the command topic (without waking for it) and
-//!   keeps those states for the last [`MAX_ECHOES`] steps. So a step seen again — a replay for a
-//!   restarted monitor, a world rewound to an older emitter-sim snapshot — is estimated again from the
-//!   state before it, bit for bit the estimate it had (`resent` counts them); no answer is kept. A step
-//!   whose predecessor's state it has neither made nor seen echoed is counted (`out_of_chain`) and
-//!   dropped, and the replay it asks for brings it. At start-up the estimator announces itself on the
-//!   control topic ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`]) from the step
-//!   after its checkpoint, or from step 0.
-//! - With `--checkpoint FILE` it writes its state (the last step estimated and the state after it) to
-//!   FILE every [`checkpoint::CHECKPOINT_EVERY`] steps, right before it estimates such a step; started
-//!   again with the same FILE (a restart) it resumes from the newest and keeps every one kept in the file
-//!   as a state to go on from (the steps a restarted emitter-sim's snapshots can rewind the world to,
-//!   older than any command the new estimator has seen; see [`runtime::checkpoint`]).
+//!   estimate as the prior that resolves Chan's two-root ambiguity). The estimator keeps no file and no
+//!   answer: it continues its own chain (step k right after step k − 1, or step 0), and for any other step
+//!   it takes the state after k − 1 from the messages ([`runtime::recovery`]). Every command echoes the
+//!   state of the estimate it was planned from ([`protocol::StateEcho`]); the estimator reads the command
+//!   topic (without waking for it) and keeps those states ([`StateStore`]). A step seen again — a replay
+//!   for a restarted monitor, a world rewound to an older emitter-sim snapshot — is estimated again from
+//!   the state before it, bit for bit the estimate it had (`resent` counts them). A step whose
+//!   predecessor's state it has neither made nor seen echoed (after its own restart, or a world rewound
+//!   further back than it remembers) is held (`out_of_chain` counts them) while it asks for that state
+//!   ([`ControlKind::State`], again every [`STATE_RETRY`] while unanswered); the monitor, which keeps every
+//!   echoed state, answers on `<domain>/state` ([`protocol::EstimatorState`]), and the held steps are
+//!   estimated then, in step order. At start-up the estimator announces itself on the control topic
+//!   ([`ControlKind::Hello`]) and asks for a replay of the step in flight ([`ControlKind::IN_FLIGHT`]),
+//!   whose measurement its predecessor may have taken with it.
 //! - When Chan fails the library keeps its previous estimate; on the wire that is a `failed` estimate
 //!   carrying that standing estimate (v3), which the planner plans from and the monitor records — the
 //!   numbers of `uavloc simulate`, with no fallback state in either.
@@ -41,17 +39,17 @@
 //! estimates from k + 1 on — exactly what the old one would have.
 
 use std::collections::{BTreeMap, HashMap};
-use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::{Duration, Instant};
 
 use clap::Args;
 use nalgebra::{Matrix4, Vector2, Vector4};
 use protocol::services;
 use protocol::{
-    Command, ControlKind, EchoedState, Estimate, EstimateStatus as WireStatus, Fix, Measurement, PosteriorExtra, Topic,
-    TopicPublisher, TopicSubscriber, Waitable,
+    Command, ControlKind, EchoedState, Estimate, EstimateStatus as WireStatus, EstimatorState, Fix, Measurement,
+    PosteriorExtra, StateEcho, Topic, TopicPublisher, TopicSubscriber, Waitable,
 };
-use runtime::checkpoint::{self, HISTORY_STEPS, PROCESS_CHECKPOINTS};
+use runtime::recovery::StateStore;
 use runtime::{Flow, Handler, Node};
 use tdoa::{Dynamics, NoiseModel, Posterior, RangeDiffs};
 
@@ -101,11 +99,6 @@ pub struct EstimatorArgs {
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     #[serde(serialize_with = "runtime::flags::finite")]
     pub interval_s: f64,
-    /// Checkpoint file: the state is written there every 256 steps, and a start that finds it (a restart
-    /// in the same run) resumes from it instead of having the run replayed from step 0. Remove it before
-    /// a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
-    #[arg(long, value_name = "FILE")]
-    pub checkpoint: Option<PathBuf>,
 }
 
 pub use runtime::ProcessError;
@@ -118,20 +111,9 @@ pub struct EstimatorSummary {
     pub node: runtime::NodeSummary,
     /// Estimates published as `failed` (Chan failed; the previous estimate stands).
     pub failed: u64,
-    /// Measurements dropped because the step before them was not estimated (see the module docs).
+    /// Measurements held because the state after the step before them was not known (see the module
+    /// docs); each is estimated once the state comes.
     pub out_of_chain: u64,
-}
-
-/// What the estimator writes to its `--checkpoint` file.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Checkpoint {
-    /// The last step estimated.
-    pub step: u64,
-    /// The previous usable estimate (metres) and its covariance (m²), the prior of the next solve.
-    pub previous: Option<([f64; 2], [[f64; 2]; 2])>,
-    /// The fused posterior beyond the position (velocity block), as in the estimate.
-    #[serde(default)]
-    pub extra: PosteriorExtra,
 }
 
 impl EstimatorArgs {
@@ -182,8 +164,12 @@ pub fn posterior_of(position: &[f64; 2], covariance: &[[f64; 2]; 2], extra: &Pos
     Posterior::new(model, mean, cov).ok()
 }
 
-/// Echoed states kept (the oldest is forgotten beyond): emitter-sim's replay history.
-pub const MAX_ECHOES: usize = HISTORY_STEPS as usize;
+/// Measurements held for the state before them (the newest are kept beyond).
+pub const MAX_HELD: usize = 64;
+
+/// How long an unanswered request for a state waits before it is asked again (the monitor may have been
+/// restarting).
+pub const STATE_RETRY: Duration = Duration::from_millis(500);
 
 /// Where the estimator's chain is: the library estimator and the last step it estimated.
 #[derive(Debug, Default)]
@@ -212,16 +198,26 @@ impl Chain {
     }
 }
 
-/// The estimator's per-run state: its chain, and the states after earlier steps that the messages carried
-/// (each command echoes the state it was planned from, [`protocol::StateEcho`]; the checkpoints are
-/// states too), so that a step seen again — a replay, or a world rewound to an older snapshot — is
-/// estimated again from the state before it, giving the same estimate bit for bit. No answer is kept.
+/// A measurement held until the state before it is known, with the time it was received.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Held {
+    /// The measurement.
+    pub measurement: Measurement,
+    /// When it was received ([`protocol::now_ns`]).
+    pub received_ns: u64,
+}
+
+/// The estimator's per-run state: its chain, the states after earlier steps that the messages carried
+/// (each command echoes the state it was planned from, [`protocol::StateEcho`]; the monitor sends the ones
+/// asked for), and the measurements held for a state not yet known. A step seen again — a replay, or a
+/// world rewound to an older snapshot — is estimated again from the state before it, giving the same
+/// estimate bit for bit. No answer is kept.
 #[derive(Debug, Default)]
 pub struct StepEstimator {
     config: EstimatorConfig,
     chain: Chain,
-    echoes: BTreeMap<u64, EchoedState>,
-    checkpoints: Vec<Checkpoint>,
+    states: StateStore,
+    held: BTreeMap<u64, Held>,
     /// The highest step estimated (a step at or below it is estimated again).
     highest: Option<u64>,
 }
@@ -261,7 +257,8 @@ pub enum Answer {
     New(Reply),
     /// A step estimated again (a replay, a rewound world), from the state before it.
     Again(Reply),
-    /// Not estimated: the step before it was not (see the module docs).
+    /// Not estimated yet: the state after the step before it is not known; the measurement is held
+    /// until it is (see [`StepEstimator::wanted`]).
     OutOfChain,
 }
 
@@ -294,80 +291,56 @@ impl StepEstimator {
         self.chain.last_step
     }
 
-    /// The state to checkpoint (`None` before the first step).
-    pub fn checkpoint(&self) -> Option<Checkpoint> {
-        let step = self.chain.last_step?;
-        let e = &self.chain.estimator;
-        let previous = e.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c));
-        let extra = extra_of(e.posterior().as_ref(), e.rejected_run());
-        Some(Checkpoint { step, previous, extra })
+    /// Keeps a state a message carried (a command's echo, the monitor's answer; the first one per step).
+    pub fn remember(&mut self, state: StateEcho) {
+        self.states.keep(state);
     }
 
-    /// The state a checkpoint holds, as an echoed state.
-    fn echo_of(c: &Checkpoint) -> EchoedState {
-        match c.previous {
-            Some((position, covariance)) => {
-                EchoedState::State { step: c.step, estimate: (position, covariance), extra: c.extra }
-            }
-            None => EchoedState::Empty { step: c.step },
-        }
+    /// The step whose state the oldest held measurement waits for (to ask for it), if any.
+    pub fn wanted(&self) -> Option<u64> {
+        self.held.keys().next().map(|&k| k - 1)
     }
 
-    /// The state of the newest of `kept` checkpoints (oldest first); every one of them is a state to
-    /// estimate the step after it from.
-    pub fn from_checkpoints(config: EstimatorConfig, kept: Vec<Checkpoint>) -> Self {
-        let mut s = Self::with_config(config);
-        for c in &kept {
-            s.remember(Self::echo_of(c));
-        }
-        if let Some(c) = kept.last() {
-            s.chain = Chain::from_echo(config, &Self::echo_of(c));
-            s.highest = Some(c.step);
-        }
-        s.checkpoints = kept;
-        s
-    }
-
-    /// The checkpoints kept, oldest first.
-    pub fn checkpoints(&self) -> &[Checkpoint] {
-        &self.checkpoints
-    }
-
-    /// Records the current state as a checkpoint (kept among the last [`PROCESS_CHECKPOINTS`]); `false`
-    /// before the first step.
-    pub fn take_checkpoint(&mut self) -> bool {
-        let Some(c) = self.checkpoint() else { return false };
-        if self.checkpoints.last() != Some(&c) {
-            checkpoint::push_kept(&mut self.checkpoints, c, PROCESS_CHECKPOINTS);
-        }
-        true
-    }
-
-    /// Keeps a state a message carried (the first one per step; the last [`MAX_ECHOES`] steps).
-    pub fn remember(&mut self, state: EchoedState) {
-        self.echoes.entry(state.step()).or_insert(state);
-        if self.echoes.len() > MAX_ECHOES {
-            self.echoes.pop_first();
-        }
-    }
-
-    /// The answer to a (validated) measurement; see the module docs.
-    pub fn handle(&mut self, m: &Measurement) -> Answer {
+    /// The answer to a (validated) measurement received at `received_ns`; see the module docs. An
+    /// out-of-chain measurement is held.
+    pub fn handle(&mut self, m: &Measurement, received_ns: u64) -> Answer {
         let step = m.header.step;
         let again = self.highest.is_some_and(|h| step <= h);
         if step == 0 {
             // A new run (or the run replayed from its start).
             self.chain = Chain::fresh(self.config);
         } else if self.chain.last_step != Some(step - 1) {
-            match self.echoes.get(&(step - 1)) {
-                Some(state) => self.chain = Chain::from_echo(self.config, state),
-                None => return Answer::OutOfChain,
+            match self.states.get(step - 1) {
+                Some(state) => self.chain = Chain::from_echo(self.config, &state),
+                None => {
+                    self.held.insert(step, Held { measurement: *m, received_ns });
+                    while self.held.len() > MAX_HELD {
+                        self.held.pop_first();
+                    }
+                    return Answer::OutOfChain;
+                }
             }
         }
+        self.held.remove(&step);
         let reply = estimate_measurement(&mut self.chain.estimator, m);
         self.chain.last_step = Some(step);
         self.highest = self.highest.max(Some(step));
         if again { Answer::Again(reply) } else { Answer::New(reply) }
+    }
+
+    /// The held measurements whose predecessor's state is known now, estimated in step order (each with
+    /// its answer); the others stay held.
+    pub fn release(&mut self) -> Vec<(Held, Answer)> {
+        let mut out = Vec::new();
+        let steps: Vec<u64> = self.held.keys().copied().collect();
+        for step in steps {
+            let known = self.chain.last_step == Some(step - 1) || self.states.get(step - 1).is_some();
+            if let Some(h) = known.then(|| self.held.remove(&step)).flatten() {
+                let answer = self.handle(&h.measurement, h.received_ns);
+                out.push((h, answer));
+            }
+        }
+        out
     }
 }
 
@@ -417,6 +390,9 @@ struct EstimatorNode<'a> {
     /// The planner's commands, for the states they echo (read on every wake-up, never waited on).
     commands: &'a TopicSubscriber<Command>,
     command_seq: Option<u64>,
+    /// The monitor's answers to this estimator's state requests.
+    states: &'a TopicSubscriber<EstimatorState>,
+    state_seq: Option<u64>,
     estimates: &'a TopicPublisher<Estimate>,
     /// With --takeover: the running estimator's estimates (its state to take over), and the last sequence
     /// number of each of its instances.
@@ -426,6 +402,8 @@ struct EstimatorNode<'a> {
     state: StepEstimator,
     /// With --takeover: the step this estimator takes over from.
     from_step: Option<u64>,
+    /// The last state asked for, and when.
+    asked: Option<(u64, Instant)>,
     summary: EstimatorSummary,
 }
 
@@ -454,60 +432,92 @@ impl EstimatorNode<'_> {
         Ok(())
     }
 
-    /// The checkpoint (the state before a checkpoint step) goes out before the step's estimate.
-    fn checkpoint_before(&mut self, node: &Node, step: u64) {
-        if let Some(path) = &self.args.checkpoint
-            && checkpoint::is_checkpoint_step(step)
-            && self.state.last_step() == Some(step - 1)
-            && self.state.take_checkpoint()
-            && let Err(e) = checkpoint::save(path, ROLE, node.domain().as_str(), &self.state.checkpoints())
-        {
-            node.warn(format_args!("{e}"));
+    /// The states the messages carry: the commands' echoes and the monitor's answers.
+    fn take_states(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        let (commands, _) = node.receive(self.commands, &mut self.command_seq, "a command")?;
+        for c in &commands {
+            self.state.remember(c.state);
         }
+        // Sequence numbers start at the clock: a restarted monitor's number above its predecessor's.
+        let (states, _) = node.receive(self.states, &mut self.state_seq, "a state")?;
+        for s in &states {
+            self.state.remember(s.state);
+        }
+        Ok(())
+    }
+
+    /// Publishes the estimate of `m` (received at `received_ns`) as `answer` says.
+    fn publish(
+        &mut self,
+        node: &mut Node,
+        m: &Measurement,
+        received_ns: u64,
+        answer: Answer,
+    ) -> Result<(), ProcessError> {
+        let step = m.header.step;
+        let reply = match answer {
+            Answer::New(reply) => reply,
+            Answer::Again(reply) => {
+                node.summary().resent += 1;
+                reply
+            }
+            Answer::OutOfChain => {
+                self.summary.out_of_chain += 1;
+                node.say(format_args!("step {step}: held until the state after step {} is known", step - 1));
+                return Ok(());
+            }
+        };
+        if reply.fix == Fix::Failed {
+            self.summary.failed += 1;
+            node.warn(format_args!("step {step}: no fix (the previous estimate stands)"));
+        }
+        let seq = node.next_seq();
+        let estimate = reply
+            .to_estimate(m, received_ns, seq, node.instance())
+            .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;
+        self.estimates.send(&estimate)?;
+        node.summary().published += 1;
+        Ok(())
+    }
+
+    /// Asks for the state the oldest held measurement waits for (again after [`STATE_RETRY`]).
+    fn ask(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        let Some(step) = self.state.wanted() else {
+            self.asked = None;
+            return Ok(());
+        };
+        if self.asked.is_none_or(|(s, at)| s != step || at.elapsed() >= STATE_RETRY) {
+            node.announce(ControlKind::State, step, "")?;
+            self.asked = Some((step, Instant::now()));
+        }
+        Ok(())
     }
 }
 
 impl Handler for EstimatorNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
         self.follow_predecessor(node)?;
-        let (commands, _) = node.receive(self.commands, &mut self.command_seq, "a command")?;
-        for state in commands.iter().filter_map(|c| c.state.decode()) {
-            self.state.remember(state);
+        self.take_states(node)?;
+        for (held, answer) in self.state.release() {
+            self.publish(node, &held.measurement, held.received_ns, answer)?;
         }
         let (batch, received_ns) = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
         for m in batch {
-            let step = m.header.step;
-            if node.hands_over(step) {
+            if node.hands_over(m.header.step) {
                 return Ok(Flow::Stop);
             }
             if self.args.takeover && self.from_step.is_none() {
                 continue; // the running estimator's step
             }
-            self.checkpoint_before(node, step);
-            let reply = match self.state.handle(&m) {
-                Answer::New(reply) => reply,
-                Answer::Again(reply) => {
-                    node.summary().resent += 1;
-                    reply
-                }
-                Answer::OutOfChain => {
-                    self.summary.out_of_chain += 1;
-                    node.say(format_args!("step {step}: the step before was not estimated here; waiting for a replay"));
-                    continue;
-                }
-            };
-            if reply.fix == Fix::Failed {
-                self.summary.failed += 1;
-                node.warn(format_args!("step {step}: no fix (the previous estimate stands)"));
-            }
-            let seq = node.next_seq();
-            let estimate = reply
-                .to_estimate(&m, received_ns, seq, node.instance())
-                .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;
-            self.estimates.send(&estimate)?;
-            node.summary().published += 1;
+            let answer = self.state.handle(&m, received_ns);
+            self.publish(node, &m, received_ns, answer)?;
         }
+        self.ask(node)?;
         Ok(Flow::Continue)
+    }
+
+    fn deadline(&self) -> Option<Instant> {
+        self.asked.map(|(_, at)| at + STATE_RETRY)
     }
 
     fn last_answered(&self) -> Option<u64> {
@@ -525,42 +535,34 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     let measurements = Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain))?;
     let estimates = Topic::<Estimate>::publisher(node.link(), &services::estimate(&domain))?;
     let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
+    let states = Topic::<EstimatorState>::subscriber(node.link(), &services::state(&domain))?;
     let predecessor =
         args.takeover.then(|| Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))).transpose()?;
-    // A restart in the same run resumes from its checkpoint.
-    let kept = match (&args.checkpoint, args.takeover) {
-        (Some(path), false) => checkpoint::load::<Vec<Checkpoint>>(path, ROLE, domain.as_str())
-            .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?
-            .unwrap_or_default(),
-        _ => Vec::new(),
-    };
-    let resumed = kept.last().copied();
     if !args.takeover {
-        // "Replay the run for me from the step after my checkpoint, else from step 0" (a no-op at the start
-        // of a launch: emitter-sim is not there).
+        // "Replay the step in flight for me" (a no-op at the start of a launch: emitter-sim is not there).
         node.announce(ControlKind::Hello, 0, "")?;
-        node.announce(ControlKind::Replay, resumed.map_or(0, |c| c.step + 1), "")?;
+        node.announce(ControlKind::Replay, ControlKind::IN_FLIGHT, "")?;
     }
     node.ready();
     node.say(format_args!("domain {domain}, instance {:#x}", node.instance()));
-    if let Some(c) = &resumed {
-        node.say(format_args!("resumed from the checkpoint of step {}", c.step));
-    }
     let mut handler = EstimatorNode {
         args,
         config,
         measurements: &measurements,
         commands: &commands,
         command_seq: None,
+        states: &states,
+        state_seq: None,
         estimates: &estimates,
         predecessor: predecessor.as_ref(),
         predecessor_seq: HashMap::new(),
         last_seq: None,
-        state: StepEstimator::from_checkpoints(config, kept),
+        state: StepEstimator::with_config(config),
         from_step: None,
+        asked: None,
         summary: EstimatorSummary::default(),
     };
-    let mut inputs: Vec<&dyn Waitable> = vec![&measurements];
+    let mut inputs: Vec<&dyn Waitable> = vec![&measurements, &states];
     if let Some(p) = &predecessor {
         inputs.push(p);
     }
@@ -568,7 +570,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     let (published, resent) = (node.summary().published, node.summary().resent);
     let counts = node.counter().to_string();
     node.say(format_args!(
-        "stopped after {published} estimates ({resent} sent again, {} out of chain; {counts})",
+        "stopped after {published} estimates ({resent} sent again, {} held for a state; {counts})",
         handler.summary.out_of_chain
     ));
     Ok(EstimatorSummary { node: node.finish(), ..handler.summary })
@@ -628,7 +630,6 @@ mod tests {
             process_noise_accel: 0.1 + 0.2,
             velocity_prior_sigma: 7.5,
             interval_s: 1.0 / 3.0,
-            checkpoint: Some("/tmp/e.ckpt".into()),
         };
         let flags = runtime::flags::to_flags(&a).unwrap();
         let back = Cli::try_parse_from(std::iter::once("estimator".to_string()).chain(flags)).unwrap().args;
@@ -653,19 +654,14 @@ mod tests {
     }
 
     /// Replays, restarts and rewinds of one estimator configuration give the undisturbed estimates bit for
-    /// bit, with no answer kept: every step seen again is estimated again from the state before it, which
-    /// a command echoed (fused: the posterior, velocity block included) or a checkpoint held.
+    /// bit, with no answer and no file kept: every step seen again is estimated again from the state before
+    /// it, which a command echoed or the monitor sent (fused: the posterior, velocity block included).
     fn echo_case(config: EstimatorConfig) {
         let label = format!("{:?}", config.kind);
         let mut straight = StepEstimator::with_config(config);
-        let mut kept = Vec::new();
         let (mut reference, mut echoes) = (Vec::new(), Vec::new());
         for k in 0..=12 {
-            if k == 4 || k == 8 {
-                assert!(straight.take_checkpoint());
-                kept = straight.checkpoints().to_vec();
-            }
-            let answer = straight.handle(&measurement(k));
+            let answer = straight.handle(&measurement(k), k);
             assert!(matches!(answer, Answer::New(..)), "{label} step {k}");
             let r = reply(answer);
             if config.kind == EstimatorKind::Fused && k > 0 {
@@ -673,40 +669,57 @@ mod tests {
             }
             // What the planner's command of step k echoes.
             let estimate = r.to_estimate(&measurement(k), 0, k + 1, 1).unwrap();
-            echoes.push(protocol::StateEcho::of(&estimate).unwrap().decode().unwrap());
+            echoes.push(protocol::StateEcho::of(&estimate).unwrap());
             reference.push(r);
         }
-        assert_eq!(kept.iter().map(|c| c.step).collect::<Vec<_>>(), vec![3, 7]);
 
         // A replay of steps 5..=12 to an estimator that saw every command: the same estimates again.
         let mut live = StepEstimator::with_config(config);
         for k in 0..=12 {
-            live.handle(&measurement(k));
+            live.handle(&measurement(k), k);
             live.remember(echoes[k as usize]);
         }
         for k in 5..=12 {
-            let answer = live.handle(&measurement(k));
+            let answer = live.handle(&measurement(k), k);
             assert!(matches!(answer, Answer::Again(..)), "{label} step {k}");
             assert_eq!(reply(answer), reference[k as usize], "{label} step {k} replayed");
         }
-        // Without the state before it, a step seen again is out of chain (the estimator waits).
-        let mut bare = StepEstimator::with_config(config);
-        for k in 0..=12 {
-            let _ = bare.handle(&measurement(k));
-        }
-        assert_eq!(bare.handle(&measurement(5)), Answer::OutOfChain, "{label}");
+        assert_eq!(live.wanted(), None);
 
-        // Restarted from the newest checkpoint (after step 7), replayed from step 8 …
-        let mut restarted = StepEstimator::from_checkpoints(config, kept);
-        assert_eq!(restarted.last_step(), Some(7));
-        for k in 8..=9 {
-            assert_eq!(reply(restarted.handle(&measurement(k))), reference[k as usize], "{label} step {k}");
+        // Restarted (a fresh state, no file): the step in flight is held until the state before it comes.
+        let mut restarted = StepEstimator::with_config(config);
+        assert_eq!(restarted.handle(&measurement(8), 80), Answer::OutOfChain, "{label}");
+        assert_eq!(restarted.handle(&measurement(9), 90), Answer::OutOfChain, "{label}");
+        assert_eq!(restarted.wanted(), Some(7));
+        assert!(restarted.release().is_empty(), "{label}: nothing known yet");
+        restarted.remember(echoes[7]);
+        let released = restarted.release();
+        assert_eq!(
+            released.iter().map(|(h, _)| (h.measurement.header.step, h.received_ns)).collect::<Vec<_>>(),
+            vec![(8, 80), (9, 90)]
+        );
+        for (h, answer) in released {
+            let k = h.measurement.header.step;
+            assert_eq!(reply(answer), reference[k as usize], "{label} step {k} after the restart");
         }
-        // … then the world rewound to step 4 (an older emitter-sim snapshot, an older checkpoint) flies on
-        // past step 12: every estimate as the undisturbed one.
-        for k in 4..=12 {
-            assert_eq!(reply(restarted.handle(&measurement(k))), reference[k as usize], "{label} step {k} rewound");
+        assert_eq!(restarted.wanted(), None);
+        // … then the world rewound to step 4 (an older emitter-sim snapshot, before anything this instance
+        // saw): held until the monitor sends the state after step 3, then every estimate as the
+        // undisturbed one past step 12.
+        assert_eq!(restarted.handle(&measurement(4), 4), Answer::OutOfChain, "{label}");
+        assert_eq!(restarted.wanted(), Some(3));
+        restarted.remember(echoes[3]);
+        assert_eq!(reply(restarted.release()[0].1), reference[4], "{label} step 4 rewound");
+        for k in 5..=12 {
+            assert_eq!(reply(restarted.handle(&measurement(k), k)), reference[k as usize], "{label} step {k} rewound");
         }
         assert_eq!(restarted.last_step(), Some(12));
+
+        // Held measurements are bounded: the newest are kept.
+        let mut bare = StepEstimator::with_config(config);
+        for k in 1..=MAX_HELD as u64 + 10 {
+            assert_eq!(bare.handle(&measurement(100 + 2 * k), k), Answer::OutOfChain);
+        }
+        assert_eq!(bare.wanted(), Some(100 + 2 * 11 - 1));
     }
 }

@@ -11,8 +11,8 @@ MAX_UAVS = 8
 MIN_UAVS = 3
 
 MEASUREMENT_VERSION = 1
-COMMAND_VERSION = 3
-CONTROL_VERSION = 2
+COMMAND_VERSION = 4
+CONTROL_VERSION = 4
 
 # Event id of "a sample was published" on a topic's companion event service (protocol::transport::event_id).
 EVENT_SAMPLE = 1

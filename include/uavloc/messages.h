@@ -30,13 +30,13 @@ extern "C" {
 #define UAVLOC_ESTIMATE_VERSION 3u
 #define UAVLOC_COMMAND_VERSION 4u
 #define UAVLOC_TRUTH_VERSION 2u
-#define UAVLOC_CONTROL_VERSION 3u
+#define UAVLOC_CONTROL_VERSION 4u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v1"
 #define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v3"
 #define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v4"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
-#define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v3"
+#define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v4"
 
 /* Latency stamps (CLOCK_MONOTONIC, ns; 0 = not stamped) carried forward along one planning cycle. */
 typedef struct uavloc_stamps {
@@ -159,6 +159,7 @@ typedef struct uavloc_truth {
 #define UAVLOC_CONTROL_PROGRESS 3u
 #define UAVLOC_CONTROL_REPLAY 4u
 #define UAVLOC_CONTROL_STATUS 5u
+#define UAVLOC_CONTROL_STATE 6u
 /* The step of a replay request that asks for the step in flight only. */
 #define UAVLOC_CONTROL_IN_FLIGHT UINT64_MAX
 

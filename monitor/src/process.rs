@@ -35,11 +35,16 @@
 //!
 //! With `--resume` (what `uavloc launch` passes to a restarted monitor) it appends to its `--log` instead
 //! of truncating it, reads back the steps recorded there, and announces itself on the control topic
-//! ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`]) from the first step it lacks:
-//! emitter-sim replays the run from there (the
-//! estimator answers from what it kept, the planner plans the same estimates again), so the record is
-//! complete again. The latency
-//! statistics of the summary cover the steps this instance saw.
+//! ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`]) from the snapshot step at or
+//! below the first step it lacks: emitter-sim replays the run from there (the estimator estimates the
+//! steps again from the states the messages carry, the planner plans the same estimates again), so the
+//! record is complete again. The latency statistics of the summary cover the steps this instance saw.
+//!
+//! The monitor is also one of the holders of the estimator's state ([`runtime::recovery`]): it keeps the
+//! state after every step (from the step's estimate or its command's echo; the last 4 096 steps), writes
+//! it with the step in its log (`state`: the [`protocol::StateEcho`]'s bytes in hex, read back on
+//! `--resume`), and answers an estimator's request for one ([`ControlKind::State`]; logged as
+//! `state_request`) on `<domain>/state`, at once or as soon as it has it.
 //!
 //! With `--source external` there is no truth (an external front end publishes the measurements): steps
 //! complete without one and the truth-based fields stay absent ([`crate::assemble`]); no replay is asked
@@ -57,10 +62,10 @@ use clap::Args;
 use model::load_scenario;
 use protocol::services;
 use protocol::{
-    Command, Control, ControlKind, Estimate, Measurement, MessageKind, RejectionCounter, Topic, TopicSubscriber, Truth,
-    Waitable, now_ns,
+    Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, RejectionCounter, StateEcho,
+    Topic, TopicPublisher, TopicSubscriber, Truth, Waitable, now_ns,
 };
-use runtime::checkpoint::checkpoint_step_at_or_below;
+use runtime::recovery::{StateStore, snapshot_step_at_or_below};
 use runtime::{Flow, Handler, IDLE_WAKEUP, Node};
 use serde_json::json;
 
@@ -260,6 +265,9 @@ struct State {
     emitter_joined: bool,
     /// `--mcap`: every valid message, as received.
     recorder: Option<Recorder>,
+    /// The estimator states the commands echoed, and the ones an estimator asked for
+    /// ([`runtime::recovery`]).
+    states: StateStore,
 }
 
 impl State {
@@ -267,7 +275,7 @@ impl State {
         &mut self,
         node: &mut Node,
         sub: &TopicSubscriber<T>,
-        add: fn(&mut Assembler, T) -> bool,
+        add: fn(&mut State, T),
     ) -> Result<(), ProcessError> {
         let batch = sub.receive_all()?;
         let received_ns = now_ns();
@@ -297,7 +305,7 @@ impl State {
                 "message",
                 json!({"kind": T::KIND.name(), "step": h.step, "seq": h.seq, "age_us": us(h.stamps.age_ns(received_ns))}),
             );
-            add(&mut self.assembler, msg);
+            add(self, msg);
         }
         Ok(())
     }
@@ -306,6 +314,14 @@ impl State {
     fn heard(&mut self, c: &Control) {
         if let Some(r) = &mut self.recorder {
             r.record(c, now_ns());
+        }
+        if c.kind() == Some(ControlKind::State) {
+            self.states.want(c.header.step);
+            self.log.write(
+                "state_request",
+                json!({"role": c.role().unwrap_or("?"), "instance": c.instance, "step": c.header.step}),
+            );
+            return;
         }
         if c.kind() == Some(ControlKind::Status) {
             self.log.write(
@@ -381,6 +397,7 @@ impl State {
                     "truth": done.truth,
                     "command_missed": done.missed,
                     "estimate_stale": done.held,
+                    "state": self.states.echo(done.record.step).map(|e| crate::runlog::state_to_hex(&e)),
                 }),
             );
             if done.missed {
@@ -442,6 +459,8 @@ struct MonitorNode<'a> {
     measurements: &'a TopicSubscriber<Measurement>,
     estimates: &'a TopicSubscriber<Estimate>,
     commands: &'a TopicSubscriber<Command>,
+    /// The answers to the estimator's state requests.
+    states: &'a TopicPublisher<EstimatorState>,
     replay_asked: Option<u64>,
     progress_sent: Option<(u64, Instant)>,
 }
@@ -454,10 +473,24 @@ impl Handler for MonitorNode<'_> {
 
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
         let state = &mut self.state;
-        state.drain(node, self.truths, Assembler::add_truth)?;
-        state.drain(node, self.measurements, Assembler::add_measurement)?;
-        state.drain(node, self.estimates, Assembler::add_estimate)?;
-        state.drain(node, self.commands, Assembler::add_command)?;
+        state.drain(node, self.truths, |s, m| _ = s.assembler.add_truth(m))?;
+        state.drain(node, self.measurements, |s, m| _ = s.assembler.add_measurement(m))?;
+        // The state after a step, from its estimate (which carries it whole) or its command's echo: the
+        // estimate covers a step the planner held on (its command echoes none).
+        state.drain(node, self.estimates, |s, e| {
+            if let Some(echo) = StateEcho::of(&e) {
+                s.states.keep(echo);
+            }
+            s.assembler.add_estimate(e);
+        })?;
+        state.drain(node, self.commands, |s, c| {
+            s.states.keep(c.state);
+            s.assembler.add_command(c);
+        })?;
+        for echo in state.states.take_answers() {
+            let seq = node.next_seq();
+            self.states.send(&EstimatorState::new(echo, seq, node.instance()))?;
+        }
         state.complete_steps(node.counter().total());
         // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
         state.log.check()?;
@@ -487,7 +520,7 @@ impl Handler for MonitorNode<'_> {
             state.replays_requested += 1;
             state.log.write("replay_request", json!({"step": next, "newest": newest}));
             node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));
-            node.announce(ControlKind::Replay, checkpoint_step_at_or_below(next), "lost")?;
+            node.announce(ControlKind::Replay, snapshot_step_at_or_below(next), "lost")?;
         }
         Ok(if state.assembler.is_done() { Flow::Stop } else { Flow::Continue })
     }
@@ -500,10 +533,14 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
     // With a log, the step records live there, not in memory (read back at the end); a restart takes the
-    // steps its predecessor logged.
+    // steps its predecessor logged, and the estimator states they echoed.
+    let mut states = StateStore::new();
     let (assembler, resumed) = match (&args.log, args.resume) {
         (Some(path), true) => {
-            let LoggedRun { count, last, truth, names, .. } = read_log(path, false);
+            let LoggedRun { count, last, truth, names, states: logged, .. } = read_log(path, false);
+            for echo in logged {
+                states.keep(echo);
+            }
             match Assembler::resume_forgetting(scenario.clone(), count, last.as_ref(), truth, names) {
                 Some(a) => (a, Some(count)),
                 None => (Assembler::new(scenario.clone()).forgetting(), Some(0)),
@@ -530,6 +567,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let estimates = Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))?;
     let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
     let truths = Topic::<Truth>::subscriber(node.link(), &services::truth(&domain))?;
+    let state_answers = Topic::<EstimatorState>::publisher(node.link(), &services::state(&domain))?;
     let mut monitor = MonitorNode {
         state: State {
             assembler,
@@ -547,11 +585,13 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             replays_requested: 0,
             emitter_joined: false,
             recorder,
+            states,
         },
         truths: &truths,
         measurements: &measurements,
         estimates: &estimates,
         commands: &commands,
+        states: &state_answers,
         replay_asked: None,
         progress_sent: None,
     };
@@ -563,11 +603,10 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         ),
         Some(n) => state.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
     }
-    // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
-    // (From the checkpoint step at or below it: the estimator and planner can answer from there even when
-    // they were restarted; see runtime::checkpoint.)
+    // "Replay the run for me from the first step I lack" (a no-op at the start of a launch), from the
+    // snapshot step at or below it, where emitter-sim's own retries start too (runtime::recovery).
     node.announce(ControlKind::Hello, 0, "")?;
-    node.announce(ControlKind::Replay, checkpoint_step_at_or_below(state.assembler.next_step()), "")?;
+    node.announce(ControlKind::Replay, snapshot_step_at_or_below(state.assembler.next_step()), "")?;
     node.ready();
     match resumed {
         None if external => node.say(format_args!(
@@ -706,6 +745,40 @@ mod tests {
         let run = read_log(&path, true);
         assert_eq!(run.count, 3);
         assert_eq!(run.steps[1].crlb_true_m, Some(f64::INFINITY));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn the_states_in_the_log_read_back_bit_for_bit() {
+        use crate::runlog::{state_from_hex, state_to_hex};
+        let dir = std::env::temp_dir().join(format!("uavloc-log-states-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.jsonl");
+        let mut log = EventLog::open(Some(&path), false).unwrap();
+        let echo = |k: u64| StateEcho {
+            step: k,
+            kind: StateEcho::STATE,
+            estimator: 1,
+            position: [0.1 + 0.2 + k as f64, -1e-300],
+            covariance: [[4.0, 1e-12], [1e-12, 5.0]],
+            ..StateEcho::default()
+        };
+        let empty = StateEcho { step: 1, kind: StateEcho::EMPTY, ..StateEcho::default() };
+        for (k, e) in [(0u64, Some(echo(0))), (1, Some(empty)), (2, None), (3, Some(echo(3)))] {
+            let record = crate::record::tests::record(k, 10.0);
+            log.write("step", json!({"step": k, "record": record, "state": e.map(|e| state_to_hex(&e))}));
+        }
+        let run = read_log(&path, false);
+        assert_eq!(run.count, 4);
+        assert_eq!(run.states, vec![echo(0), empty, echo(3)]);
+        // Text that is not a valid state is none.
+        let hex = state_to_hex(&echo(3));
+        for bad in [&hex[..hex.len() - 2], "zz", "", &hex.replace("01", "07")] {
+            assert_eq!(state_from_hex(bad), None, "{bad}");
+        }
+        let mut nan = echo(3);
+        nan.covariance[0][0] = f64::NAN;
+        assert_eq!(state_from_hex(&state_to_hex(&nan)), None);
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -31,6 +31,8 @@ pub fn topic(kind: MessageKind) -> &'static str {
         MessageKind::Command => "/command",
         MessageKind::Truth => "/truth",
         MessageKind::Control => "/control",
+        // Not recorded (the monitor's own answers to the estimator); named for completeness.
+        MessageKind::State => "/state",
     }
 }
 

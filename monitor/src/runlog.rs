@@ -5,7 +5,8 @@ use std::fs::File;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use protocol::now_ns;
+use protocol::messages::AnyBitPattern as _;
+use protocol::{StateEcho, now_ns};
 use serde_json::json;
 
 use crate::record::StepRecord;
@@ -71,6 +72,25 @@ pub struct LoggedRun {
     pub truth: Option<[f64; 2]>,
     /// The run's (objective, solver).
     pub names: Option<(String, String)>,
+    /// The estimator states the logged steps' commands echoed (the last
+    /// [`HISTORY_STEPS`](runtime::recovery::HISTORY_STEPS) of them, oldest first).
+    pub states: Vec<StateEcho>,
+}
+
+/// A state echo as it is written in the log: its bytes in hex (exact, whatever the floats).
+pub fn state_to_hex(echo: &StateEcho) -> String {
+    echo.as_bytes().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The state echo of [`state_to_hex`]'s text; `None` for text that is not one (a state that does not pass
+/// validation included).
+pub fn state_from_hex(text: &str) -> Option<StateEcho> {
+    if !text.is_ascii() || !text.len().is_multiple_of(2) {
+        return None;
+    }
+    let bytes: Option<Vec<u8>> =
+        (0..text.len()).step_by(2).map(|i| u8::from_str_radix(&text[i..i + 2], 16).ok()).collect();
+    StateEcho::from_bytes(&bytes?).filter(|e| e.validate().is_ok() && e.decode().is_some())
 }
 
 /// Reads a monitor's log back, line by line (a missing file is an empty log); lines that do not parse are
@@ -101,6 +121,12 @@ pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
                 (e["planner"]["objective"].as_str(), e["planner"]["solver"].as_str())
         {
             names = Some((objective.to_string(), solver.to_string()));
+        }
+        if let Some(echo) = e["state"].as_str().and_then(state_from_hex) {
+            run.states.push(echo);
+            if run.states.len() > 2 * runtime::recovery::HISTORY_STEPS as usize {
+                run.states.drain(..runtime::recovery::HISTORY_STEPS as usize);
+            }
         }
         run.count += 1;
         if keep_steps {

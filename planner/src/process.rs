@@ -51,7 +51,7 @@ use clap::Args;
 use nalgebra::Vector2;
 use protocol::services;
 use protocol::{Command, ControlKind, Estimate, Measurement, PlanInfo, Topic, TopicPublisher, TopicSubscriber};
-use runtime::checkpoint::HISTORY_STEPS;
+use runtime::recovery::HISTORY_STEPS;
 use runtime::{Flow, Handler, Node};
 
 use crate::active_mask;

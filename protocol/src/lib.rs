@@ -36,8 +36,9 @@ use thiserror::Error;
 
 pub use control::{ControlChannel, instance_id};
 pub use messages::{
-    Command, CommandOutcome, Control, ControlKind, EchoedState, Estimate, EstimateStatus, Fix, Header, Latencies,
-    Measurement, Message, MessageKind, Name16, PlanInfo, PosteriorExtra, Stamps, StateEcho, Truth, cpu_ns, now_ns,
+    Command, CommandOutcome, Control, ControlKind, EchoedState, Estimate, EstimateStatus, EstimatorState, Fix, Header,
+    Latencies, Measurement, Message, MessageKind, Name16, PlanInfo, PosteriorExtra, Stamps, StateEcho, Truth, cpu_ns,
+    now_ns,
 };
 pub use services::Domain;
 pub use transport::{

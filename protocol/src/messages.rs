@@ -56,16 +56,19 @@ pub enum MessageKind {
     Truth,
     /// [`Control`].
     Control,
+    /// [`EstimatorState`].
+    State,
 }
 
 impl MessageKind {
     /// All kinds, in index order.
-    pub const ALL: [MessageKind; 5] = [
+    pub const ALL: [MessageKind; 6] = [
         MessageKind::Measurement,
         MessageKind::Estimate,
         MessageKind::Command,
         MessageKind::Truth,
         MessageKind::Control,
+        MessageKind::State,
     ];
 
     /// Stable lower-case name (`"measurement"`, …).
@@ -76,6 +79,7 @@ impl MessageKind {
             MessageKind::Command => "command",
             MessageKind::Truth => "truth",
             MessageKind::Control => "control",
+            MessageKind::State => "state",
         }
     }
 
@@ -128,7 +132,7 @@ impl Stamps {
             MessageKind::Measurement => self.measurement_published_ns = t,
             MessageKind::Estimate => self.estimate_published_ns = t,
             MessageKind::Command => self.command_published_ns = t,
-            MessageKind::Truth | MessageKind::Control => {}
+            MessageKind::Truth | MessageKind::Control | MessageKind::State => {}
         }
     }
 
@@ -154,7 +158,7 @@ impl Stamps {
                 trigger_command_received_ns: received_ns,
                 ..Stamps::default()
             },
-            MessageKind::Truth | MessageKind::Control => Stamps { published_ns: 0, ..*upstream },
+            MessageKind::Truth | MessageKind::Control | MessageKind::State => Stamps { published_ns: 0, ..*upstream },
         }
     }
 
@@ -885,6 +889,10 @@ pub struct StateEcho {
     pub velocity_cov: [[f64; 2]; 2],
 }
 
+// SAFETY: repr(C) of u64, four u8, u32 and f64 arrays, without implicit padding (144 bytes, see
+// `layout_is_stable`): every bit pattern is a value.
+unsafe impl AnyBitPattern for StateEcho {}
+
 /// What a [`StateEcho`] says, decoded.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum EchoedState {
@@ -1131,6 +1139,36 @@ impl Truth {
 }
 
 // ---------------------------------------------------------------------------------------------------------
+// EstimatorState
+// ---------------------------------------------------------------------------------------------------------
+
+/// Monitor → estimator (the `state` topic): the estimator's state after step `header.step`, as the command
+/// of that step echoed it ([`Command::state`]), in answer to a [`ControlKind::State`] request. This is how
+/// an estimator that keeps no file — restarted, or asked to estimate again a step older than the echoes it
+/// remembers — goes on from the state before the step it is given, bit for bit as its predecessor would.
+/// Internal to uavloc: a foreign front end neither sends nor reads it.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("uavloc::EstimatorState/v1")]
+#[repr(C)]
+pub struct EstimatorState {
+    /// Common header; `step` is the step the state is after.
+    pub header: Header,
+    /// Instance id of the sender.
+    pub instance: u64,
+    /// The state ([`StateEcho::STATE`] or [`StateEcho::EMPTY`], of step `header.step`).
+    pub state: StateEcho,
+}
+
+impl_message!(EstimatorState, MessageKind::State, 1, "uavloc::EstimatorState/v1");
+
+impl EstimatorState {
+    /// The state `state` (of its step) sent by instance `instance` with sequence number `seq`.
+    pub fn new(state: StateEcho, seq: u64, instance: u64) -> Self {
+        EstimatorState { header: Header::new(Self::VERSION, state.step, seq), instance, state }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------------
 // Control
 // ---------------------------------------------------------------------------------------------------------
 
@@ -1150,14 +1188,19 @@ pub enum ControlKind {
     /// record). A lock-step emitter-sim does not run more than `--monitor-window` steps ahead of the
     /// monitor's progress, and replays from it when it stalls.
     Progress = 3,
-    /// Publish the run again from step `header.step` (v2): the estimator asks from the step after its
-    /// checkpoint, a restarted monitor from its first step not in its log, a monitor that lost a message
-    /// from that step, the planner (which keeps no state) for [`ControlKind::IN_FLIGHT`], the step in
-    /// flight whose message it may have lost. emitter-sim replays from there.
+    /// Publish the run again from step `header.step` (v2): a restarted monitor asks from its first step
+    /// not in its log, a monitor that lost a message from that step, a restarted estimator or planner
+    /// (which keep no state) for [`ControlKind::IN_FLIGHT`], the step in flight whose message its
+    /// predecessor may have taken with it. emitter-sim replays from there.
     Replay = 4,
     /// The sender's count of messages it rejected so far is `header.step` (v3; sent when it changes, so
     /// that the monitor logs it and the live view shows every process's rejections during the run).
     Status = 5,
+    /// Send the estimator's state after step `header.step` (v4): an estimator asks when it is to estimate
+    /// a step whose predecessor's state it has neither made nor seen echoed (it was restarted, or the world
+    /// was rewound further back than it remembers); the monitor, which keeps the state every command
+    /// echoed, answers with an [`EstimatorState`] on `<domain>/state`.
+    State = 6,
 }
 
 impl ControlKind {
@@ -1174,6 +1217,7 @@ impl ControlKind {
             3 => Some(ControlKind::Progress),
             4 => Some(ControlKind::Replay),
             5 => Some(ControlKind::Status),
+            6 => Some(ControlKind::State),
             _ => None,
         }
     }
@@ -1187,6 +1231,7 @@ impl ControlKind {
             ControlKind::Progress => "progress",
             ControlKind::Replay => "replay",
             ControlKind::Status => "status",
+            ControlKind::State => "state",
         }
     }
 }
@@ -1196,7 +1241,7 @@ impl ControlKind {
 /// Many processes publish on this topic, each with its own sequence numbers: a receiver tracks the last
 /// accepted sequence number per `instance`.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Control/v3")]
+#[type_name("uavloc::Control/v4")]
 #[repr(C)]
 pub struct Control {
     /// Common header; `step` depends on the kind (see [`ControlKind`]).
@@ -1215,7 +1260,7 @@ pub struct Control {
     pub detail: Name16,
 }
 
-impl_message!(Control, MessageKind::Control, 3, "uavloc::Control/v3");
+impl_message!(Control, MessageKind::Control, 4, "uavloc::Control/v4");
 
 impl Control {
     /// A control message of `kind` from `role` (`detail` may be empty; beyond 16 characters it is cut).
@@ -1282,6 +1327,7 @@ mod tests {
         assert_eq!((size_of::<StateEcho>(), align_of::<StateEcho>()), (144, 8));
         assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
         assert_eq!((size_of::<Control>(), align_of::<Control>()), (144, 8));
+        assert_eq!((size_of::<EstimatorState>(), align_of::<EstimatorState>()), (240, 8));
     }
 
     #[test]

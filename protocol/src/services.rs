@@ -144,14 +144,21 @@ pub fn control(domain: &Domain) -> String {
     format!("{domain}/control")
 }
 
+/// Topic of [`EstimatorState`](crate::EstimatorState) messages: monitor → estimator, the states the
+/// estimator asks for ([`ControlKind::State`](crate::ControlKind::State)).
+pub fn state(domain: &Domain) -> String {
+    format!("{domain}/state")
+}
+
 /// All service names of a domain, with a short label each.
-pub fn all(domain: &Domain) -> [(&'static str, String); 5] {
+pub fn all(domain: &Domain) -> [(&'static str, String); 6] {
     [
         ("measurement", measurement(domain)),
         ("estimate", estimate(domain)),
         ("command", command(domain)),
         ("truth", truth(domain)),
         ("control", control(domain)),
+        ("state", state(domain)),
     ]
 }
 

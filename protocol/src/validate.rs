@@ -217,6 +217,19 @@ impl Command {
     }
 }
 
+impl crate::messages::EstimatorState {
+    /// Checks the state message: a state ([`StateEcho::STATE`] or [`StateEcho::EMPTY`]), checked as the
+    /// command that echoed it (its own `step` is the step it is after).
+    pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
+        check_version(Self::VERSION, self.header.version)?;
+        self.state.validate()?;
+        if self.state.decode().is_none() {
+            return Err(Rejection::UnknownKind { field: "state kind", kind: u32::from(self.state.kind) });
+        }
+        check_seq(self.header.seq, last_seq)
+    }
+}
+
 impl crate::messages::StateEcho {
     /// Checks an echoed estimator state as [`Estimate::validate`] checks the estimate it came from.
     pub fn validate(&self) -> Result<(), Rejection> {
@@ -683,6 +696,19 @@ mod tests {
         assert_eq!(bad(|s| s.covariance[1][1] = -1.0), "not_positive_definite");
         assert_eq!(bad(|s| s.kind = 3), "unknown_kind");
         assert_eq!(bad(|s| s.velocity_cov[0][0] = f64::INFINITY), "not_finite");
+
+        // The monitor's answer to a state request carries the echo, checked the same way; a hold is no
+        // state to send.
+        let answer = crate::EstimatorState::new(c.state, 7, 1);
+        assert_eq!((answer.header.step, answer.validate(Some(6))), (3, Ok(())));
+        assert_eq!(answer.validate(Some(7)).unwrap_err().kind(), "stale");
+        assert_eq!(
+            crate::EstimatorState::new(command().state, 7, 1).validate(None).unwrap_err().kind(),
+            "unknown_kind"
+        );
+        let mut bad_answer = answer;
+        bad_answer.state.covariance[0][0] = f64::NAN;
+        assert_eq!(bad_answer.validate(None).unwrap_err().kind(), "not_finite");
     }
 
     #[test]
@@ -698,9 +724,10 @@ mod tests {
         assert_eq!((plain.validate(None), plain.detail()), (Ok(()), ""));
         assert_eq!(c.validate(Some(5)).unwrap_err().kind(), "stale");
         assert_eq!(with(c, |c| c.kind = 5).validate(None), Ok(()), "5 is a status (v3)");
+        assert_eq!(with(c, |c| c.kind = 6).validate(None), Ok(()), "6 asks for a state (v4)");
         assert_eq!(
-            with(c, |c| c.kind = 6).validate(None),
-            Err(Rejection::UnknownKind { field: "control kind", kind: 6 })
+            with(c, |c| c.kind = 7).validate(None),
+            Err(Rejection::UnknownKind { field: "control kind", kind: 7 })
         );
         assert_eq!(with(c, |c| c.role.bytes = [0; 16]).validate(None), Err(Rejection::BadName { field: "role" }));
         assert_eq!(with(c, |c| c.detail.bytes[0] = 0x80).validate(None).unwrap_err().kind(), "bad_name");

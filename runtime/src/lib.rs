@@ -3,14 +3,14 @@
 //! The part of a process that is not its handler: the event loop ([`node`]: one `WaitSet` over the
 //! process's inputs, the control topic and its deadlines, calling the process's [`Handler`]), its flags ([`args::LinkArgs`]), how it ends
 //! ([`exit`]: [`ProcessError`] and the exit codes a supervisor acts on), what it tells its supervisor
-//! ([`supervisor`]: typed stdout lines, written and read with one definition), and the checkpoint files
-//! of the recovery rules ([`checkpoint`]). The wire format and the transports are `uavloc-protocol`'s.
+//! ([`supervisor`]: typed stdout lines, written and read with one definition), and the recovery rules
+//! with what they keep ([`recovery`]: the meaning of a step, the state store, emitter-sim's snapshot file). The wire format and the transports are `uavloc-protocol`'s.
 
 pub mod args;
-pub mod checkpoint;
 pub mod exit;
 pub mod flags;
 pub mod node;
+pub mod recovery;
 pub mod supervisor;
 
 pub use args::{DEFAULT_SPIN_US, LinkArgs, NodeArgs, RunArgs, Source};

@@ -14,13 +14,22 @@ use serde_json::Value;
 const STEPS: u64 = 30;
 
 fn kill_once(role: &str) {
-    let d = domain("crash", role);
-    let dir = scratch(&format!("crash-{role}"));
+    kill_together(&[role]);
+}
+
+/// SIGKILLs the processes of `roles` at once (each restarted once) and checks the run.
+fn kill_together(roles: &[&str]) {
+    let tag = roles.join("-");
+    let d = domain("crash", &tag);
+    let dir = scratch(&format!("crash-{tag}"));
     let steps = STEPS.to_string();
     let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "30"]);
     launch.wait_for_step(5, Duration::from_secs(30));
-    let pid = pid_of(&d, role).unwrap_or_else(|| panic!("no {role} of {d} found"));
-    kill(pid, libc::SIGKILL);
+    let pids: Vec<u32> =
+        roles.iter().map(|role| pid_of(&d, role).unwrap_or_else(|| panic!("no {role} of {d} found"))).collect();
+    for &pid in &pids {
+        kill(pid, libc::SIGKILL);
+    }
     let events_at_kill = launch.events();
     let stderr_path = launch.stderr.clone();
     let run = launch.finish_json();
@@ -28,46 +37,61 @@ fn kill_once(role: &str) {
 
     // The kill happened mid-run.
     let logged_at_kill = events_at_kill.iter().filter(|e| e["event"] == "step").count() as u64;
-    assert!(logged_at_kill < STEPS, "{role}: the run was over before the kill");
+    assert!(logged_at_kill < STEPS, "{tag}: the run was over before the kill");
 
-    // Restarted once, and said so.
-    assert_eq!(run["restarts"].as_u64(), Some(1), "{role}: {stderr}");
-    assert!(stderr.contains(&format!("the {role} process (pid {pid}) stopped unexpectedly (signal 9)")), "{stderr}");
+    // Each restarted once, and said so.
+    assert_eq!(run["restarts"].as_u64(), Some(roles.len() as u64), "{tag}: {stderr}");
     for bad in ["AlreadyExists", "already exists", "Incompatible", "incompatible", "error:"] {
-        assert!(!stderr.contains(bad), "{role}: {bad:?} in:\n{stderr}");
+        assert!(!stderr.contains(bad), "{tag}: {bad:?} in:\n{stderr}");
     }
     let processes = run["processes"].as_array().unwrap();
-    let instances: Vec<&Value> = processes.iter().filter(|p| p["role"] == role).collect();
-    assert_eq!(instances.len(), 2, "{role}: {processes:?}");
-    assert_eq!((instances[0]["restarted"].as_bool(), instances[0]["pid"].as_u64()), (Some(true), Some(pid as u64)));
-    assert!(instances[0]["exit"].as_str().unwrap().contains("signal 9"));
-
-    // The log has the restart, and every step exactly once.
     let events = common::read_events(&dir.join("run.jsonl"));
-    let restarts: Vec<&Value> = events.iter().filter(|e| e["event"] == "restart").collect();
-    assert_eq!(restarts.len(), 1, "{role}: {restarts:?}");
-    assert_eq!((restarts[0]["role"].as_str(), restarts[0]["attempt"].as_u64()), (Some(role), Some(1)));
-    common::assert_each_step_logged_once(&events, STEPS, role);
-    // The restarted process joined, and (but for emitter-sim itself) the run was replayed to it.
-    assert!(
-        events.iter().any(|e| e["event"] == "hello" && e["role"] == role)
-            || role == "monitor" && events.iter().any(|e| e["event"] == "resume"),
-        "{role}: no hello"
-    );
+    for (&role, &pid) in roles.iter().zip(&pids) {
+        assert!(
+            stderr.contains(&format!("the {role} process (pid {pid}) stopped unexpectedly (signal 9)")),
+            "{stderr}"
+        );
+        let instances: Vec<&Value> = processes.iter().filter(|p| p["role"] == role).collect();
+        assert_eq!(instances.len(), 2, "{role}: {processes:?}");
+        assert_eq!((instances[0]["restarted"].as_bool(), instances[0]["pid"].as_u64()), (Some(true), Some(pid as u64)));
+        assert!(instances[0]["exit"].as_str().unwrap().contains("signal 9"));
+        // The log has the restart.
+        let restarts: Vec<&Value> = events.iter().filter(|e| e["event"] == "restart" && e["role"] == role).collect();
+        assert_eq!(restarts.len(), 1, "{role}: {restarts:?}");
+        assert_eq!(restarts[0]["attempt"].as_u64(), Some(1), "{role}");
+        // The restarted process joined, and (but for emitter-sim itself) the run was replayed to it.
+        assert!(
+            events.iter().any(|e| e["event"] == "hello" && e["role"] == role)
+                || role == "monitor" && events.iter().any(|e| e["event"] == "resume"),
+            "{role}: no hello"
+        );
+        // A restarted estimator keeps no file: it asked the monitor for the state after the step before
+        // the one in flight, which the monitor had from the step's estimate and command.
+        if role == "estimator" {
+            let asked: Vec<u64> = events
+                .iter()
+                .filter(|e| e["event"] == "state_request" && e["role"] == "estimator")
+                .filter_map(|e| e["step"].as_u64())
+                .collect();
+            assert!(!asked.is_empty() && asked.iter().all(|&k| k + 1 >= logged_at_kill), "{tag}: {asked:?}");
+        }
+    }
+    // Every step exactly once.
+    common::assert_each_step_logged_once(&events, STEPS, &tag);
 
     // One command applied per step: the emitter-sim that finished the run flew exactly STEPS commands
     // (a restarted emitter-sim flies the whole run again, from step 0, answered from what the estimator
     // and planner kept).
     let emitter = processes.iter().rev().find(|p| p["role"] == "emitter-sim").unwrap();
-    assert_eq!(emitter["summary"]["steps"].as_u64(), Some(STEPS), "{role}: {emitter}");
-    if role != "emitter-sim" {
-        assert!(emitter["summary"]["replays"].as_u64().unwrap() >= 1, "{role}: {emitter}");
+    assert_eq!(emitter["summary"]["steps"].as_u64(), Some(STEPS), "{tag}: {emitter}");
+    if !roles.contains(&"emitter-sim") {
+        assert!(emitter["summary"]["replays"].as_u64().unwrap() >= 1, "{tag}: {emitter}");
     }
 
     // The run is exactly simulate's: no restart changes the result (their inputs are the same).
     let sim = json_of(&["simulate", "--json", "--steps", &steps]);
-    assert_same_run(&sim, &run, role);
-    assert_eq!(run["rejected"].as_u64(), Some(0), "{role}");
+    assert_same_run(&sim, &run, &tag);
+    assert_eq!(run["rejected"].as_u64(), Some(0), "{tag}");
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -76,6 +100,14 @@ fn kill_once(role: &str) {
 fn the_estimator_is_restarted() {
     let _scenario = common::scenario(module_path!());
     kill_once("estimator");
+}
+
+#[test]
+fn the_estimator_and_the_planner_killed_together_go_on_from_the_monitors_states() {
+    // Both holders of the newest estimator state in the messages (the estimator, the planner's commands)
+    // are gone at once: the monitor answers.
+    let _scenario = common::scenario(module_path!());
+    kill_together(&["estimator", "planner"]);
 }
 
 #[test]

@@ -35,7 +35,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use common::{
     Launch, LineTail, assert_nothing_left, assert_same_run, domain, is_alive, json_of, kill, pid_of, scratch,
 };
-use runtime::checkpoint::checkpoint_step_at_or_below;
+use runtime::recovery::snapshot_step_at_or_below;
 use serde_json::Value;
 use tdoa::rng::SplitMix64;
 
@@ -376,7 +376,7 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
     // (0, or its checkpoint's older snapshot after a restart).
     let emitter = processes.iter().rev().find(|p| p["role"] == "emitter-sim").unwrap();
     let started_at = emitter["summary"]["started_at"].as_u64().unwrap();
-    assert!(started_at < steps && checkpoint_step_at_or_below(started_at) == started_at, "{emitter}");
+    assert!(started_at < steps && snapshot_step_at_or_below(started_at) == started_at, "{emitter}");
     assert_eq!(emitter["summary"]["steps"].as_u64(), Some(steps - started_at), "{emitter}");
 
     // The run is exactly simulate's (its active constraints as the command's bit mask carries them).

@@ -15,7 +15,7 @@ use protocol::services::{self, Domain};
 use protocol::{Measurement, Topic, TopicSubscriber};
 
 const STEPS: u64 = 600;
-const WINDOW: u64 = runtime::checkpoint::MONITOR_WINDOW;
+const WINDOW: u64 = runtime::recovery::MONITOR_WINDOW;
 
 /// The newest step `sub` receives in the next `how_long`, and the newest it had received `quiet` before
 /// the end.

@@ -147,7 +147,7 @@ fn soak_100k_steps() {
 }
 
 #[test]
-fn a_crash_after_the_history_wrapped_resumes_from_the_checkpoints() {
+fn a_crash_after_the_history_wrapped_resumes_from_the_states_the_messages_carry() {
     let _scenario = common::scenario(module_path!());
     const STEPS: u64 = 5_000;
     let d = domain("soak", "wrapped");
@@ -178,20 +178,20 @@ fn a_crash_after_the_history_wrapped_resumes_from_the_checkpoints() {
     for bad in ["AlreadyExists", "already exists", "Incompatible", "incompatible", "error:", "are kept"] {
         assert!(!stderr.contains(bad), "{bad:?} in:\n{stderr}");
     }
-    // The restarted estimator asked for a replay (a `replay` event) from its checkpoint, not from step 0 (which emitter-sim no
-    // longer has); the restarted planner, which keeps no state, only for the step in flight; and the
+    // The restarted estimator and planner, which keep no state, asked for a replay (a `replay` event) of the
+    // step in flight only; the estimator asked the monitor for the state after the step before it (a
+    // `state_request` event), not for a replay from step 0 (which emitter-sim no longer has); and the
     // restarted emitter-sim flew on from a snapshot.
     let events = common::read_events(&dir.join("run.jsonl"));
-    let hellos = |role: &str| -> Vec<u64> {
-        events
-            .iter()
-            .filter(|e| e["event"] == "replay" && e["role"] == role)
-            .filter_map(|e| e["step"].as_u64())
-            .collect()
+    let asked = |event: &str, role: &str| -> Vec<u64> {
+        events.iter().filter(|e| e["event"] == event && e["role"] == role).filter_map(|e| e["step"].as_u64()).collect()
     };
+    let hellos = |role: &str| asked("replay", role);
     let at = killed["estimator"].1;
     let estimator = hellos("estimator");
-    assert!(estimator.iter().any(|&s| s > 0 && s + 2 * 256 >= at && s <= at + 256), "estimator: hellos {estimator:?}");
+    assert!(!estimator.is_empty() && estimator.iter().all(|&s| s == protocol::ControlKind::IN_FLIGHT), "{estimator:?}");
+    let states = asked("state_request", "estimator");
+    assert!(states.iter().any(|&s| s + 2 >= at && s <= at + 256), "estimator: state requests {states:?}");
     let planner = hellos("planner");
     assert!(planner.len() >= 2 && planner.iter().all(|&s| s == protocol::ControlKind::IN_FLIGHT), "{planner:?}");
     let emitter = summary(&run, "emitter-sim");

@@ -1,0 +1,282 @@
+//! Recovery, in one place: what each process keeps so that a restarted one gets back into a run, and
+//! what "step" means for it.
+//!
+//! **Step.** Everything here counts *steps of the run*: step k is the measurement of step k, the estimate
+//! made from it, the command planned from that estimate and the truth of the world when it was measured.
+//! "The state after step k" is the estimator's state once it has estimated step k — what the estimate of
+//! step k carries and the command of step k echoes ([`protocol::StateEcho`]); the estimate of step k + 1 is
+//! made from it. "Replay from step k" means: publish the measurements (and truths) of steps k, k + 1, …
+//! again, one at a time, each after the previous command came back.
+//!
+//! **Who holds what.**
+//! - emitter-sim keeps the truth and measurement of the last [`HISTORY_STEPS`] steps for replays, and the
+//!   world's snapshot every [`SNAPSHOT_EVERY`] steps (at the *snapshot steps* s = 256, 512, …: the world
+//!   before step s, written to its `--checkpoint` file once the command of step s has come back; the last
+//!   [`EMITTER_SNAPSHOTS`] kept). A restarted emitter-sim flies on from its *older* snapshot (from step 0
+//!   while it has fewer than two), re-publishing steps it had published before.
+//! - The estimator and the planner keep no file and no answer: they are functions of the messages they
+//!   receive. The planner plans from what each estimate carries. The estimator continues its own chain
+//!   (step k right after step k − 1, or step 0); for any other step it needs the state after k − 1 and
+//!   takes it from the messages: every command echoes the state it was planned from, the estimator reads
+//!   the command topic and keeps those states ([`StateStore`], the last [`HISTORY_STEPS`] steps), and for
+//!   an older one — after its own restart, or a world rewound further back — it asks
+//!   ([`protocol::ControlKind::State`]) and the monitor answers ([`protocol::EstimatorState`]).
+//! - The monitor keeps every state the commands echoed in a [`StateStore`] too, and writes each one in its
+//!   log with the step's record, so a restarted monitor has them again. So the states survive any one or
+//!   two processes crashing at once: the estimator's in the commands (the planner's messages), the
+//!   monitor's store and its log.
+//! - A restarted estimator or planner asks for a replay of the step in flight
+//!   ([`protocol::ControlKind::IN_FLIGHT`]); a restarted monitor asks from the snapshot step at or below
+//!   the first step it lacks; a monitor that lost a message likewise.
+//! - A lock-step emitter-sim does not publish step k while the monitor's progress (the first step it
+//!   lacks, [`protocol::ControlKind::Progress`]) is k − [`MONITOR_WINDOW`] or less: a monitor restarted
+//!   many times cannot fall further behind (the window is below [`SNAPSHOT_EVERY`], so the first step it
+//!   lacks is always newer than the older snapshot a restarted emitter-sim flies on from).
+//!
+//! Nothing else grows with the run: the monitor writes each step to its log as it completes and keeps no
+//! per-step record in memory when it has a log. A request outside what is kept (a monitor left more than
+//! [`SNAPSHOT_EVERY`] steps behind with `--monitor-window 0` or in real-time mode) is refused with an
+//! error naming the steps.
+//!
+//! The snapshot file is JSON, written to `FILE.tmp` and renamed over `FILE` (a reader never sees half a
+//! file), and carries the role and domain it belongs to; a file of another role or domain is an error. It
+//! survives a crash of the process (SIGKILL), not of the machine (no fsync).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+use protocol::{EchoedState, StateEcho};
+use serde::{Deserialize, Serialize, de::DeserializeOwned};
+
+/// Steps emitter-sim keeps for replays, and a [`StateStore`] keeps echoed states for.
+pub const HISTORY_STEPS: u64 = 4096;
+
+/// Steps between two world snapshots.
+pub const SNAPSHOT_EVERY: u64 = 256;
+
+/// World snapshots emitter-sim keeps in its checkpoint file (it restarts from the oldest).
+pub const EMITTER_SNAPSHOTS: usize = 2;
+
+/// How many steps a lock-step emitter-sim may run ahead of the monitor's progress (the default of its
+/// `--monitor-window`).
+pub const MONITOR_WINDOW: u64 = 128;
+
+// A monitor within the window lacks no step older than a restarted emitter-sim's older snapshot.
+const _: () = assert!(MONITOR_WINDOW < SNAPSHOT_EVERY);
+
+// Every rewind point and every replay request lie within the history.
+const _: () = assert!((EMITTER_SNAPSHOTS as u64 + 3) * SNAPSHOT_EVERY < HISTORY_STEPS);
+
+/// Whether `step` is a snapshot step (256, 512, …; step 0 needs none: it starts a run).
+pub fn is_snapshot_step(step: u64) -> bool {
+    step > 0 && step.is_multiple_of(SNAPSHOT_EVERY)
+}
+
+/// The newest snapshot step at or below `step` (0 if none).
+pub fn snapshot_step_at_or_below(step: u64) -> u64 {
+    step - step % SNAPSHOT_EVERY
+}
+
+/// Requests for states not yet known that a [`StateStore`] remembers (the oldest is forgotten beyond).
+pub const MAX_WANTED: usize = 64;
+
+/// The estimator states the commands echoed, by the step they are after (the first one per step; the
+/// last [`HISTORY_STEPS`] steps), and the steps whose state was asked for before it was known. The
+/// estimator keeps one to go on from any step it is given; the monitor keeps one to answer the
+/// estimator's requests. Plain data, no I/O.
+#[derive(Debug, Default, Clone)]
+pub struct StateStore {
+    states: BTreeMap<u64, StateEcho>,
+    wanted: BTreeSet<u64>,
+}
+
+impl StateStore {
+    /// An empty store.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Keeps `echo` (ignored unless it holds a state: a hold's echo has none).
+    pub fn keep(&mut self, echo: StateEcho) {
+        if echo.decode().is_none() {
+            return;
+        }
+        self.states.entry(echo.step).or_insert(echo);
+        while self.states.len() > HISTORY_STEPS as usize {
+            self.states.pop_first();
+        }
+    }
+
+    /// The state after `step`, if kept.
+    pub fn get(&self, step: u64) -> Option<EchoedState> {
+        self.states.get(&step).and_then(StateEcho::decode)
+    }
+
+    /// The echo of the state after `step`, if kept.
+    pub fn echo(&self, step: u64) -> Option<StateEcho> {
+        self.states.get(&step).copied()
+    }
+
+    /// How many states are kept.
+    pub fn len(&self) -> usize {
+        self.states.len()
+    }
+
+    /// Whether no state is kept.
+    pub fn is_empty(&self) -> bool {
+        self.states.is_empty()
+    }
+
+    /// Someone asked for the state after `step`: remembered until [`take_answers`](Self::take_answers)
+    /// can give it (the last [`MAX_WANTED`] requests).
+    pub fn want(&mut self, step: u64) {
+        self.wanted.insert(step);
+        while self.wanted.len() > MAX_WANTED {
+            self.wanted.pop_first();
+        }
+    }
+
+    /// The states asked for that are known now, oldest first; they are no longer wanted.
+    pub fn take_answers(&mut self) -> Vec<StateEcho> {
+        let known: Vec<u64> = self.wanted.iter().copied().filter(|s| self.states.contains_key(s)).collect();
+        known
+            .into_iter()
+            .map(|s| {
+                self.wanted.remove(&s);
+                self.states[&s]
+            })
+            .collect()
+    }
+}
+
+/// Adds `item` to the kept `list` (oldest first), keeping at most `keep`.
+pub fn push_kept<T>(list: &mut Vec<T>, item: T, keep: usize) {
+    list.push(item);
+    if list.len() > keep {
+        list.drain(..list.len() - keep);
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+struct Envelope<T> {
+    role: String,
+    domain: String,
+    state: T,
+}
+
+/// Writes `state` of `role` in `domain` to `path` (atomically: a temporary file renamed over it).
+pub fn save<T: Serialize>(path: &Path, role: &str, domain: &str, state: &T) -> Result<(), String> {
+    let envelope = Envelope { role: role.to_string(), domain: domain.to_string(), state };
+    let text = serde_json::to_string(&envelope).map_err(|e| format!("checkpoint {}: {e}", path.display()))?;
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| format!("checkpoint {}: {e}", path.display()))
+}
+
+/// Reads the checkpoint of `role` in `domain` from `path`: `None` if there is none; an error if the file
+/// cannot be read or parsed or belongs to another role or domain.
+pub fn load<T: DeserializeOwned>(path: &Path, role: &str, domain: &str) -> Result<Option<T>, String> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(format!("checkpoint {}: {e}", path.display())),
+    };
+    let envelope: Envelope<T> =
+        serde_json::from_str(&text).map_err(|e| format!("checkpoint {}: not a checkpoint: {e}", path.display()))?;
+    if envelope.role != role || envelope.domain != domain {
+        return Err(format!(
+            "checkpoint {}: written by the {} of domain {}, not by the {role} of domain {domain}",
+            path.display(),
+            envelope.role,
+            envelope.domain
+        ));
+    }
+    Ok(Some(envelope.state))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, PartialEq, Serialize, Deserialize)]
+    struct State {
+        step: u64,
+        x: Option<[f64; 2]>,
+    }
+
+    #[test]
+    fn a_saved_state_loads_back_bit_for_bit_and_only_for_its_role_and_domain() {
+        let dir = std::env::temp_dir().join(format!("uavloc-ckpt-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("estimator.ckpt");
+        assert_eq!(load::<State>(&path, "estimator", "d").unwrap(), None, "no file: no checkpoint");
+        let s = State { step: 512, x: Some([0.1 + 0.2, -1e-300]) };
+        save(&path, "estimator", "d", &s).unwrap();
+        assert_eq!(load::<State>(&path, "estimator", "d").unwrap(), Some(s));
+        assert!(!dir.join("estimator.ckpt.tmp").exists());
+        let other = load::<State>(&path, "planner", "d").unwrap_err();
+        assert!(other.contains("not by the planner"), "{other}");
+        assert!(load::<State>(&path, "estimator", "e").is_err());
+        std::fs::write(&path, "{\"role\": 3").unwrap();
+        assert!(load::<State>(&path, "estimator", "d").unwrap_err().contains("not a checkpoint"));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn snapshot_steps_are_the_multiples_of_the_interval() {
+        assert!(!is_snapshot_step(0) && is_snapshot_step(SNAPSHOT_EVERY) && !is_snapshot_step(1));
+        assert_eq!(snapshot_step_at_or_below(SNAPSHOT_EVERY + 7), SNAPSHOT_EVERY);
+        assert_eq!(snapshot_step_at_or_below(5), 0);
+        let mut kept = vec![1, 2];
+        push_kept(&mut kept, 3, 2);
+        assert_eq!(kept, vec![2, 3]);
+    }
+
+    fn echo(step: u64, kind: u8) -> StateEcho {
+        StateEcho {
+            step,
+            kind,
+            position: [step as f64, 1.0],
+            covariance: [[4.0, 0.0], [0.0, 4.0]],
+            ..StateEcho::default()
+        }
+    }
+
+    #[test]
+    fn a_state_store_keeps_the_first_state_per_step_and_answers_what_was_asked_once_known() {
+        let mut store = StateStore::new();
+        store.keep(echo(3, StateEcho::NONE)); // a hold: no state
+        assert!(store.is_empty());
+        store.keep(echo(3, StateEcho::STATE));
+        let mut other = echo(3, StateEcho::STATE);
+        other.position[1] = 9.0;
+        store.keep(other); // the same step again (a replay): the first is kept
+        assert_eq!(store.echo(3).unwrap().position, [3.0, 1.0]);
+        assert_eq!(store.get(3), echo(3, StateEcho::STATE).decode());
+        store.keep(echo(4, StateEcho::EMPTY));
+        assert_eq!(store.get(4), Some(EchoedState::Empty { step: 4 }));
+
+        // Asked before it is known: answered once it is, once.
+        store.want(7);
+        store.want(3);
+        assert_eq!(store.take_answers().iter().map(|e| e.step).collect::<Vec<_>>(), vec![3]);
+        assert!(store.take_answers().is_empty());
+        store.keep(echo(7, StateEcho::STATE));
+        assert_eq!(store.take_answers().iter().map(|e| e.step).collect::<Vec<_>>(), vec![7]);
+
+        // Bounded: the oldest states and requests are forgotten.
+        for k in 10..10 + HISTORY_STEPS + 5 {
+            store.keep(echo(k, StateEcho::STATE));
+        }
+        assert_eq!(store.len(), HISTORY_STEPS as usize);
+        assert_eq!(store.get(14), None);
+        assert!(store.get(15).is_some());
+        for k in 0..MAX_WANTED as u64 + 3 {
+            store.want(1_000_000 + k);
+        }
+        store.keep(echo(1_000_000, StateEcho::STATE));
+        assert!(store.take_answers().is_empty(), "the oldest request was forgotten");
+    }
+}
