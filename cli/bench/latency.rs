@@ -91,8 +91,9 @@ pub struct RunFlags {
     /// run (0: skip).
     #[arg(long, value_name = "MS", default_value_t = 500)]
     pub idle_ms: u64,
-    /// Write the raw histograms (CSV), latency-distribution plots (SVG and PNG, log scale) and a JSON
-    /// summary into DIR (created if missing).
+    /// Write the raw histograms (CSV), the monitor's stamps of each run (`<transport>-<wait>-stamps.csv`,
+    /// the last round's), latency-distribution plots (SVG and PNG, log scale) and a JSON summary into DIR
+    /// (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 }
@@ -347,6 +348,11 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
     let _ = std::fs::remove_file(&stamps_file);
     let report = report?;
     let text = text.map_err(|e| CliError::Failed(format!("the monitor's stamps file: {e}")))?;
+    if let Some(dir) = &flags.out {
+        // The raw stamps of the run (of its last round), beside the histograms made from them.
+        let file = dir.join(format!("{}-{}-stamps.csv", config.transport.name(), config.wait.name()));
+        std::fs::write(&file, &text).map_err(|e| CliError::Failed(format!("--out {}: {e}", file.display())))?;
+    }
     let rows = parse_stamps(&text).map_err(CliError::Failed)?;
     Ok(result(config, &report, &rows))
 }

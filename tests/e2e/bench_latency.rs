@@ -117,6 +117,8 @@ fn compare_measures_every_transport_and_wait_mode() {
             assert_eq!(lines.next(), Some("value_us,count,cumulative_count,percentile"));
             let counts: u64 = lines.map(|l| l.split(',').nth(1).unwrap().parse::<u64>().unwrap()).sum();
             assert_eq!(counts, steps, "{t} {w}: histogram CSV holds every sample");
+            let stamps = std::fs::read_to_string(dir.join(format!("{t}-{w}-stamps.csv"))).unwrap();
+            assert_eq!(stamps.lines().count() as u64, steps + 2, "{t} {w}: the header and a row per step");
         }
     }
     assert!(std::fs::read_to_string(dir.join("end_to_end.svg")).unwrap().contains("uds spin"));
