@@ -130,8 +130,9 @@ pub fn find_run_settings(domain: &Domain) -> Option<(RunSettings, PathBuf)> {
     None
 }
 
-/// The private directory of one launch (checkpoints, and the monitor's log when `--log` is not given):
-/// `$TMPDIR/uavloc-<uid>/launch-<pid>-<domain>`, mode 0700 (as its parent), removed when dropped.
+/// The private directory of one launch (emitter-sim's snapshot file, and the monitor's log when `--log` is
+/// not given): `$TMPDIR/uavloc-<uid>/launch-<pid>-<domain>`, mode 0700 (as its parent), removed when
+/// dropped.
 pub(super) struct StateDir(PathBuf);
 
 impl StateDir {

@@ -3,7 +3,7 @@
 //! The monitor reports its progress on the control topic ([`ControlKind::Progress`]: the first step it
 //! lacks). emitter-sim does not publish step k while the monitor lacks step k − window or an older one
 //! (`--monitor-window`, [`runtime::recovery::MONITOR_WINDOW`] by default), so a monitor restarted again
-//! and again stays within reach of a restarted emitter-sim's replays (see [`runtime::checkpoint`]).
+//! and again stays within reach of a restarted emitter-sim's replays (see [`runtime::recovery`]).
 
 use protocol::{Control, ControlKind};
 
@@ -18,7 +18,7 @@ impl MonitorProgress {
     /// Takes a (validated) control message into account: a progress report of a monitor instance at least
     /// as new as the one known replaces what was known (a restarted monitor's report counts even when it
     /// is lower; an older instance's is stale). Anything else says nothing about the monitor's progress —
-    /// in particular its replay request, from a checkpoint step that may lie far below its progress.
+    /// in particular its replay request, from a snapshot step that may lie far below its progress.
     pub fn hear(&mut self, c: &Control) {
         if c.kind() == Some(ControlKind::Progress)
             && c.role() == Some("monitor")
@@ -56,7 +56,7 @@ mod tests {
         assert_eq!(p.next(), None, "another role");
         p.hear(&control(ControlKind::Progress, "monitor", 100, 984));
         assert_eq!(p.next(), Some(984));
-        // The long kill storm: the same monitor asks for a replay from the checkpoint step below its
+        // The long kill storm: the same monitor asks for a replay from the snapshot step below its
         // progress; taken for progress, it held emitter-sim back one step per retry interval.
         p.hear(&control(ControlKind::Replay, "monitor", 100, 768));
         assert_eq!(p.next(), Some(984));

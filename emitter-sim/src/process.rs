@@ -28,12 +28,13 @@
 //! # Recovery
 //!
 //! It keeps the truth and measurement of the last [`HISTORY_STEPS`] steps and replays them (same data,
-//! new sequence numbers) when a process asks ([`ControlKind::Replay`]: the estimator from the step after
-//! its checkpoint, the planner the step in flight, a restarted monitor its first step missing) or a
+//! new sequence numbers) when a process asks ([`ControlKind::Replay`]: a restarted estimator or planner the
+//! step in flight, a restarted monitor from the snapshot step at or below its first step missing) or a
 //! command is late (see [`crate::schedule`]). A restarted emitter-sim starts from the older of the two
-//! world snapshots in its `--checkpoint` file (the world before a checkpoint step c, written once the
-//! command of step c came back; see [`runtime::checkpoint`]), else from step 0: the world is
+//! world snapshots in its `--checkpoint` file (the world before a snapshot step s, written once the
+//! command of step s came back; see [`runtime::recovery`]), else from step 0: the world is
 //! deterministic, so it publishes exactly the measurements of its predecessor and the run fast-forwards.
+//! It never carries the estimator's state: that rides the estimates and commands.
 //!
 //! Before step 0 it waits until the pipeline is connected — at least `--min-subscribers` subscribers on
 //! the measurement topic and a publisher (the planner) on the command topic — because a message
@@ -171,7 +172,7 @@ pub struct EmitterSimArgs {
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     #[serde(serialize_with = "runtime::flags::finite")]
     pub command_timeout_s: f64,
-    /// Replay the steps from the checkpoint step at or below the current one (from step 0 before step
+    /// Replay the steps from the snapshot step at or below the current one (from step 0 before step
     /// 256) when the command for a step has not arrived this many milliseconds after the step was
     /// published (a process died or lost it).
     #[arg(long, value_name = "MS", default_value_t = 1000)]
@@ -211,9 +212,9 @@ pub struct EmitterSimArgs {
     pub linger: bool,
     /// Lock-step mode: do not publish step k while the monitor lacks step k − N or an older one (its
     /// progress comes on the control topic); when it makes no progress for --retry-interval-ms, replay to
-    /// it from the checkpoint step at or below the first step it lacks; give up (exit 1) after
+    /// it from the snapshot step at or below the first step it lacks; give up (exit 1) after
     /// --command-timeout-s without progress. A monitor restarted again and again then stays within reach
-    /// of a restarted emitter-sim's replays. Must be below 256 (the checkpoint interval). 0: never wait for
+    /// of a restarted emitter-sim's replays. Must be below 256 (the snapshot interval). 0: never wait for
     /// the monitor. No effect before a monitor has announced itself, nor in real-time mode.
     #[arg(long, value_name = "N", default_value_t = recovery::MONITOR_WINDOW)]
     pub monitor_window: u64,
@@ -250,7 +251,7 @@ pub struct EmitterSummary {
     pub replays: u64,
     /// Replays because a step's command was late.
     pub retries: u64,
-    /// The step this instance started from (0, or a checkpoint's snapshot after a restart).
+    /// The step this instance started from (0, or a snapshot after a restart).
     pub started_at: u64,
     /// CPU time this process used, seconds.
     pub cpu_s: f64,
@@ -368,7 +369,7 @@ impl EmitterNode<'_> {
         self.send(node, truth, measurement)
     }
 
-    /// The command of the awaited step: flown (and the world before a checkpoint step saved once its
+    /// The command of the awaited step: flown (and the world before a snapshot step saved once its
     /// command came back).
     fn apply(&mut self, node: &mut Node, cmd: Command, received_ns: u64) {
         let step = cmd.header.step;
@@ -474,7 +475,7 @@ fn check_args(args: &EmitterSimArgs) -> Result<(), ProcessError> {
     }
     if args.monitor_window >= recovery::SNAPSHOT_EVERY {
         return Err(ProcessError::Input(format!(
-            "--monitor-window must be below {} (the checkpoint interval; 0 turns it off), got {}",
+            "--monitor-window must be below {} (the snapshot interval; 0 turns it off), got {}",
             recovery::SNAPSHOT_EVERY,
             args.monitor_window
         )));
@@ -500,14 +501,14 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
                 .map_err(ProcessError::Input)?,
         },
     };
-    // A restart in the same run flies on from the oldest snapshot of its checkpoint.
+    // A restart in the same run flies on from the oldest snapshot of its checkpoint file.
     let saved = match &args.checkpoint {
         Some(path) => recovery::load::<Saved>(path, ROLE, domain.as_str())
             .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?,
         None => None,
     };
     let snapshots: Vec<(Snapshot, bool)> = saved.map(|s| s.snapshots).unwrap_or_default();
-    // Only a full set goes far enough back for every other process's checkpoint (see runtime::checkpoint).
+    // Only a full set goes far enough back for every step the monitor may lack (see runtime::recovery).
     let oldest = snapshots.first().filter(|_| snapshots.len() >= EMITTER_SNAPSHOTS);
     let (world, start_step, start_missed) = match oldest {
         Some((snapshot, missed)) => (
@@ -535,7 +536,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     node.announce(ControlKind::Hello, 0, "")?;
     node.ready();
     if start_step > 0 {
-        node.say(format_args!("resumed from the checkpoint's snapshot of step {start_step}"));
+        node.say(format_args!("resumed from the snapshot of step {start_step}"));
     }
     let pace = match pacing {
         Pacing::Lockstep { .. } => "lock-step".to_string(),

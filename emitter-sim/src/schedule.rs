@@ -13,7 +13,7 @@
 //! - **lock-step**: step k + 1 is published as soon as the command of step k is applied (after
 //!   `--step-delay-ms`); the command of the current step is awaited up to the timeout (then the run
 //!   fails), and when it has not come `retry` after the step was (re)published, the steps from the
-//!   checkpoint step at or below it are replayed (a process died or lost a message). Before publishing
+//!   snapshot step at or below it are replayed (a process died or lost a message). Before publishing
 //!   step k it waits while the monitor lacks step k − window or older (backpressure), replaying to the
 //!   monitor when it makes no progress for `retry` and failing after the timeout.
 //! - **real time**: step k is due at t0 + (k − first)·interval (t0: the first publication), whatever came;
@@ -25,7 +25,7 @@
 //! A replay publishes kept steps `from..=to` again, one at a time, each after the command of the previous
 //! one came back (that command is not applied). A step whose answer does not come within `retry` ends the
 //! replay early: lock-step drops it (the next retry starts over), real time sends that step again, and
-//! after the last step (`--linger`) the replay starts over from the checkpoint step at or below it. In
+//! after the last step (`--linger`) the replay starts over from the snapshot step at or below it. In
 //! real time a replay pauses when the next step is due and goes on in the next interval, up to the step
 //! current then. A request for a step older than the kept history fails the run.
 
@@ -261,7 +261,7 @@ impl Schedule {
         }
     }
 
-    /// Where a replay that must reach step `k` starts: the checkpoint step at or below it (every process
+    /// Where a replay that must reach step `k` starts: the snapshot step at or below it (every process
     /// can answer from there), or the oldest step kept.
     fn replay_start(&self, k: u64) -> u64 {
         snapshot_step_at_or_below(k).max(self.kept_from())
@@ -511,7 +511,7 @@ impl Schedule {
     }
 
     /// A replay stopped at `j` without an answer: real time sends `j` again (`resume`), after the last
-    /// step the replay starts over from the checkpoint step at or below `j`, lock-step drops it (the next
+    /// step the replay starts over from the snapshot step at or below `j`, lock-step drops it (the next
     /// retry starts over).
     fn ended_early(&mut self, j: u64, now: Instant, resume: Option<Replay>) {
         if let Some(r) = resume {
@@ -608,7 +608,7 @@ mod tests {
     }
 
     #[test]
-    fn a_late_command_replays_from_the_checkpoint_step_and_times_out() {
+    fn a_late_command_replays_from_the_snapshot_step_and_times_out() {
         let t0 = Instant::now();
         let mut s = Schedule::new(lockstep(10, false, 0), t0);
         s.poll(t0);
@@ -655,7 +655,7 @@ mod tests {
 
     #[test]
     fn a_request_during_a_lockstep_replay_waits_for_it_instead_of_restarting_it() {
-        // The long kill storm: a monitor that lacked a step asked for a replay from the checkpoint step
+        // The long kill storm: a monitor that lacked a step asked for a replay from the snapshot step
         // below it once per step it lacked; each request sent the running replay back to that step, so the
         // monitor got one step per replay and the run crawled into the command timeout.
         let t0 = Instant::now();
@@ -720,7 +720,7 @@ mod tests {
         // Step 4 may not go while the monitor lacks step 0 (window 4).
         assert_eq!(answer(&mut s, 3, t0), vec![]);
         assert_eq!(s.poll(ms(t0, 99)), vec![]);
-        // No progress for the retry interval: replay to the monitor from the checkpoint step (0) to step 3.
+        // No progress for the retry interval: replay to the monitor from the snapshot step (0) to step 3.
         assert_eq!(s.poll(ms(t0, 100)), vec![Action::Republish(0)]);
         s.other_command(0);
         assert_eq!(s.poll(ms(t0, 101)), vec![Action::Republish(1)]);
@@ -754,7 +754,7 @@ mod tests {
         assert!(s.is_done());
         assert_eq!(s.joined(1), Ok(Some(1)));
         assert_eq!(s.poll(ms(t0, 1)), vec![Action::Republish(1)]);
-        // No answer: the replay starts over from the checkpoint step at or below step 1.
+        // No answer: the replay starts over from the snapshot step at or below step 1.
         assert_eq!(s.poll(ms(t0, 101)), vec![Action::Republish(0)]);
         assert_eq!(s.counts().retries, 1);
         s.other_command(0);

@@ -16,7 +16,7 @@
 //!   `WaitSet`) or, as the benchmark baseline, Unix-domain datagram sockets ([`TransportKind`]), behind
 //!   the same port traits; a process's [`Link`] (its node and transport) and [`WaitMode`]s.
 //!
-//! What a process does with them — its flags, exit codes, supervisor lines, checkpoints — is
+//! What a process does with them — its flags, exit codes, supervisor lines, recovery — is
 //! `uavloc-runtime`'s; this crate has no command-line parser and writes no files.
 //!
 //! Conventions follow `uavloc-tdoa`: 2-D positions in metres, angles in radians, `uavs[0]` is the reference

@@ -9,7 +9,7 @@ use crate::TdoaError;
 use crate::fim::sym_eigenvalues;
 use crate::geometry::check_finite;
 
-/// ẑ and M from their plain-array form — how messages and checkpoints carry them: `[x, y]` in metres and
+/// ẑ and M from their plain-array form — how messages carry them: `[x, y]` in metres and
 /// the row-major `[[m00, m01], [m10, m11]]` in m².
 pub fn estimate_from_arrays(position: &[f64; 2], covariance: &[[f64; 2]; 2]) -> (Vector2<f64>, Matrix2<f64>) {
     let c = covariance;

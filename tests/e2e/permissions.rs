@@ -1,6 +1,6 @@
 //! The resources a running pipeline creates are its user's: every iceoryx2 file that belongs to the domain
 //! (found by name or content under `<temp>/iceoryx2` and `/dev/shm`), and the launch's private state
-//! directory (checkpoints), allow no access to group or others. (The socket transport's directories are
+//! directory (emitter-sim's snapshot file), allow no access to group or others. (The socket transport's directories are
 //! checked in `protocol/tests/transports/uds.rs`.)
 
 use crate::common;
@@ -36,7 +36,7 @@ fn the_resources_of_a_running_pipeline_are_private_to_its_user() {
         );
     }
 
-    // The launch's state directory: $TMPDIR/uavloc-<uid>/launch-<pid>-<domain>, 0700, with the checkpoints.
+    // The launch's state directory: $TMPDIR/uavloc-<uid>/launch-<pid>-<domain>, 0700, with emitter-sim's snapshot file.
     let parent = std::env::temp_dir().join(format!("uavloc-{uid}"));
     let state = std::fs::read_dir(&parent)
         .unwrap()

@@ -1,5 +1,6 @@
 //! Long runs through the four processes: memory stays flat, nothing is lost, and a crash after the replay
-//! history has wrapped is recovered from the checkpoints (see `runtime::checkpoint`).
+//! history has wrapped is recovered from the world's snapshots and the states the messages carry (see
+//! `runtime::recovery`).
 //!
 //! - `soak_flat_memory_and_no_lost_message` (in `cargo test`): 12 000 lock-step steps (≈ 3 s), three
 //!   times the replay history (4 096 steps), the private resident memory (`RssAnon`) of every process
@@ -8,7 +9,7 @@
 //! - `soak_100k_steps` (`cargo test --release --test e2e soak:: -- --ignored`): the same over 100 000 steps
 //!   (≈ 1 min on 2 cores; the monitor's log grows to ≈ 170 MB on disk, in the test's scratch directory,
 //!   removed at the end).
-//! - `a_crash_after_the_history_wrapped_resumes_from_the_checkpoints`: 5 000 steps; the estimator, the
+//! - `a_crash_after_the_history_wrapped_resumes_from_the_states_the_messages_carry`: 5 000 steps; the estimator, the
 //!   planner, emitter-sim and the monitor are each killed once after step 4 096 — a replay from step 0 is
 //!   impossible then — and the run still equals `uavloc simulate`'s, bit for bit.
 

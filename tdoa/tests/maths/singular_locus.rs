@@ -1,6 +1,6 @@
 //! The singular locus of the FIM and how the global CRLB reports it.
 
-mod common;
+use crate::common;
 
 use common::{config, scene_with};
 use nalgebra::{Matrix2, Vector2};

@@ -1,7 +1,7 @@
 //! Chan's estimator: exactness on noise-free input, equivariance, degenerate geometry, and Monte Carlo
 //! RMSE against the CRLB.
 
-mod common;
+use crate::common;
 
 use common::{NOMINAL_SIGMA, config, nominal, scene};
 use nalgebra::{Rotation2, Vector2};

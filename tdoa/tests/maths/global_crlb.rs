@@ -1,6 +1,6 @@
 //! The five global-CRLB methods against each other and against the deterministic quadrature.
 
-mod common;
+use crate::common;
 
 use common::{config, nominal, scene};
 use nalgebra::{Matrix2, Vector2};

@@ -1,6 +1,6 @@
 //! The closed-form derivatives of F and of h = tr F⁻¹ (eqs. 67–73) against central finite differences.
 
-mod common;
+use crate::common;
 
 use common::scene;
 use nalgebra::{Matrix2, Vector2};
