@@ -18,7 +18,8 @@ impl MonitorProgress {
     /// Takes a (validated) control message into account: a progress report of a monitor instance at least
     /// as new as the one known replaces what was known (a restarted monitor's report counts even when it
     /// is lower; an older instance's is stale). Anything else says nothing about the monitor's progress —
-    /// in particular its replay request, from a snapshot step that may lie far below its progress.
+    /// in particular its replay request (before session 12 it asked from the snapshot step below its
+    /// progress).
     pub fn hear(&mut self, c: &Control) {
         if c.kind() == Some(ControlKind::Progress)
             && c.role() == Some("monitor")
@@ -56,8 +57,9 @@ mod tests {
         assert_eq!(p.next(), None, "another role");
         p.hear(&control(ControlKind::Progress, "monitor", 100, 984));
         assert_eq!(p.next(), Some(984));
-        // The long kill storm: the same monitor asks for a replay from the snapshot step below its
-        // progress; taken for progress, it held emitter-sim back one step per retry interval.
+        // The long kill storm: the same monitor asked for a replay from the snapshot step below its
+        // progress (as it did then); taken for progress, it held emitter-sim back one step per retry
+        // interval.
         p.hear(&control(ControlKind::Replay, "monitor", 100, 768));
         assert_eq!(p.next(), Some(984));
         p.hear(&control(ControlKind::Progress, "monitor", 100, 1000));

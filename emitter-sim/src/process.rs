@@ -29,7 +29,7 @@
 //!
 //! It keeps the truth and measurement of the last [`HISTORY_STEPS`] steps and replays them (same data,
 //! new sequence numbers) when a process asks ([`ControlKind::Replay`]: a restarted estimator or planner the
-//! step in flight, a restarted monitor from the snapshot step at or below its first step missing) or a
+//! step in flight, a restarted monitor from its first step missing) or a
 //! command is late (see [`crate::schedule`]). A restarted emitter-sim starts from the older of the two
 //! world snapshots in its `--checkpoint` file (the world before a snapshot step s, written once the
 //! command of step s came back; see [`runtime::recovery`]), else from step 0: the world is
@@ -172,9 +172,8 @@ pub struct EmitterSimArgs {
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     #[serde(serialize_with = "runtime::flags::finite")]
     pub command_timeout_s: f64,
-    /// Replay the steps from the snapshot step at or below the current one (from step 0 before step
-    /// 256) when the command for a step has not arrived this many milliseconds after the step was
-    /// published (a process died or lost it).
+    /// Publish the step in flight again when its command has not arrived this many milliseconds after
+    /// it was published (a process died or lost it).
     #[arg(long, value_name = "MS", default_value_t = 1000)]
     pub retry_interval_ms: u64,
     /// Give up (exit 1) when the pipeline is not connected after this many seconds.
@@ -212,7 +211,7 @@ pub struct EmitterSimArgs {
     pub linger: bool,
     /// Lock-step mode: do not publish step k while the monitor lacks step k − N or an older one (its
     /// progress comes on the control topic); when it makes no progress for --retry-interval-ms, replay to
-    /// it from the snapshot step at or below the first step it lacks; give up (exit 1) after
+    /// it from the first step it lacks; give up (exit 1) after
     /// --command-timeout-s without progress. A monitor restarted again and again then stays within reach
     /// of a restarted emitter-sim's replays. Must be below 256 (the snapshot interval). 0: never wait for
     /// the monitor. No effect before a monitor has announced itself, nor in real-time mode.

@@ -12,8 +12,8 @@
 //! One interface, two implementations ([`Pacing`]):
 //! - **lock-step**: step k + 1 is published as soon as the command of step k is applied (after
 //!   `--step-delay-ms`); the command of the current step is awaited up to the timeout (then the run
-//!   fails), and when it has not come `retry` after the step was (re)published, the steps from the
-//!   snapshot step at or below it are replayed (a process died or lost a message). Before publishing
+//!   fails), and when it has not come `retry` after the step was (re)published, it is published again
+//!   (a process died or lost a message; every process can answer any step, see [`runtime::recovery`]). Before publishing
 //!   step k it waits while the monitor lacks step k − window or older (backpressure), replaying to the
 //!   monitor when it makes no progress for `retry` and failing after the timeout.
 //! - **real time**: step k is due at t0 + (k − first)·interval (t0: the first publication), whatever came;
@@ -25,14 +25,14 @@
 //! A replay publishes kept steps `from..=to` again, one at a time, each after the command of the previous
 //! one came back (that command is not applied). A step whose answer does not come within `retry` ends the
 //! replay early: lock-step drops it (the next retry starts over), real time sends that step again, and
-//! after the last step (`--linger`) the replay starts over from the snapshot step at or below it. In
+//! after the last step (`--linger`) the replay starts over from that step. In
 //! real time a replay pauses when the next step is due and goes on in the next interval, up to the step
 //! current then. A request for a step older than the kept history fails the run.
 
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant};
 
-use runtime::recovery::{HISTORY_STEPS, snapshot_step_at_or_below};
+use runtime::recovery::HISTORY_STEPS;
 
 use crate::backpressure::MonitorProgress;
 
@@ -261,10 +261,10 @@ impl Schedule {
         }
     }
 
-    /// Where a replay that must reach step `k` starts: the snapshot step at or below it (every process
-    /// can answer from there), or the oldest step kept.
+    /// Where a replay that must reach step `k` starts: `k` itself (every process can answer any step: the
+    /// estimator's state before it rides the messages, see [`runtime::recovery`]), or the oldest step kept.
     fn replay_start(&self, k: u64) -> u64 {
-        snapshot_step_at_or_below(k).max(self.kept_from())
+        k.max(self.kept_from())
     }
 
     /// The next instant [`poll`](Self::poll) has something to do without a new event.
@@ -511,8 +511,7 @@ impl Schedule {
     }
 
     /// A replay stopped at `j` without an answer: real time sends `j` again (`resume`), after the last
-    /// step the replay starts over from the snapshot step at or below `j`, lock-step drops it (the next
-    /// retry starts over).
+    /// step the replay starts over from `j`, lock-step drops it (the next retry starts over).
     fn ended_early(&mut self, j: u64, now: Instant, resume: Option<Replay>) {
         if let Some(r) = resume {
             self.replay = Some(Replay { next: j, pending: None, answered: false, ..r });
@@ -608,30 +607,22 @@ mod tests {
     }
 
     #[test]
-    fn a_late_command_replays_from_the_snapshot_step_and_times_out() {
+    fn a_late_command_replays_the_step_in_flight_and_times_out() {
         let t0 = Instant::now();
         let mut s = Schedule::new(lockstep(10, false, 0), t0);
         s.poll(t0);
         for k in 0..3 {
             answer(&mut s, k, ms(t0, k));
         }
-        // Step 3 is published at 2 ms; no command by 102 ms: replay 0, 1, 2 (each after its answer), then 3.
-        assert_eq!(s.poll(ms(t0, 102)), vec![Action::Republish(0)]);
+        // Step 3 is published at 2 ms; no command by 102 ms: step 3 again — only it: every process can
+        // answer any step (the estimator's state before it rides the messages).
+        assert_eq!(s.poll(ms(t0, 102)), vec![Action::Republish(3)]);
         assert_eq!((s.counts().retries, s.counts().replays), (1, 1));
-        assert_eq!(s.other_command(0), Other::Answer);
-        assert_eq!(s.poll(ms(t0, 103)), vec![Action::Republish(1)]);
-        assert_eq!(s.other_command(5), Other::Ignored);
-        assert_eq!(s.poll(ms(t0, 104)), vec![], "step 1's answer is awaited");
-        assert_eq!(s.other_command(1), Other::Answer);
-        assert_eq!(s.poll(ms(t0, 105)), vec![Action::Republish(2)]);
-        s.other_command(2);
-        assert_eq!(s.poll(ms(t0, 106)), vec![Action::Republish(3)], "the awaited step, with no wait");
+        assert_eq!(s.other_command(2), Other::Ignored);
         // No answer again: the next retry comes a retry interval after the replay.
-        assert_eq!(s.poll(ms(t0, 205)), vec![]);
-        assert_eq!(s.poll(ms(t0, 206)), vec![Action::Republish(0)]);
-        // A replay that gets no answer stops early; the next retry starts over.
-        assert_eq!(s.poll(ms(t0, 306)), vec![]);
-        assert_eq!(s.poll(ms(t0, 406)), vec![Action::Republish(0)]);
+        assert_eq!(s.poll(ms(t0, 201)), vec![]);
+        assert_eq!(s.poll(ms(t0, 202)), vec![Action::Republish(3)]);
+        assert_eq!(s.counts().retries, 2);
         assert!(matches!(s.poll(ms(t0, 2002))[..], [Action::Fail(ref m)] if m.contains("step 3: no command")));
     }
 
@@ -655,8 +646,8 @@ mod tests {
 
     #[test]
     fn a_request_during_a_lockstep_replay_waits_for_it_instead_of_restarting_it() {
-        // The long kill storm: a monitor that lacked a step asked for a replay from the snapshot step
-        // below it once per step it lacked; each request sent the running replay back to that step, so the
+        // The long kill storm: a monitor that lacked a step asked for a replay from a step below it (the
+        // snapshot step, as it did then) once per step it lacked; each request sent the running replay back to that step, so the
         // monitor got one step per replay and the run crawled into the command timeout.
         let t0 = Instant::now();
         let mut s = Schedule::new(lockstep(10, false, 0), t0);
@@ -720,7 +711,7 @@ mod tests {
         // Step 4 may not go while the monitor lacks step 0 (window 4).
         assert_eq!(answer(&mut s, 3, t0), vec![]);
         assert_eq!(s.poll(ms(t0, 99)), vec![]);
-        // No progress for the retry interval: replay to the monitor from the snapshot step (0) to step 3.
+        // No progress for the retry interval: replay to the monitor from the step it lacks (0) to step 3.
         assert_eq!(s.poll(ms(t0, 100)), vec![Action::Republish(0)]);
         s.other_command(0);
         assert_eq!(s.poll(ms(t0, 101)), vec![Action::Republish(1)]);
@@ -754,11 +745,9 @@ mod tests {
         assert!(s.is_done());
         assert_eq!(s.joined(1), Ok(Some(1)));
         assert_eq!(s.poll(ms(t0, 1)), vec![Action::Republish(1)]);
-        // No answer: the replay starts over from the snapshot step at or below step 1.
-        assert_eq!(s.poll(ms(t0, 101)), vec![Action::Republish(0)]);
+        // No answer: the replay starts over from the step that got none.
+        assert_eq!(s.poll(ms(t0, 101)), vec![Action::Republish(1)]);
         assert_eq!(s.counts().retries, 1);
-        s.other_command(0);
-        assert_eq!(s.poll(ms(t0, 102)), vec![Action::Republish(1)]);
         s.other_command(1);
         assert_eq!(s.poll(ms(t0, 103)), vec![Action::Republish(2)]);
         assert_eq!(s.poll(ms(t0, 10_000)), vec![], "nothing left to do");

@@ -35,8 +35,8 @@
 //!
 //! With `--resume` (what `uavloc launch` passes to a restarted monitor) it appends to its `--log` instead
 //! of truncating it, reads back the steps recorded there, and announces itself on the control topic
-//! ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`]) from the snapshot step at or
-//! below the first step it lacks: emitter-sim replays the run from there (the estimator estimates the
+//! ([`ControlKind::Hello`]) and asks for a replay ([`ControlKind::Replay`]) from the first step it lacks:
+//! emitter-sim replays the run from there (the estimator estimates the
 //! steps again from the states the messages carry, the planner plans the same estimates again), so the
 //! record is complete again. The latency statistics of the summary cover the steps this instance saw.
 //!
@@ -65,7 +65,7 @@ use protocol::{
     Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, RejectionCounter, StateEcho,
     Topic, TopicPublisher, TopicSubscriber, Truth, Waitable, now_ns,
 };
-use runtime::recovery::{StateStore, snapshot_step_at_or_below};
+use runtime::recovery::StateStore;
 use runtime::{Flow, Handler, IDLE_WAKEUP, Node};
 use serde_json::json;
 
@@ -520,7 +520,7 @@ impl Handler for MonitorNode<'_> {
             state.replays_requested += 1;
             state.log.write("replay_request", json!({"step": next, "newest": newest}));
             node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));
-            node.announce(ControlKind::Replay, snapshot_step_at_or_below(next), "lost")?;
+            node.announce(ControlKind::Replay, next, "lost")?;
         }
         Ok(if state.assembler.is_done() { Flow::Stop } else { Flow::Continue })
     }
@@ -603,10 +603,9 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         ),
         Some(n) => state.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
     }
-    // "Replay the run for me from the first step I lack" (a no-op at the start of a launch), from the
-    // snapshot step at or below it, where emitter-sim's own retries start too (runtime::recovery).
+    // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
     node.announce(ControlKind::Hello, 0, "")?;
-    node.announce(ControlKind::Replay, snapshot_step_at_or_below(state.assembler.next_step()), "")?;
+    node.announce(ControlKind::Replay, state.assembler.next_step(), "")?;
     node.ready();
     match resumed {
         None if external => node.say(format_args!(

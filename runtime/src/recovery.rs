@@ -26,8 +26,9 @@
 //!   two processes crashing at once: the estimator's in the commands (the planner's messages), the
 //!   monitor's store and its log.
 //! - A restarted estimator or planner asks for a replay of the step in flight
-//!   ([`protocol::ControlKind::IN_FLIGHT`]); a restarted monitor asks from the snapshot step at or below
-//!   the first step it lacks; a monitor that lost a message likewise.
+//!   ([`protocol::ControlKind::IN_FLIGHT`]); a restarted monitor asks from the first step it lacks; a
+//!   monitor that lost a message likewise; a lock-step emitter-sim whose command is late publishes the
+//!   step in flight again. Any step can be replayed alone: the state before it is held (below).
 //! - A lock-step emitter-sim does not publish step k while the monitor's progress (the first step it
 //!   lacks, [`protocol::ControlKind::Progress`]) is k − [`MONITOR_WINDOW`] or less: a monitor restarted
 //!   many times cannot fall further behind (the window is below [`SNAPSHOT_EVERY`], so the first step it
