@@ -89,22 +89,22 @@ fn reconcile(
             file.display()
         ))
     };
-    match a.run.steps {
+    match a.process.run.steps {
         Some(n) if n != run.steps => return Err(mismatch("--steps", n.to_string(), run.steps.to_string())),
-        _ => a.run.steps = Some(run.steps),
+        _ => a.process.run.steps = Some(run.steps),
     }
-    match a.run.seed {
+    match a.process.run.seed {
         Some(s) if s != run.seed => return Err(mismatch("--seed", s.to_string(), run.seed.to_string())),
-        _ => a.run.seed = Some(run.seed),
+        _ => a.process.run.seed = Some(run.seed),
     }
-    match (&a.run.scenario, &run.scenario) {
+    match (&a.process.run.scenario, &run.scenario) {
         (Some(given), Some(running)) if std::path::absolute(given).unwrap_or_else(|_| given.clone()) != *running => {
             return Err(mismatch("--scenario", given.display().to_string(), running.display().to_string()));
         }
         (Some(given), None) => {
             return Err(mismatch("--scenario", given.display().to_string(), "default scenario".into()));
         }
-        (None, running) => a.run.scenario = running.clone(),
+        (None, running) => a.process.run.scenario = running.clone(),
         _ => {}
     }
     Ok(())
@@ -118,7 +118,7 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     let timeout = Duration::from_secs_f64(args.timeout_s);
     let (role, domain_flag, planner) = match &args.role {
         SwapRole::Planner(a) => {
-            ("planner", a.node.domain.as_deref(), Some(format!("{}/{}", a.solver.name(), a.objective.name())))
+            ("planner", a.process.node.domain.as_deref(), Some(format!("{}/{}", a.solver.name(), a.objective.name())))
         }
         SwapRole::Estimator(a) => ("estimator", a.node.domain.as_deref(), None),
     };
@@ -146,7 +146,8 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
             if let Some((settings, file)) = &run {
                 reconcile(&mut a, settings, file)?;
             }
-            runtime::flags::to_flags(&planner::process::PlannerArgs { node: node(&a.node), takeover: true, ..a })
+            let process = runtime::ProcessArgs { node: node(&a.process.node), ..a.process.clone() };
+            runtime::flags::to_flags(&planner::process::PlannerArgs { process, takeover: true, ..a })
         }
         SwapRole::Estimator(a) => runtime::flags::to_flags(&estimator::process::EstimatorArgs {
             node: node(&a.node),

@@ -37,20 +37,18 @@ pub(super) fn child_flags(
             source: args.source,
             mcap: args.record.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
             stamps: args.stamps.clone(),
-            run: run.clone(),
+            process: runtime::ProcessArgs { node: node(args.headless || args.live), run: run.clone() },
             log: Some(log.to_path_buf()),
             out: args.out.clone(),
-            node: node(args.headless || args.live),
             ..defaults()
         }),
         Role::Planner => to_flags(&planner::process::PlannerArgs {
-            run: run.clone(),
+            process: runtime::ProcessArgs { node: node(true), run: run.clone() },
             objective: args.run.objective,
             solver: args.run.solver,
             estimate_deadline_ms: args.estimate_deadline_ms,
             plan_delay_ms: args.plan_delay_ms,
             plan_delay_steps: if args.plan_delay_ms > 0 { args.plan_delay_steps.clone() } else { Vec::new() },
-            node: node(true),
             ..defaults()
         }),
         Role::Estimator => to_flags(&estimator::process::EstimatorArgs {
@@ -63,7 +61,7 @@ pub(super) fn child_flags(
             ..defaults()
         }),
         Role::EmitterSim => to_flags(&emitter_sim::process::EmitterSimArgs {
-            run: run.clone(),
+            process: runtime::ProcessArgs { node: node(true), run: run.clone() },
             command_timeout_s: args.command_timeout_s,
             retry_interval_ms: args.retry_interval_ms,
             // The estimator and the monitor.
@@ -72,7 +70,6 @@ pub(super) fn child_flags(
             mode: args.mode,
             time_scale: args.time_scale,
             checkpoint,
-            node: node(true),
             // Stays after the last step to replay it to a monitor behind.
             linger: true,
             ..defaults()
@@ -157,11 +154,13 @@ mod tests {
     fn every_process_writes_its_own_flags_back() {
         let link = runtime::LinkArgs { transport: protocol::TransportKind::Uds, wait: None, spin_us: Some(30) };
         let m = monitor::process::MonitorArgs {
-            node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: true },
+            process: runtime::ProcessArgs {
+                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: true },
+                run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
+            },
             source: runtime::Source::External,
             mcap: Some("run.mcap".into()),
             stamps: Some("s.csv".into()),
-            run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
             log: Some("l.jsonl".into()),
             record: Some("r.json".into()),
             // A value that begins with `-` (written `--out=-o`, not taken for a flag).
@@ -171,8 +170,10 @@ mod tests {
         };
         round_trip(m);
         let p = planner::process::PlannerArgs {
-            node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: false, supervised: true },
-            run: runtime::RunArgs { scenario: None, steps: Some(3), seed: None },
+            process: runtime::ProcessArgs {
+                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: false, supervised: true },
+                run: runtime::RunArgs { scenario: None, steps: Some(3), seed: None },
+            },
             objective: planner::ObjectiveKind::PosteriorCubature,
             solver: planner::SolverKind::Aco,
             takeover: true,
@@ -182,8 +183,10 @@ mod tests {
         };
         round_trip(p);
         let e = emitter_sim::process::EmitterSimArgs {
-            node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: false },
-            run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
+            process: runtime::ProcessArgs {
+                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: false },
+                run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
+            },
             command_timeout_s: 0.1 + 0.2,
             retry_interval_ms: 77,
             connect_timeout_s: 3.5,

@@ -160,14 +160,10 @@ pub fn step_interval(dt: f64, time_scale: f64, steps: usize) -> Result<Duration,
 /// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
 #[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct EmitterSimArgs {
-    /// The node: domain, link (transport and waiting), quiet, supervised.
+    /// The node (domain, link, quiet, supervised) and the run (scenario, steps, seed).
     #[command(flatten)]
     #[serde(flatten)]
-    pub node: runtime::NodeArgs,
-    /// The run: scenario, steps, seed.
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub run: runtime::RunArgs,
+    pub process: runtime::ProcessArgs,
     /// Give up (exit 1) when the command for a step has not arrived after this many seconds.
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     #[serde(serialize_with = "runtime::flags::finite")]
@@ -397,7 +393,7 @@ impl EmitterNode<'_> {
             Action::Publish(k) => {
                 self.publish(node, k)?;
                 if self.schedule.is_done() && self.args.linger {
-                    runtime::tell(self.args.node.supervised, &SupervisorLine::Finished);
+                    runtime::tell(self.args.process.node.supervised, &SupervisorLine::Finished);
                 }
             }
             Action::Republish(j) => self.publish_again(node, j)?,
@@ -488,8 +484,9 @@ fn check_args(args: &EmitterSimArgs) -> Result<(), ProcessError> {
 /// Runs the world to the end of the run.
 pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     check_args(args)?;
-    let domain = Domain::resolve(args.node.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
-    let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
+    let domain =
+        Domain::resolve(args.process.node.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
+    let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let pacing = match args.mode {
         Mode::Lockstep => {
@@ -525,7 +522,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             scenario.steps
         )));
     }
-    let Some(mut node) = Node::open(ROLE, &args.node)? else {
+    let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Err(ProcessError::Interrupted);
     };
     let truths = Topic::<Truth>::publisher(node.link(), &services::truth(&domain))?;
@@ -601,7 +598,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         started_at: start_step,
         cpu_s: node_summary.cpu_s,
     };
-    if !args.node.quiet {
+    if !args.process.node.quiet {
         eprintln!(
             "emitter-sim: done: {} steps, {} measurements, rejected {}, {} ignored, {} replays ({} retries)",
             summary.steps, summary.measurements, summary.rejected, summary.ignored, summary.replays, summary.retries
@@ -620,5 +617,5 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
 /// Runs emitter-sim and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &EmitterSimArgs) -> ExitCode {
-    runtime::exit_with(ROLE, args.node.supervised, run(args))
+    runtime::exit_with(ROLE, args.process.node.supervised, run(args))
 }

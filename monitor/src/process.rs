@@ -108,14 +108,10 @@ Examples:
 /// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
 #[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct MonitorArgs {
-    /// The node: domain, link (transport and waiting), quiet, supervised.
+    /// The node (domain, link, quiet, supervised) and the run (scenario, steps, seed).
     #[command(flatten)]
     #[serde(flatten)]
-    pub node: runtime::NodeArgs,
-    /// The run: scenario, steps, seed.
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub run: runtime::RunArgs,
+    pub process: runtime::ProcessArgs,
     /// Where the measurements come from: simulator (emitter-sim, which also publishes the truth) or
     /// external (a front end outside uavloc; no truth: the columns that need one are absent, not zero).
     #[arg(long, value_name = "SOURCE", default_value = "simulator")]
@@ -529,7 +525,7 @@ impl Handler for MonitorNode<'_> {
 /// Runs the monitor until the last step is recorded (or SIGINT/SIGTERM, or a shutdown); returns the run
 /// record and the summary.
 pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessError> {
-    let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
+    let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
     // With a log, the step records live there, not in memory (read back at the end); a restart takes the
@@ -551,7 +547,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     };
     let external = args.source == runtime::Source::External;
     let assembler = if external { assembler.without_truth() } else { assembler };
-    let Some(mut node) = Node::open(ROLE, &args.node)? else {
+    let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Err(ProcessError::Interrupted);
     };
     let domain = node.domain().clone();
@@ -578,7 +574,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             planners: 0,
             missed: 0,
             stale: 0,
-            quiet: args.node.quiet,
+            quiet: args.process.node.quiet,
             received: HashMap::new(),
             missing: 0,
             stamps,
@@ -677,7 +673,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         eprintln!("error: monitor: {e}");
         summary.output_error = Some(e);
     }
-    if !args.node.quiet {
+    if !args.process.node.quiet {
         let l = &summary.latency;
         let p50 = |s: &Option<LatencyStat>| s.map_or("-".into(), |s| format!("{:.0} µs", s.p50_us));
         eprintln!(
@@ -706,9 +702,9 @@ pub fn main_with(args: &MonitorArgs) -> ExitCode {
     match run(args) {
         Ok((run, summary)) => {
             let record = serde_json::to_string(&run).unwrap_or_default();
-            runtime::tell(args.node.supervised, &runtime::SupervisorLine::Record(record));
+            runtime::tell(args.process.node.supervised, &runtime::SupervisorLine::Record(record));
             let summary_json = serde_json::to_value(&summary).unwrap_or_default();
-            runtime::tell(args.node.supervised, &runtime::SupervisorLine::Summary(summary_json));
+            runtime::tell(args.process.node.supervised, &runtime::SupervisorLine::Summary(summary_json));
             if args.print_record {
                 println!("{}", serde_json::to_string_pretty(&run).unwrap_or_default());
             }

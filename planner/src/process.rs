@@ -81,14 +81,10 @@ Examples:
 /// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
 #[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
 pub struct PlannerArgs {
-    /// The node: domain, link (transport and waiting), quiet, supervised.
+    /// The node (domain, link, quiet, supervised) and the run (scenario, steps, seed).
     #[command(flatten)]
     #[serde(flatten)]
-    pub node: runtime::NodeArgs,
-    /// The run: scenario, steps, seed.
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub run: runtime::RunArgs,
+    pub process: runtime::ProcessArgs,
     /// Planning objective: single | mc | analytical | cubature | formation.
     #[arg(long, default_value = "analytical")]
     #[serde(serialize_with = "runtime::flags::display")]
@@ -319,7 +315,7 @@ impl Handler for Planner<'_> {
 
 /// Runs the planner until SIGINT/SIGTERM, a shutdown or a hand-over.
 pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
-    let scenario = load_scenario(args.run.scenario.as_deref(), args.run.steps, args.run.seed)
+    let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     if scenario.target == TargetMode::Controlled {
         return Err(ProcessError::Input(
@@ -328,7 +324,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
                 .into(),
         ));
     }
-    let Some(mut node) = Node::open(ROLE, &args.node)? else {
+    let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Ok(PlannerSummary { node: runtime::NodeSummary::new(ROLE, 0), ..PlannerSummary::default() });
     };
     let domain = node.domain().clone();
@@ -420,5 +416,5 @@ fn hold_command(
 /// Runs the planner and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &PlannerArgs) -> ExitCode {
-    runtime::exit_with(ROLE, args.node.supervised, run(args))
+    runtime::exit_with(ROLE, args.process.node.supervised, run(args))
 }

@@ -220,7 +220,7 @@ mod tests {
 
     #[test]
     fn a_replayed_step_0_keeps_the_run_its_deadlines_and_its_holds() {
-        // A monitor that misses an estimate asks for a replay from step 0 while the estimator is frozen:
+        // A monitor that misses an estimate of step 0 asks for a replay from it while the estimator is frozen:
         // the replayed step 0 arrives between the live steps and must not restart the run.
         let t0 = Instant::now();
         let ms = Duration::from_millis;

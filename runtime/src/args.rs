@@ -70,6 +70,20 @@ pub struct NodeArgs {
     pub supervised: bool,
 }
 
+/// The flags of a process that takes part in a run with a scenario (emitter-sim, the planner, the
+/// monitor): its node and the run.
+#[derive(clap::Args, serde::Serialize, Debug, Clone, Default, PartialEq, Eq)]
+pub struct ProcessArgs {
+    /// The node: domain, link (transport and waiting), quiet, supervised.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub node: NodeArgs,
+    /// The run: scenario, steps, seed.
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub run: RunArgs,
+}
+
 /// The transport and wait flags every process (and `uavloc launch`, which passes them on) takes.
 #[derive(clap::Args, serde::Serialize, Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct LinkArgs {

@@ -13,7 +13,7 @@ pub mod node;
 pub mod recovery;
 pub mod supervisor;
 
-pub use args::{DEFAULT_SPIN_US, LinkArgs, NodeArgs, RunArgs, Source};
+pub use args::{DEFAULT_SPIN_US, LinkArgs, NodeArgs, ProcessArgs, RunArgs, Source};
 pub use exit::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError, cpu_seconds};
 pub use node::{Ended, Flow, Handler, IDLE_WAKEUP, Node};
 pub use supervisor::{NodeSummary, SupervisorLine, exit_with, tell};

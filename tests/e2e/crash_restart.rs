@@ -80,8 +80,8 @@ fn kill_together(roles: &[&str]) {
     common::assert_each_step_logged_once(&events, STEPS, &tag);
 
     // One command applied per step: the emitter-sim that finished the run flew exactly STEPS commands
-    // (a restarted emitter-sim flies the whole run again, from step 0, answered from what the estimator
-    // and planner kept).
+    // (a restarted emitter-sim flies the whole run again, from step 0 — a run this short has no
+    // snapshot —, and the estimator and the planner answer every step again from what the messages carry).
     let emitter = processes.iter().rev().find(|p| p["role"] == "emitter-sim").unwrap();
     assert_eq!(emitter["summary"]["steps"].as_u64(), Some(STEPS), "{tag}: {emitter}");
     if !roles.contains(&"emitter-sim") {
