@@ -79,7 +79,13 @@ pub struct LoggedRun {
 
 /// A state echo as it is written in the log: its bytes in hex (exact, whatever the floats).
 pub fn state_to_hex(echo: &StateEcho) -> String {
-    echo.as_bytes().iter().map(|b| format!("{b:02x}")).collect()
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    let mut out = String::with_capacity(2 * core::mem::size_of::<StateEcho>());
+    for b in echo.as_bytes() {
+        out.push(char::from(DIGITS[usize::from(b >> 4)]));
+        out.push(char::from(DIGITS[usize::from(b & 15)]));
+    }
+    out
 }
 
 /// The state echo of [`state_to_hex`]'s text; `None` for text that is not one (a state that does not pass
