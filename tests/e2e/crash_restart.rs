@@ -14,17 +14,25 @@ use serde_json::Value;
 const STEPS: u64 = 30;
 
 fn kill_once(role: &str) {
-    kill_together(&[role]);
+    kill_together(&[role], STEPS, 5, 30);
 }
 
-/// SIGKILLs the processes of `roles` at once (each restarted once) and checks the run.
-fn kill_together(roles: &[&str]) {
+/// What a run with kills ended with: the step the finishing emitter-sim started from, the estimator's
+/// state requests.
+struct Outcome {
+    started_at: u64,
+    state_requests: Vec<u64>,
+}
+
+/// SIGKILLs the processes of `roles` at once (each restarted once) once the monitor has logged step
+/// `kill_at` of a run of `total` steps paced at `delay_ms` per step, and checks the run.
+fn kill_together(roles: &[&str], total: u64, kill_at: u64, delay_ms: u64) -> Outcome {
     let tag = roles.join("-");
     let d = domain("crash", &tag);
     let dir = scratch(&format!("crash-{tag}"));
-    let steps = STEPS.to_string();
-    let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "30"]);
-    launch.wait_for_step(5, Duration::from_secs(30));
+    let steps = total.to_string();
+    let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", &delay_ms.to_string()]);
+    launch.wait_for_step(kill_at, Duration::from_secs(60));
     let pids: Vec<u32> =
         roles.iter().map(|role| pid_of(&d, role).unwrap_or_else(|| panic!("no {role} of {d} found"))).collect();
     for &pid in &pids {
@@ -37,7 +45,7 @@ fn kill_together(roles: &[&str]) {
 
     // The kill happened mid-run.
     let logged_at_kill = events_at_kill.iter().filter(|e| e["event"] == "step").count() as u64;
-    assert!(logged_at_kill < STEPS, "{tag}: the run was over before the kill");
+    assert!(logged_at_kill < total, "{tag}: the run was over before the kill");
 
     // Each restarted once, and said so.
     assert_eq!(run["restarts"].as_u64(), Some(roles.len() as u64), "{tag}: {stderr}");
@@ -65,25 +73,32 @@ fn kill_together(roles: &[&str]) {
                 || role == "monitor" && events.iter().any(|e| e["event"] == "resume"),
             "{role}: no hello"
         );
-        // A restarted estimator keeps no file: it asked the monitor for the state after the step before
-        // the one in flight, which the monitor had from the step's estimate and command.
-        if role == "estimator" {
-            let asked: Vec<u64> = events
-                .iter()
-                .filter(|e| e["event"] == "state_request" && e["role"] == "estimator")
-                .filter_map(|e| e["step"].as_u64())
-                .collect();
-            assert!(!asked.is_empty() && asked.iter().all(|&k| k + 1 >= logged_at_kill), "{tag}: {asked:?}");
-        }
     }
     // Every step exactly once.
-    common::assert_each_step_logged_once(&events, STEPS, &tag);
+    common::assert_each_step_logged_once(&events, total, &tag);
 
-    // One command applied per step: the emitter-sim that finished the run flew exactly STEPS commands
-    // (a restarted emitter-sim flies the whole run again, from step 0 — a run this short has no
-    // snapshot —, and the estimator and the planner answer every step again from what the messages carry).
+    // One command applied per step: the emitter-sim that finished the run flew exactly the steps from
+    // where it started (a restarted emitter-sim flies the run again from its older world snapshot, from
+    // step 0 in a run this short, and the estimator and the planner answer every step again from what
+    // the messages carry).
     let emitter = processes.iter().rev().find(|p| p["role"] == "emitter-sim").unwrap();
-    assert_eq!(emitter["summary"]["steps"].as_u64(), Some(STEPS), "{tag}: {emitter}");
+    let started_at = emitter["summary"]["started_at"].as_u64().unwrap();
+    assert_eq!(emitter["summary"]["steps"].as_u64(), Some(total - started_at), "{tag}: {emitter}");
+    let asked: Vec<u64> = events
+        .iter()
+        .filter(|e| e["event"] == "state_request" && e["role"] == "estimator")
+        .filter_map(|e| e["step"].as_u64())
+        .collect();
+    // A restarted estimator keeps no file: it asked the monitor for the state after the step before the
+    // first one it was given — the one in flight, or the snapshot step a restarted emitter-sim flew on
+    // from — which the monitor had from that step's estimate and command. (None when the world starts
+    // again from step 0: a fresh run needs no state.)
+    if roles.contains(&"estimator") {
+        let first = if roles.contains(&"emitter-sim") { started_at } else { logged_at_kill };
+        assert!(asked.iter().all(|&k| k + 1 >= first), "{tag}: {asked:?}");
+        assert!(first == 0 || asked.contains(&(first - 1)) || !roles.contains(&"emitter-sim"), "{tag}: {asked:?}");
+        assert!(first == 0 || !asked.is_empty(), "{tag}: {asked:?}");
+    }
     if !roles.contains(&"emitter-sim") {
         assert!(emitter["summary"]["replays"].as_u64().unwrap() >= 1, "{tag}: {emitter}");
     }
@@ -94,6 +109,7 @@ fn kill_together(roles: &[&str]) {
     assert_eq!(run["rejected"].as_u64(), Some(0), "{tag}");
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
+    Outcome { started_at, state_requests: asked }
 }
 
 #[test]
@@ -107,7 +123,18 @@ fn the_estimator_and_the_planner_killed_together_go_on_from_the_monitors_states(
     // Both holders of the newest estimator state in the messages (the estimator, the planner's commands)
     // are gone at once: the monitor answers.
     let _scenario = common::scenario(module_path!());
-    kill_together(&["estimator", "planner"]);
+    let outcome = kill_together(&["estimator", "planner"], STEPS, 5, 30);
+    assert!(!outcome.state_requests.is_empty());
+}
+
+#[test]
+fn the_estimator_and_emitter_sim_killed_together_go_on_from_a_snapshot_with_the_monitors_state() {
+    // A restarted emitter-sim flies on from its older world snapshot (step 256 here); the restarted
+    // estimator has seen no step before it and asks the monitor for the state after step 255.
+    let _scenario = common::scenario(module_path!());
+    let outcome = kill_together(&["estimator", "emitter-sim"], 700, 620, 1);
+    assert_eq!(outcome.started_at, 256);
+    assert!(outcome.state_requests.contains(&255), "{:?}", outcome.state_requests);
 }
 
 #[test]
