@@ -61,7 +61,10 @@ pub const ROLE: &str = "estimator";
 /// What `estimator --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
 The estimator subscribes to <domain>/measurement and publishes <domain>/estimate. It needs no scenario:
-positions, range differences and their sigmas come with each measurement.
+positions, range differences and their sigmas come with each measurement. It keeps no file: the state
+each step goes on from rides the messages (every command on <domain>/command echoes it); a step whose
+predecessor's state it has not seen (after a restart) is held while it asks the monitor for that state
+(answered on <domain>/state).
 
 Examples:
   estimator --domain lab1
