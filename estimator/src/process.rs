@@ -20,7 +20,10 @@
 //!   further back than it remembers) is held (`out_of_chain` counts them) while it asks for that state
 //!   ([`ControlKind::State`], again every [`STATE_RETRY`] while unanswered); the monitor, which keeps every
 //!   echoed state, answers on `<domain>/state` ([`protocol::EstimatorState`]), and the held steps are
-//!   estimated then, in step order. At start-up the estimator announces itself on the control topic
+//!   estimated then, in step order. With no monitor in the domain for [`NO_HOLDER_FALLBACK`] (a
+//!   pipeline run without one) it asks for a replay from step 0 instead, which brings every state again
+//!   while emitter-sim keeps step 0.
+//!   At start-up the estimator announces itself on the control topic
 //!   ([`ControlKind::Hello`]) and asks for a replay of the step in flight ([`ControlKind::IN_FLIGHT`]),
 //!   whose measurement its predecessor may have taken with it.
 //! - When Chan fails the library keeps its previous estimate; on the wire that is a `failed` estimate
@@ -173,6 +176,10 @@ pub const MAX_HELD: usize = 64;
 /// How long an unanswered request for a state waits before it is asked again (the monitor may have been
 /// restarting).
 pub const STATE_RETRY: Duration = Duration::from_millis(500);
+
+/// How long a held step waits with no monitor in the domain before the estimator asks for a replay from
+/// step 0 instead (longer than a launcher's restart of the monitor: 1.6 s at most, and its start).
+pub const NO_HOLDER_FALLBACK: Duration = Duration::from_secs(4);
 
 /// Where the estimator's chain is: the library estimator and the last step it estimated.
 #[derive(Debug, Default)]
@@ -407,6 +414,10 @@ struct EstimatorNode<'a> {
     from_step: Option<u64>,
     /// The last state asked for, and when.
     asked: Option<(u64, Instant)>,
+    /// Since when no monitor has been there to ask (no publisher on the state topic).
+    no_holder_since: Option<Instant>,
+    /// The held step for which, with no monitor to ask, a replay from step 0 was asked.
+    asked_from_start: Option<u64>,
     summary: EstimatorSummary,
 }
 
@@ -490,7 +501,23 @@ impl EstimatorNode<'_> {
             return Ok(());
         };
         if self.asked.is_none_or(|(s, at)| s != step || at.elapsed() >= STATE_RETRY) {
-            node.announce(ControlKind::State, step, "")?;
+            let now = Instant::now();
+            let alone = self.states.publisher_count()? == 0;
+            self.no_holder_since = if alone { Some(self.no_holder_since.unwrap_or(now)) } else { None };
+            if self.no_holder_since.is_some_and(|t| now - t >= NO_HOLDER_FALLBACK)
+                && self.asked_from_start != Some(step)
+            {
+                // No monitor holds the states (a pipeline run without one; a restarting monitor is back
+                // well within the wait): the run from its start brings every state again — if
+                // emitter-sim still keeps step 0 (else it stops the run with an error naming the steps).
+                node.warn(format_args!(
+                    "no monitor to ask for the state after step {step}; asking for a replay from step 0"
+                ));
+                node.announce(ControlKind::Replay, 0, "no state")?;
+                self.asked_from_start = Some(step);
+            } else {
+                node.announce(ControlKind::State, step, "")?;
+            }
             self.asked = Some((step, Instant::now()));
         }
         Ok(())
@@ -563,6 +590,8 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         state: StepEstimator::with_config(config),
         from_step: None,
         asked: None,
+        no_holder_since: None,
+        asked_from_start: None,
         summary: EstimatorSummary::default(),
     };
     let mut inputs: Vec<&dyn Waitable> = vec![&measurements, &states];

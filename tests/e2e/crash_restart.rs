@@ -8,7 +8,9 @@ use crate::common;
 
 use std::time::Duration;
 
-use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch};
+use common::{
+    Launch, assert_nothing_left, assert_same_run, domain, json_of, kill, pid_of, scratch, start_process, wait_exit,
+};
 use serde_json::Value;
 
 const STEPS: u64 = 30;
@@ -195,4 +197,44 @@ fn a_process_that_keeps_crashing_fails_the_launch_after_the_bounded_restarts() {
     assert_eq!(restarts.iter().map(|e| e["backoff_ms"].as_u64().unwrap()).collect::<Vec<_>>(), vec![50, 100]);
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn an_estimator_restarted_in_a_pipeline_without_a_monitor_has_the_run_replayed_from_step_0() {
+    // Started by hand, without a monitor (no holder of old states): the restarted estimator, holding the
+    // step in flight, finds no one to ask for the state before it and asks for a replay from step 0,
+    // which brings every state again. Before it did, the run stalled into emitter-sim's command timeout.
+    let _scenario = common::scenario(module_path!());
+    let d = domain("crash", "no-monitor");
+    let run = ["--steps", "60"];
+    let mut planner = start_process("planner", &d, &run);
+    let mut estimator = start_process("estimator", &d, &[]);
+    let mut emitter = start_process(
+        "emitter-sim",
+        &d,
+        &[&run[..], &["--min-subscribers", "1", "--step-delay-ms", "20", "--retry-interval-ms", "200"]].concat(),
+    );
+    std::thread::sleep(Duration::from_millis(400));
+    kill(estimator.id(), libc::SIGKILL);
+    let _ = estimator.wait();
+    let mut estimator = start_process("estimator", &d, &[]);
+    let status = wait_exit(&mut emitter, Duration::from_secs(60), "emitter-sim");
+    let mut out = String::new();
+    std::io::Read::read_to_string(emitter.stdout.as_mut().unwrap(), &mut out).unwrap();
+    assert!(status.success(), "emitter-sim: {status:?}\n{out}");
+    let summary: Value =
+        out.lines().find_map(|l| l.strip_prefix("summary ")).map(|j| serde_json::from_str(j).unwrap()).unwrap();
+    assert_eq!(summary["steps"].as_u64(), Some(60), "{summary}");
+    assert!(summary["replays"].as_u64().unwrap() >= 1, "{summary}");
+    for (child, role) in [(&mut estimator, "estimator"), (&mut planner, "planner")] {
+        kill(child.id(), libc::SIGTERM);
+        assert!(wait_exit(child, Duration::from_secs(5), role).success(), "{role}");
+    }
+    // The restarted estimator held the step in flight until the replay brought the states.
+    let mut out = String::new();
+    std::io::Read::read_to_string(estimator.stdout.as_mut().unwrap(), &mut out).unwrap();
+    let summary: Value =
+        out.lines().find_map(|l| l.strip_prefix("summary ")).map(|j| serde_json::from_str(j).unwrap()).unwrap();
+    assert!(summary["out_of_chain"].as_u64().unwrap() >= 1, "{summary}");
+    assert_nothing_left(&d);
 }

@@ -5,23 +5,11 @@
 
 use crate::common;
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{Launch, UAVLOC, assert_nothing_left, domain, kill, pid_of, read_events, scratch};
-
-/// Waits at most `timeout` for `child` to exit.
-fn wait_exit(child: &mut Child, timeout: Duration, what: &str) -> std::process::ExitStatus {
-    let deadline = Instant::now() + timeout;
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            return status;
-        }
-        assert!(Instant::now() < deadline, "{what} did not exit within {timeout:?} of SIGTERM");
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
+use common::{
+    Launch, assert_nothing_left, domain, kill, pid_of, read_events, scratch, start_process as start, wait_exit,
+};
 
 #[test]
 fn sigterm_to_the_launcher_mid_run_stops_everything() {
@@ -45,22 +33,6 @@ fn sigterm_to_the_launcher_mid_run_stops_everything() {
     assert!(end["steps"].as_u64().unwrap() < 500);
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
-}
-
-/// `uavloc process <role> --domain D --supervised --quiet <extra>`, after it printed `ready`.
-fn start(role: &str, d: &str, extra: &[&str]) -> Child {
-    let mut child = Command::new(UAVLOC)
-        .args(["process", role, "--domain", d, "--supervised", "--quiet"])
-        .args(extra)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start a process");
-    let mut line = String::new();
-    BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
-    assert_eq!(line.trim(), "ready", "{role}");
-    child
 }
 
 #[test]

@@ -246,6 +246,35 @@ impl Launch {
     }
 }
 
+/// `uavloc process <role> --domain D --supervised --quiet <extra>`, after it printed `ready`.
+pub fn start_process(role: &str, d: &str, extra: &[&str]) -> Child {
+    use std::io::BufRead as _;
+    let mut child = Command::new(UAVLOC)
+        .args(["process", role, "--domain", d, "--supervised", "--quiet"])
+        .args(extra)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start a process");
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
+    assert_eq!(line.trim(), "ready", "{role}");
+    child
+}
+
+/// Waits at most `timeout` for `child` to exit.
+pub fn wait_exit(child: &mut Child, timeout: Duration, what: &str) -> std::process::ExitStatus {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status;
+        }
+        assert!(Instant::now() < deadline, "{what} did not exit within {timeout:?}");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
 /// The events of a JSONL log (incomplete last lines skipped).
 pub fn read_events(path: &Path) -> Vec<Value> {
     std::fs::read_to_string(path)
