@@ -30,7 +30,6 @@ pub(super) fn child_flags(
 ) -> Result<Vec<String>, CliError> {
     let node =
         |quiet| runtime::NodeArgs { domain: Some(domain.to_string()), link: args.link, quiet, supervised: false };
-    let checkpoint = role.checkpoints().then(|| state.path(&format!("{role}.ckpt")));
     let run = runtime::RunArgs { scenario: args.run.scenario.clone(), steps: args.run.steps, seed: args.run.seed };
     let flags = match role {
         Role::Monitor => to_flags(&monitor::process::MonitorArgs {
@@ -69,7 +68,9 @@ pub(super) fn child_flags(
             step_delay_ms: args.step_delay_ms,
             mode: args.mode,
             time_scale: args.time_scale,
-            checkpoint,
+            // The world's snapshots: the one file of the recovery (the estimator and the planner keep no
+            // state, it rides the messages; the monitor's is its log; see `runtime::recovery`).
+            checkpoint: Some(state.path("emitter-sim.ckpt")),
             // Stays after the last step to replay it to a monitor behind.
             linger: true,
             ..defaults()

@@ -58,13 +58,6 @@ impl Role {
         matches!(self, Role::Monitor | Role::EmitterSim)
     }
 
-    /// Whether the role keeps a file in the launch's state directory: emitter-sim's world snapshots (the
-    /// estimator and the planner keep no state, their state rides the messages; the monitor's is its log;
-    /// see `runtime::recovery`).
-    pub fn checkpoints(self) -> bool {
-        self == Role::EmitterSim
-    }
-
     /// The flag a restarted instance gets on top of the first one's (the monitor resumes its log).
     pub fn restart_flag(self) -> Option<&'static str> {
         (self == Role::Monitor).then_some("--resume")
@@ -153,6 +146,5 @@ mod tests {
     fn names_and_order() {
         assert_eq!(Role::START_ORDER.map(Role::name), ["monitor", "planner", "estimator", "emitter-sim"]);
         assert_eq!(Role::Monitor.restart_flag(), Some("--resume"));
-        assert_eq!(Role::START_ORDER.iter().filter(|r| r.checkpoints()).collect::<Vec<_>>(), [&Role::EmitterSim]);
     }
 }
