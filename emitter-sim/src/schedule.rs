@@ -24,7 +24,7 @@
 //!
 //! A replay publishes kept steps `from..=to` again, one at a time, each after the command of the previous
 //! one came back (that command is not applied). A step whose answer does not come within `retry` ends the
-//! replay early: lock-step drops it (the next retry starts over), real time sends that step again, and
+//! replay early: lock-step drops it (the next retry starts over from that step), real time sends that step again, and
 //! after the last step (`--linger`) the replay starts over from that step. In
 //! real time a replay pauses when the next step is due and goes on in the next interval, up to the step
 //! current then. A request for a step older than the kept history fails the run.
@@ -158,6 +158,9 @@ pub struct Schedule {
     replay: Option<Replay>,
     /// A replay asked for and not started yet.
     requested: Option<u64>,
+    /// Lock-step: the first step of a replay that stopped early without an answer (its requester still
+    /// lacks it): the next retry starts over from there, not only from the step in flight.
+    dropped: Option<u64>,
     monitor: MonitorProgress,
     held: Option<Held>,
     missed: BTreeSet<u64>,
@@ -174,6 +177,7 @@ impl Schedule {
             t0: None,
             replay: None,
             requested: None,
+            dropped: None,
             monitor: MonitorProgress::default(),
             held: None,
             missed: BTreeSet::new(),
@@ -244,7 +248,7 @@ impl Schedule {
                 self.published - 1
             ));
         }
-        self.requested = Some(self.requested.map_or(from, |f| f.min(from)));
+        self.request(from);
         Ok(Some(from))
     }
 
@@ -259,6 +263,13 @@ impl Schedule {
             (Pacing::Realtime { interval }, Some(t0)) => Some(t0 + interval.mul_f64((k - self.cfg.first) as f64)),
             _ => None,
         }
+    }
+
+    /// Asks for a replay that must reach step `from` (merged with a request not started yet: the older
+    /// start wins).
+    fn request(&mut self, from: u64) {
+        let start = self.replay_start(from);
+        self.requested = Some(self.requested.map_or(start, |r| r.min(start)));
     }
 
     /// Where a replay that must reach step `k` starts: `k` itself (every process can answer any step: the
@@ -335,7 +346,8 @@ impl Schedule {
                 }
                 if now >= published + self.cfg.retry {
                     self.counts.retries += 1;
-                    self.requested = Some(self.replay_start(k));
+                    let from = self.dropped.take().map_or(k, |d| d.min(k));
+                    self.request(from);
                     return self.start_requested_replay(now);
                 }
                 None
@@ -432,7 +444,8 @@ impl Schedule {
         }
         if self.requested.is_none() && now >= h.progressed.max(h.replayed) + self.cfg.retry {
             self.counts.retries += 1;
-            self.requested = Some(self.replay_start(next.min(k - 1)));
+            let from = self.dropped.take().map_or(next, |d| d.min(next));
+            self.request(from.min(k - 1));
         }
         Some(self.start_requested_replay(now))
     }
@@ -511,7 +524,7 @@ impl Schedule {
     }
 
     /// A replay stopped at `j` without an answer: real time sends `j` again (`resume`), after the last
-    /// step the replay starts over from `j`, lock-step drops it (the next retry starts over).
+    /// step the replay starts over from `j`, lock-step drops it (the next retry starts over from `j`).
     fn ended_early(&mut self, j: u64, now: Instant, resume: Option<Replay>) {
         if let Some(r) = resume {
             self.replay = Some(Replay { next: j, pending: None, answered: false, ..r });
@@ -519,7 +532,9 @@ impl Schedule {
         }
         if self.phase == Phase::Done {
             self.counts.retries += 1;
-            self.requested = Some(self.replay_start(j));
+            self.request(j);
+        } else {
+            self.dropped = Some(self.dropped.map_or(j, |d| d.min(j)));
         }
         self.replayed(now);
     }
@@ -669,6 +684,33 @@ mod tests {
         s.other_command(4);
         assert_eq!(s.poll(ms(t0, 9)), vec![Action::Republish(5), Action::Republish(0)], "then the next one");
         assert_eq!(s.counts().replays, 2);
+    }
+
+    #[test]
+    fn a_requested_replay_that_got_no_answer_is_started_over_by_the_next_retry() {
+        // The long kill storm (session 12): a restarted monitor asked for a replay from the first step it
+        // lacked while the estimator was down; the replay got no answer and was dropped, and the next
+        // retry republished only the step in flight — which the restarted estimator held, waiting for a
+        // state only that replay would bring the monitor. The run stalled into the command timeout.
+        let t0 = Instant::now();
+        let mut s = Schedule::new(lockstep(10, false, 0), t0);
+        s.poll(t0);
+        for k in 0..5 {
+            answer(&mut s, k, t0);
+        }
+        assert_eq!(s.joined(2), Ok(Some(2)), "the monitor asks from step 2");
+        assert_eq!(s.poll(ms(t0, 1)), vec![Action::Republish(2)]);
+        // No answer (the estimator is down): the replay stops early; the next retry starts it over from
+        // step 2, not from the step in flight.
+        let (at, next) = (2..400).find_map(|t| s.poll(ms(t0, t)).first().map(|a| (t, a.clone()))).unwrap();
+        assert_eq!(next, Action::Republish(2), "at {at} ms");
+        // Answered this time: the replay goes on to the step in flight, and then only that step is retried.
+        for j in 2..5 {
+            s.other_command(j);
+            assert_eq!(s.poll(ms(t0, at + j)), vec![Action::Republish(j + 1)]);
+        }
+        let (_, again) = (at + 5..at + 400).find_map(|t| s.poll(ms(t0, t)).first().map(|a| (t, a.clone()))).unwrap();
+        assert_eq!(again, Action::Republish(5));
     }
 
     #[test]
