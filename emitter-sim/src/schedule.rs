@@ -243,7 +243,7 @@ impl Schedule {
         if from < self.kept_from() {
             return Err(format!(
                 "a replay from step {from} was asked for, but only steps {}..={} are kept (the last {HISTORY_STEPS}); \
-                 a process restarted without its --checkpoint cannot rejoin a run this long",
+                 a process that lacks an older step cannot get it again in a run this long",
                 self.kept_from(),
                 self.published - 1
             ));

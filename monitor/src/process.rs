@@ -94,6 +94,10 @@ pub const STALL_STEPS: u64 = 3;
 /// lock-step emitter-sim runs at most its `--monitor-window` steps ahead of it.
 pub const PROGRESS_EVERY: u64 = 16;
 
+/// How long the monitor waits for a replay it asked for (a message lost) before it asks again: longer than
+/// emitter-sim's retry interval (1 s by default), which a running replay gets per step.
+pub const REASK: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
 The monitor subscribes to <domain>/measurement, /estimate, /command and /truth and needs the run's
@@ -457,7 +461,8 @@ struct MonitorNode<'a> {
     commands: &'a TopicSubscriber<Command>,
     /// The answers to the estimator's state requests.
     states: &'a TopicPublisher<EstimatorState>,
-    replay_asked: Option<u64>,
+    /// The step a replay was last asked from because a message was lost, and when.
+    replay_asked: Option<(u64, Instant)>,
     progress_sent: Option<(u64, Instant)>,
 }
 
@@ -504,15 +509,16 @@ impl Handler for MonitorNode<'_> {
             self.progress_sent = Some((next, Instant::now()));
         }
         // A message of the step we wait for was lost (e.g. overwritten in a full buffer while this monitor
-        // was starved of CPU) if newer steps are in and it is not: ask emitter-sim to replay from it (once
-        // per step), as a restarted monitor would.
+        // was starved of CPU, or never sent while it was restarting) if newer steps are in and it is not:
+        // ask emitter-sim to replay from it, as a restarted monitor would — again every REASK while it does
+        // not come (a replay that found the estimator down is dropped).
         if let Some(newest) = state.assembler.newest_pending_step()
             && newest >= next + STALL_STEPS
-            && self.replay_asked != Some(next)
+            && self.replay_asked.is_none_or(|(step, at)| step != next || at.elapsed() >= REASK)
             && !state.assembler.is_done()
             && state.assembler.has_truth()
         {
-            self.replay_asked = Some(next);
+            self.replay_asked = Some((next, Instant::now()));
             state.replays_requested += 1;
             state.log.write("replay_request", json!({"step": next, "newest": newest}));
             node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));

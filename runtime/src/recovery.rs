@@ -21,14 +21,19 @@
 //!   the command topic and keeps those states ([`StateStore`], the last [`HISTORY_STEPS`] steps), and for
 //!   an older one — after its own restart, or a world rewound further back — it asks
 //!   ([`protocol::ControlKind::State`]) and the monitor answers ([`protocol::EstimatorState`]).
-//! - The monitor keeps every state the commands echoed in a [`StateStore`] too, and writes each one in its
-//!   log with the step's record, so a restarted monitor has them again. So the states survive any one or
-//!   two processes crashing at once: the estimator's in the commands (the planner's messages), the
-//!   monitor's store and its log.
+//! - The monitor keeps the state after every step in a [`StateStore`] too (from the step's estimate,
+//!   which carries it whole, or its command's echo), and writes each one in its log with the step's
+//!   record, so a restarted monitor has them again. So the states survive any one or two processes
+//!   crashing at once: the estimator's in the commands (the planner's messages), the monitor's store and
+//!   its log. With no monitor in the domain for a while (processes started by hand without one), a
+//!   restarted estimator asks for a replay from step 0 instead, which brings every state again while
+//!   emitter-sim keeps step 0.
 //! - A restarted estimator or planner asks for a replay of the step in flight
 //!   ([`protocol::ControlKind::IN_FLIGHT`]); a restarted monitor asks from the first step it lacks; a
 //!   monitor that lost a message likewise; a lock-step emitter-sim whose command is late publishes the
-//!   step in flight again. Any step can be replayed alone: the state before it is held (below).
+//!   step in flight again — or, when a replay asked for stopped early without an answer (its answerer
+//!   was down), that replay again from where it stopped. Any step can be replayed alone: the state before
+//!   it is held (above).
 //! - A lock-step emitter-sim does not publish step k while the monitor's progress (the first step it
 //!   lacks, [`protocol::ControlKind::Progress`]) is k − [`MONITOR_WINDOW`] or less: a monitor restarted
 //!   many times cannot fall further behind (the window is below [`SNAPSHOT_EVERY`], so the first step it
