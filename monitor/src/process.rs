@@ -460,7 +460,7 @@ struct MonitorNode<'a> {
     estimates: &'a TopicSubscriber<Estimate>,
     commands: &'a TopicSubscriber<Command>,
     /// The answers to the estimator's state requests.
-    states: &'a TopicPublisher<EstimatorState>,
+    state_answers: &'a TopicPublisher<EstimatorState>,
     /// The step a replay was last asked from because a message was lost, and when.
     replay_asked: Option<(u64, Instant)>,
     progress_sent: Option<(u64, Instant)>,
@@ -490,7 +490,7 @@ impl Handler for MonitorNode<'_> {
         })?;
         for echo in state.states.take_answers() {
             let seq = node.next_seq();
-            self.states.send(&EstimatorState::new(echo, seq, node.instance()))?;
+            self.state_answers.send(&EstimatorState::new(echo, seq, node.instance()))?;
         }
         state.complete_steps(node.counter().total());
         // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
@@ -593,7 +593,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         measurements: &measurements,
         estimates: &estimates,
         commands: &commands,
-        states: &state_answers,
+        state_answers: &state_answers,
         replay_asked: None,
         progress_sent: None,
     };

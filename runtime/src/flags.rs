@@ -4,11 +4,12 @@
 //! apart.
 //!
 //! The rules, which every argument type follows: a field `foo_bar` is the flag `--foo-bar=value` (clap's
-//! default `long`; one argument with `=`, so a value that begins with `-` is never taken for a flag); a flattened group (`#[command(flatten)]`) is `#[serde(flatten)]`; a value is written as clap
-//! parses it — numbers in full precision (`f64` as the shortest text that parses back to the same bits;
-//! every `f64` flag is marked [`finite`], so a NaN is an error, not a flag left out), enums by their flag
-//! name ([`display`]), lists comma-joined; `true` is the bare switch, and `false`,
-//! `None` and an empty list are left out.
+//! default `long`; one argument with `=`, so a value that begins with `-` is never taken for a flag); a
+//! flattened group (`#[command(flatten)]`) is `#[serde(flatten)]`; a value is written as clap parses it —
+//! numbers in full precision (`f64` as the shortest text that parses back to the same bits; every `f64`
+//! flag is marked [`finite`], so a NaN is an error, not a flag left out), enums by their flag name
+//! ([`display`]), lists comma-joined; `true` is the bare switch, and `false`, `None` and an empty list are
+//! left out.
 
 use std::fmt::Display;
 

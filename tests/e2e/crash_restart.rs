@@ -219,11 +219,8 @@ fn an_estimator_restarted_in_a_pipeline_without_a_monitor_has_the_run_replayed_f
     let _ = estimator.wait();
     let mut estimator = start_process("estimator", &d, &[]);
     let status = wait_exit(&mut emitter, Duration::from_secs(60), "emitter-sim");
-    let mut out = String::new();
-    std::io::Read::read_to_string(emitter.stdout.as_mut().unwrap(), &mut out).unwrap();
-    assert!(status.success(), "emitter-sim: {status:?}\n{out}");
-    let summary: Value =
-        out.lines().find_map(|l| l.strip_prefix("summary ")).map(|j| serde_json::from_str(j).unwrap()).unwrap();
+    assert!(status.success(), "emitter-sim: {status:?}");
+    let summary = summary_of(&mut emitter);
     assert_eq!(summary["steps"].as_u64(), Some(60), "{summary}");
     assert!(summary["replays"].as_u64().unwrap() >= 1, "{summary}");
     for (child, role) in [(&mut estimator, "estimator"), (&mut planner, "planner")] {
@@ -231,10 +228,19 @@ fn an_estimator_restarted_in_a_pipeline_without_a_monitor_has_the_run_replayed_f
         assert!(wait_exit(child, Duration::from_secs(5), role).success(), "{role}");
     }
     // The restarted estimator held the step in flight until the replay brought the states.
-    let mut out = String::new();
-    std::io::Read::read_to_string(estimator.stdout.as_mut().unwrap(), &mut out).unwrap();
-    let summary: Value =
-        out.lines().find_map(|l| l.strip_prefix("summary ")).map(|j| serde_json::from_str(j).unwrap()).unwrap();
+    let summary = summary_of(&mut estimator);
     assert!(summary["out_of_chain"].as_u64().unwrap() >= 1, "{summary}");
     assert_nothing_left(&d);
+}
+
+/// The `summary` line a supervised process printed on stdout before it exited.
+fn summary_of(child: &mut std::process::Child) -> Value {
+    let mut out = String::new();
+    std::io::Read::read_to_string(child.stdout.as_mut().unwrap(), &mut out).unwrap();
+    out.lines()
+        .find_map(|l| match runtime::SupervisorLine::parse(l) {
+            Some(runtime::SupervisorLine::Summary(v)) => Some(v),
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("no summary line in:\n{out}"))
 }
