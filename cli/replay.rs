@@ -238,7 +238,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             )));
         }
         let m = measurement_of(json)?;
-        let reply = estimator::process::estimate_measurement(&mut estimator, &m);
+        let reply = estimator::chain::estimate_measurement(&mut estimator, &m);
         let replayed = reply.to_estimate(&m, 0, 0, 0).map_err(|e| CliError::Failed(format!("step {step}: {e}")))?;
         let replayed_view = view_of_estimate(&replayed);
         let recorded = estimates.get(&step).map(|e| view_of_json(e, step)).transpose()?;

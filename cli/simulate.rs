@@ -147,7 +147,7 @@ fn record_step(
     let uavs = &record.uavs;
     let Ok(m) = Measurement::new(k, k, uavs, trace.range_diffs, trace.sigmas, trace.measured_headings) else { return };
     r.record(&m, now);
-    let reply = estimator::process::reply_of(trace.estimate);
+    let reply = estimator::chain::reply_of(trace.estimate);
     let estimate = reply.to_estimate(&m, now, k, 0).ok();
     if let Some(e) = &estimate {
         r.record(e, now);

@@ -334,7 +334,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
         stamps: Some(stamps_file.clone()),
         idle_probe_ms: flags.idle_ms,
         live: false,
-        mode: emitter_sim::process::Mode::Lockstep,
+        mode: emitter_sim::args::Mode::Lockstep,
         time_scale: None,
         estimate_deadline_ms: 0,
         step_delay_ms: 0,

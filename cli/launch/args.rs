@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use emitter_sim::process::Mode;
+use emitter_sim::args::Mode;
 
 pub const LONG_ABOUT: &str = "\
 Run the closed loop as the four processes of the uavloc pipeline, exchanging zero-copy messages over

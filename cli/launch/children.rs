@@ -59,24 +59,31 @@ pub(super) fn child_flags(
             node: node(true),
             ..defaults()
         }),
-        Role::EmitterSim => to_flags(&emitter_sim::process::EmitterSimArgs {
-            process: runtime::ProcessArgs { node: node(true), run: run.clone() },
-            command_timeout_s: args.command_timeout_s,
-            retry_interval_ms: args.retry_interval_ms,
-            // The estimator and the monitor.
-            min_subscribers: 2,
-            step_delay_ms: args.step_delay_ms,
-            mode: args.mode,
-            time_scale: args.time_scale,
+        Role::EmitterSim => to_flags(&emitter_sim::args::EmitterSimArgs {
+            process: runtime::ProcessArgs { node: node(true), run },
             // The world's snapshots: the one file of the recovery (the estimator and the planner keep no
             // state, it rides the messages; the monitor's is its log; see `runtime::recovery`).
             checkpoint: Some(state.path("emitter-sim.ckpt")),
-            // Stays after the last step to replay it to a monitor behind.
-            linger: true,
-            ..defaults()
+            ..emitter_args(args)
         }),
     };
     flags.map_err(|e| CliError::Input(format!("{role}: {e}")))
+}
+
+/// emitter-sim's flags in this launch, but its node (domain, link) and checkpoint file.
+pub(super) fn emitter_args(args: &LaunchArgs) -> emitter_sim::args::EmitterSimArgs {
+    emitter_sim::args::EmitterSimArgs {
+        command_timeout_s: args.command_timeout_s,
+        retry_interval_ms: args.retry_interval_ms,
+        // The estimator and the monitor.
+        min_subscribers: 2,
+        step_delay_ms: args.step_delay_ms,
+        mode: args.mode,
+        time_scale: args.time_scale,
+        // Stays after the last step to replay it to a monitor behind.
+        linger: true,
+        ..defaults()
+    }
 }
 
 /// Starts the children in order, each after the previous one is ready, and waits for the end of the run.
@@ -183,7 +190,7 @@ mod tests {
             plan_delay_steps: vec![1, 4],
         };
         round_trip(p);
-        let e = emitter_sim::process::EmitterSimArgs {
+        let e = emitter_sim::args::EmitterSimArgs {
             process: runtime::ProcessArgs {
                 node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: false },
                 run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
@@ -193,7 +200,7 @@ mod tests {
             connect_timeout_s: 3.5,
             min_subscribers: 2,
             step_delay_ms: 4,
-            mode: emitter_sim::process::Mode::Realtime,
+            mode: emitter_sim::args::Mode::Realtime,
             time_scale: Some(1.0 / 3.0),
             checkpoint: None,
             linger: true,
@@ -201,9 +208,9 @@ mod tests {
         };
         round_trip(e.clone());
         // A value that is not a finite number is an error, not a flag left out (the child's default).
-        let nan = emitter_sim::process::EmitterSimArgs { time_scale: Some(f64::NAN), ..e.clone() };
+        let nan = emitter_sim::args::EmitterSimArgs { time_scale: Some(f64::NAN), ..e.clone() };
         assert!(to_flags(&nan).unwrap_err().contains("finite"));
-        let inf = emitter_sim::process::EmitterSimArgs { command_timeout_s: f64::INFINITY, ..e };
+        let inf = emitter_sim::args::EmitterSimArgs { command_timeout_s: f64::INFINITY, ..e };
         assert!(to_flags(&inf).is_err());
         // The launch's children: every one parses its command line (no flag it does not know).
         #[derive(Parser)]

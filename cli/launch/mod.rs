@@ -66,7 +66,7 @@ mod supervisor;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use emitter_sim::process::Mode;
+use emitter_sim::args::Mode;
 use monitor::RunRecord;
 use planner::TargetMode;
 use protocol::resources;
@@ -111,9 +111,6 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
                 .into(),
         ));
     }
-    if !(args.command_timeout_s > 0.0 && args.command_timeout_s.is_finite()) {
-        return Err(CliError::Input(format!("--command-timeout-s must be > 0, got {}", args.command_timeout_s)));
-    }
     if args.source == runtime::Source::External
         && (args.mode != Mode::Lockstep || args.time_scale.is_some() || args.step_delay_ms > 0)
     {
@@ -123,16 +120,9 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
                 .into(),
         ));
     }
-    emitter_sim::process::check_time_scale_flag(args.mode, args.time_scale).map_err(CliError::Input)?;
-    if args.mode == Mode::Realtime {
-        if args.step_delay_ms > 0 {
-            return Err(CliError::Input(
-                "--step-delay-ms applies to lockstep mode only; in realtime mode --time-scale sets the pace".into(),
-            ));
-        }
-        emitter_sim::process::step_interval(sc.dt, args.time_scale.unwrap_or(1.0), sc.steps)
-            .map_err(CliError::Input)?;
-    }
+    // emitter-sim's flags as it will get them, checked by emitter-sim's own rules.
+    let emitter = children::emitter_args(args);
+    emitter.check().and_then(|()| emitter.pacing(sc.dt, sc.steps)).map_err(CliError::Input)?;
     if let Some(dir) = &args.out {
         crate::output::check_out_dir("--out", dir)?;
     }

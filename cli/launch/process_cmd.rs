@@ -20,8 +20,8 @@ pub struct ProcessArgs {
 #[derive(Subcommand, Debug, Clone, PartialEq)]
 pub enum ProcessRole {
     /// The world: truth and a noisy measurement per step, flies each command (lock-step or real time).
-    #[command(after_help = emitter_sim::process::AFTER_HELP)]
-    EmitterSim(emitter_sim::process::EmitterSimArgs),
+    #[command(after_help = emitter_sim::args::AFTER_HELP)]
+    EmitterSim(emitter_sim::args::EmitterSimArgs),
     /// Chan's estimator: an estimate per measurement.
     #[command(after_help = estimator::process::AFTER_HELP)]
     Estimator(estimator::process::EstimatorArgs),

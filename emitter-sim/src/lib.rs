@@ -12,6 +12,7 @@
 //!
 //! Units: metres, seconds, radians.
 
+pub mod args;
 pub mod backpressure;
 pub mod process;
 pub mod schedule;

@@ -3,7 +3,8 @@
 //! loop lives in the library ([`emitter_sim::process`]); `uavloc process emitter-sim` runs the same code.
 
 use clap::Parser;
-use emitter_sim::process::{AFTER_HELP, EmitterSimArgs, main_with};
+use emitter_sim::args::{AFTER_HELP, EmitterSimArgs};
+use emitter_sim::process::main_with;
 
 /// The simulated world of the uavloc pipeline: publishes the truth and a noisy TDOA measurement per step,
 /// waits for the planner's command for that step (lock-step; or until the next step is due, in real time),

@@ -42,11 +42,9 @@
 //! it (exit code 130; 0 once lingering after the last step).
 
 use std::collections::VecDeque;
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use clap::{Args, ValueEnum};
 use model::load_scenario;
 use protocol::services::{self, Domain};
 use protocol::transport::{Link, TopicPublisher};
@@ -56,7 +54,8 @@ use protocol::{
 use runtime::recovery::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 use runtime::{Ended, Flow, Handler, Node, SupervisorLine};
 
-use crate::schedule::{Action, Config, Other, Pacing, Schedule};
+use crate::args::{EmitterSimArgs, Mode};
+use crate::schedule::{Action, Config, Counts, Other, Pacing, Schedule};
 use crate::{Snapshot, World};
 
 /// The role name (node name suffix, `uavloc process emitter-sim`).
@@ -68,153 +67,6 @@ pub use runtime::EXIT_INTERRUPTED;
 /// How often the start-up wait re-checks whether the pipeline is connected.
 pub const CONNECT_POLL: Duration = Duration::from_millis(2);
 
-/// What `emitter-sim --help` shows after the flags.
-pub const AFTER_HELP: &str = "\
-emitter-sim publishes <domain>/truth and <domain>/measurement and subscribes to <domain>/command. Start
-estimator, planner (and monitor) first, with the same --domain, --scenario, --steps and --seed;
-emitter-sim waits until they are connected, runs steps 0..N (the last one is measured, not planned) and
-exits 0.
-
-Modes:
-  --mode lockstep   the next step as soon as the command for the current one arrives (default): for
-                    benchmarks and tests, and the exact reproduction of `uavloc simulate`.
-  --mode realtime   step k is published at t0 + k*dt/X with X = --time-scale (dt = the scenario's
-                    interval, 10 s in the paper; --time-scale 100 runs it in 0.1 s). A command that has
-                    not arrived when the next step is due is missed: the UAVs fly straight on at their
-                    headings, the step is counted in missed_commands and logged, a later command for it
-                    is ignored (late_commands). With every command in time the run equals lock-step.
-
-Examples:
-  emitter-sim --domain lab1
-  emitter-sim --domain lab1 --scenario scenarios/nominal.toml --steps 6 --seed 3 --min-subscribers 2
-  emitter-sim --domain lab1 --mode realtime --time-scale 100";
-
-/// How emitter-sim paces the run (`--mode`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
-pub enum Mode {
-    /// The next step as soon as the command for the current one arrives (benchmarks, tests, exact
-    /// reproduction of `uavloc simulate`).
-    #[default]
-    Lockstep,
-    /// Step k at t0 + k·dt/X (X = --time-scale); a command that is not there when the next step is due is
-    /// missed (the UAVs keep their headings).
-    Realtime,
-}
-
-impl Mode {
-    /// `"lockstep"` or `"realtime"`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Mode::Lockstep => "lockstep",
-            Mode::Realtime => "realtime",
-        }
-    }
-}
-
-impl std::fmt::Display for Mode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// Checks `--time-scale` against `--mode`: given only with `realtime`, and then a valid scale.
-pub fn check_time_scale_flag(mode: Mode, time_scale: Option<f64>) -> Result<(), String> {
-    match (mode, time_scale) {
-        (Mode::Lockstep, Some(_)) => {
-            Err("--time-scale applies to --mode realtime only; a lock-step run goes as fast as \
-                                          the commands come (--step-delay-ms slows it down)"
-                .into())
-        }
-        (_, Some(x)) => check_time_scale(x),
-        (_, None) => Ok(()),
-    }
-}
-
-/// Checks a `--time-scale` value: finite and > 0.
-pub fn check_time_scale(x: f64) -> Result<(), String> {
-    if x.is_finite() && x > 0.0 {
-        Ok(())
-    } else {
-        Err(format!("--time-scale must be a finite number > 0 (simulated seconds per real second, e.g. 100), got {x}"))
-    }
-}
-
-/// The real time between two steps in real-time mode, `dt / time_scale`; an error (for `--time-scale`)
-/// if that, or the whole run of `steps` steps, is not a valid duration (a time scale so small that the run
-/// would last for ages).
-pub fn step_interval(dt: f64, time_scale: f64, steps: usize) -> Result<Duration, String> {
-    let seconds = dt / time_scale;
-    Duration::try_from_secs_f64(seconds * steps as f64)
-        .ok()
-        .filter(|total| Instant::now().checked_add(*total).is_some())
-        .and_then(|_| Duration::try_from_secs_f64(seconds).ok())
-        .ok_or_else(|| {
-            format!(
-                "--time-scale {time_scale:e}: a step of {dt} s would last {seconds:e} s in real time; choose a larger \
-                 time scale"
-            )
-        })
-}
-
-/// Flags of the emitter-sim process (`emitter-sim [FLAGS]` or `uavloc process emitter-sim [FLAGS]`).
-/// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
-#[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
-pub struct EmitterSimArgs {
-    /// The node (domain, link, quiet, supervised) and the run (scenario, steps, seed).
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub process: runtime::ProcessArgs,
-    /// Give up (exit 1) when the command for a step has not arrived after this many seconds.
-    #[arg(long, value_name = "S", default_value_t = 10.0)]
-    #[serde(serialize_with = "runtime::flags::finite")]
-    pub command_timeout_s: f64,
-    /// Publish the step in flight again when its command has not arrived this many milliseconds after
-    /// it was published (a process died or lost it).
-    #[arg(long, value_name = "MS", default_value_t = 1000)]
-    pub retry_interval_ms: u64,
-    /// Give up (exit 1) when the pipeline is not connected after this many seconds.
-    #[arg(long, value_name = "S", default_value_t = 60.0)]
-    #[serde(serialize_with = "runtime::flags::finite")]
-    pub connect_timeout_s: f64,
-    /// Subscribers the measurement topic needs before step 0 (estimator, plus 1 for a monitor).
-    #[arg(long, value_name = "N", default_value_t = 1)]
-    pub min_subscribers: usize,
-    /// Wait this many milliseconds before each step after step 0 (slows a lock-step run down for a demo or
-    /// a test; the results do not change). 0: lock-step at full speed. Lock-step mode only.
-    #[arg(long, value_name = "MS", default_value_t = 0)]
-    pub step_delay_ms: u64,
-    /// Pacing: lockstep (the next step as soon as the command arrives; benchmarks, tests, exact
-    /// reproduction of `uavloc simulate`) or realtime (step k at t0 + k·dt/X; a late command is missed and
-    /// the UAVs keep their headings).
-    #[arg(long, value_enum, value_name = "MODE", default_value_t = Mode::Lockstep)]
-    #[serde(serialize_with = "runtime::flags::display")]
-    pub mode: Mode,
-    /// Real-time mode: simulated seconds per real second, > 0. A step lasts dt/X real seconds (the paper's
-    /// 10 s interval takes 0.1 s at --time-scale 100; default 1). Refused in lock-step mode.
-    #[arg(long, value_name = "X", allow_negative_numbers = true)]
-    #[serde(serialize_with = "runtime::flags::finite_opt")]
-    pub time_scale: Option<f64>,
-    /// Checkpoint file: a world snapshot is written there every 256 steps, and a start that finds it (a
-    /// restart in the same run) flies on from the oldest snapshot kept instead of from step 0. Remove it
-    /// before a new run. (`uavloc launch` gives each process one in a fresh directory per launch.)
-    #[arg(long, value_name = "FILE")]
-    pub checkpoint: Option<PathBuf>,
-    /// After the last step, stay: replay the run to a process that asks (a monitor that fell behind or
-    /// was restarted while the run ended) until SIGINT/SIGTERM or a shutdown on the control topic, which
-    /// end it normally (exit code 0). `uavloc launch` passes it and stops emitter-sim once the monitor has
-    /// the whole run.
-    #[arg(long)]
-    pub linger: bool,
-    /// Lock-step mode: do not publish step k while the monitor lacks step k − N or an older one (its
-    /// progress comes on the control topic); when it makes no progress for --retry-interval-ms, replay to
-    /// it from the first step it lacks; give up (exit 1) after
-    /// --command-timeout-s without progress. A monitor restarted again and again then stays within reach
-    /// of a restarted emitter-sim's replays. Must be below 256 (the snapshot interval). 0: never wait for
-    /// the monitor. No effect before a monitor has announced itself, nor in real-time mode.
-    #[arg(long, value_name = "N", default_value_t = recovery::MONITOR_WINDOW)]
-    pub monitor_window: u64,
-}
-
 pub use runtime::ProcessError;
 
 /// What emitter-sim did, printed as its `summary` line.
@@ -224,28 +76,16 @@ pub struct EmitterSummary {
     pub role: &'static str,
     /// `"lockstep"` or `"realtime"`.
     pub mode: &'static str,
-    /// Steps flown (intervals the UAVs flew: commands applied, plus missed steps in real-time mode).
-    pub steps: u64,
+    /// What the schedule counted: steps, replays, retries, missed_commands, late_commands, ignored,
+    /// max_lag_us ([`Counts`]).
+    #[serde(flatten)]
+    pub counts: Counts,
     /// Measurements published.
     pub measurements: u64,
     /// Valid commands received (any step).
     pub accepted: u64,
     /// Invalid commands ignored (failed validation, or refused by the world).
     pub rejected: u64,
-    /// Valid commands for another step than the one waited for (also the answers to replayed steps), but
-    /// for missed steps (those are `late_commands`).
-    pub ignored: u64,
-    /// Real-time mode: steps whose command had not arrived when the next step was due (the UAVs kept their
-    /// headings).
-    pub missed_commands: u64,
-    /// Real-time mode: commands that arrived for a missed step, after its time (ignored, not applied).
-    pub late_commands: u64,
-    /// Real-time mode: the largest delay of a step's publication behind its schedule, microseconds.
-    pub max_lag_us: u64,
-    /// Replays (see the module docs).
-    pub replays: u64,
-    /// Replays because a step's command was late.
-    pub retries: u64,
     /// The step this instance started from (0, or a snapshot after a restart).
     pub started_at: u64,
     /// CPU time this process used, seconds.
@@ -454,49 +294,14 @@ impl Handler for EmitterNode<'_> {
     }
 }
 
-/// Checks the flags that need no scenario.
-fn check_args(args: &EmitterSimArgs) -> Result<(), ProcessError> {
-    check_time_scale_flag(args.mode, args.time_scale).map_err(ProcessError::Input)?;
-    if args.mode == Mode::Realtime && args.step_delay_ms > 0 {
-        return Err(ProcessError::Input(
-            "--step-delay-ms applies to lock-step mode only; in realtime mode --time-scale sets the pace".into(),
-        ));
-    }
-    if !(args.command_timeout_s > 0.0 && args.command_timeout_s.is_finite()) {
-        return Err(ProcessError::Input(format!("--command-timeout-s must be > 0, got {}", args.command_timeout_s)));
-    }
-    if !(args.connect_timeout_s >= 0.0 && args.connect_timeout_s.is_finite()) {
-        return Err(ProcessError::Input(format!("--connect-timeout-s must be ≥ 0, got {}", args.connect_timeout_s)));
-    }
-    if args.monitor_window >= recovery::SNAPSHOT_EVERY {
-        return Err(ProcessError::Input(format!(
-            "--monitor-window must be below {} (the snapshot interval; 0 turns it off), got {}",
-            recovery::SNAPSHOT_EVERY,
-            args.monitor_window
-        )));
-    }
-    if args.retry_interval_ms == 0 {
-        return Err(ProcessError::Input("--retry-interval-ms must be > 0".into()));
-    }
-    Ok(())
-}
-
 /// Runs the world to the end of the run.
 pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
-    check_args(args)?;
+    args.check().map_err(ProcessError::Input)?;
     let domain =
         Domain::resolve(args.process.node.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
-    let pacing = match args.mode {
-        Mode::Lockstep => {
-            Pacing::Lockstep { step_delay: Duration::from_millis(args.step_delay_ms), window: args.monitor_window }
-        }
-        Mode::Realtime => Pacing::Realtime {
-            interval: step_interval(scenario.dt, args.time_scale.unwrap_or(1.0), scenario.steps)
-                .map_err(ProcessError::Input)?,
-        },
-    };
+    let pacing = args.pacing(scenario.dt, scenario.steps).map_err(ProcessError::Input)?;
     // A restart in the same run flies on from the oldest snapshot of its checkpoint file.
     let saved = match &args.checkpoint {
         Some(path) => recovery::load::<Saved>(path, ROLE, domain.as_str())
@@ -580,34 +385,32 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     if matches!(ended, Ended::Interrupted | Ended::Shutdown) && !world.schedule.is_done() {
         return Err(ProcessError::Interrupted);
     }
-    let counts = world.schedule.counts();
     let node_summary = node.finish();
     let summary = EmitterSummary {
         role: ROLE,
         mode: args.mode.name(),
-        steps: counts.steps,
+        counts: world.schedule.counts(),
         measurements: world.sent_count,
         accepted: node_summary.accepted,
         rejected: node_summary.rejected,
-        ignored: counts.ignored,
-        missed_commands: counts.missed_commands,
-        late_commands: counts.late_commands,
-        max_lag_us: counts.max_lag_us,
-        replays: counts.replays,
-        retries: counts.retries,
         started_at: start_step,
         cpu_s: node_summary.cpu_s,
     };
     if !args.process.node.quiet {
         eprintln!(
             "emitter-sim: done: {} steps, {} measurements, rejected {}, {} ignored, {} replays ({} retries)",
-            summary.steps, summary.measurements, summary.rejected, summary.ignored, summary.replays, summary.retries
+            summary.counts.steps,
+            summary.measurements,
+            summary.rejected,
+            summary.counts.ignored,
+            summary.counts.replays,
+            summary.counts.retries
         );
         if args.mode == Mode::Realtime {
             eprintln!(
                 "emitter-sim: realtime: {} missed commands, {} late commands ignored, largest lag behind the \
                  schedule {} µs",
-                summary.missed_commands, summary.late_commands, summary.max_lag_us
+                summary.counts.missed_commands, summary.counts.late_commands, summary.counts.max_lag_us
             );
         }
     }

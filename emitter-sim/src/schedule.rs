@@ -97,22 +97,24 @@ pub enum Other {
     Ignored,
 }
 
-/// What the schedule counted (the process's summary takes them).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// What the schedule counted (the process's summary takes them; its JSON keys are documented).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counts {
-    /// Steps flown (commands applied, and missed steps).
+    /// Steps flown (intervals the UAVs flew: commands applied, plus missed steps in real-time mode).
     pub steps: u64,
-    /// Replays started.
+    /// Replays started (see the module docs).
     pub replays: u64,
-    /// Replays because a command (or the monitor's progress) was late.
+    /// Replays because a step's command (or the monitor's progress) was late.
     pub retries: u64,
-    /// Real time: steps whose command missed them.
+    /// Real-time mode: steps whose command had not arrived when the next step was due (the UAVs kept
+    /// their headings).
     pub missed_commands: u64,
-    /// Real time: commands for missed steps, after their time.
+    /// Real-time mode: commands that arrived for a missed step, after its time (ignored, not applied).
     pub late_commands: u64,
-    /// Commands neither applied nor late.
+    /// Valid commands for another step than the one waited for (also the answers to replayed steps), but
+    /// for missed steps (those are `late_commands`).
     pub ignored: u64,
-    /// Real time: the largest delay of a publication behind its schedule, µs.
+    /// Real-time mode: the largest delay of a step's publication behind its schedule, microseconds.
     pub max_lag_us: u64,
 }
 

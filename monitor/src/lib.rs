@@ -20,6 +20,7 @@ pub mod record;
 pub mod recording;
 pub mod runlog;
 pub mod stamps;
+mod status;
 
 pub use assemble::{Assembler, CompletedStep};
 pub use chart::{BarGroup, Series, plot_bars, plot_curves};

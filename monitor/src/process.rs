@@ -78,6 +78,7 @@ use crate::runlog::EventLog;
 pub use crate::runlog::{LoggedRun, read_log};
 pub use crate::stamps::STAMPS_HEADER;
 use crate::stamps::StampsCsv;
+use crate::status::status_line;
 
 /// The role name (node name suffix, `uavloc process monitor`).
 pub const ROLE: &str = "monitor";
@@ -190,60 +191,6 @@ fn us(ns: Option<u64>) -> Option<f64> {
     ns.map(|v| v as f64 / 1e3)
 }
 
-fn fmt_us(ns: Option<u64>) -> String {
-    match ns {
-        Some(v) if v >= 10_000_000 => format!("{:.1} ms", v as f64 / 1e6),
-        Some(v) => format!("{} µs", v / 1000),
-        None => "-".into(),
-    }
-}
-
-fn fmt_m(v: Option<f64>) -> String {
-    v.map_or("-".into(), |x| format!("{x:.1}"))
-}
-
-/// One status line of a completed step.
-fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
-    let r = &done.record;
-    let l = &done.latencies;
-    let planner = done
-        .planner
-        .as_ref()
-        .map_or("-".to_string(), |p| format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
-    // The 95 % ellipse of the reported covariance: semi-axes sqrt(χ²₂(0.95) λ) = sqrt(5.991 λ).
-    let c = &r.estimate_cov;
-    let (lo, hi) = tdoa::fim::sym_eigenvalues(&nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]));
-    // χ²₂(0.95) = −2 ln 0.05 (the 2-dof quantile has this closed form).
-    let k95 = -2.0 * 0.05f64.ln();
-    // Without a truth the closest UAV is the one closest to the estimate.
-    let (to, z) = done.truth.map_or(("ẑ", r.estimate), |t| ("z", t));
-    let closest = r.uavs.iter().map(|w| (w[0] - z[0]).hypot(w[1] - z[1])).fold(f64::INFINITY, f64::min);
-    format!(
-        "step {:>3}/{last}  CRLB {:>8} m  CRLB@ẑ {:>8} m  RMSE {:>8} m  |ẑ−z| {:>8} m  95% ellipse {:.0}×{:.0} m  \
-         closest UAV to {to} {:.0} m  meas→est {:>7}  est→plan {:>7}  plan {:>8}  cycle {:>8}  planner {planner}  \
-         rejected {rejected}{}",
-        r.step,
-        fmt_m(r.crlb_true_m),
-        fmt_m(r.crlb_at_estimate_m),
-        fmt_m(r.rmse_m),
-        fmt_m(done.error_m),
-        (k95 * hi.max(0.0)).sqrt(),
-        (k95 * lo.max(0.0)).sqrt(),
-        closest,
-        fmt_us(l.measurement_hop_ns),
-        fmt_us(l.estimate_hop_ns),
-        r.plan_ms.map_or("-".into(), |ms| format!("{ms:.3} ms")),
-        fmt_us(l.cycle_ns),
-        if done.missed {
-            "  COMMAND MISSED (flew straight on)"
-        } else if done.held {
-            "  ESTIMATE STALE (planner held course)"
-        } else {
-            ""
-        },
-    )
-}
-
 /// Everything the loop keeps between wake-ups.
 struct State {
     assembler: Assembler,
@@ -251,16 +198,12 @@ struct State {
     log: EventLog,
     samples: LatencySamples,
     planner: Option<PlannerInfo>,
-    planners: u64,
-    missed: u64,
-    stale: u64,
+    /// The counts of the summary (filled in as the run goes).
+    summary: MonitorSummary,
     quiet: bool,
     /// When the monitor first received each (kind, step) of the steps not yet recorded.
     received: HashMap<(MessageKind, u64), u64>,
-    /// Messages of recorded steps that never arrived (see [`MonitorSummary::missing_messages`]).
-    missing: u64,
     stamps: Option<StampsCsv>,
-    replays_requested: u64,
     /// An emitter-sim (re)joined since the last progress report.
     emitter_joined: bool,
     /// `--mcap`: every valid message, as received.
@@ -368,7 +311,7 @@ impl State {
             if let Some(p) = &done.planner
                 && self.planner.as_ref() != Some(p)
             {
-                self.planners += 1;
+                self.summary.planners += 1;
                 self.log.write(
                     "planner",
                     json!({"instance": p.instance, "solver": p.solver, "objective": p.objective, "step": done.record.step}),
@@ -401,11 +344,11 @@ impl State {
                 }),
             );
             if done.missed {
-                self.missed += 1;
+                self.summary.missed_commands += 1;
                 self.log.write("command_missed", json!({"step": done.record.step}));
             }
             if done.held {
-                self.stale += 1;
+                self.summary.stale_steps += 1;
                 self.log.write("estimate_stale", json!({"step": done.record.step}));
             }
             if !self.quiet {
@@ -429,7 +372,7 @@ impl State {
                 Some(t) => rx[i] = t,
                 None if kind == MessageKind::Command && (last || done.missed) => {}
                 None if kind == MessageKind::Truth && !self.assembler.has_truth() => {}
-                None => self.missing += 1,
+                None => self.summary.missing_messages += 1,
             }
         }
         if let Some(csv) = &mut self.stamps {
@@ -519,7 +462,7 @@ impl Handler for MonitorNode<'_> {
             && state.assembler.has_truth()
         {
             self.replay_asked = Some((next, Instant::now()));
-            state.replays_requested += 1;
+            state.summary.replays_requested += 1;
             state.log.write("replay_request", json!({"step": next, "newest": newest}));
             node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));
             node.announce(ControlKind::Replay, next, "lost")?;
@@ -577,14 +520,10 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             log,
             samples: LatencySamples::default(),
             planner: None,
-            planners: 0,
-            missed: 0,
-            stale: 0,
+            summary: MonitorSummary { role: ROLE, ..MonitorSummary::default() },
             quiet: args.process.node.quiet,
             received: HashMap::new(),
-            missing: 0,
             stamps,
-            replays_requested: 0,
             emitter_joined: false,
             recorder,
             states,
@@ -642,20 +581,14 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     }
     crate::metrics::annotate(&mut run);
     let mut summary = MonitorSummary {
-        role: ROLE,
-        output_error: None,
         complete: state.assembler.is_done(),
         steps: run.steps.len() as u64,
         accepted: accepted_total(&counter),
         rejected: counter.total(),
         ignored: state.assembler.ignored(),
-        planners: state.planners,
-        missed_commands: state.missed,
-        stale_steps: state.stale,
         latency: state.samples.summary(),
-        missing_messages: state.missing,
-        replays_requested: state.replays_requested,
         cpu_s: runtime::cpu_seconds(),
+        ..std::mem::take(&mut state.summary)
     };
     if let Some(csv) = state.stamps.take() {
         csv.finish()?;
@@ -725,61 +658,5 @@ pub fn main_with(args: &MonitorArgs) -> ExitCode {
             eprintln!("error: monitor: {e}");
             ExitCode::from(e.code())
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn read_log_keeps_a_step_whose_crlb_is_infinite() {
-        // The 100k soak: a step with coincident UAVs (CRLB +∞, logged as null) ended the steps read back.
-        let dir = std::env::temp_dir().join(format!("uavloc-read-log-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("run.jsonl");
-        let mut log = EventLog::open(Some(&path), false).unwrap();
-        for (k, crlb) in [(0u64, 10.0), (1, f64::INFINITY), (2, 11.0)] {
-            let record = crate::record::tests::record(k, crlb);
-            log.write("step", json!({"step": k, "record": record}));
-        }
-        let run = read_log(&path, true);
-        assert_eq!(run.count, 3);
-        assert_eq!(run.steps[1].crlb_true_m, Some(f64::INFINITY));
-        std::fs::remove_dir_all(&dir).ok();
-    }
-
-    #[test]
-    fn the_states_in_the_log_read_back_bit_for_bit() {
-        use crate::runlog::{state_from_hex, state_to_hex};
-        let dir = std::env::temp_dir().join(format!("uavloc-log-states-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("run.jsonl");
-        let mut log = EventLog::open(Some(&path), false).unwrap();
-        let echo = |k: u64| StateEcho {
-            step: k,
-            kind: StateEcho::STATE,
-            estimator: 1,
-            position: [0.1 + 0.2 + k as f64, -1e-300],
-            covariance: [[4.0, 1e-12], [1e-12, 5.0]],
-            ..StateEcho::default()
-        };
-        let empty = StateEcho { step: 1, kind: StateEcho::EMPTY, ..StateEcho::default() };
-        for (k, e) in [(0u64, Some(echo(0))), (1, Some(empty)), (2, None), (3, Some(echo(3)))] {
-            let record = crate::record::tests::record(k, 10.0);
-            log.write("step", json!({"step": k, "record": record, "state": e.map(|e| state_to_hex(&e))}));
-        }
-        let run = read_log(&path, false);
-        assert_eq!(run.count, 4);
-        assert_eq!(run.states, vec![echo(0), empty, echo(3)]);
-        // Text that is not a valid state is none.
-        let hex = state_to_hex(&echo(3));
-        for bad in [&hex[..hex.len() - 2], "zz", "", &hex.replace("01", "07")] {
-            assert_eq!(state_from_hex(bad), None, "{bad}");
-        }
-        let mut nan = echo(3);
-        nan.covariance[0][0] = f64::NAN;
-        assert_eq!(state_from_hex(&state_to_hex(&nan)), None);
-        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -142,3 +142,59 @@ pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
     }
     LoggedRun { truth, names, ..run }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runlog::{state_from_hex, state_to_hex};
+
+    #[test]
+    fn read_log_keeps_a_step_whose_crlb_is_infinite() {
+        // The 100k soak: a step with coincident UAVs (CRLB +∞, logged as null) ended the steps read back.
+        let dir = std::env::temp_dir().join(format!("uavloc-read-log-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.jsonl");
+        let mut log = EventLog::open(Some(&path), false).unwrap();
+        for (k, crlb) in [(0u64, 10.0), (1, f64::INFINITY), (2, 11.0)] {
+            let record = crate::record::tests::record(k, crlb);
+            log.write("step", json!({"step": k, "record": record}));
+        }
+        let run = read_log(&path, true);
+        assert_eq!(run.count, 3);
+        assert_eq!(run.steps[1].crlb_true_m, Some(f64::INFINITY));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn the_states_in_the_log_read_back_bit_for_bit() {
+        let dir = std::env::temp_dir().join(format!("uavloc-log-states-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.jsonl");
+        let mut log = EventLog::open(Some(&path), false).unwrap();
+        let echo = |k: u64| StateEcho {
+            step: k,
+            kind: StateEcho::STATE,
+            estimator: 1,
+            position: [0.1 + 0.2 + k as f64, -1e-300],
+            covariance: [[4.0, 1e-12], [1e-12, 5.0]],
+            ..StateEcho::default()
+        };
+        let empty = StateEcho { step: 1, kind: StateEcho::EMPTY, ..StateEcho::default() };
+        for (k, e) in [(0u64, Some(echo(0))), (1, Some(empty)), (2, None), (3, Some(echo(3)))] {
+            let record = crate::record::tests::record(k, 10.0);
+            log.write("step", json!({"step": k, "record": record, "state": e.map(|e| state_to_hex(&e))}));
+        }
+        let run = read_log(&path, false);
+        assert_eq!(run.count, 4);
+        assert_eq!(run.states, vec![echo(0), empty, echo(3)]);
+        // Text that is not a valid state is none.
+        let hex = state_to_hex(&echo(3));
+        for bad in [&hex[..hex.len() - 2], "zz", "", &hex.replace("01", "07")] {
+            assert_eq!(state_from_hex(bad), None, "{bad}");
+        }
+        let mut nan = echo(3);
+        nan.covariance[0][0] = f64::NAN;
+        assert_eq!(state_from_hex(&state_to_hex(&nan)), None);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -1,0 +1,58 @@
+//! The monitor's status line: one line on stderr per recorded step (what `monitor` shows unless
+//! `--quiet`).
+
+use crate::assemble::CompletedStep;
+
+fn fmt_us(ns: Option<u64>) -> String {
+    match ns {
+        Some(v) if v >= 10_000_000 => format!("{:.1} ms", v as f64 / 1e6),
+        Some(v) => format!("{} µs", v / 1000),
+        None => "-".into(),
+    }
+}
+
+fn fmt_m(v: Option<f64>) -> String {
+    v.map_or("-".into(), |x| format!("{x:.1}"))
+}
+
+/// One status line of a completed step.
+pub(crate) fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
+    let r = &done.record;
+    let l = &done.latencies;
+    let planner = done
+        .planner
+        .as_ref()
+        .map_or("-".to_string(), |p| format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
+    // The 95 % ellipse of the reported covariance: semi-axes sqrt(χ²₂(0.95) λ) = sqrt(5.991 λ).
+    let c = &r.estimate_cov;
+    let (lo, hi) = tdoa::fim::sym_eigenvalues(&nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]));
+    // χ²₂(0.95) = −2 ln 0.05 (the 2-dof quantile has this closed form).
+    let k95 = -2.0 * 0.05f64.ln();
+    // Without a truth the closest UAV is the one closest to the estimate.
+    let (to, z) = done.truth.map_or(("ẑ", r.estimate), |t| ("z", t));
+    let closest = r.uavs.iter().map(|w| (w[0] - z[0]).hypot(w[1] - z[1])).fold(f64::INFINITY, f64::min);
+    format!(
+        "step {:>3}/{last}  CRLB {:>8} m  CRLB@ẑ {:>8} m  RMSE {:>8} m  |ẑ−z| {:>8} m  95% ellipse {:.0}×{:.0} m  \
+         closest UAV to {to} {:.0} m  meas→est {:>7}  est→plan {:>7}  plan {:>8}  cycle {:>8}  planner {planner}  \
+         rejected {rejected}{}",
+        r.step,
+        fmt_m(r.crlb_true_m),
+        fmt_m(r.crlb_at_estimate_m),
+        fmt_m(r.rmse_m),
+        fmt_m(done.error_m),
+        (k95 * hi.max(0.0)).sqrt(),
+        (k95 * lo.max(0.0)).sqrt(),
+        closest,
+        fmt_us(l.measurement_hop_ns),
+        fmt_us(l.estimate_hop_ns),
+        r.plan_ms.map_or("-".into(), |ms| format!("{ms:.3} ms")),
+        fmt_us(l.cycle_ns),
+        if done.missed {
+            "  COMMAND MISSED (flew straight on)"
+        } else if done.held {
+            "  ESTIMATE STALE (planner held course)"
+        } else {
+            ""
+        },
+    )
+}
