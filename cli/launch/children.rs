@@ -134,7 +134,7 @@ pub(super) fn start_and_run(
         view.processes = sup.process_rows();
         let _ = terminal.draw(&view);
         if terminal.quit_pressed(Duration::ZERO) {
-            super::supervisor::stop_requested_by_user();
+            super::signals::stop_requested_by_user();
         }
     };
     sup.wait_for_the_end(grace, &mut on_tick)

@@ -60,6 +60,7 @@ mod children;
 mod process_cmd;
 mod report;
 mod role;
+mod signals;
 pub mod state_dir;
 mod supervisor;
 
@@ -79,7 +80,7 @@ pub use role::{RestartDecision, Role};
 
 use crate::error::CliError;
 use state_dir::StateDir;
-use supervisor::{STOP_GRACE, Supervisor, TICK, catch_termination_signals};
+use supervisor::{STOP_GRACE, Supervisor, TICK};
 
 /// The domain of a launch: the flag, else `$UAVLOC_DOMAIN`, else `uavloc-<pid>` — or, for an external
 /// front end, which must know it beforehand, `uavloc` (every process's default).
@@ -147,7 +148,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     }
     resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
 
-    catch_termination_signals();
+    signals::catch_termination();
     // Checkpoints (and the monitor's log when --log is not given) live in a private directory of this
     // launch, removed at the end: a restarted child resumes from what its predecessor wrote there.
     let state = StateDir::create(&domain)?;
@@ -180,7 +181,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // Interrupted (SIGINT/SIGTERM): the steps done are kept — the monitor sent its partial record when it
     // was stopped — and printed with `"interrupted": true` (exit code 1).
     let interrupted = match result {
-        Err(e) => match (supervisor::received_signal(), &sup.record) {
+        Err(e) => match (signals::received(), &sup.record) {
             (Some(_), Some(_)) => Some(e.to_string()),
             _ => return Err(e),
         },

@@ -6,7 +6,6 @@ use std::io::{BufRead, BufReader};
 use std::os::unix::process::CommandExt as _;
 use std::path::PathBuf;
 use std::process::{Child, Stdio};
-use std::sync::atomic::{AtomicI32, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant};
 
@@ -15,60 +14,8 @@ use protocol::services::Domain;
 use runtime::SupervisorLine;
 
 use super::role::{RestartDecision, Role, describe};
+use super::signals;
 use crate::error::CliError;
-
-// ---------------------------------------------------------------------------------------------------------
-// Signals
-// ---------------------------------------------------------------------------------------------------------
-
-/// The last SIGINT/SIGTERM the launcher received (0: none).
-static SIGNAL: AtomicI32 = AtomicI32::new(0);
-
-extern "C" fn on_signal(signal: libc::c_int) {
-    SIGNAL.store(signal, Ordering::SeqCst);
-}
-
-/// Routes SIGINT and SIGTERM to [`SIGNAL`] (instead of killing the launcher before it stops its children).
-pub(super) fn catch_termination_signals() {
-    for signal in [libc::SIGINT, libc::SIGTERM] {
-        // SAFETY: `on_signal` only performs an atomic store, which is async-signal-safe; the sigaction struct
-        // is fully initialised (zeroed, then handler and an empty mask set) before the call.
-        unsafe {
-            let mut action: libc::sigaction = std::mem::zeroed();
-            action.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
-            libc::sigemptyset(&mut action.sa_mask);
-            libc::sigaction(signal, &action, std::ptr::null_mut());
-        }
-    }
-}
-
-/// The termination signal the launcher received, if any (its name).
-pub(super) fn received_signal() -> Option<&'static str> {
-    match SIGNAL.load(Ordering::SeqCst) {
-        0 => None,
-        s => Some(signal_name(s)),
-    }
-}
-
-/// The value of [`SIGNAL`] when the user pressed `q` in the live view.
-const QUIT_KEY: i32 = -1;
-
-/// Stops the launch as a signal would (the live view's `q`): every child stopped, the steps done kept.
-pub(super) fn stop_requested_by_user() {
-    SIGNAL.store(QUIT_KEY, Ordering::SeqCst);
-}
-
-fn signal_name(signal: i32) -> &'static str {
-    match signal {
-        QUIT_KEY => "the q key",
-        libc::SIGINT => "SIGINT",
-        _ => "SIGTERM",
-    }
-}
-
-// ---------------------------------------------------------------------------------------------------------
-// Children
-// ---------------------------------------------------------------------------------------------------------
 
 /// How often the launcher checks that a swapped-in process (not its child) is still there.
 const SWAPPED_CHECK: Duration = Duration::from_millis(500);
@@ -272,9 +219,9 @@ impl Supervisor {
                 p.exit = Some(status);
             }
         }
-        match SIGNAL.load(Ordering::SeqCst) {
-            0 => Ok(()),
-            s => Err(CliError::Failed(format!("interrupted by {}; stopped every process", signal_name(s)))),
+        match signals::received() {
+            None => Ok(()),
+            Some(name) => Err(CliError::Failed(format!("interrupted by {name}; stopped every process"))),
         }
     }
 
