@@ -424,21 +424,21 @@ impl Assembler {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use protocol::{Fix, MessageKind, PlanInfo};
 
     const UAVS: [[f64; 2]; 3] = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
 
-    fn scenario(steps: usize) -> Scenario {
+    pub(crate) fn scenario(steps: usize) -> Scenario {
         Scenario { steps, rmse_resamples: 5, ..Scenario::default() }
     }
 
-    fn measurement(k: u64) -> Measurement {
+    pub(crate) fn measurement(k: u64) -> Measurement {
         Measurement::new(k, k + 1, &UAVS, &[-2012.3, -4010.9], &[28.7712; 3], &[0.1, 0.2, 0.3]).unwrap()
     }
 
-    fn estimate(k: u64, fix: Fix) -> Estimate {
+    pub(crate) fn estimate(k: u64, fix: Fix) -> Estimate {
         Estimate::from_measurement(&measurement(k), 10, k + 1, 7, fix).unwrap()
     }
 
@@ -447,11 +447,11 @@ mod tests {
         estimate(k, Fix::Failed).with_standing(ok(x).usable())
     }
 
-    fn ok(x: f64) -> Fix {
+    pub(crate) fn ok(x: f64) -> Fix {
         Fix::Ok { position: [x, 15000.0], covariance: [[4.0e4, 0.0], [0.0, 9.0e4]] }
     }
 
-    fn command(k: u64, objective: f64, mask: u64) -> Command {
+    pub(crate) fn command(k: u64, objective: f64, mask: u64) -> Command {
         let plan = PlanInfo {
             headings: &[0.5, 0.6, 0.7],
             waypoints: &UAVS,
@@ -465,12 +465,12 @@ mod tests {
         Command::from_estimate(&estimate(k, ok(25000.0)), 20, k + 1, 99, &plan).unwrap()
     }
 
-    fn truth(k: u64) -> Truth {
+    pub(crate) fn truth(k: u64) -> Truth {
         Truth::new(k, k + 1, [25000.0, 15000.0])
     }
 
     /// The truth of step k, saying that the command of step k − 1 was flown.
-    fn flown(k: u64) -> Truth {
+    pub(crate) fn flown(k: u64) -> Truth {
         truth(k).with_previous_command(CommandOutcome::Flown)
     }
 

@@ -19,6 +19,7 @@ pub mod process;
 pub mod record;
 pub mod recording;
 pub mod runlog;
+mod session;
 pub mod stamps;
 mod status;
 

@@ -53,7 +53,6 @@
 //! It exits 0 after the last step, or 130 on SIGINT/SIGTERM or a [`ControlKind::Shutdown`] before it
 //! (writing the partial record).
 
-use std::collections::HashMap;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -62,23 +61,22 @@ use clap::Args;
 use model::load_scenario;
 use protocol::services;
 use protocol::{
-    Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, RejectionCounter, StateEcho,
-    Topic, TopicPublisher, TopicSubscriber, Truth, Waitable, now_ns,
+    Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, RejectionCounter, Topic,
+    TopicPublisher, TopicSubscriber, Truth, Waitable, now_ns,
 };
 use runtime::recovery::StateStore;
 use runtime::{Flow, Handler, IDLE_WAKEUP, Node};
 use serde_json::json;
 
-use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
-use crate::latency::LatencySamples;
+use crate::assemble::Assembler;
 pub use crate::latency::{LatencyStat, LatencySummary};
 use crate::record::RunRecord;
 use crate::recording::{Recordable, Recorder};
 use crate::runlog::EventLog;
 pub use crate::runlog::{LoggedRun, read_log};
+use crate::session::Session;
 pub use crate::stamps::STAMPS_HEADER;
 use crate::stamps::StampsCsv;
-use crate::status::status_line;
 
 /// The role name (node name suffix, `uavloc process monitor`).
 pub const ROLE: &str = "monitor";
@@ -187,200 +185,6 @@ pub struct MonitorSummary {
     pub cpu_s: f64,
 }
 
-fn us(ns: Option<u64>) -> Option<f64> {
-    ns.map(|v| v as f64 / 1e3)
-}
-
-/// Everything the loop keeps between wake-ups.
-struct State {
-    assembler: Assembler,
-    last_seq: [Option<u64>; MessageKind::ALL.len()],
-    log: EventLog,
-    samples: LatencySamples,
-    planner: Option<PlannerInfo>,
-    /// The counts of the summary (filled in as the run goes).
-    summary: MonitorSummary,
-    quiet: bool,
-    /// When the monitor first received each (kind, step) of the steps not yet recorded.
-    received: HashMap<(MessageKind, u64), u64>,
-    stamps: Option<StampsCsv>,
-    /// An emitter-sim (re)joined since the last progress report.
-    emitter_joined: bool,
-    /// `--mcap`: every valid message, as received.
-    recorder: Option<Recorder>,
-    /// The estimator states the commands echoed, and the ones an estimator asked for
-    /// ([`runtime::recovery`]).
-    states: StateStore,
-}
-
-impl State {
-    fn drain<T: Recordable>(
-        &mut self,
-        node: &mut Node,
-        sub: &TopicSubscriber<T>,
-        add: fn(&mut State, T),
-    ) -> Result<(), ProcessError> {
-        let batch = sub.receive_all()?;
-        let received_ns = now_ns();
-        for msg in batch {
-            // Receive times of steps still to be recorded only: a message of a step already recorded (seen
-            // again, or late) is never accounted, and its entry stayed for the rest of the run — 30 000
-            // entries and +2 MiB of private memory over 40 000 steps of a loaded machine.
-            if msg.header().stamps.published_ns != 0 && msg.header().step >= self.assembler.next_step() {
-                self.received.entry((T::KIND, msg.header().step)).or_insert(received_ns);
-            }
-            let slot = &mut self.last_seq[T::KIND.index()];
-            if let Err(r) = node.counter().check(&msg, slot) {
-                self.log.write(
-                    "rejected",
-                    json!({"kind": T::KIND.name(), "reason": r.kind(), "detail": r.to_string(), "seq": msg.header().seq}),
-                );
-                if !self.quiet {
-                    eprintln!("monitor: rejected a {}: {r}", T::KIND);
-                }
-                continue;
-            }
-            if let Some(r) = &mut self.recorder {
-                r.record(&msg, received_ns);
-            }
-            let h = msg.header();
-            self.log.write(
-                "message",
-                json!({"kind": T::KIND.name(), "step": h.step, "seq": h.seq, "age_us": us(h.stamps.age_ns(received_ns))}),
-            );
-            add(self, msg);
-        }
-        Ok(())
-    }
-
-    /// Logs and shows who joined or took over.
-    fn heard(&mut self, c: &Control) {
-        if let Some(r) = &mut self.recorder {
-            r.record(c, now_ns());
-        }
-        if c.kind() == Some(ControlKind::State) {
-            self.states.want(c.header.step);
-            self.log.write(
-                "state_request",
-                json!({"role": c.role().unwrap_or("?"), "instance": c.instance, "step": c.header.step}),
-            );
-            return;
-        }
-        if c.kind() == Some(ControlKind::Status) {
-            self.log.write(
-                "status",
-                json!({"role": c.role().unwrap_or("?"), "instance": c.instance, "rejected": c.header.step}),
-            );
-            return;
-        }
-        let Some(kind) =
-            c.kind().filter(|k| matches!(k, ControlKind::Hello | ControlKind::TakeOver | ControlKind::Replay))
-        else {
-            return;
-        };
-        let role = c.role().unwrap_or("?");
-        // A (re)started emitter-sim learns where this monitor is (see `Progress`).
-        self.emitter_joined |= kind == ControlKind::Hello && role == "emitter-sim";
-        self.log.write(
-            kind.name(),
-            json!({"role": role, "instance": c.instance, "detail": c.detail(), "step": c.header.step}),
-        );
-        if !self.quiet {
-            let what = match kind {
-                ControlKind::Hello => "joined",
-                ControlKind::Replay => "asks for a replay",
-                _ => "takes over",
-            };
-            let sep = if c.detail().is_empty() { "" } else { ", " };
-            eprintln!(
-                "monitor: a {role} {what} (instance {:#x}{sep}{}), step {}",
-                c.instance,
-                c.detail(),
-                c.header.step
-            );
-        }
-    }
-
-    fn complete_steps(&mut self, rejected: u64) {
-        let completed = self.assembler.complete_ready();
-        if let (Some(r), false) = (&mut self.recorder, completed.is_empty()) {
-            r.flush();
-        }
-        for done in completed {
-            self.account(&done);
-            if let Some(p) = &done.planner
-                && self.planner.as_ref() != Some(p)
-            {
-                self.summary.planners += 1;
-                self.log.write(
-                    "planner",
-                    json!({"instance": p.instance, "solver": p.solver, "objective": p.objective, "step": done.record.step}),
-                );
-                if !self.quiet && self.planner.is_some() {
-                    eprintln!("monitor: planner switched to {}/{} (instance {:#x})", p.solver, p.objective, p.instance);
-                }
-                self.planner = Some(p.clone());
-            }
-            if done.planner.is_some() {
-                self.samples.add(&done.latencies);
-            }
-            let l = &done.latencies;
-            self.log.write(
-                "step",
-                json!({
-                    "step": done.record.step,
-                    "record": done.record,
-                    "latency_us": {
-                        "command_hop": us(l.trigger_hop_ns), "emitter": us(l.emitter_ns),
-                        "measurement_hop": us(l.measurement_hop_ns), "estimator": us(l.estimator_ns),
-                        "estimate_hop": us(l.estimate_hop_ns), "planner": us(l.planner_ns),
-                        "end_to_end": us(l.end_to_end_ns), "cycle": us(l.cycle_ns),
-                    },
-                    "planner": done.planner.as_ref().map(|p| json!({"instance": p.instance, "solver": p.solver, "objective": p.objective})),
-                    "truth": done.truth,
-                    "command_missed": done.missed,
-                    "estimate_stale": done.held,
-                    "state": self.states.echo(done.record.step).map(|e| crate::runlog::state_to_hex(&e)),
-                }),
-            );
-            if done.missed {
-                self.summary.missed_commands += 1;
-                self.log.write("command_missed", json!({"step": done.record.step}));
-            }
-            if done.held {
-                self.summary.stale_steps += 1;
-                self.log.write("estimate_stale", json!({"step": done.record.step}));
-            }
-            if !self.quiet {
-                eprintln!("{}", status_line(&done, self.assembler.last_step(), rejected));
-            }
-        }
-    }
-}
-
-impl State {
-    /// Counts the step's messages that never arrived and writes its stamps row; forgets its receive times.
-    fn account(&mut self, done: &CompletedStep) {
-        let k = done.record.step;
-        let last = k == self.assembler.last_step();
-        let mut rx = [0u64; 4];
-        for (i, kind) in [MessageKind::Measurement, MessageKind::Estimate, MessageKind::Command, MessageKind::Truth]
-            .into_iter()
-            .enumerate()
-        {
-            match self.received.remove(&(kind, k)) {
-                Some(t) => rx[i] = t,
-                None if kind == MessageKind::Command && (last || done.missed) => {}
-                None if kind == MessageKind::Truth && !self.assembler.has_truth() => {}
-                None => self.summary.missing_messages += 1,
-            }
-        }
-        if let Some(csv) = &mut self.stamps {
-            csv.row(k, &done.chain, done.command_received_ns, rx);
-        }
-    }
-}
-
 fn write_outputs(args: &MonitorArgs, run: &RunRecord) -> Result<(), ProcessError> {
     if let Some(path) = &args.record {
         let text = serde_json::to_string_pretty(run).map_err(|e| ProcessError::Failed(e.to_string()))?;
@@ -397,7 +201,9 @@ fn write_outputs(args: &MonitorArgs, run: &RunRecord) -> Result<(), ProcessError
 /// The monitor's handler: the four data topics, the record being assembled, the progress reports and
 /// the replay requests.
 struct MonitorNode<'a> {
-    state: State,
+    session: Session,
+    /// The last accepted sequence number of each data topic.
+    last_seq: [Option<u64>; MessageKind::ALL.len()],
     truths: &'a TopicSubscriber<Truth>,
     measurements: &'a TopicSubscriber<Measurement>,
     estimates: &'a TopicSubscriber<Estimate>,
@@ -409,41 +215,46 @@ struct MonitorNode<'a> {
     progress_sent: Option<(u64, Instant)>,
 }
 
+impl MonitorNode<'_> {
+    /// Takes the messages waiting on `sub` into the session (`add`), each validated first.
+    fn drain<T: Recordable>(
+        &mut self,
+        node: &mut Node,
+        sub: &TopicSubscriber<T>,
+        add: fn(&mut Session, T),
+    ) -> Result<(), ProcessError> {
+        let batch = sub.receive_all()?;
+        let received_ns = now_ns();
+        for msg in batch {
+            self.session.arrived(&msg, received_ns);
+            match node.counter().check(&msg, &mut self.last_seq[T::KIND.index()]) {
+                Ok(()) => self.session.accept(msg, received_ns, add),
+                Err(r) => self.session.rejected(T::KIND, &r, msg.header().seq),
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Handler for MonitorNode<'_> {
     fn on_control(&mut self, _node: &mut Node, msg: &Control) -> Result<Flow, ProcessError> {
-        self.state.heard(msg);
+        self.session.heard(msg);
         Ok(Flow::Continue)
     }
 
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
-        let state = &mut self.state;
-        state.drain(node, self.truths, |s, m| _ = s.assembler.add_truth(m))?;
-        state.drain(node, self.measurements, |s, m| _ = s.assembler.add_measurement(m))?;
-        // The state after a step, from its estimate (which carries it whole) or its command's echo: the
-        // estimate covers a step the planner held on (its command echoes none).
-        state.drain(node, self.estimates, |s, e| {
-            if let Some(echo) = StateEcho::of(&e) {
-                s.states.keep(echo);
-            }
-            s.assembler.add_estimate(e);
-        })?;
-        state.drain(node, self.commands, |s, c| {
-            s.states.keep(c.state);
-            s.assembler.add_command(c);
-        })?;
+        self.drain(node, self.truths, Session::add_truth)?;
+        self.drain(node, self.measurements, Session::add_measurement)?;
+        self.drain(node, self.estimates, Session::add_estimate)?;
+        self.drain(node, self.commands, Session::add_command)?;
+        let state = &mut self.session;
         for echo in state.states.take_answers() {
             let seq = node.next_seq();
             self.state_answers.send(&EstimatorState::new(echo, seq, node.instance()))?;
         }
         state.complete_steps(node.counter().total());
         // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
-        state.log.check()?;
-        if let Some(r) = &state.recorder {
-            r.check().map_err(ProcessError::Failed)?;
-        }
-        if let Some(stamps) = &state.stamps {
-            stamps.check()?;
-        }
+        state.check_outputs()?;
         let next = state.assembler.next_step();
         if std::mem::take(&mut state.emitter_joined)
             || self.progress_sent.is_none_or(|(step, at)| next >= step + PROGRESS_EVERY || at.elapsed() >= IDLE_WAKEUP)
@@ -514,20 +325,8 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let truths = Topic::<Truth>::subscriber(node.link(), &services::truth(&domain))?;
     let state_answers = Topic::<EstimatorState>::publisher(node.link(), &services::state(&domain))?;
     let mut monitor = MonitorNode {
-        state: State {
-            assembler,
-            last_seq: [None; MessageKind::ALL.len()],
-            log,
-            samples: LatencySamples::default(),
-            planner: None,
-            summary: MonitorSummary { role: ROLE, ..MonitorSummary::default() },
-            quiet: args.process.node.quiet,
-            received: HashMap::new(),
-            stamps,
-            emitter_joined: false,
-            recorder,
-            states,
-        },
+        last_seq: [None; MessageKind::ALL.len()],
+        session: Session::new(assembler, log, states, args.process.node.quiet).with_outputs(stamps, recorder),
         truths: &truths,
         measurements: &measurements,
         estimates: &estimates,
@@ -536,7 +335,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         replay_asked: None,
         progress_sent: None,
     };
-    let state = &mut monitor.state;
+    let state = &mut monitor.session;
     match resumed {
         None => state.log.write(
             "start",
@@ -563,7 +362,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         let inputs: [&dyn Waitable; 4] = [&truths, &measurements, &estimates, &commands];
         node.run(&inputs, &mut monitor)?;
     }
-    let mut state = monitor.state;
+    let mut state = monitor.session;
     let counter = node.counter().clone();
 
     let mut run = state.assembler.record();
