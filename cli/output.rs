@@ -105,37 +105,6 @@ pub fn rows(m: &nalgebra::Matrix2<f64>) -> [[f64; 2]; 2] {
     [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]]
 }
 
-/// Checks an output directory flag before a run (so a run is never computed for nothing): `dir` must be
-/// a directory or not exist yet; it is created (with its parents) and a probe file is written and removed
-/// in it. Errors name the flag and are bad input (exit 2).
-pub fn check_out_dir(flag: &str, dir: &std::path::Path) -> Result<(), crate::error::CliError> {
-    use crate::error::CliError;
-    let bad = |what: String| CliError::Input(format!("{flag} {}: {what}", dir.display()));
-    if dir.exists() && !dir.is_dir() {
-        return Err(bad("exists and is not a directory".into()));
-    }
-    std::fs::create_dir_all(dir).map_err(|e| bad(e.to_string()))?;
-    let probe = dir.join(format!(".uavloc-write-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"probe").map_err(|e| bad(format!("cannot write there: {e}")))?;
-    let _ = std::fs::remove_file(&probe);
-    Ok(())
-}
-
-/// Checks an output file flag before a run: `file` must not be a directory, and its directory must
-/// exist (or be creatable) and be writable. Returns the absolute path (what a child process is given).
-pub fn check_out_file(flag: &str, file: &std::path::Path) -> Result<std::path::PathBuf, crate::error::CliError> {
-    use crate::error::CliError;
-    let bad = |what: String| CliError::Input(format!("{flag} {}: {what}", file.display()));
-    if file.is_dir() {
-        return Err(bad("is a directory".into()));
-    }
-    let abs = std::path::absolute(file).map_err(|e| bad(e.to_string()))?;
-    if let Some(dir) = abs.parent() {
-        check_out_dir(flag, dir)?;
-    }
-    Ok(abs)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -78,11 +78,11 @@ pub struct SimulateReport {
 pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     let sc = args.run.scenario()?;
     if let Some(dir) = &args.out {
-        crate::output::check_out_dir("--out", dir)?;
+        runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
     let mut recorder = match &args.record {
         Some(file) => {
-            let file = crate::output::check_out_file("--record", file)?;
+            let file = runtime::output::check_out_file("--record", file).map_err(CliError::Input)?;
             let metadata = monitor::recording::run_metadata(&sc, "simulate", "simulator");
             Some(monitor::recording::Recorder::create(&file, metadata, false).map_err(CliError::Failed)?)
         }

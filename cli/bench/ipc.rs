@@ -261,7 +261,7 @@ fn sweep_one(carrier: Carrier, args: &IpcArgs, cores: [usize; 2]) -> Result<Vec<
 pub fn run(args: &IpcArgs) -> Result<IpcReport, CliError> {
     let cores = check(args)?;
     if let Some(dir) = &args.out {
-        crate::output::check_out_dir("--out", dir)?;
+        runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
     sys::pin_current_process(&cores[..1]).map_err(|e| CliError::Failed(format!("--cores: {e}")))?;
     protocol::transport::quiet_logs();

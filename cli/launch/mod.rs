@@ -125,10 +125,10 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let emitter = children::emitter_args(args);
     emitter.check().and_then(|()| emitter.pacing(sc.dt, sc.steps)).map_err(CliError::Input)?;
     if let Some(dir) = &args.out {
-        crate::output::check_out_dir("--out", dir)?;
+        runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
     if let Some(file) = &args.record {
-        crate::output::check_out_file("--record", file)?;
+        runtime::output::check_out_file("--record", file).map_err(CliError::Input)?;
     }
     let domain = launch_domain(args.domain.as_deref(), args.source)?;
     // Held until the launch returns: a second launch into this domain is refused here, atomically.

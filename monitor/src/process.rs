@@ -287,6 +287,13 @@ impl Handler for MonitorNode<'_> {
 pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
+    // The outputs written at the end are checked now: a run is never recorded for nothing.
+    if let Some(file) = &args.record {
+        runtime::output::check_out_file("--record", file).map_err(ProcessError::Input)?;
+    }
+    if let Some(dir) = &args.out {
+        runtime::output::check_out_dir("--out", dir).map_err(ProcessError::Input)?;
+    }
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
     // With a log, the step records live there, not in memory (read back at the end); a restart takes the
     // steps its predecessor logged, and the estimator states they echoed.

@@ -10,6 +10,7 @@ pub mod args;
 pub mod exit;
 pub mod flags;
 pub mod node;
+pub mod output;
 pub mod recovery;
 pub mod supervisor;
 

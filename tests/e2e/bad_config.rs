@@ -116,6 +116,9 @@ fn malformed_flags_are_refused() {
         (&["process", "estimator", "--transport", "tcp"], "--transport"),
         (&["process", "emitter-sim", "--retry-interval-ms", "0"], "retry-interval-ms"),
         (&["process", "emitter-sim", "--monitor-window", "256"], "monitor-window"),
+        // The monitor's outputs are checked before it waits for a run (it used to learn at the end).
+        (&["process", "monitor", "--domain", "bad-config-out", "--out", "/proc/version"], "--out"),
+        (&["process", "monitor", "--domain", "bad-config-out", "--record", "/proc/none/run.json"], "--record"),
         (&["bench", "latency", "--cores", "5000"], "--cores"),
         (&["bench", "planner", "--steps", "0"], "--steps"),
         (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "-1"], "sigma"),
