@@ -52,7 +52,7 @@ use protocol::{
     Command, CommandOutcome, Control, ControlKind, Measurement, Message, Stamps, Topic, TopicSubscriber, Truth,
 };
 use runtime::recovery::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
-use runtime::{Ended, Flow, Handler, Node, SupervisorLine};
+use runtime::{Ended, Flow, Handler, Join, Node, SupervisorLine};
 
 use crate::args::{EmitterSimArgs, Mode};
 use crate::schedule::{Action, Config, Counts, Other, Pacing, Schedule};
@@ -334,8 +334,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let measurements = Topic::<Measurement>::publisher(node.link(), &services::measurement(&domain))?;
     let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
     wait_for_pipeline(node.link(), &measurements, &commands, &domain, args)?;
-    node.announce(ControlKind::Hello, 0, "")?;
-    node.ready();
+    node.join(Join::Hello, "")?;
     if start_step > 0 {
         node.say(format_args!("resumed from the snapshot of step {start_step}"));
     }

@@ -44,7 +44,7 @@ use protocol::{
     Command, ControlKind, Estimate, EstimateStatus as WireStatus, EstimatorState, Fix, Measurement, Topic,
     TopicPublisher, TopicSubscriber, Waitable,
 };
-use runtime::{Flow, Handler, Node};
+use runtime::{Flow, Handler, Join, Node};
 use tdoa::Dynamics;
 
 use crate::chain::{Answer, StepEstimator};
@@ -315,12 +315,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     let states = Topic::<EstimatorState>::subscriber(node.link(), &services::state(&domain))?;
     let predecessor =
         args.takeover.then(|| Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))).transpose()?;
-    if !args.takeover {
-        // "Replay the step in flight for me" (a no-op at the start of a launch: emitter-sim is not there).
-        node.announce(ControlKind::Hello, 0, "")?;
-        node.announce(ControlKind::Replay, ControlKind::IN_FLIGHT, "")?;
-    }
-    node.ready();
+    node.join(if args.takeover { Join::TakeOver } else { Join::Replay(ControlKind::IN_FLIGHT) }, "")?;
     node.say(format_args!("domain {domain}, instance {:#x}", node.instance()));
     let mut handler = EstimatorNode {
         args,

@@ -65,7 +65,7 @@ use protocol::{
     TopicPublisher, TopicSubscriber, Truth, Waitable, now_ns,
 };
 use runtime::recovery::StateStore;
-use runtime::{Flow, Handler, IDLE_WAKEUP, Node};
+use runtime::{Flow, Handler, IDLE_WAKEUP, Join, Node};
 use serde_json::json;
 
 use crate::assemble::Assembler;
@@ -351,9 +351,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         Some(n) => state.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
     }
     // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
-    node.announce(ControlKind::Hello, 0, "")?;
-    node.announce(ControlKind::Replay, state.assembler.next_step(), "")?;
-    node.ready();
+    node.join(Join::Replay(state.assembler.next_step()), "")?;
     match resumed {
         None if external => node.say(format_args!(
             "domain {domain}, waiting for {} steps from an external front end: no truth, so CRLB at the truth, RMSE \

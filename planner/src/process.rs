@@ -52,7 +52,7 @@ use nalgebra::Vector2;
 use protocol::services;
 use protocol::{Command, ControlKind, Estimate, Measurement, PlanInfo, Topic, TopicPublisher, TopicSubscriber};
 use runtime::recovery::HISTORY_STEPS;
-use runtime::{Flow, Handler, Node};
+use runtime::{Flow, Handler, Join, Node};
 
 use crate::active_mask;
 use crate::objective::ObjectiveKind;
@@ -335,13 +335,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         .then(|| Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain)))
         .transpose()?;
     let detail = format!("{}/{}", args.solver.name(), args.objective.name());
-    if !args.takeover {
-        // "I joined; publish the step in flight again" (a no-op at the start of a launch: emitter-sim is
-        // not there).
-        node.announce(ControlKind::Hello, 0, &detail)?;
-        node.announce(ControlKind::Replay, ControlKind::IN_FLIGHT, &detail)?;
-    }
-    node.ready();
+    node.join(if args.takeover { Join::TakeOver } else { Join::Replay(ControlKind::IN_FLIGHT) }, &detail)?;
     node.say(format_args!(
         "domain {domain}, {} / {}, {} steps, seed {}, instance {:#x}",
         args.objective.name(),

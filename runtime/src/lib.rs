@@ -1,10 +1,13 @@
 //! # uavloc-runtime — what every uavloc process runs on
 //!
 //! The part of a process that is not its handler: the event loop ([`node`]: one `WaitSet` over the
-//! process's inputs, the control topic and its deadlines, calling the process's [`Handler`]), its flags ([`args::LinkArgs`]), how it ends
-//! ([`exit`]: [`ProcessError`] and the exit codes a supervisor acts on), what it tells its supervisor
-//! ([`supervisor`]: typed stdout lines, written and read with one definition), and the recovery rules
-//! with what they keep ([`recovery`]: the meaning of a step, the state store, emitter-sim's snapshot file). The wire format and the transports are `uavloc-protocol`'s.
+//! process's inputs, the control topic and its deadlines, calling the process's [`Handler`]), its flags
+//! ([`args::LinkArgs`]; written back as a command line by [`flags`]), how it ends ([`exit`]:
+//! [`ProcessError`] and the exit codes a supervisor acts on), what it tells its supervisor
+//! ([`supervisor`]: typed stdout lines, written and read with one definition), the recovery rules with
+//! what they keep ([`recovery`]: the meaning of a step, the state store, emitter-sim's snapshot file),
+//! and the checks of output flags before a run ([`output`]). The wire format and the transports are
+//! `uavloc-protocol`'s.
 
 pub mod args;
 pub mod exit;
@@ -16,5 +19,5 @@ pub mod supervisor;
 
 pub use args::{DEFAULT_SPIN_US, LinkArgs, NodeArgs, ProcessArgs, RunArgs, Source};
 pub use exit::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError, cpu_seconds};
-pub use node::{Ended, Flow, Handler, IDLE_WAKEUP, Node};
+pub use node::{Ended, Flow, Handler, IDLE_WAKEUP, Join, Node};
 pub use supervisor::{NodeSummary, SupervisorLine, exit_with, tell};

@@ -16,8 +16,9 @@
 //!    hand-over step, and with [`Ended::Interrupted`] on SIGINT/SIGTERM.
 //!
 //! The take-over side of a swap is [`Node::take_over`]; the hand-over side is [`Node::hands_over`] (a
-//! handler asks it before answering a step). Readiness (`ready` to the supervisor) and the exit codes are
-//! the node's too ([`crate::exit`], [`crate::supervisor`]), so no process repeats them.
+//! handler asks it before answering a step). Joining the domain ([`Node::join`], as a [`Join`] policy
+//! says; then `ready` to the supervisor) and the exit codes are the node's too ([`crate::exit`],
+//! [`crate::supervisor`]), so no process repeats them.
 
 use std::fmt;
 use std::rc::Rc;
@@ -57,6 +58,20 @@ pub enum Ended {
     HandedOver(u64),
     /// The handler said [`Flow::Stop`].
     Stopped,
+}
+
+/// How a process joins its domain ([`Node::join`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Join {
+    /// A hello, and a request to replay from this step ([`ControlKind::IN_FLIGHT`]: the step in flight,
+    /// whose message a predecessor may have taken with it; the monitor: the first step it lacks). At the
+    /// start of a launch nobody answers it (emitter-sim is not there yet).
+    Replay(u64),
+    /// A hello only (emitter-sim, which is the one that replays).
+    Hello,
+    /// Nothing yet: a swapped-in process announces its take-over once it knows the step
+    /// ([`Node::take_over`]).
+    TakeOver,
 }
 
 /// A process's part of the event loop: messages in, messages out.
@@ -185,9 +200,19 @@ impl Node {
         Ok(self.control.send(kind, step, detail)?)
     }
 
-    /// Tells the supervisor this process is ready (subscribed).
-    pub fn ready(&self) {
+    /// Joins the domain as `how` says (`detail`: free text on the control messages, e.g. the planner's
+    /// solver), then tells the supervisor this process is ready (its ports exist).
+    pub fn join(&self, how: Join, detail: &str) -> Result<(), ProcessError> {
+        match how {
+            Join::Replay(from) => {
+                self.announce(ControlKind::Hello, 0, detail)?;
+                self.announce(ControlKind::Replay, from, detail)?;
+            }
+            Join::Hello => self.announce(ControlKind::Hello, 0, detail)?,
+            Join::TakeOver => {}
+        }
         crate::tell(self.supervised, &SupervisorLine::Ready);
+        Ok(())
     }
 
     /// Logs a line on stderr, prefixed with the role, unless `--quiet`.
