@@ -69,7 +69,6 @@ use std::time::Instant;
 
 use emitter_sim::args::Mode;
 use monitor::RunRecord;
-use planner::TargetMode;
 use protocol::resources;
 use protocol::services::{self, DOMAIN_ENV, Domain};
 
@@ -105,13 +104,7 @@ pub fn run_from_cli(args: &LaunchArgs, json: bool) -> Result<LaunchReport, CliEr
 pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let start = Instant::now();
     let sc = args.run.scenario()?;
-    if sc.target == TargetMode::Controlled {
-        return Err(CliError::Input(
-            "scenario key `target`: \"controlled\" is not supported by the process pipeline (the planner never \
-             sees the true emitter); use `uavloc simulate` for controlled runs"
-                .into(),
-        ));
-    }
+    planner::process::check_scenario(&sc).map_err(CliError::Input)?;
     if args.source == runtime::Source::External
         && (args.mode != Mode::Lockstep || args.time_scale.is_some() || args.step_delay_ms > 0)
     {

@@ -313,17 +313,22 @@ impl Handler for Planner<'_> {
     }
 }
 
+/// Checks that the process pipeline can run `scenario` (also what `uavloc launch` checks): only
+/// `target = "chan"`, because controlled mode needs the true emitter, which the planner never receives.
+pub fn check_scenario(scenario: &Scenario) -> Result<(), String> {
+    if scenario.target == TargetMode::Controlled {
+        return Err("scenario key `target`: \"controlled\" is not supported by the process pipeline (it needs \
+                    the true emitter, which the planner never receives); use `uavloc simulate` for controlled runs"
+            .into());
+    }
+    Ok(())
+}
+
 /// Runs the planner until SIGINT/SIGTERM, a shutdown or a hand-over.
 pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
-    if scenario.target == TargetMode::Controlled {
-        return Err(ProcessError::Input(
-            "scenario key `target`: \"controlled\" is not supported by the process pipeline (it needs the true \
-             emitter, which the planner never receives); use `uavloc simulate` for controlled runs"
-                .into(),
-        ));
-    }
+    check_scenario(&scenario).map_err(ProcessError::Input)?;
     let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Ok(PlannerSummary { node: runtime::NodeSummary::new(ROLE, 0), ..PlannerSummary::default() });
     };
