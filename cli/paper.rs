@@ -81,7 +81,7 @@ pub struct PaperArgs {
     /// fixed-geometry tables 8 and 9 (milliseconds per run) keep M = 200.
     #[arg(long)]
     pub quick: bool,
-    /// Directory for <experiment>.md, one CSV per table and every figure as SVG and PNG (created if missing).
+    /// Directory for `<experiment>.md`, one CSV per table and every figure as SVG and PNG (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 }

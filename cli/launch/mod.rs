@@ -34,8 +34,9 @@
 //!    launch. (`tests/e2e/crash_restart.rs`.)
 //! 5. At the end (or on an error or a signal), once its children are stopped, the launcher publishes a
 //!    shutdown on the domain's control topic if processes of the domain are still alive — processes
-//!    swapped in by `uavloc swap` are not its children and stop on it — and waits for them. A planner or estimator that exits because a swapped-in one took over (`handed_over_at` in
-//!    its summary) is not restarted.
+//!    swapped in by `uavloc swap` are not its children and stop on it — and waits for them. A planner
+//!    or estimator that exits because a swapped-in one took over (`handed_over_at` in its summary) is
+//!    not restarted.
 //! 6. Stale iceoryx2 resources of the domain (a child killed) are removed, and the launcher checks that
 //!    none are left.
 //!

@@ -60,7 +60,7 @@ pub struct LaunchReport {
     #[serde(skip)]
     pub leftovers: DomainResources,
     /// CPU use of the waiting monitor, planner and estimator before the run, % of one core (only with
-    /// an idle probe, see [`LaunchArgs::idle_probe_ms`]).
+    /// an idle probe, see [`super::LaunchArgs::idle_probe_ms`]).
     #[serde(skip)]
     pub idle_cpu: BTreeMap<String, f64>,
 }

@@ -1,6 +1,6 @@
 //! The launcher's files: the per-user state root `$TMPDIR/uavloc-<uid>` (mode 0700), the lock of a
-//! domain held for a launch's lifetime ([`DomainLock`]), and the private directory of one launch
-//! ([`StateDir`]); state directories of launchers that died (SIGKILL) are removed by the next launch.
+//! domain held for a launch's lifetime (`DomainLock`), and the private directory of one launch
+//! (`StateDir`); state directories of launchers that died (SIGKILL) are removed by the next launch.
 
 use std::fs::File;
 use std::os::fd::AsRawFd as _;

@@ -8,8 +8,8 @@
 //!   of the first snapshot that has one. When that fix is ambiguous (three UAVs, two physical roots, no
 //!   prior), both roots are carried to the next snapshot, fused into each, and the root with the smaller
 //!   innovation is kept (the first snapshots together decide; a process that takes over from the
-//!   published estimate in between continues with the root reported). A snapshot whose innovation fails the gate is not fused and is
-//!   reported as [`EstimateStatus::Rejected`] (the posterior is then the prediction). Emitter models
+//!   published estimate in between continues with the root reported). A snapshot whose innovation
+//!   fails the gate is not fused and is reported as [`EstimateStatus::Rejected`] (the posterior is then the prediction). Emitter models
 //!   `static` and `constant_velocity` ([`tdoa::motion`]).
 //! - `snapshot` (the paper, Section 2, eqs. 10–30): Chan's fix of each snapshot alone; the previous
 //!   estimate is the prior that resolves the two-root ambiguity of the three-UAV case.

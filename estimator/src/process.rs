@@ -1,8 +1,8 @@
 //! The `estimator` process: receive a [`Measurement`] → [`crate::Estimator::estimate`] → publish an [`Estimate`].
 //!
 //! A handler on the node runtime ([`runtime::node`]: one event loop over the measurement and control
-//! topics in a `WaitSet`, optionally busy-polling for `--spin-us` first). It needs no scenario: the UAV positions, range
-//! differences and their σ all come with the measurement (σ gives the noise model of eq. 19, exactly the
+//! topics in a `WaitSet`, optionally busy-polling for `--spin-us` first). It needs no scenario: the UAV
+//! positions, range differences and their σ all come with the measurement (σ gives the noise model of eq. 19, exactly the
 //! one the world drew the noise with). The estimate carries the measurement's UAV geometry and stamps
 //! forward ([`Estimate::from_measurement`]).
 //!

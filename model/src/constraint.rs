@@ -44,7 +44,7 @@ impl fmt::Display for ConstraintKind {
     }
 }
 
-/// One constraint that is violated or binding (within [`BINDING_TOLERANCE`] of its bound).
+/// One constraint that is violated or binding (within the planner's `BINDING_TOLERANCE` of its bound).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ActiveConstraint {
     /// Which constraint.

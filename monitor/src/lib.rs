@@ -3,9 +3,9 @@
 //! The monitor's logic: per-step metrics against the truth, the run record (the JSON shape shared by
 //! `uavloc simulate` and the process pipeline), plots of a run, generic report charts ([`chart`]: curves
 //! with confidence bands, grouped bars); and the monitor process of the pipeline: [`assemble`] rebuilds
-//! the record from the pipeline's messages (no IPC), [`process`] is its handler on the node runtime (with [`runlog`], [`stamps`] and [`latency`]:
-//! its log, stamp file and latency statistics),
-//! [`resources`] lists (and cleans up) a domain's iceoryx2 nodes and services.
+//! the record from the pipeline's messages (no IPC), [`process`] is its handler on the node runtime
+//! over what it keeps of the run (`session`, also without IPC; with [`runlog`], [`stamps`] and
+//! [`latency`]: its log, stamp file and latency statistics), and [`recording`] writes the run as MCAP.
 
 pub mod assemble;
 mod canvas;

@@ -145,8 +145,8 @@ impl Constraints {
         }
     }
 
-    /// These constraints with the bearings of the UAVs at `positions` to `estimate` computed once (see
-    /// [`Bearings`]); checks of other positions compute theirs as before.
+    /// These constraints with the bearings of the UAVs at `positions` to `estimate` computed once (a
+    /// private `Bearings`); checks of other positions compute theirs as before.
     pub fn for_step(self, positions: &[Vector2<f64>], estimate: Vector2<f64>) -> Self {
         if positions.len() > tdoa::MAX_UAVS {
             return self;

@@ -218,7 +218,7 @@ impl Command {
 }
 
 impl crate::messages::EstimatorState {
-    /// Checks the state message: a state ([`StateEcho::STATE`] or [`StateEcho::EMPTY`]), checked as the
+    /// Checks the state message: a state ([`crate::StateEcho::STATE`] or [`crate::StateEcho::EMPTY`]), checked as the
     /// command that echoed it (its own `step` is the step it is after).
     pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
         check_version(Self::VERSION, self.header.version)?;

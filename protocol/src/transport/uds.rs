@@ -16,7 +16,7 @@
 //! A subscriber's queue holds the kernel's `net.unix.max_dgram_qlen` datagrams (often only 10). When it is
 //! full, `sendto` blocks — backpressure, as with the blocking socket a user would write — for at most
 //! [`SEND_TIMEOUT`]; then that subscriber misses the message, which is counted
-//! ([`PublishPort::dropped`](super::PublishPort::dropped)) and reported once on stderr. (iceoryx2 never blocks the publisher: it
+//! ([`super::PublishPort::dropped`]) and reported once on stderr. (iceoryx2 never blocks the publisher: it
 //! overwrites the subscriber's oldest sample instead.) A socket file whose
 //! process died (`ECONNREFUSED`) is removed by the next publisher that finds it — the counterpart of
 //! iceoryx2's dead-node cleanup. Wake-ups need no second channel: the socket becomes readable.
