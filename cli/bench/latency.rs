@@ -15,7 +15,7 @@
 //!   estimator and planner, and the command's way back).
 //!
 //! `lost` counts steps missing from the record, messages of recorded steps the monitor never got (a
-//! replayed message carries no stamps, so a message the monitor lost and asked to be replayed counts as
+//! replayed copy carries no publish stamp, so a message the monitor lost and asked to be replayed counts as
 //! lost) and emitter-sim's replays for late commands: every one is a message that did not arrive the first
 //! time.
 

@@ -117,7 +117,8 @@ pub struct EmitterSimArgs {
     #[arg(long, value_name = "S", default_value_t = 60.0)]
     #[serde(serialize_with = "runtime::flags::finite")]
     pub connect_timeout_s: f64,
-    /// Subscribers the measurement topic needs before step 0 (estimator, plus 1 for a monitor).
+    /// Subscribers the measurement topic needs before step 0 (estimator, plus 1 for a monitor; with 2 or
+    /// more a monitor is taken to be in the pipeline, see --monitor-window).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub min_subscribers: usize,
     /// Wait this many milliseconds before each step after step 0 (slows a lock-step run down for a demo or
@@ -149,9 +150,11 @@ pub struct EmitterSimArgs {
     /// Lock-step mode: do not publish step k while the monitor lacks step k − N or an older one (its
     /// progress comes on the control topic); when it makes no progress for --retry-interval-ms, replay to
     /// it from the first step it lacks; give up (exit 1) after
-    /// --command-timeout-s without progress. A monitor restarted again and again then stays within reach
-    /// of a restarted emitter-sim's replays. Must be below 256 (the snapshot interval). 0: never wait for
-    /// the monitor. No effect before a monitor has announced itself, nor in real-time mode.
+    /// --command-timeout-s without progress. A monitor then never loses a message from its full subscriber
+    /// buffers (64 per topic), and one restarted again and again stays within reach of a restarted
+    /// emitter-sim's replays. At most 64. 0: never wait for the monitor. Before the monitor's first
+    /// progress report it is taken to lack the first step when --min-subscribers is 2 or more (a monitor
+    /// is in the pipeline), else it has no effect until a monitor reports. No effect in real-time mode.
     #[arg(long, value_name = "N", default_value_t = recovery::MONITOR_WINDOW)]
     pub monitor_window: u64,
 }
@@ -172,10 +175,13 @@ impl EmitterSimArgs {
         if !(self.connect_timeout_s >= 0.0 && self.connect_timeout_s.is_finite()) {
             return Err(format!("--connect-timeout-s must be ≥ 0, got {}", self.connect_timeout_s));
         }
-        if self.monitor_window >= recovery::SNAPSHOT_EVERY {
+        // The bound of both: a monitor further behind would lose messages from its full buffers, and a
+        // restarted emitter-sim could not replay to it from its older snapshot.
+        let most = (protocol::transport::SUBSCRIBER_BUFFER as u64).min(recovery::SNAPSHOT_EVERY - 1);
+        if self.monitor_window > most {
             return Err(format!(
-                "--monitor-window must be below {} (the snapshot interval; 0 turns it off), got {}",
-                recovery::SNAPSHOT_EVERY,
+                "--monitor-window must be at most {most} (the monitor's subscriber buffer: a monitor further \
+                 behind loses messages; 0 turns it off), got {}",
                 self.monitor_window
             ));
         }
@@ -190,7 +196,12 @@ impl EmitterSimArgs {
     pub fn pacing(&self, dt: f64, steps: usize) -> Result<Pacing, String> {
         Ok(match self.mode {
             Mode::Lockstep => {
-                Pacing::Lockstep { step_delay: Duration::from_millis(self.step_delay_ms), window: self.monitor_window }
+                Pacing::Lockstep {
+                    step_delay: Duration::from_millis(self.step_delay_ms),
+                    window: self.monitor_window,
+                    // Two measurement subscribers: the estimator and a monitor (see --min-subscribers).
+                    monitor_expected: self.min_subscribers >= 2,
+                }
             }
             Mode::Realtime => Pacing::Realtime { interval: step_interval(dt, self.time_scale.unwrap_or(1.0), steps)? },
         })

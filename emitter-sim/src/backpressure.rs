@@ -29,7 +29,13 @@ impl MonitorProgress {
         }
     }
 
-    /// The first step the monitor lacks, if a monitor has reported.
+    /// A monitor that has not reported yet, taken to lack step `first`: any report of a real monitor
+    /// replaces it (its start time is after 0).
+    pub fn assumed(first: u64) -> Self {
+        Self { latest: Some((0, first)) }
+    }
+
+    /// The first step the monitor lacks, if a monitor has reported (or is assumed).
     pub fn next(&self) -> Option<u64> {
         self.latest.map(|(_, next)| next)
     }

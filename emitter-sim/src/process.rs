@@ -153,12 +153,24 @@ struct EmitterNode<'a> {
 }
 
 impl EmitterNode<'_> {
-    fn send(&mut self, node: &mut Node, mut truth: Truth, mut measurement: Measurement) -> Result<(), ProcessError> {
+    /// Publishes the truth and measurement of a step (`again`: a replay, without publish stamps).
+    fn send(
+        &mut self,
+        node: &mut Node,
+        mut truth: Truth,
+        mut measurement: Measurement,
+        again: bool,
+    ) -> Result<(), ProcessError> {
         let seq = node.next_seq();
         truth.header.seq = seq;
         measurement.header.seq = seq;
-        self.truths.send(&truth)?;
-        self.measurements.send(&measurement)?;
+        if again {
+            self.truths.resend(&truth)?;
+            self.measurements.resend(&measurement)?;
+        } else {
+            self.truths.send(&truth)?;
+            self.measurements.send(&measurement)?;
+        }
         self.sent_count += 1;
         Ok(())
     }
@@ -189,10 +201,11 @@ impl EmitterNode<'_> {
             self.sent.pop_front();
         }
         self.sent.push_back((truth, message));
-        self.send(node, truth, message)
+        self.send(node, truth, message, false)
     }
 
-    /// Publishes kept step `j` again (new sequence number, no stamps: its latencies mean nothing).
+    /// Publishes kept step `j` again (new sequence number, no stamps: a replay times nothing, and a receiver
+    /// tells it from the first publication by its publish stamp, 0).
     fn publish_again(&mut self, node: &mut Node, j: u64) -> Result<(), ProcessError> {
         let base = self.schedule.kept_from();
         let (mut truth, mut measurement) =
@@ -201,7 +214,7 @@ impl EmitterNode<'_> {
             })?;
         truth.header.stamps = Stamps::default();
         measurement.header.stamps = Stamps::default();
-        self.send(node, truth, measurement)
+        self.send(node, truth, measurement, true)
     }
 
     /// The command of the awaited step: flown (and the world before a snapshot step saved once its

@@ -46,6 +46,10 @@ pub enum Pacing {
         step_delay: Duration,
         /// `--monitor-window`.
         window: u64,
+        /// A monitor is in the pipeline: until its first progress report it is taken to lack the first
+        /// step, so the window holds from the start (a monitor starved of CPU while the run starts would
+        /// otherwise fall behind without bound and lose messages from its full subscriber buffers).
+        monitor_expected: bool,
     },
     /// Step k at t0 + (k − first)·`interval`.
     Realtime {
@@ -180,7 +184,10 @@ impl Schedule {
             replay: None,
             requested: None,
             dropped: None,
-            monitor: MonitorProgress::default(),
+            monitor: match cfg.pacing {
+                Pacing::Lockstep { monitor_expected: true, .. } => MonitorProgress::assumed(cfg.first),
+                _ => MonitorProgress::default(),
+            },
             held: None,
             missed: BTreeSet::new(),
             counts: Counts::default(),
@@ -575,7 +582,7 @@ mod tests {
         Config {
             first: 0,
             last,
-            pacing: Pacing::Lockstep { step_delay: Duration::ZERO, window },
+            pacing: Pacing::Lockstep { step_delay: Duration::ZERO, window, monitor_expected: false },
             retry: RETRY,
             timeout: TIMEOUT,
             linger,
@@ -612,7 +619,7 @@ mod tests {
     fn the_step_delay_paces_lockstep() {
         let t0 = Instant::now();
         let cfg = Config {
-            pacing: Pacing::Lockstep { step_delay: Duration::from_millis(30), window: 0 },
+            pacing: Pacing::Lockstep { step_delay: Duration::from_millis(30), window: 0, monitor_expected: false },
             ..lockstep(2, false, 0)
         };
         let mut s = Schedule::new(cfg, t0);
@@ -741,6 +748,34 @@ mod tests {
         let e = s.joined(5).unwrap_err();
         assert!(e.contains("from step 5") && e.contains("6..=4101"), "{e}");
         assert_eq!(s.joined(6), Ok(Some(6)));
+    }
+
+    #[test]
+    fn an_expected_monitor_holds_the_window_before_its_first_report() {
+        // The flaky `bench compare` (session 13): the monitor, starved of CPU while the run started, had
+        // sent no progress yet, emitter-sim ran on without bound, and the monitor's full subscriber
+        // buffers dropped the oldest steps' messages (recovered by a replay, but lost the first time).
+        let t0 = Instant::now();
+        let cfg = |monitor_expected| Config {
+            pacing: Pacing::Lockstep { step_delay: Duration::ZERO, window: 4, monitor_expected },
+            first: 10,
+            ..lockstep(100, false, 4)
+        };
+        let mut expected = Schedule::new(cfg(true), t0);
+        assert_eq!(expected.poll(t0), vec![Action::Publish(10)]);
+        for k in 10..13 {
+            assert_eq!(answer(&mut expected, k, t0), vec![Action::Publish(k + 1)], "step {k}");
+        }
+        assert_eq!(answer(&mut expected, 13, t0), vec![], "step 14 waits for a monitor that lacks step 10");
+        // Its first report replaces the assumption.
+        expected.heard(&progress(12));
+        assert_eq!(expected.poll(t0), vec![Action::Publish(14)]);
+        // Without a monitor expected, nothing holds before a report.
+        let mut free = Schedule::new(cfg(false), t0);
+        free.poll(t0);
+        for k in 10..20 {
+            assert_eq!(answer(&mut free, k, t0), vec![Action::Publish(k + 1)], "step {k}");
+        }
     }
 
     #[test]

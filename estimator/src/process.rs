@@ -216,11 +216,11 @@ impl EstimatorNode<'_> {
         answer: Answer,
     ) -> Result<(), ProcessError> {
         let step = m.header.step;
-        let reply = match answer {
-            Answer::New(reply) => reply,
+        let (reply, again) = match answer {
+            Answer::New(reply) => (reply, false),
             Answer::Again(reply) => {
                 node.summary().resent += 1;
-                reply
+                (reply, true)
             }
             Answer::OutOfChain => {
                 self.summary.out_of_chain += 1;
@@ -236,7 +236,12 @@ impl EstimatorNode<'_> {
         let estimate = reply
             .to_estimate(m, received_ns, seq, node.instance())
             .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;
-        self.estimates.send(&estimate)?;
+        // A step estimated again goes out as a copy: no publish stamp, so nobody times it as the step's.
+        if again {
+            self.estimates.resend(&estimate)?;
+        } else {
+            self.estimates.send(&estimate)?;
+        }
         node.summary().published += 1;
         Ok(())
     }

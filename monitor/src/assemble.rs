@@ -227,7 +227,7 @@ impl Assembler {
     }
 
     /// Adds a (validated) measurement; `false` if it is ignored. A repeat of one already in (a replay: same
-    /// content, new sequence number, no stamps) keeps the first, whose stamps time the step.
+    /// content, new sequence number, no publish stamp) keeps the first, whose stamps time the step.
     pub fn add_measurement(&mut self, m: Measurement) -> bool {
         self.slot(m.header.step).map(|p| p.measurement.get_or_insert(m)).is_some()
     }

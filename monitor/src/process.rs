@@ -176,8 +176,10 @@ pub struct MonitorSummary {
     pub stale_steps: u64,
     /// Latencies of the planned steps.
     pub latency: LatencySummary,
-    /// Messages of the recorded steps that never reached the monitor (measurement, estimate, command and
-    /// truth of each step; the last step has no command). 0 when nothing was lost.
+    /// Messages of the recorded steps that never reached the monitor as first published (measurement,
+    /// estimate, command and truth of each step; the last step has no command): lost on the way (a full
+    /// buffer) or never sent (its sender died first), the step then recorded from a copy sent again (a
+    /// replay: no publish stamp). 0 when nothing was lost.
     pub missing_messages: u64,
     /// Replays this monitor asked for because a message was lost (see [`STALL_STEPS`]).
     pub replays_requested: u64,

@@ -73,7 +73,7 @@ impl Session {
     /// for the stamps and the count of missing messages — of steps still to be recorded only (a message of
     /// a step already recorded, seen again or late, is never accounted, and its entry stayed for the rest
     /// of the run: 30 000 entries and +2 MiB of private memory over 40 000 steps of a loaded machine). A
-    /// replayed message (no stamps) is not a first arrival.
+    /// copy sent again (a replay, an answer given again: no publish stamp) is not a first arrival.
     pub(crate) fn arrived<T: Message>(&mut self, msg: &T, received_ns: u64) {
         if msg.header().stamps.published_ns != 0 && msg.header().step >= self.assembler.next_step() {
             self.received.entry((T::KIND, msg.header().step)).or_insert(received_ns);

@@ -151,10 +151,15 @@ struct Planner<'a> {
 }
 
 impl Planner<'_> {
-    /// Publishes `command` as the answer to its step.
-    fn answer(&mut self, node: &mut Node, mut command: Command) -> Result<(), ProcessError> {
+    /// Publishes `command` as the answer to its step (`again`: a step answered before, sent as a copy
+    /// without a publish stamp, so that nobody times it as the step's).
+    fn answer(&mut self, node: &mut Node, mut command: Command, again: bool) -> Result<(), ProcessError> {
         command.header.seq = node.next_seq();
-        self.commands.send(&command)?;
+        if again {
+            self.commands.resend(&command)?;
+        } else {
+            self.commands.send(&command)?;
+        }
         node.summary().published += 1;
         self.last_planned = self.last_planned.max(Some(command.header.step));
         Ok(())
@@ -264,6 +269,7 @@ impl Handler for Planner<'_> {
                 continue; // the running planner's step, or the final step (recorded, not planned)
             }
             let late = self.tracker.as_mut().is_some_and(|t| t.on_estimate(step) == Freshness::Late);
+            let again = late || self.last_planned.is_some_and(|l| step <= l);
             let command = if late {
                 // Held already: the step's answer is its hold.
                 self.summary.late_estimates += 1;
@@ -277,13 +283,13 @@ impl Handler for Planner<'_> {
                     node.instance(),
                 )?)
             } else {
-                if self.last_planned.is_some_and(|l| step <= l) {
+                if again {
                     node.summary().resent += 1; // a replayed estimate: planned again, the same command
                 }
                 self.plan(node, &est, received_ns)?
             };
             if let Some(command) = command {
-                self.answer(node, command)?;
+                self.answer(node, command, again)?;
             }
         }
         // Steps whose estimate missed the deadline: hold course.
@@ -294,7 +300,7 @@ impl Handler for Planner<'_> {
             }
             let hold =
                 hold_command(due.step, &due.positions, &due.headings, &self.scenario, self.args, node.instance())?;
-            self.answer(node, hold)?;
+            self.answer(node, hold, false)?;
             self.summary.held += 1;
             node.warn(format_args!(
                 "step {}: no estimate within {} ms of the measurement; holding course",

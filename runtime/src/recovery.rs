@@ -64,11 +64,17 @@ pub const SNAPSHOT_EVERY: u64 = 256;
 pub const EMITTER_SNAPSHOTS: usize = 2;
 
 /// How many steps a lock-step emitter-sim may run ahead of the monitor's progress (the default of its
-/// `--monitor-window`).
-pub const MONITOR_WINDOW: u64 = 128;
+/// `--monitor-window`). Below the monitor's subscriber buffers
+/// ([`SUBSCRIBER_BUFFER`](protocol::transport::SUBSCRIBER_BUFFER), 64 messages per topic), with room
+/// for replayed copies: a monitor within the window never has a message pushed out of a full buffer. (It
+/// was 128 until session 13: a monitor starved of CPU lost the oldest messages of its full buffers and
+/// got them back only by a replay.)
+pub const MONITOR_WINDOW: u64 = 48;
 
 // A monitor within the window lacks no step older than a restarted emitter-sim's older snapshot.
 const _: () = assert!(MONITOR_WINDOW < SNAPSHOT_EVERY);
+// A monitor within the window has at most that many unread messages per topic: they fit its buffers.
+const _: () = assert!(MONITOR_WINDOW <= protocol::transport::SUBSCRIBER_BUFFER as u64);
 
 // Every rewind point and every replay request lie within the history.
 const _: () = assert!((EMITTER_SNAPSHOTS as u64 + 3) * SNAPSHOT_EVERY < HISTORY_STEPS);

@@ -1,7 +1,7 @@
-//! Lock-step backpressure: a lock-step emitter-sim runs at most `--monitor-window` (128) steps ahead of the
+//! Lock-step backpressure: a lock-step emitter-sim runs at most `--monitor-window` (48) steps ahead of the
 //! monitor's progress (the monitor reports the first step it lacks on the control topic every 16 recorded
 //! steps). The monitor of a launch is frozen (SIGSTOP) for 3 s: emitter-sim — watched by a subscriber of
-//! the measurement topic of this test — publishes no step beyond 128 after the monitor's newest logged
+//! the measurement topic of this test — publishes no step beyond 48 after the monitor's newest logged
 //! one, and no new step at all in the last seconds of the freeze, although the whole run would take a
 //! fraction of that. Thawed, the monitor catches up and the run ends complete and equal to
 //! `uavloc simulate`, every step logged once, with nothing restarted.

@@ -455,6 +455,14 @@ impl<T: Message> TopicPublisher<T> {
         Ok(Sent { published_ns, subscribers })
     }
 
+    /// Delivers a copy of a message sent before (a replay, or an answer given again) as it is, without a
+    /// publish stamp: a receiver can tell it from a first publication (`published_ns` 0), and its
+    /// latencies would time the replay, not the step. [`Sent::published_ns`] is 0.
+    pub fn resend(&self, msg: &T) -> Result<Sent, TransportError> {
+        let subscribers = self.port.deliver(msg)?;
+        Ok(Sent { published_ns: 0, subscribers })
+    }
+
     /// The topic's service name.
     pub fn name(&self) -> &str {
         &self.name
