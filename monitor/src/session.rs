@@ -274,7 +274,7 @@ mod tests {
     use crate::assemble::tests::{command, estimate, flown, measurement, ok, scenario, truth};
     use crate::runlog::state_to_hex;
 
-    /// As first published (a replay carries no stamps).
+    /// As first published (a copy sent again carries no publish stamp).
     fn stamped<T: Message>(mut m: T) -> T {
         m.header_mut().stamps.published_ns = 1;
         m

@@ -13,8 +13,8 @@
 //! Each event waits until emitter-sim has published its step (as the monitor received it); the steps are
 //! drawn in the first 90% of the run (a kill comes later when the restarts before it took long). The first
 //! pair is emitter-sim and another process, killed in that order. A process is killed only once it is
-//! ready (see `wait_ready`), never while iceoryx2 creates its node (see the limits in `cli/launch.rs`).
-//! The monitor is killed at any step too: emitter-sim runs at most 128 steps ahead of it (its
+//! ready (see `wait_ready`), never while iceoryx2 creates its node (see the limits in `cli/launch/mod.rs`).
+//! The monitor is killed at any step too: emitter-sim runs at most 48 steps ahead of it (its
 //! `--monitor-window`) and lingers after the last step, so a monitor restarted late still gets the run.
 //!
 //! `cargo test` runs the quick storm (2 kills per process and 1 pair over 300 steps at 10 ms per step,

@@ -111,7 +111,7 @@ fn soak(steps: u64, first_sample: u64) {
     }
     eprintln!("{table}");
     // At most 5 %, or 768 KiB (what 5 % of the total RSS allowed before): the allocator's high-water mark
-    // still rises when a loaded machine lets the monitor lag (up to its 128-step window of pending steps),
+    // still rises when a loaded machine lets the monitor lag (up to its 48-step window of pending steps),
     // a bounded amount; a leak of 112 bytes per step would exceed it over these steps.
     for r in ROLES {
         let (a, b) = (start[r].1, end[r].1);
