@@ -26,13 +26,12 @@
 //!    `emitter_sim::process`), so the run resumes exactly where it was; a restarted emitter-sim starts
 //!    from the older world snapshot of its checkpoint (step 0 in a run younger than 512 steps) and flies
 //!    on from there; the estimator and the planner keep no state of their own (it rides the messages, see
-//!    `runtime::recovery`). In lock-step mode emitter-sim runs
-//!    at most 48 steps ahead of the monitor (its `--monitor-window`), so a monitor starved of CPU never
-//!    loses a message from its full buffers and one restarted many times does not fall behind what can be
-//!    replayed to it. A child that exits
-//!    with code 2 (bad input) or 3 (the run cannot go on: two UAVs collided, so the world cannot measure),
-//!    or crashes more than `--max-restarts` times, stops the others and fails the
-//!    launch. (`tests/e2e/crash_restart.rs`.)
+//!    `runtime::recovery`). In lock-step mode emitter-sim runs at most 48 steps ahead of the monitor (its
+//!    `--monitor-window`), so a monitor starved of CPU never loses a message from its full buffers and one
+//!    restarted many times does not fall behind what can be replayed to it. A child that exits with code 2
+//!    (bad input) or 3 (the run cannot go on: two UAVs collided, so the world cannot measure), or crashes
+//!    more than `--max-restarts` times, stops the others and fails the launch.
+//!    (`tests/e2e/crash_restart.rs`.)
 //! 5. At the end (or on an error or a signal), once its children are stopped, the launcher publishes a
 //!    shutdown on the domain's control topic if processes of the domain are still alive — processes
 //!    swapped in by `uavloc swap` are not its children and stop on it — and waits for them. A planner

@@ -270,7 +270,7 @@ impl EstimatorNode<'_> {
             } else {
                 node.announce(ControlKind::State, step, "")?;
             }
-            self.asked = Some((step, Instant::now()));
+            self.asked = Some((step, now));
         }
         Ok(())
     }

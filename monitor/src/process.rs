@@ -249,16 +249,16 @@ impl Handler for MonitorNode<'_> {
         self.drain(node, self.measurements, Session::add_measurement)?;
         self.drain(node, self.estimates, Session::add_estimate)?;
         self.drain(node, self.commands, Session::add_command)?;
-        let state = &mut self.session;
-        for echo in state.states.take_answers() {
+        let session = &mut self.session;
+        for echo in session.states.take_answers() {
             let seq = node.next_seq();
             self.state_answers.send(&EstimatorState::new(echo, seq, node.instance()))?;
         }
-        state.complete_steps(node.counter().total());
+        session.complete_steps(node.counter().total());
         // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
-        state.check_outputs()?;
-        let next = state.assembler.next_step();
-        if std::mem::take(&mut state.emitter_joined)
+        session.check_outputs()?;
+        let next = session.assembler.next_step();
+        if std::mem::take(&mut session.emitter_joined)
             || self.progress_sent.is_none_or(|(step, at)| next >= step + PROGRESS_EVERY || at.elapsed() >= IDLE_WAKEUP)
         {
             node.announce(ControlKind::Progress, next, "")?;
@@ -268,19 +268,19 @@ impl Handler for MonitorNode<'_> {
         // was starved of CPU, or never sent while it was restarting) if newer steps are in and it is not:
         // ask emitter-sim to replay from it, as a restarted monitor would — again every REASK while it does
         // not come (a replay that found the estimator down is dropped).
-        if let Some(newest) = state.assembler.newest_pending_step()
+        if let Some(newest) = session.assembler.newest_pending_step()
             && newest >= next + STALL_STEPS
             && self.replay_asked.is_none_or(|(step, at)| step != next || at.elapsed() >= REASK)
-            && !state.assembler.is_done()
-            && state.assembler.has_truth()
+            && !session.assembler.is_done()
+            && session.assembler.has_truth()
         {
             self.replay_asked = Some((next, Instant::now()));
-            state.summary.replays_requested += 1;
-            state.log.write("replay_request", json!({"step": next, "newest": newest}));
+            session.summary.replays_requested += 1;
+            session.log.write("replay_request", json!({"step": next, "newest": newest}));
             node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));
             node.announce(ControlKind::Replay, next, "lost")?;
         }
-        Ok(if state.assembler.is_done() { Flow::Stop } else { Flow::Continue })
+        Ok(if session.assembler.is_done() { Flow::Stop } else { Flow::Continue })
     }
 }
 
@@ -344,16 +344,16 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         replay_asked: None,
         progress_sent: None,
     };
-    let state = &mut monitor.session;
+    let session = &mut monitor.session;
     match resumed {
-        None => state.log.write(
+        None => session.log.write(
             "start",
             json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed, "source": args.source}),
         ),
-        Some(n) => state.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
+        Some(n) => session.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
     }
     // "Replay the run for me from the first step I lack" (a no-op at the start of a launch).
-    node.join(Join::Replay(state.assembler.next_step()), "")?;
+    node.join(Join::Replay(session.assembler.next_step()), "")?;
     match resumed {
         None if external => node.say(format_args!(
             "domain {domain}, waiting for {} steps from an external front end: no truth, so CRLB at the truth, RMSE \
@@ -365,42 +365,42 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         }
         Some(n) => node.say(format_args!("domain {domain}, resumed with {n} steps from the log")),
     }
-    if !state.assembler.is_done() {
+    if !session.assembler.is_done() {
         let inputs: [&dyn Waitable; 4] = [&truths, &measurements, &estimates, &commands];
         node.run(&inputs, &mut monitor)?;
     }
-    let mut state = monitor.session;
+    let mut session = monitor.session;
     let counter = node.counter().clone();
 
-    let mut run = state.assembler.record();
+    let mut run = session.assembler.record();
     if let Some(path) = &args.log {
         // The records are in the log (this instance's and its predecessors').
         run.steps = read_log(path, true).steps;
-        if run.steps.len() as u64 != state.assembler.next_step() {
+        if run.steps.len() as u64 != session.assembler.next_step() {
             return Err(ProcessError::Failed(format!(
                 "--log {}: {} steps recorded, but the log has {} of them (was it changed during the run?)",
                 path.display(),
-                state.assembler.next_step(),
+                session.assembler.next_step(),
                 run.steps.len()
             )));
         }
     }
     crate::metrics::annotate(&mut run);
     let mut summary = MonitorSummary {
-        complete: state.assembler.is_done(),
+        complete: session.assembler.is_done(),
         steps: run.steps.len() as u64,
         accepted: accepted_total(&counter),
         rejected: counter.total(),
-        ignored: state.assembler.ignored(),
-        latency: state.samples.summary(),
+        ignored: session.assembler.ignored(),
+        latency: session.samples.summary(),
         cpu_s: runtime::cpu_seconds(),
-        ..std::mem::take(&mut state.summary)
+        ..std::mem::take(&mut session.summary)
     };
-    if let Some(csv) = state.stamps.take() {
+    if let Some(csv) = session.stamps.take() {
         csv.finish()?;
     }
-    let recorded = state.recorder.take().map_or(Ok(()), Recorder::finish);
-    state.log.write(
+    let recorded = session.recorder.take().map_or(Ok(()), Recorder::finish);
+    session.log.write(
         "end",
         json!({
             "complete": summary.complete, "steps": summary.steps, "rejected": summary.rejected,

@@ -144,16 +144,21 @@ pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
-    use crate::runlog::{state_from_hex, state_to_hex};
+
+    /// A fresh directory for a test's log (the test removes it), and the log's path in it.
+    pub(crate) fn scratch_log(tag: &str) -> (PathBuf, PathBuf) {
+        let dir = std::env::temp_dir().join(format!("uavloc-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.jsonl");
+        (dir, path)
+    }
 
     #[test]
     fn read_log_keeps_a_step_whose_crlb_is_infinite() {
         // The 100k soak: a step with coincident UAVs (CRLB +∞, logged as null) ended the steps read back.
-        let dir = std::env::temp_dir().join(format!("uavloc-read-log-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("run.jsonl");
+        let (dir, path) = scratch_log("read-log");
         let mut log = EventLog::open(Some(&path), false).unwrap();
         for (k, crlb) in [(0u64, 10.0), (1, f64::INFINITY), (2, 11.0)] {
             let record = crate::record::tests::record(k, crlb);
@@ -167,9 +172,7 @@ mod tests {
 
     #[test]
     fn the_states_in_the_log_read_back_bit_for_bit() {
-        let dir = std::env::temp_dir().join(format!("uavloc-log-states-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("run.jsonl");
+        let (dir, path) = scratch_log("log-states");
         let mut log = EventLog::open(Some(&path), false).unwrap();
         let echo = |k: u64| StateEcho {
             step: k,

@@ -291,9 +291,7 @@ mod tests {
 
     #[test]
     fn a_session_logs_each_step_with_its_state_counts_what_never_came_and_answers_state_requests() {
-        let dir = std::env::temp_dir().join(format!("uavloc-session-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("run.jsonl");
+        let (dir, path) = crate::runlog::tests::scratch_log("session");
         let log = EventLog::open(Some(&path), false).unwrap();
         let mut s = Session::new(Assembler::new(scenario(2)), log, StateStore::new(), true);
 

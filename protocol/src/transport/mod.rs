@@ -455,11 +455,14 @@ impl<T: Message> TopicPublisher<T> {
         Ok(Sent { published_ns, subscribers })
     }
 
-    /// Delivers a copy of a message sent before (a replay, or an answer given again) as it is, without a
-    /// publish stamp: a receiver can tell it from a first publication (`published_ns` 0), and its
-    /// latencies would time the replay, not the step. [`Sent::published_ns`] is 0.
+    /// Delivers a copy of a message sent before (a replay, or an answer given again) with its publish
+    /// stamps cleared ([`Stamps::mark_published`](crate::Stamps::mark_published) with 0): a receiver
+    /// tells it from a first publication (`published_ns` 0), and no copy is timed as the step's.
+    /// [`Sent::published_ns`] is 0.
     pub fn resend(&self, msg: &T) -> Result<Sent, TransportError> {
-        let subscribers = self.port.deliver(msg)?;
+        let mut msg = *msg;
+        msg.header_mut().stamps.mark_published(T::KIND, 0);
+        let subscribers = self.port.deliver(&msg)?;
         Ok(Sent { published_ns: 0, subscribers })
     }
 

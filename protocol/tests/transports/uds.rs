@@ -99,6 +99,24 @@ fn fans_out_to_every_subscriber_and_counts_participants() {
 }
 
 #[test]
+fn a_copy_sent_again_carries_no_publish_stamp() {
+    let link = link();
+    let name = unique("copy");
+    let sub = Topic::<Measurement>::subscriber(&link, &name).unwrap();
+    let publisher = Topic::<Measurement>::publisher(&link, &name).unwrap();
+    publisher.send(&measurement(4, 1)).unwrap();
+    let first = sub.receive_all().unwrap()[0];
+    assert!(first.header.stamps.published_ns > 0 && first.header.stamps.measurement_published_ns > 0);
+    // The message as received, stamps and all, sent again: its publish stamps are cleared, nothing else.
+    assert_eq!(publisher.resend(&first).unwrap().published_ns, 0);
+    let copy = sub.receive_all().unwrap()[0];
+    let mut expected = first;
+    expected.header.stamps.mark_published(Measurement::KIND, 0);
+    assert_eq!(copy, expected);
+    assert_eq!((copy.header.stamps.published_ns, copy.header.stamps.measurement_published_ns), (0, 0));
+}
+
+#[test]
 fn a_publisher_finds_a_subscriber_that_comes_later() {
     let link = link();
     let name = unique("late");
