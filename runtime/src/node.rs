@@ -347,6 +347,8 @@ impl Node {
         }
         guards.push(waitset.attach_notification(control.subscriber()).map_err(attach_failed)?);
         let _idle = waitset.attach_interval(IDLE_WAKEUP).map_err(attach_failed)?;
+        let waited: Vec<&dyn Waitable> =
+            inputs.iter().copied().chain(std::iter::once(control.subscriber() as &dyn Waitable)).collect();
         loop {
             let left = handler.deadline().map(|d| d.saturating_duration_since(Instant::now()));
             let (spin, block) = self.policy.split(left.unwrap_or(IDLE_WAKEUP).min(IDLE_WAKEUP));
@@ -360,15 +362,7 @@ impl Node {
                 ),
                 _ => None,
             };
-            let ready = || {
-                for input in inputs {
-                    if input.has_samples()? {
-                        return Ok(true);
-                    }
-                }
-                control.subscriber().has_samples()
-            };
-            match protocol::wait_attached(&waitset, spin, !block.is_zero(), ready) {
+            match protocol::wait_attached(&waitset, spin, !block.is_zero(), &waited) {
                 Ok(()) => {}
                 Err(TransportError::Interrupted) => return Ok(Ended::Interrupted),
                 Err(e) => return Err(e.into()),

@@ -131,15 +131,21 @@ impl<T: Message> IoxSubscriber<T> {
 
 impl<T: Message> SubscribePort<T> for IoxSubscriber<T> {
     fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError> {
-        // Wake-ups first, samples second: a notification that arrives meanwhile then leads to one spurious
-        // wake-up at worst, never to a sample left behind without a wake-up.
+        // Shared memory only: the listener is left alone (see `consume_wakeups`).
+        let mut events = TopicEvents::default();
+        while let Some(sample) = self.subscriber.receive().map_err(|e| failed("receiving", &self.name, e))? {
+            out.push(*sample.payload());
+            events.samples += 1;
+        }
+        Ok(events)
+    }
+
+    fn consume_wakeups(&self) -> Result<TopicEvents, TransportError> {
+        // Resets the listener's notification state to idle: the next notification is sent again.
         let mut events = TopicEvents::default();
         self.listener
             .try_wait(|activation| events.add(activation.id, activation.count))
             .map_err(|e| wait_error(e, &self.name))?;
-        while let Some(sample) = self.subscriber.receive().map_err(|e| failed("receiving", &self.name, e))? {
-            out.push(*sample.payload());
-        }
         Ok(events)
     }
 

@@ -21,6 +21,33 @@
 //! announces publisher lifecycle with the [`event_id`]s, so a subscriber learns when a publisher appears,
 //! leaves or is found dead (after a dead-node cleanup, e.g. by [`node`] at start-up).
 //!
+//! # Wake-ups: a notification costs a system call only when the subscriber is about to block
+//!
+//! An iceoryx2 listener (0.10, `UnixDatagramShmCountingBitSet`) has a notification state in shared
+//! memory: *idle*, *pending* or *notified*. A notifier sets the event's bit in shared memory and sends a
+//! datagram to the listener's socket (one `sendto`) only when the state is idle, then marks it notified;
+//! while it is notified, further notifications are bits in shared memory only. Consuming the wake-ups
+//! (`Listener::try_wait`: read the socket empty, state back to idle) costs the listener one or two
+//! `recvfrom`. So a subscriber here consumes its wake-ups only **just before it blocks**
+//! ([`SubscribePort::consume_wakeups`]), never while it polls ([`SubscribePort::receive_into`] and
+//! [`SubscribePort::has_samples`] touch shared memory only). A subscriber that keeps up by polling leaves
+//! its state at *notified*, so a publisher's `send` is `loan → write → send → a bit set` without a system
+//! call, and so is the receive.
+//!
+//! Race-free, because the blocking side always does, in this order (`about_to_block`):
+//! 1. consume the wake-ups (state idle, socket empty);
+//! 2. look at the sample buffers once more: a message there → do not block;
+//! 3. block on the listeners' file descriptors (a `WaitSet`, or `Listener::timed_wait`).
+//!
+//! A publisher delivers the sample before it notifies. If its sample came too late for step 2, its
+//! notification came after step 1, found the state idle (or pending: then the other notifier sends) and
+//! sent a datagram, so step 3 wakes at once. If its notification was among those consumed in step 1, its
+//! sample was delivered before that and step 2 sees it. The order matters:
+//! `no_wake_up_is_lost_between_polling_and_blocking` (in the transport tests) fails with steps 1 and 2
+//! swapped. Foreign clients (the official Python and C bindings) need nothing of this: it is iceoryx2's
+//! own notification state, and a foreign listener that consumes its wake-ups at every wait is simply
+//! notified every time, as before.
+//!
 //! All ports are single-threaded (iceoryx2's `ipc::Service` ports are not thread-safe): create nodes and
 //! ports on the thread that uses them.
 
@@ -374,8 +401,15 @@ pub trait PublishPort<T: Message>: fmt::Debug {
 /// Its file descriptor becomes readable when messages (or events) are pending, so a `WaitSet` can wait on
 /// several subscribers of either kind.
 pub trait SubscribePort<T: Message>: fmt::Debug {
-    /// Consumes the pending wake-ups, then appends every buffered message to `out` (oldest first).
+    /// Appends every buffered message to `out` (oldest first); the wake-ups stay pending (see
+    /// [`consume_wakeups`](Self::consume_wakeups)). The events returned count the messages (and, socket
+    /// transport, the malformed datagrams dropped).
     fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError>;
+
+    /// Consumes the pending wake-ups (and lifecycle events) before a blocking wait: a subscriber that only
+    /// polls never calls it, so that its publishers' notifications coalesce into the one still pending
+    /// and cost them no system call (see the module docs).
+    fn consume_wakeups(&self) -> Result<TopicEvents, TransportError>;
 
     /// Whether messages are buffered (cheap: what a busy-poll calls).
     fn has_samples(&self) -> Result<bool, TransportError>;
@@ -523,26 +557,32 @@ pub struct TopicSubscriber<T: Message> {
 }
 
 impl<T: Message> TopicSubscriber<T> {
-    /// Consumes the pending wake-ups, then appends every buffered message to `out` (oldest first).
-    /// Returns the events consumed. Messages are copied out of the transport and not validated.
+    /// Appends every buffered message to `out` (oldest first); returns what it received (the wake-ups
+    /// stay pending: [`consume_wakeups`](Self::consume_wakeups)). Messages are copied out of the transport
+    /// and not validated.
     pub fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError> {
         self.port.receive_into(out)
     }
 
-    /// Consumes the pending wake-ups and returns every buffered message (oldest first; possibly none).
+    /// Returns every buffered message (oldest first; possibly none).
     pub fn receive_all(&self) -> Result<Vec<T>, TransportError> {
         let mut out = Vec::new();
         self.receive_into(&mut out)?;
         Ok(out)
     }
 
+    /// Consumes the pending wake-ups and lifecycle events (publishers created, dropped, found dead); a
+    /// wait calls it just before it blocks (the module docs say why only then).
+    pub fn consume_wakeups(&self) -> Result<TopicEvents, TransportError> {
+        self.port.consume_wakeups()
+    }
+
     /// Waits up to `spin + timeout` for messages: busy-polls for `spin` (cheap when the next message is due
-    /// within microseconds; the CPU is yielded between polls), then blocks for `timeout`; returns whatever
-    /// is buffered then (possibly nothing, e.g. on a timeout or a lifecycle event).
-    /// [`TransportError::Interrupted`] on SIGINT/SIGTERM.
+    /// within microseconds; the CPU is yielded between polls), then — wake-ups consumed and the buffer
+    /// checked once more — blocks for `timeout`; returns whatever is buffered then (possibly nothing, e.g.
+    /// on a timeout or a lifecycle event). [`TransportError::Interrupted`] on SIGINT/SIGTERM.
     pub fn wait(&self, spin: Duration, timeout: Duration) -> Result<Vec<T>, TransportError> {
-        if !spin_until(spin, || self.has_samples())? && !timeout.is_zero() {
-            // The events are consumed again (and counted) by receive_all; here they only wake us.
+        if !spin_until(spin, || self.has_samples())? && !timeout.is_zero() && !about_to_block(&[self])? {
             self.port.block(timeout)?;
         }
         self.receive_all()
@@ -579,17 +619,37 @@ fn spin_until(spin: Duration, mut ready: impl FnMut() -> Result<bool, TransportE
     }
 }
 
-/// Waits on a `WaitSet` (to which several topics' subscribers are attached): busy-polls `ready` for `spin`
-/// first, then blocks for at most `timeout`. Returns `Ok(())` on any wake-up, a timeout or a signal other
-/// than SIGINT/SIGTERM (the caller drains its subscribers either way), [`TransportError::Interrupted`] on
-/// SIGINT/SIGTERM.
+/// Whether any of `inputs` has a message buffered (what a busy poll asks).
+fn any_ready(inputs: &[&dyn Waitable]) -> Result<bool, TransportError> {
+    for input in inputs {
+        if input.has_samples()? {
+            return Ok(true);
+        }
+    }
+    Ok(false)
+}
+
+/// The step before a blocking wait on `inputs`: consumes their pending wake-ups, then looks once more for
+/// a message (one that came meanwhile; its wake-up may have been among those consumed). `true`: do not
+/// block. This order — consume, then check, then block — is what makes skipping the consumption while
+/// polling safe (see the module docs).
+fn about_to_block(inputs: &[&dyn Waitable]) -> Result<bool, TransportError> {
+    for input in inputs {
+        input.consume_wakeups()?;
+    }
+    any_ready(inputs)
+}
+
+/// Waits on a `WaitSet` to which `inputs` are attached: busy-polls them for `spin` first, then blocks for
+/// at most `timeout`. Returns `Ok(())` on any wake-up, a timeout or a signal other than SIGINT/SIGTERM
+/// (the caller drains its subscribers either way), [`TransportError::Interrupted`] on SIGINT/SIGTERM.
 pub fn wait_any(
     waitset: &WaitSet<ipc::Service>,
     spin: Duration,
     timeout: Duration,
-    ready: impl FnMut() -> Result<bool, TransportError>,
+    inputs: &[&dyn Waitable],
 ) -> Result<(), TransportError> {
-    if spin_until(spin, ready)? || timeout.is_zero() {
+    if spin_until(spin, || any_ready(inputs))? || timeout.is_zero() || about_to_block(inputs)? {
         return Ok(());
     }
     match waitset.wait_and_process_once_with_timeout(|_| CallbackProgression::Continue, timeout) {
@@ -604,24 +664,31 @@ pub fn wait_any(
 pub trait Waitable: SynchronousMultiplexing + fmt::Debug {
     /// Whether a message is waiting (a busy poll asks this).
     fn has_samples(&self) -> Result<bool, TransportError>;
+
+    /// Consumes the pending wake-ups before a blocking wait ([`TopicSubscriber::consume_wakeups`]).
+    fn consume_wakeups(&self) -> Result<(), TransportError>;
 }
 
 impl<T: Message> Waitable for TopicSubscriber<T> {
     fn has_samples(&self) -> Result<bool, TransportError> {
         TopicSubscriber::has_samples(self)
     }
+
+    fn consume_wakeups(&self) -> Result<(), TransportError> {
+        TopicSubscriber::consume_wakeups(self).map(|_| ())
+    }
 }
 
-/// Waits on a `WaitSet` whose deadlines are its own attachments (an interval, a one-shot deadline):
-/// busy-polls `ready` for `spin` first, then, when `block` is set, blocks until a message, an attached
-/// deadline or a signal wakes the `WaitSet`. Errors as [`wait_any`].
+/// Waits on a `WaitSet` to which `inputs` are attached and whose deadlines are its own attachments (an
+/// interval, a one-shot deadline): busy-polls `inputs` for `spin` first, then, when `block` is set, blocks
+/// until a message, an attached deadline or a signal wakes the `WaitSet`. Errors as [`wait_any`].
 pub fn wait_attached(
     waitset: &WaitSet<ipc::Service>,
     spin: Duration,
     block: bool,
-    ready: impl FnMut() -> Result<bool, TransportError>,
+    inputs: &[&dyn Waitable],
 ) -> Result<(), TransportError> {
-    if spin_until(spin, ready)? || !block {
+    if spin_until(spin, || any_ready(inputs))? || !block || about_to_block(inputs)? {
         return Ok(());
     }
     match waitset.wait_and_process_once(|_| CallbackProgression::Continue) {

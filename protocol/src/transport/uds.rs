@@ -500,6 +500,11 @@ impl<T: Message> SubscribePort<T> for UdsSubscriber<T> {
         }
     }
 
+    fn consume_wakeups(&self) -> Result<TopicEvents, TransportError> {
+        // The datagrams are the wake-ups: nothing to consume apart from them.
+        Ok(TopicEvents::default())
+    }
+
     fn has_samples(&self) -> Result<bool, TransportError> {
         let mut pending = self.pending.borrow_mut();
         if !pending.is_empty() {

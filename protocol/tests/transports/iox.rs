@@ -195,11 +195,13 @@ fn lifecycle_events_and_several_publishers() {
         for (i, p) in publishers.iter().enumerate() {
             p.send(&command(10 + i as u64)).unwrap();
         }
-        let e = subscriber.receive_into(&mut out).unwrap();
+        assert_eq!(subscriber.receive_into(&mut out).unwrap().samples, MAX_PUBLISHERS as u64);
+        let e = subscriber.consume_wakeups().unwrap();
         events.samples += e.samples;
         events.publishers_created += e.publishers_created;
     }
-    let e = subscriber.receive_into(&mut out).unwrap();
+    subscriber.receive_into(&mut out).unwrap();
+    let e = subscriber.consume_wakeups().unwrap();
     assert_eq!(
         out.iter().map(|c| c.header.seq).collect::<Vec<_>>(),
         (10..10 + MAX_PUBLISHERS as u64).collect::<Vec<_>>()
@@ -303,7 +305,7 @@ fn a_killed_publisher_is_cleaned_up() {
     let deadline = Instant::now() + Duration::from_secs(5);
     while events.publishers_dead == 0 && Instant::now() < deadline {
         protocol::transport::cleanup_dead_nodes(node.node());
-        let e = subscriber.receive_into(&mut Vec::new()).unwrap();
+        let e = subscriber.consume_wakeups().unwrap();
         events.publishers_dead += e.publishers_dead;
         thread::sleep(Duration::from_millis(10));
     }
@@ -314,4 +316,99 @@ fn a_killed_publisher_is_cleaned_up() {
         (0..MAX_PUBLISHERS).map(|_| Topic::<Measurement>::publisher(&node, &name).unwrap()).collect();
     publishers[0].send(&measurement(2)).unwrap();
     assert_eq!(subscriber.receive_all().unwrap()[0].header.seq, 2);
+}
+
+/// A scattered duration below `max` for round trip `i` (and `salt`: the two ends differ).
+fn scattered(i: u64, salt: u64, max: Duration) -> Duration {
+    Duration::from_nanos(((i ^ salt).wrapping_mul(2_654_435_761) >> 7) % max.as_nanos() as u64)
+}
+
+/// Busy-poll budgets (0–40 µs) that, with the sender's delays ([`busy_for`] 0–50 µs), move the end of a
+/// wait's poll across the other end's send: in the ping-pong below a message often comes just as a wait
+/// stops polling and gets ready to block.
+fn spin_of(i: u64, salt: u64) -> Duration {
+    scattered(i, salt, Duration::from_micros(40))
+}
+
+/// Keeps the CPU busy for `d` (a sender's work before it answers).
+fn busy_for(d: Duration) {
+    let start = Instant::now();
+    while start.elapsed() < d {
+        std::hint::spin_loop();
+    }
+}
+
+/// The wake-up protocol (module docs of `protocol::transport`): a subscriber consumes its wake-ups only just
+/// before it blocks, so a notification to a subscriber that is polling costs the publisher no system call.
+/// If a wake-up were ever lost — consumed after the last look at the buffer instead of before it — a
+/// blocked wait would sit out its whole timeout. 20 000 ping-pong round trips, both ends waiting with
+/// varying poll budgets (one through `TopicSubscriber::wait`, the other through a `WaitSet`, as the node
+/// runtime waits) and answering after varying delays: no wait may last anywhere near its timeout (a
+/// message it was not woken for is found only at the timeout, or never). (With
+/// the two steps of `about_to_block` swapped, this test failed 5 runs of 5.)
+#[test]
+fn no_wake_up_is_lost_between_polling_and_blocking() {
+    const ROUND_TRIPS: u64 = 20_000;
+    const TIMEOUT: Duration = Duration::from_secs(2);
+    let d = unique_domain();
+    let (ping, pong) = (services::measurement(&d), services::command(&d));
+    let (ready_tx, ready_rx) = mpsc::channel();
+    let (ping_e, pong_e) = (ping.clone(), pong.clone());
+    let echo = thread::spawn(move || -> Result<u64, String> {
+        let node = iox_link("echo").unwrap();
+        let sub = Topic::<Measurement>::subscriber(&node, &ping_e).unwrap();
+        let publisher = Topic::<Command>::publisher(&node, &pong_e).unwrap();
+        let waitset = protocol::transport::waitset().unwrap();
+        let _guard = waitset.attach_notification(&sub).unwrap();
+        ready_tx.send(()).unwrap();
+        let (mut i, mut stalls) = (0u64, 0u64);
+        while i < ROUND_TRIPS {
+            let start = Instant::now();
+            protocol::transport::wait_any(&waitset, spin_of(i, 1), TIMEOUT, &[&sub]).unwrap();
+            let got = sub.receive_all().unwrap();
+            if start.elapsed() >= TIMEOUT / 2 {
+                stalls += 1;
+                if stalls > 2 {
+                    return Err(format!("the echo's waits timed out {stalls} times (round trip {i})"));
+                }
+            }
+            for m in got {
+                busy_for(scattered(m.header.seq, 2, Duration::from_micros(50)));
+                publisher.send(&command(m.header.seq)).unwrap();
+                i = m.header.seq + 1;
+            }
+        }
+        Ok(stalls)
+    });
+    ready_rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    let node = iox_link("pinger").unwrap();
+    let publisher = Topic::<Measurement>::publisher(&node, &ping).unwrap();
+    let sub = Topic::<Command>::subscriber(&node, &pong).unwrap();
+    while publisher.subscriber_count().unwrap() < 1 || sub.publisher_count().unwrap() < 1 {
+        thread::sleep(Duration::from_millis(1));
+    }
+    let mut stalls = 0u64;
+    let mut worst = Duration::ZERO;
+    for i in 0..ROUND_TRIPS {
+        busy_for(scattered(i, 3, Duration::from_micros(50)));
+        publisher.send(&measurement(i)).unwrap();
+        let sent = Instant::now();
+        loop {
+            let start = Instant::now();
+            let got = sub.wait(spin_of(i, 4), TIMEOUT).unwrap();
+            if start.elapsed() >= TIMEOUT / 2 {
+                stalls += 1;
+            }
+            if got.iter().any(|c| c.header.seq == i) || stalls > 2 {
+                break;
+            }
+        }
+        worst = worst.max(sent.elapsed());
+        if stalls > 2 {
+            break;
+        }
+    }
+    let echo_stalls = echo.join().unwrap();
+    assert_eq!(stalls, 0, "the pinger's waits sat out their timeout (worst round trip {worst:?})");
+    assert_eq!(echo_stalls, Ok(0), "the echo's waits sat out their timeout");
 }

@@ -177,7 +177,7 @@ fn a_waitset_wakes_on_a_socket_subscriber() {
     let _guard = ws.attach_notification(&sub).unwrap();
     // Nothing there: the wait times out.
     let start = Instant::now();
-    wait_any(&ws, Duration::ZERO, Duration::from_millis(30), || sub.has_samples()).unwrap();
+    wait_any(&ws, Duration::ZERO, Duration::from_millis(30), &[&sub]).unwrap();
     assert!(start.elapsed() >= Duration::from_millis(25));
     assert!(!sub.has_samples().unwrap());
     let sender = {
@@ -191,7 +191,7 @@ fn a_waitset_wakes_on_a_socket_subscriber() {
     };
     let start = Instant::now();
     while !sub.has_samples().unwrap() && start.elapsed() < Duration::from_secs(10) {
-        wait_any(&ws, Duration::ZERO, Duration::from_secs(1), || sub.has_samples()).unwrap();
+        wait_any(&ws, Duration::ZERO, Duration::from_secs(1), &[&sub]).unwrap();
     }
     assert_eq!(sender.join().unwrap(), 1);
     let got = sub.receive_all().unwrap();
