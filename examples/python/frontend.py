@@ -102,6 +102,7 @@ class Link:
             .event()
             .max_notifiers(msg.MAX_PUBLISHERS)
             .max_listeners(msg.MAX_SUBSCRIBERS)
+            .event_id_max_value(msg.EVENT_ID_MAX)
             .notifier_created_event(iox2.EventId.new(msg.EVENT_PUBLISHER_CREATED))
             .notifier_dropped_event(iox2.EventId.new(msg.EVENT_PUBLISHER_DROPPED))
             .notifier_dead_event(iox2.EventId.new(msg.EVENT_PUBLISHER_DEAD))

@@ -19,6 +19,8 @@ EVENT_SAMPLE = 1
 EVENT_PUBLISHER_CREATED = 2
 EVENT_PUBLISHER_DROPPED = 3
 EVENT_PUBLISHER_DEAD = 4
+# The largest event id of a topic's event service (protocol::transport::event_id::MAX).
+EVENT_ID_MAX = 4
 
 # Service settings every uavloc topic is created with (protocol::transport); opening with the same ones
 # is always compatible.

@@ -47,6 +47,7 @@ fn open<T: Message>(node: &IpcNode, name: &str) -> Result<Services<T>, Transport
         .event()
         .max_notifiers(MAX_PUBLISHERS)
         .max_listeners(MAX_SUBSCRIBERS)
+        .event_id_max_value(event_id::MAX)
         .notifier_created_event(EventId::new(event_id::PUBLISHER_CREATED))
         .notifier_dropped_event(EventId::new(event_id::PUBLISHER_DROPPED))
         .notifier_dead_event(EventId::new(event_id::PUBLISHER_DEAD))

@@ -90,6 +90,10 @@ pub mod event_id {
     pub const PUBLISHER_DROPPED: usize = 3;
     /// A publisher's process was found dead by a dead-node cleanup.
     pub const PUBLISHER_DEAD: usize = 4;
+    /// The largest event id of a topic's event service (iceoryx2's `event_id_max_value`). A listener
+    /// consuming its wake-ups visits one counter per id up to it: with iceoryx2's default, 255, that was
+    /// 256 atomic swaps per listener and wait, most of the monitor's CPU in block mode.
+    pub const MAX: usize = PUBLISHER_DEAD;
 }
 
 /// A transport failure.

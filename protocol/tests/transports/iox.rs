@@ -412,3 +412,19 @@ fn no_wake_up_is_lost_between_polling_and_blocking() {
     assert_eq!(stalls, 0, "the pinger's waits sat out their timeout (worst round trip {worst:?})");
     assert_eq!(echo_stalls, Ok(0), "the echo's waits sat out their timeout");
 }
+
+/// A topic's event service takes event ids up to `event_id::MAX` only: every wait of every listener
+/// visits one counter per id, so iceoryx2's default (255) would cost 256 atomic swaps per listener and
+/// wait. A foreign client opening the service with iceoryx2's defaults is still compatible.
+#[test]
+fn event_services_take_only_the_ids_in_use() {
+    use protocol::transport::event_id;
+    let d = unique_domain();
+    let name = services::estimate(&d);
+    let link = iox_link("event-ids").unwrap();
+    let _publisher = Topic::<Estimate>::publisher(&link, &name).unwrap();
+    let event = link.node().service_builder(&ServiceName::new(&name).unwrap()).event().open().unwrap();
+    assert_eq!(event.static_config().event_id_max_value(), event_id::MAX);
+    assert!(event_id::MAX >= event_id::SAMPLE.max(event_id::PUBLISHER_CREATED).max(event_id::PUBLISHER_DROPPED));
+    assert_eq!(event_id::MAX, event_id::PUBLISHER_DEAD);
+}
