@@ -57,7 +57,7 @@ pub const COMMAND_MISSED: &str = "command_missed";
 pub const ESTIMATE_STALE: &str = "estimate_stale";
 
 /// The planner that produced a step's command.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct PlannerInfo {
     /// Its instance id.
     pub instance: u64,

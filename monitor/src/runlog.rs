@@ -33,13 +33,10 @@ impl EventLog {
         Ok(EventLog { file: Some((file, p.to_path_buf())), error: None })
     }
 
-    pub(crate) fn write(&mut self, event: &str, mut fields: serde_json::Value) {
+    pub(crate) fn write(&mut self, event: &str, fields: impl serde::Serialize) {
         if let Some((out, path)) = &mut self.file {
-            if let Some(map) = fields.as_object_mut() {
-                map.insert("t_ns".into(), json!(now_ns()));
-                map.insert("event".into(), json!(event));
-            }
-            if let Err(e) = out.write_all(format!("{fields}\n").as_bytes())
+            let line = event_line(event, now_ns(), &fields);
+            if let Err(e) = out.write_all(line.as_bytes())
                 && self.error.is_none()
             {
                 self.error = Some(format!(
@@ -86,6 +83,22 @@ pub fn state_to_hex(echo: &StateEcho) -> String {
         out.push(char::from(DIGITS[usize::from(b & 15)]));
     }
     out
+}
+
+/// One line of the log: `{"event":…,"t_ns":…,` and then the fields of `fields` (a JSON object: a typed
+/// struct, which is serialised without building a `serde_json::Value` tree, or a `json!` object), and a
+/// newline.
+fn event_line(event: &str, t_ns: u64, fields: &impl serde::Serialize) -> String {
+    let mut line = serde_json::to_string(&json!({"event": event, "t_ns": t_ns})).unwrap_or_default();
+    let body = serde_json::to_string(fields).unwrap_or_default();
+    // An empty object adds nothing (and the monitor writes nothing but objects).
+    if let Some(rest) = body.strip_prefix('{').filter(|rest| *rest != "}") {
+        line.pop(); // the closing brace
+        line.push(',');
+        line.push_str(rest);
+    }
+    line.push('\n');
+    line
 }
 
 /// The state echo of [`state_to_hex`]'s text; `None` for text that is not one (a state that does not pass
@@ -153,6 +166,22 @@ pub(crate) mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("run.jsonl");
         (dir, path)
+    }
+
+    #[test]
+    fn an_event_line_is_the_event_the_time_and_the_fields() {
+        #[derive(serde::Serialize)]
+        struct Typed<'a> {
+            step: u64,
+            name: &'a str,
+            value: f64,
+        }
+        let typed = event_line("step", 42, &Typed { step: 7, name: "a\"b", value: f64::NAN });
+        assert_eq!(typed, "{\"event\":\"step\",\"t_ns\":42,\"step\":7,\"name\":\"a\\\"b\",\"value\":null}\n");
+        let back: serde_json::Value = serde_json::from_str(&typed).unwrap();
+        assert_eq!(back, json!({"event": "step", "t_ns": 42, "step": 7, "name": "a\"b", "value": null}));
+        assert_eq!(event_line("x", 1, &json!({})), "{\"event\":\"x\",\"t_ns\":1}\n");
+        assert_eq!(event_line("x", 1, &json!({"k": [1, 2]})), "{\"event\":\"x\",\"t_ns\":1,\"k\":[1,2]}\n");
     }
 
     #[test]

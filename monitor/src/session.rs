@@ -15,6 +15,7 @@ use serde_json::json;
 use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
 use crate::latency::LatencySamples;
 use crate::process::MonitorSummary;
+use crate::record::StepRecord;
 use crate::recording::{Recordable, Recorder};
 use crate::runlog::EventLog;
 use crate::stamps::StampsCsv;
@@ -22,6 +23,33 @@ use crate::status::status_line;
 
 fn us(ns: Option<u64>) -> Option<f64> {
     ns.map(|v| v as f64 / 1e3)
+}
+
+/// The log line of a completed step (`"event": "step"`), serialised as it is: one line per step, so no
+/// `serde_json::Value` tree is built for it.
+#[derive(serde::Serialize)]
+struct StepLine<'a> {
+    step: u64,
+    record: &'a StepRecord,
+    latency_us: LatencyUs,
+    planner: Option<&'a PlannerInfo>,
+    truth: Option<[f64; 2]>,
+    command_missed: bool,
+    estimate_stale: bool,
+    state: Option<String>,
+}
+
+/// The latencies of a step's chain, µs (`null`: not measured).
+#[derive(serde::Serialize)]
+struct LatencyUs {
+    command_hop: Option<f64>,
+    emitter: Option<f64>,
+    measurement_hop: Option<f64>,
+    estimator: Option<f64>,
+    estimate_hop: Option<f64>,
+    planner: Option<f64>,
+    end_to_end: Option<f64>,
+    cycle: Option<f64>,
 }
 
 /// What the monitor keeps of the run it records, between wake-ups.
@@ -214,24 +242,26 @@ impl Session {
                 self.samples.add(&done.latencies);
             }
             let l = &done.latencies;
-            self.log.write(
-                "step",
-                json!({
-                    "step": done.record.step,
-                    "record": done.record,
-                    "latency_us": {
-                        "command_hop": us(l.trigger_hop_ns), "emitter": us(l.emitter_ns),
-                        "measurement_hop": us(l.measurement_hop_ns), "estimator": us(l.estimator_ns),
-                        "estimate_hop": us(l.estimate_hop_ns), "planner": us(l.planner_ns),
-                        "end_to_end": us(l.end_to_end_ns), "cycle": us(l.cycle_ns),
-                    },
-                    "planner": done.planner.as_ref().map(|p| json!({"instance": p.instance, "solver": p.solver, "objective": p.objective})),
-                    "truth": done.truth,
-                    "command_missed": done.missed,
-                    "estimate_stale": done.held,
-                    "state": self.states.echo(done.record.step).map(|e| crate::runlog::state_to_hex(&e)),
-                }),
-            );
+            let line = StepLine {
+                step: done.record.step,
+                record: &done.record,
+                latency_us: LatencyUs {
+                    command_hop: us(l.trigger_hop_ns),
+                    emitter: us(l.emitter_ns),
+                    measurement_hop: us(l.measurement_hop_ns),
+                    estimator: us(l.estimator_ns),
+                    estimate_hop: us(l.estimate_hop_ns),
+                    planner: us(l.planner_ns),
+                    end_to_end: us(l.end_to_end_ns),
+                    cycle: us(l.cycle_ns),
+                },
+                planner: done.planner.as_ref(),
+                truth: done.truth,
+                command_missed: done.missed,
+                estimate_stale: done.held,
+                state: self.states.echo(done.record.step).map(|e| crate::runlog::state_to_hex(&e)),
+            };
+            self.log.write("step", &line);
             if done.missed {
                 self.summary.missed_commands += 1;
                 self.log.write("command_missed", json!({"step": done.record.step}));
