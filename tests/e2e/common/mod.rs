@@ -178,6 +178,10 @@ pub fn assert_nothing_left(domain: &str) {
     assert_eq!(listed["services"], Value::Array(vec![]), "services of {domain}: {listed}");
 }
 
+/// The longest a test waits for a launch to end ([`Launch::finish`]); the longest launch of the suite
+/// (the ignored long kill storm) takes ≈ 80 s.
+pub const FINISH_TIMEOUT: Duration = Duration::from_secs(240);
+
 /// A `uavloc launch --headless --json` running in the background, its stderr going to a file.
 pub struct Launch {
     pub child: Child,
@@ -227,15 +231,43 @@ impl Launch {
         std::fs::read_to_string(&self.stderr).unwrap_or_default()
     }
 
-    /// Waits for the launch to end; its exit status and stdout.
-    pub fn finish(self) -> (std::process::ExitStatus, String, String) {
-        let stderr = self.stderr.clone();
-        let out = self.child.wait_with_output().expect("wait for the launch");
-        (
-            out.status,
-            String::from_utf8_lossy(&out.stdout).to_string(),
-            std::fs::read_to_string(stderr).unwrap_or_default(),
-        )
+    /// Waits for the launch to end; its exit status and stdout. A launch still running after
+    /// [`FINISH_TIMEOUT`] is stopped (SIGTERM, then SIGKILL) and the test fails with its stderr and the end
+    /// of its log: a hang is a failure with a diagnosis, never a CI run that sits out its time limit.
+    pub fn finish(mut self) -> (std::process::ExitStatus, String, String) {
+        use std::io::Read as _;
+        let mut stdout = self.child.stdout.take().expect("piped stdout");
+        let reader = std::thread::spawn(move || {
+            let mut out = Vec::new();
+            let _ = stdout.read_to_end(&mut out);
+            out
+        });
+        let deadline = Instant::now() + FINISH_TIMEOUT;
+        let status = loop {
+            if let Some(status) = self.child.try_wait().expect("wait for the launch") {
+                break status;
+            }
+            if Instant::now() > deadline {
+                // SAFETY: kill(2) on our child, not yet reaped.
+                unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
+                let stopped = Instant::now() + Duration::from_secs(10);
+                while self.child.try_wait().expect("wait for the launch").is_none() && Instant::now() < stopped {
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                let log = std::fs::read_to_string(&self.log).unwrap_or_default();
+                let tail: Vec<&str> = log.lines().rev().take(40).collect::<Vec<_>>().into_iter().rev().collect();
+                panic!(
+                    "the launch did not end within {FINISH_TIMEOUT:?}; stopped it.\nstderr:\n{}\nlog (last 40 lines):\n{}",
+                    self.stderr_text(),
+                    tail.join("\n")
+                );
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let out = reader.join().unwrap_or_default();
+        (status, String::from_utf8_lossy(&out).to_string(), std::fs::read_to_string(&self.stderr).unwrap_or_default())
     }
 
     /// Waits for a successful end and returns its JSON.
