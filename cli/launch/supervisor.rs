@@ -183,7 +183,7 @@ impl Supervisor {
         match event {
             Event::Line(i, line) => {
                 let p = &mut self.procs[i];
-                match SupervisorLine::parse(&line) {
+                match SupervisorLine::parse_owned(line) {
                     Some(SupervisorLine::Ready) => p.ready = true,
                     Some(SupervisorLine::Finished) => p.finished = true,
                     Some(SupervisorLine::Summary(v)) => p.summary = Some(v),

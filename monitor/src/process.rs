@@ -450,8 +450,7 @@ fn accepted_total(counter: &RejectionCounter) -> u64 {
 pub fn main_with(args: &MonitorArgs) -> ExitCode {
     match run(args) {
         Ok((run, summary)) => {
-            let record = serde_json::to_string(&run).unwrap_or_default();
-            runtime::tell(args.process.node.supervised, &runtime::SupervisorLine::Record(record));
+            runtime::tell_record(args.process.node.supervised, &run);
             let summary_json = serde_json::to_value(&summary).unwrap_or_default();
             runtime::tell(args.process.node.supervised, &runtime::SupervisorLine::Summary(summary_json));
             if args.print_record {
