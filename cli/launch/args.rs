@@ -29,7 +29,9 @@ examples/python/frontend.py) publishes each step's Measurement on <domain>/measu
 Command on <domain>/command. There is no truth: the record's truth-based fields (truth, crlb_true_m,
 rmse_m, estimate_error_m, nees, pcrlb_m) are absent or null, never zero; crlb_at_estimate_m and
 pcrlb_at_estimate_m (the CRLB and the posterior CRLB at the estimates) are there.
-The run ends when the monitor has the last step (--steps N: steps 0..N), or on Ctrl-C.
+The run ends when the monitor has the last step (--steps N: steps 0..N), or on Ctrl-C. A front end that
+leaves before the last step (it ended, or died) ends the launch 5 s later unless one comes back: exit code
+1, the monitor's error names the first step not recorded, the steps recorded are in the log.
 
 Staleness (--estimate-deadline-ms D, off by default): when a step's estimate has not reached the planner D
 ms after the step's measurement, the planner holds course (commands the current headings; the UAVs fly

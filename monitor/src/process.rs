@@ -18,7 +18,9 @@
 //!   `command_missed` (step) for such a step; `estimate_stale: true` when the step's command was the
 //!   planner's hold (no fresh estimate within its `--estimate-deadline-ms`; the record then has
 //!   `active_constraints: ["estimate_stale"]`), and an `estimate_stale` (step) event; `end` (complete,
-//!   steps, rejected, ignored, missed_commands, stale_steps).
+//!   steps, rejected, ignored, missed_commands, stale_steps);
+//! - `front_end_left` (step: the first step not recorded) with `--source external`, when the front end
+//!   left the measurement topic before the last step.
 //!
 //! `uavloc launch` appends `restart` events (role, attempt, exit, backoff_ms) to the same file: every line
 //! is written with one `write` on a file opened for appending.
@@ -48,7 +50,9 @@
 //!
 //! With `--source external` there is no truth (an external front end publishes the measurements): steps
 //! complete without one and the truth-based fields stay absent ([`crate::assemble`]); no replay is asked
-//! for (nobody could answer). With `--mcap FILE` every valid message is recorded ([`crate::recording`]).
+//! for (nobody could answer). A front end that leaves the measurement topic before the last step ends the
+//! run after [`FRONT_END_GRACE`] unless one comes back (exit code 3). With `--mcap FILE` every valid
+//! message is recorded ([`crate::recording`]).
 //!
 //! It exits 0 after the last step, or 130 on SIGINT/SIGTERM or a [`ControlKind::Shutdown`] before it
 //! (writing the partial record).
@@ -96,6 +100,11 @@ pub const PROGRESS_EVERY: u64 = 16;
 /// How long the monitor waits for a replay it asked for (a message lost) before it asks again: longer than
 /// emitter-sim's retry interval (1 s by default), which a running replay gets per step.
 pub const REASK: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// With an external source: how long the monitor waits, once the front end has left the measurement topic
+/// before the last step, for it (or another front end) to come back before it ends the run as one that
+/// cannot be completed (exit code 3, the steps recorded are in the log).
+pub const FRONT_END_GRACE: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
@@ -215,6 +224,19 @@ struct MonitorNode<'a> {
     /// The step a replay was last asked from because a message was lost, and when.
     replay_asked: Option<(u64, Instant)>,
     progress_sent: Option<(u64, Instant)>,
+    /// With an external source: whether a front end has published on the measurement topic, and since when
+    /// none has (dead nodes cleaned up once a second while none completes a step).
+    front_end: Option<FrontEnd>,
+}
+
+/// The external front end as the monitor sees it (see [`FRONT_END_GRACE`]).
+#[derive(Debug, Default)]
+struct FrontEnd {
+    seen: bool,
+    gone_since: Option<Instant>,
+    cleaned_at: Option<Instant>,
+    /// The next step to record, and since when it is.
+    waiting: Option<(u64, Instant)>,
 }
 
 impl MonitorNode<'_> {
@@ -284,7 +306,54 @@ impl Handler for MonitorNode<'_> {
             node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));
             node.announce(ControlKind::Replay, next, "lost")?;
         }
-        Ok(if session.assembler.is_done() { Flow::Stop } else { Flow::Continue })
+        if !session.assembler.is_done() {
+            self.watch_front_end(node, next)?;
+        }
+        Ok(if self.session.assembler.is_done() { Flow::Stop } else { Flow::Continue })
+    }
+}
+
+impl MonitorNode<'_> {
+    /// With an external source: a front end that left the measurement topic before the last step (its
+    /// process ended, or died: dead nodes are cleaned up once a second while no step completes) ends the
+    /// run after [`FRONT_END_GRACE`] unless one comes back — the launch would otherwise wait for ever.
+    fn watch_front_end(&mut self, node: &mut Node, next: u64) -> Result<(), ProcessError> {
+        let Some(front_end) = &mut self.front_end else { return Ok(()) };
+        if front_end.waiting.is_none_or(|(step, _)| step != next) {
+            front_end.waiting = Some((next, Instant::now()));
+        }
+        let stalled = front_end.waiting.is_some_and(|(_, since)| since.elapsed() >= IDLE_WAKEUP);
+        if front_end.seen && stalled && front_end.cleaned_at.is_none_or(|at| at.elapsed() >= IDLE_WAKEUP) {
+            front_end.cleaned_at = Some(Instant::now());
+            protocol::transport::cleanup_dead_nodes(node.link().node());
+        }
+        if self.measurements.publisher_count()? > 0 {
+            front_end.seen = true;
+            front_end.gone_since = None;
+            return Ok(());
+        }
+        if !front_end.seen {
+            return Ok(());
+        }
+        let last = self.session.assembler.last_step();
+        match front_end.gone_since {
+            None => {
+                front_end.gone_since = Some(Instant::now());
+                self.session.log.write("front_end_left", json!({"step": next}));
+                node.warn(format_args!(
+                    "the front end left the measurement topic with step {next} of 0..={last} not recorded; waiting \
+                     {FRONT_END_GRACE:?} for it to come back"
+                ));
+            }
+            Some(since) if since.elapsed() >= FRONT_END_GRACE => {
+                return Err(ProcessError::Unrecoverable(format!(
+                    "the front end left the measurement topic {FRONT_END_GRACE:?} ago with step {next} of 0..={last} \
+                     not recorded: the run cannot be completed (the {next} step(s) recorded are in the log)"
+                )));
+            }
+            Some(_) => {}
+        }
+        Ok(())
     }
 }
 
@@ -347,6 +416,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         state_answers: &state_answers,
         replay_asked: None,
         progress_sent: None,
+        front_end: external.then(FrontEnd::default),
     };
     let session = &mut monitor.session;
     match resumed {

@@ -39,6 +39,15 @@ struct StepLine<'a> {
     state: Option<String>,
 }
 
+/// The log line of a valid message (`"event": "message"`), one per message: serialised as it is.
+#[derive(serde::Serialize)]
+struct MessageLine {
+    kind: &'static str,
+    step: u64,
+    seq: u64,
+    age_us: Option<f64>,
+}
+
 /// The latencies of a step's chain, µs (`null`: not measured).
 #[derive(serde::Serialize)]
 struct LatencyUs {
@@ -124,10 +133,9 @@ impl Session {
             r.record(&msg, received_ns);
         }
         let h = msg.header();
-        self.log.write(
-            "message",
-            json!({"kind": T::KIND.name(), "step": h.step, "seq": h.seq, "age_us": us(h.stamps.age_ns(received_ns))}),
-        );
+        let line =
+            MessageLine { kind: T::KIND.name(), step: h.step, seq: h.seq, age_us: us(h.stamps.age_ns(received_ns)) };
+        self.log.write("message", &line);
         add(self, msg);
     }
 

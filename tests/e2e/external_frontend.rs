@@ -105,3 +105,35 @@ fn pacing_flags_of_emitter_sim_are_refused_with_an_external_source() {
         assert!(String::from_utf8_lossy(&out.stderr).contains("--source external"), "{flags:?}");
     }
 }
+
+/// A front end that stops publishing before the launch's last step (here: it was told 6 steps, the launch
+/// 12) ends the launch with a clear error a few seconds after it left — the launch used to wait for ever.
+/// The steps it did publish are recorded in the log.
+#[test]
+fn a_front_end_that_leaves_before_the_last_step_ends_the_launch_with_a_clear_error() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("ext", "left");
+    let dir = scratch("ext-left");
+    let launch = Launch::start(&d, &dir, &["--source", "external", "--steps", &STEPS.to_string()]);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/frontend.py");
+    let out = Command::new(python())
+        .arg(script)
+        .args(["--domain", &d, "--steps", "6", "--timeout-s", "60"])
+        .output()
+        .expect("run the front end");
+    assert!(out.status.success(), "the front end failed: {}", String::from_utf8_lossy(&out.stderr));
+    let left = std::time::Instant::now();
+    let log = launch.log.clone();
+    let (status, _stdout, stderr) = launch.finish();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("the front end left the measurement topic"), "{stderr}");
+    assert!(stderr.contains("the monitor process stopped unexpectedly (exit code 3)"), "{stderr}");
+    // Ended after the monitor's grace, not at the test's bound.
+    assert!(left.elapsed() < common::FINISH_TIMEOUT / 4, "took {:?}", left.elapsed());
+    let events = common::read_events(&log);
+    let steps = events.iter().filter(|e| e["event"] == "step").count();
+    assert_eq!(steps, 7, "steps 0..=6 recorded");
+    assert_eq!(events.iter().filter(|e| e["event"] == "front_end_left").count(), 1);
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
