@@ -271,18 +271,14 @@ impl Handler for MonitorNode<'_> {
         // by the same message and sharing its core takes that message before the monitor's work on it
         // (on 2 cores a hop whose receiver shared the monitor's core took ≈ 23 µs instead of 5; BENCHMARKS).
         std::thread::yield_now();
-        self.drain(node, self.truths, Session::add_truth)?;
-        self.drain(node, self.measurements, Session::add_measurement)?;
-        self.drain(node, self.estimates, Session::add_estimate)?;
-        self.drain(node, self.commands, Session::add_command)?;
-        let session = &mut self.session;
-        for echo in session.states.take_answers() {
-            let seq = node.next_seq();
-            self.state_answers.send(&EstimatorState::new(echo, seq, node.instance()))?;
+        self.take_messages(node)?;
+        // A message of the step we wait for looks lost when newer steps are in and it is not. The drains
+        // go topic by topic, so one published before the newest message seen may have come after its
+        // topic was drained: a second look first.
+        if self.session.lost_step(STALL_STEPS).is_some() {
+            self.take_messages(node)?;
         }
-        session.complete_steps(node.counter().total());
-        // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
-        session.check_outputs()?;
+        let session = &mut self.session;
         let next = session.assembler.next_step();
         if std::mem::take(&mut session.emitter_joined)
             || self.progress_sent.is_none_or(|(step, at)| next >= step + PROGRESS_EVERY || at.elapsed() >= IDLE_WAKEUP)
@@ -294,11 +290,8 @@ impl Handler for MonitorNode<'_> {
         // was starved of CPU, or never sent while it was restarting) if newer steps are in and it is not:
         // ask emitter-sim to replay from it, as a restarted monitor would — again every REASK while it does
         // not come (a replay that found the estimator down is dropped).
-        if let Some(newest) = session.assembler.newest_pending_step()
-            && newest >= next + STALL_STEPS
+        if let Some((next, newest)) = session.lost_step(STALL_STEPS)
             && self.replay_asked.is_none_or(|(step, at)| step != next || at.elapsed() >= REASK)
-            && !session.assembler.is_done()
-            && session.assembler.has_truth()
         {
             self.replay_asked = Some((next, Instant::now()));
             session.summary.replays_requested += 1;
@@ -314,6 +307,22 @@ impl Handler for MonitorNode<'_> {
 }
 
 impl MonitorNode<'_> {
+    /// Takes every message waiting on the four data topics into the session, answers the estimator's state
+    /// requests it can, and records the steps completed.
+    fn take_messages(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        self.drain(node, self.truths, Session::add_truth)?;
+        self.drain(node, self.measurements, Session::add_measurement)?;
+        self.drain(node, self.estimates, Session::add_estimate)?;
+        self.drain(node, self.commands, Session::add_command)?;
+        for echo in self.session.states.take_answers() {
+            let seq = node.next_seq();
+            self.state_answers.send(&EstimatorState::new(echo, seq, node.instance()))?;
+        }
+        self.session.complete_steps(node.counter().total());
+        // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
+        self.session.check_outputs()
+    }
+
     /// With an external source: a front end that left the measurement topic before the last step (its
     /// process ended, or died: dead nodes are cleaned up once a second while no step completes) ends the
     /// run after [`FRONT_END_GRACE`] unless one comes back — the launch would otherwise wait for ever.
