@@ -242,12 +242,20 @@ impl Supervisor {
         Ok(())
     }
 
+    /// Waits until `role` printed `ready`. A short run may be over by then: emitter-sim and the monitor
+    /// ending with exit code 0 is no failure (their `ready` lines still come, they precede the exit).
     pub(super) fn wait_ready(&mut self, role: Role) -> Result<(), CliError> {
         let i = self.index(role);
         let deadline = Instant::now() + READY_TIMEOUT;
         while !self.procs[i].ready {
             self.pump()?;
-            self.check_exits(&[])?;
+            self.check_exits(&[Role::EmitterSim, Role::Monitor])?;
+            if self.procs[i].closed && !self.procs[i].ready {
+                return Err(CliError::Failed(format!(
+                    "the {role} process ended ({}) before it got ready",
+                    self.procs[i].describe_exit()
+                )));
+            }
             if Instant::now() > deadline {
                 return Err(CliError::Failed(format!("the {role} process did not get ready within {READY_TIMEOUT:?}")));
             }

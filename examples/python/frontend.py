@@ -118,6 +118,14 @@ class Link:
             timeout_s,
         )
 
+    def linger(self, timeout_s):
+        # A sample a subscriber has not read yet is lost when its publisher goes away: stay until uavloc's
+        # planner has left the command topic (the launch has ended and recorded every step), at most
+        # timeout_s.
+        deadline = time.monotonic() + timeout_s
+        while self.commands.dynamic_config.number_of_publishers > 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
+
     def publish(self, m):
         # The stamps of the latency chain (CLOCK_MONOTONIC, the clock of time.monotonic_ns on Linux).
         m.header.stamps.published_ns = m.header.stamps.measurement_published_ns = time.monotonic_ns()
@@ -200,6 +208,9 @@ def main():
     p.add_argument("--seed", type=int, default=7, help="seed of the range noise")
     p.add_argument("--timeout-s", type=float, default=30.0, help="how long to wait for uavloc and for a command")
     p.add_argument("--inject-bad", action="store_true", help="publish three malformed measurements before step 1")
+    p.add_argument("--linger-s", type=float, default=10.0,
+                   help="after the last step, stay (keeping the published measurements readable) until uavloc's "
+                        "planner has left, at most this long")
     args = p.parse_args()
     if args.steps < 0:
         p.error("--steps must be >= 0")
@@ -233,6 +244,7 @@ def main():
         flown += 1
         held += bool(c.flags & msg.COMMAND_FLAG_HOLD)
         trigger = (c.header.stamps.command_published_ns, received_ns)
+    link.linger(args.linger_s)
     print(json.dumps({
         "domain": args.domain,
         "steps_published": args.steps + 1,

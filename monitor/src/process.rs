@@ -267,10 +267,6 @@ impl Handler for MonitorNode<'_> {
     }
 
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
-        // The monitor is off the control loop: it gives way first, so that a control-loop process woken
-        // by the same message and sharing its core takes that message before the monitor's work on it
-        // (on 2 cores a hop whose receiver shared the monitor's core took ≈ 23 µs instead of 5; BENCHMARKS).
-        std::thread::yield_now();
         self.take_messages(node)?;
         // A message of the step we wait for looks lost when newer steps are in and it is not. The drains
         // go topic by topic, so one published before the newest message seen may have come after its
@@ -336,6 +332,9 @@ impl MonitorNode<'_> {
             front_end.cleaned_at = Some(Instant::now());
             protocol::transport::cleanup_dead_nodes(node.link().node());
         }
+        // Seen: publishing now, or a step of it in (the monitor may first wake after a quick front end has
+        // gone, e.g. when it was starved of CPU).
+        front_end.seen |= self.session.assembler.newest_pending_step().is_some();
         if self.measurements.publisher_count()? > 0 {
             front_end.seen = true;
             front_end.gone_since = None;

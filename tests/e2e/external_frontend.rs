@@ -118,7 +118,7 @@ fn a_front_end_that_leaves_before_the_last_step_ends_the_launch_with_a_clear_err
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/frontend.py");
     let out = Command::new(python())
         .arg(script)
-        .args(["--domain", &d, "--steps", "6", "--timeout-s", "60"])
+        .args(["--domain", &d, "--steps", "6", "--timeout-s", "60", "--linger-s", "0"])
         .output()
         .expect("run the front end");
     assert!(out.status.success(), "the front end failed: {}", String::from_utf8_lossy(&out.stderr));
