@@ -67,6 +67,10 @@ pub enum SupervisorLine {
     Summary(Value),
 }
 
+/// What starts a [`SupervisorLine::Record`] line (written by [`SupervisorLine::to_line`] and
+/// [`tell_record`], read by [`SupervisorLine::parse`] and [`SupervisorLine::parse_owned`]).
+const RECORD_PREFIX: &str = "record ";
+
 impl SupervisorLine {
     /// The line as written.
     pub fn to_line(&self) -> String {
@@ -76,7 +80,7 @@ impl SupervisorLine {
                 format!("takeover {}", serde_json::json!({"from_step": from_step}))
             }
             SupervisorLine::Finished => "finished".into(),
-            SupervisorLine::Record(json) => format!("record {json}"),
+            SupervisorLine::Record(json) => format!("{RECORD_PREFIX}{json}"),
             SupervisorLine::Summary(v) => format!("summary {v}"),
         }
     }
@@ -84,9 +88,8 @@ impl SupervisorLine {
     /// [`parse`](Self::parse) of a line the caller owns: a [`SupervisorLine::Record`] keeps the line's
     /// own text (a long run's record is tens of MB: not copied).
     pub fn parse_owned(mut line: String) -> Option<Self> {
-        const RECORD: &str = "record ";
-        if line.starts_with(RECORD) {
-            line.drain(..RECORD.len());
+        if line.starts_with(RECORD_PREFIX) {
+            line.drain(..RECORD_PREFIX.len());
             return Some(SupervisorLine::Record(line));
         }
         Self::parse(&line)
@@ -103,7 +106,7 @@ impl SupervisorLine {
             let v: Value = serde_json::from_str(json).ok()?;
             return Some(SupervisorLine::TakeOver { from_step: v["from_step"].as_u64()? });
         }
-        if let Some(json) = line.strip_prefix("record ") {
+        if let Some(json) = line.strip_prefix(RECORD_PREFIX) {
             return Some(SupervisorLine::Record(json.to_string()));
         }
         if let Some(json) = line.strip_prefix("summary ") {
@@ -129,7 +132,7 @@ pub fn tell_record(supervised: bool, record: &impl Serialize) {
     if supervised {
         let mut out = std::io::BufWriter::new(std::io::stdout().lock());
         let _ = out
-            .write_all(b"record ")
+            .write_all(RECORD_PREFIX.as_bytes())
             .and_then(|()| serde_json::to_writer(&mut out, record).map_err(std::io::Error::other))
             .and_then(|()| out.write_all(b"\n"))
             .and_then(|()| out.flush());

@@ -14,17 +14,22 @@ use common::{Launch, assert_nothing_left, domain, python, scratch};
 
 const STEPS: u64 = 12;
 
+/// Runs `examples/python/frontend.py --domain D --steps N --timeout-s 60 <extra>` to its end.
+fn front_end(domain: &str, steps: &str, extra: &[&str]) -> std::io::Result<std::process::Output> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/frontend.py");
+    Command::new(python())
+        .arg(script)
+        .args(["--domain", domain, "--steps", steps, "--timeout-s", "60"])
+        .args(extra)
+        .output()
+}
+
 /// Runs the front end against a launch in `domain`; the launch's JSON and the front end's summary.
 fn run(domain: &str, tag: &str, extra: &[&str]) -> (Value, Value) {
     let dir = scratch(tag);
     let steps = STEPS.to_string();
     let mut launch = Launch::start(domain, &dir, &["--source", "external", "--steps", &steps]);
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/frontend.py");
-    let out = Command::new(python())
-        .arg(script)
-        .args(["--domain", domain, "--steps", &steps, "--timeout-s", "60"])
-        .args(extra)
-        .output();
+    let out = front_end(domain, &steps, extra);
     // A launch with an external source waits for its front end: never leave one behind.
     let out = match out {
         Ok(out) if out.status.success() => out,
@@ -115,12 +120,7 @@ fn a_front_end_that_leaves_before_the_last_step_ends_the_launch_with_a_clear_err
     let d = domain("ext", "left");
     let dir = scratch("ext-left");
     let launch = Launch::start(&d, &dir, &["--source", "external", "--steps", &STEPS.to_string()]);
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/frontend.py");
-    let out = Command::new(python())
-        .arg(script)
-        .args(["--domain", &d, "--steps", "6", "--timeout-s", "60", "--linger-s", "0"])
-        .output()
-        .expect("run the front end");
+    let out = front_end(&d, "6", &["--linger-s", "0"]).expect("run the front end");
     assert!(out.status.success(), "the front end failed: {}", String::from_utf8_lossy(&out.stderr));
     let left = std::time::Instant::now();
     let log = launch.log.clone();

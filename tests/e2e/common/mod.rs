@@ -248,8 +248,7 @@ impl Launch {
                 break status;
             }
             if Instant::now() > deadline {
-                // SAFETY: kill(2) on our child, not yet reaped.
-                unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
+                kill(self.child.id(), libc::SIGTERM);
                 let stopped = Instant::now() + Duration::from_secs(10);
                 while self.child.try_wait().expect("wait for the launch").is_none() && Instant::now() < stopped {
                     std::thread::sleep(Duration::from_millis(20));
@@ -257,17 +256,17 @@ impl Launch {
                 let _ = self.child.kill();
                 let _ = self.child.wait();
                 let log = std::fs::read_to_string(&self.log).unwrap_or_default();
-                let tail: Vec<&str> = log.lines().rev().take(40).collect::<Vec<_>>().into_iter().rev().collect();
+                let lines: Vec<&str> = log.lines().collect();
                 panic!(
                     "the launch did not end within {FINISH_TIMEOUT:?}; stopped it.\nstderr:\n{}\nlog (last 40 lines):\n{}",
                     self.stderr_text(),
-                    tail.join("\n")
+                    lines[lines.len().saturating_sub(40)..].join("\n")
                 );
             }
             std::thread::sleep(Duration::from_millis(20));
         };
         let out = reader.join().unwrap_or_default();
-        (status, String::from_utf8_lossy(&out).to_string(), std::fs::read_to_string(&self.stderr).unwrap_or_default())
+        (status, String::from_utf8_lossy(&out).to_string(), self.stderr_text())
     }
 
     /// Waits for a successful end and returns its JSON.
