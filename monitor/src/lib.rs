@@ -5,12 +5,14 @@
 //! with confidence bands, grouped bars); and the monitor process of the pipeline: [`assemble`] rebuilds
 //! the record from the pipeline's messages (no IPC), [`process`] is its handler on the node runtime
 //! over what it keeps of the run (`session`, also without IPC; with [`runlog`], [`stamps`] and
-//! [`latency`]: its log, stamp file and latency statistics), and [`recording`] writes the run as MCAP.
+//! [`latency`]: its log, stamp file and latency statistics), [`front_end`] tells whether an external
+//! front end is still there, and [`recording`] writes the run as MCAP.
 
 pub mod assemble;
 mod canvas;
 pub mod chart;
 pub mod export;
+pub mod front_end;
 pub mod latency;
 pub mod metrics;
 pub mod plot;

@@ -73,6 +73,8 @@ use runtime::{Flow, Handler, IDLE_WAKEUP, Join, Node};
 use serde_json::json;
 
 use crate::assemble::Assembler;
+pub use crate::front_end::FRONT_END_GRACE;
+use crate::front_end::{FrontEnd, FrontEndWatch};
 pub use crate::latency::{LatencyStat, LatencySummary};
 use crate::record::RunRecord;
 use crate::recording::{Recordable, Recorder};
@@ -100,11 +102,6 @@ pub const PROGRESS_EVERY: u64 = 16;
 /// How long the monitor waits for a replay it asked for (a message lost) before it asks again: longer than
 /// emitter-sim's retry interval (1 s by default), which a running replay gets per step.
 pub const REASK: std::time::Duration = std::time::Duration::from_secs(2);
-
-/// With an external source: how long the monitor waits, once the front end has left the measurement topic
-/// before the last step, for it (or another front end) to come back before it ends the run as one that
-/// cannot be completed (exit code 3, the steps recorded are in the log).
-pub const FRONT_END_GRACE: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
@@ -224,19 +221,8 @@ struct MonitorNode<'a> {
     /// The step a replay was last asked from because a message was lost, and when.
     replay_asked: Option<(u64, Instant)>,
     progress_sent: Option<(u64, Instant)>,
-    /// With an external source: whether a front end has published on the measurement topic, and since when
-    /// none has (dead nodes cleaned up once a second while none completes a step).
-    front_end: Option<FrontEnd>,
-}
-
-/// The external front end as the monitor sees it (see [`FRONT_END_GRACE`]).
-#[derive(Debug, Default)]
-struct FrontEnd {
-    seen: bool,
-    gone_since: Option<Instant>,
-    cleaned_at: Option<Instant>,
-    /// The next step to record, and since when it is.
-    waiting: Option<(u64, Instant)>,
+    /// With an external source: the front end's presence.
+    front_end: Option<FrontEndWatch>,
 }
 
 impl MonitorNode<'_> {
@@ -319,47 +305,32 @@ impl MonitorNode<'_> {
         self.session.check_outputs()
     }
 
-    /// With an external source: a front end that left the measurement topic before the last step (its
-    /// process ended, or died: dead nodes are cleaned up once a second while no step completes) ends the
-    /// run after [`FRONT_END_GRACE`] unless one comes back — the launch would otherwise wait for ever.
+    /// With an external source: a front end that left the measurement topic before the last step ends the
+    /// run after [`FRONT_END_GRACE`] unless one comes back ([`crate::front_end`]) — the launch would
+    /// otherwise wait for ever.
     fn watch_front_end(&mut self, node: &mut Node, next: u64) -> Result<(), ProcessError> {
-        let Some(front_end) = &mut self.front_end else { return Ok(()) };
-        if front_end.waiting.is_none_or(|(step, _)| step != next) {
-            front_end.waiting = Some((next, Instant::now()));
-        }
-        let stalled = front_end.waiting.is_some_and(|(_, since)| since.elapsed() >= IDLE_WAKEUP);
-        if front_end.seen && stalled && front_end.cleaned_at.is_none_or(|at| at.elapsed() >= IDLE_WAKEUP) {
-            front_end.cleaned_at = Some(Instant::now());
+        let Some(watch) = &mut self.front_end else { return Ok(()) };
+        let now = Instant::now();
+        if watch.cleanup_due(now, next) {
             protocol::transport::cleanup_dead_nodes(node.link().node());
         }
-        // Seen: publishing now, or a step of it in (the monitor may first wake after a quick front end has
-        // gone, e.g. when it was starved of CPU).
-        front_end.seen |= self.session.assembler.newest_pending_step().is_some();
-        if self.measurements.publisher_count()? > 0 {
-            front_end.seen = true;
-            front_end.gone_since = None;
-            return Ok(());
-        }
-        if !front_end.seen {
-            return Ok(());
-        }
+        let pending = self.session.assembler.newest_pending_step().is_some();
         let last = self.session.assembler.last_step();
-        match front_end.gone_since {
-            None => {
-                front_end.gone_since = Some(Instant::now());
+        match watch.observe(now, self.measurements.publisher_count()?, pending) {
+            FrontEnd::Left => {
                 self.session.log.write("front_end_left", json!({"step": next}));
                 node.warn(format_args!(
                     "the front end left the measurement topic with step {next} of 0..={last} not recorded; waiting \
                      {FRONT_END_GRACE:?} for it to come back"
                 ));
             }
-            Some(since) if since.elapsed() >= FRONT_END_GRACE => {
+            FrontEnd::GaveUp => {
                 return Err(ProcessError::Unrecoverable(format!(
                     "the front end left the measurement topic {FRONT_END_GRACE:?} ago with step {next} of 0..={last} \
                      not recorded: the run cannot be completed (the {next} step(s) recorded are in the log)"
                 )));
             }
-            Some(_) => {}
+            FrontEnd::NotSeen | FrontEnd::Present | FrontEnd::Away => {}
         }
         Ok(())
     }
@@ -424,7 +395,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         state_answers: &state_answers,
         replay_asked: None,
         progress_sent: None,
-        front_end: external.then(FrontEnd::default),
+        front_end: external.then(FrontEndWatch::default),
     };
     let session = &mut monitor.session;
     match resumed {
