@@ -23,7 +23,7 @@
 //! builds) is ignored by default:
 //!
 //! ```text
-//! cargo test --release --test e2e kill_storm:: -- --ignored
+//! cargo test --release --test kill_storm -- --ignored
 //! ```
 
 use crate::common;
@@ -395,7 +395,7 @@ fn quick_storm_two_kills_per_process_and_one_pair() {
 }
 
 #[test]
-#[ignore = "long (minutes): cargo test --release --test e2e kill_storm:: -- --ignored"]
+#[ignore = "long (minutes): cargo test --release --test kill_storm -- --ignored"]
 fn ten_kills_per_process_and_pairs() {
     let _scenario = common::scenario(module_path!());
     storm("long", 10, 3, 1500, 5);

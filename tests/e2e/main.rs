@@ -7,7 +7,9 @@
 //! ([`common::scenario`]), as when each scenario was its own binary: a timing-sensitive scenario (real
 //! time, soak, the kill storm) never shares the machine with another scenario's load.
 //!
-//! Run one scenario: `cargo test --release --test e2e kill_storm::` (the module name).
+//! Run one scenario: `cargo test --release --test e2e crash_restart::` (the module name). The kill storm
+//! is a target of its own, `cargo test --release --test kill_storm` (`tests/kill_storm.rs`, the same
+//! harness): its long version is what reliability runs are made of.
 
 mod common;
 
@@ -21,7 +23,6 @@ mod collision;
 mod crash_restart;
 mod external_frontend;
 mod fusion_consistency;
-mod kill_storm;
 mod launch_default;
 mod launch_faults;
 mod monitor_backpressure;
