@@ -120,9 +120,13 @@ impl EstimatorArgs {
         let dynamics =
             Dynamics::new(self.emitter_model, self.interval_s, self.process_noise_accel, self.velocity_prior_sigma)
                 .map_err(|e| {
-                    let flag = match &e {
-                        e if e.to_string().contains("process_noise_accel") => "--process-noise-accel",
-                        e if e.to_string().contains("velocity_prior") => "--velocity-prior-sigma",
+                    let text = e.to_string();
+                    let product = matches!(e, tdoa::TdoaError::OutOfRange { .. });
+                    let flag = match () {
+                        () if product && text.contains("process_noise_accel") => "--process-noise-accel, --interval-s",
+                        () if product => "--velocity-prior-sigma, --interval-s",
+                        () if text.contains("process_noise_accel") => "--process-noise-accel",
+                        () if text.contains("velocity_prior") => "--velocity-prior-sigma",
                         _ => "--interval-s",
                     };
                     ProcessError::Input(format!("{flag}: {e}"))

@@ -19,7 +19,7 @@ use nalgebra::{Matrix2, Vector2};
 use tdoa::fusion::EstimatorKind;
 use tdoa::geometry::COINCIDENCE_TOLERANCE_M;
 use tdoa::global::McScheme;
-use tdoa::{DEFAULT_KAPPA, Dynamics, EmitterModel, MAX_UAVS, NoiseModel};
+use tdoa::{DEFAULT_KAPPA, Dynamics, EmitterModel, MAX_EXTENT_M, MAX_UAVS, NoiseModel};
 use thiserror::Error;
 
 use crate::kinematics::bearing;
@@ -280,7 +280,7 @@ impl Scenario {
             return Err(invalid("uavs", format!("need 3 to {MAX_UAVS} UAVs, got {n}")));
         }
         for (i, p) in self.uavs.iter().enumerate() {
-            finite_all(&format!("uavs[{i}]"), p)?;
+            within_extent(&format!("uavs[{i}]"), p)?;
         }
         for a in 0..n {
             for b in a + 1..n {
@@ -290,7 +290,7 @@ impl Scenario {
                 }
             }
         }
-        finite_all("emitter", &self.emitter)?;
+        within_extent("emitter", &self.emitter)?;
         for (i, p) in self.uavs.iter().enumerate() {
             if dist(*p, self.emitter) < COINCIDENCE_TOLERANCE_M {
                 return Err(invalid("emitter", format!("the emitter sits on UAV {i}")));
@@ -304,6 +304,7 @@ impl Scenario {
         }
         positive("speed", self.speed)?;
         positive("dt", self.dt)?;
+        length("speed", "the distance flown per step, speed × dt", self.speed * self.dt)?;
         match &self.sigma {
             RangeSigma::Uniform(s) => positive("sigma", *s)?,
             RangeSigma::PerUav(s) => {
@@ -315,6 +316,7 @@ impl Scenario {
                 }
             }
         }
+        self.noise_model()?;
         nonzero("steps", self.steps)?;
         finite("delta_alpha_deg", self.delta_alpha)?;
         if !(self.delta_alpha > 0.0 && self.delta_alpha <= std::f64::consts::PI) {
@@ -323,20 +325,33 @@ impl Scenario {
                 format!("must be in (0, 180] degrees, got {}", self.delta_alpha.to_degrees()),
             ));
         }
-        non_negative("l_min", self.l_min)?;
-        non_negative("d_min", self.d_min)?;
-        non_negative("r_min", self.r_min)?;
+        for (key, v) in [("l_min", self.l_min), ("d_min", self.d_min), ("r_min", self.r_min)] {
+            non_negative(key, v)?;
+            length(key, key, v)?;
+        }
         positive("sigma_t", self.sigma_t)?;
+        length("sigma_t", "sigma_t", self.sigma_t)?;
         non_negative("kappa", self.kappa)?;
         if self.mc_samples < 2 {
             return Err(invalid("mc_samples", format!("need at least 2 samples, got {}", self.mc_samples)));
         }
         nonzero("rmse_resamples", self.rmse_resamples)?;
-        finite_all("e0", &self.e0)?;
+        within_extent("e0", &self.e0)?;
         non_negative("scale", self.scale)?;
+        length(
+            "scale",
+            "the controlled error scale × max(|e0|, sigma_t)",
+            self.scale * self.sigma_t.max(norm(self.e0)),
+        )?;
         non_negative("process_noise_accel", self.process_noise_accel)?;
         positive("velocity_prior_sigma", self.velocity_prior_sigma)?;
+        self.dynamics()?;
         finite_all("emitter_velocity", &self.emitter_velocity)?;
+        length(
+            "emitter_velocity",
+            "the distance the emitter moves per step, |emitter_velocity| × dt",
+            norm(self.emitter_velocity) * self.dt,
+        )?;
         finite("standoff_confidence", self.standoff_confidence)?;
         if !(0.0..1.0).contains(&self.standoff_confidence) {
             return Err(invalid(
@@ -371,6 +386,12 @@ impl Scenario {
         nonzero("gradient.starts", self.gradient.starts)?;
         nonzero("gradient.iterations", self.gradient.iterations)?;
         positive("gradient.tolerance", self.gradient.tolerance)?;
+        if self.gradient.tolerance > std::f64::consts::PI {
+            return Err(invalid(
+                "gradient.tolerance",
+                format!("must be at most π rad (half a turn of heading), got {:e}", self.gradient.tolerance),
+            ));
+        }
         Ok(())
     }
 
@@ -502,6 +523,31 @@ fn finite(key: &str, v: f64) -> Result<(), ScenarioError> {
 
 fn finite_all(key: &str, v: &[f64]) -> Result<(), ScenarioError> {
     v.iter().try_for_each(|x| finite(key, *x))
+}
+
+/// Every coordinate of a point within ±[`MAX_EXTENT_M`] (finite first).
+fn within_extent(key: &str, v: &[f64]) -> Result<(), ScenarioError> {
+    finite_all(key, v)?;
+    match v.iter().find(|x| x.abs() > MAX_EXTENT_M) {
+        Some(x) => Err(invalid(
+            key,
+            format!("coordinates must be within ±{MAX_EXTENT_M:e} m (the plane model's extent), got {x:e}"),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// A length `what` (metres) at most [`MAX_EXTENT_M`].
+fn length(key: &str, what: &str, v: f64) -> Result<(), ScenarioError> {
+    if v <= MAX_EXTENT_M {
+        Ok(())
+    } else {
+        Err(invalid(key, format!("{what} must be at most {MAX_EXTENT_M:e} m (the plane model's extent), got {v:e} m")))
+    }
+}
+
+fn norm(v: [f64; 2]) -> f64 {
+    v[0].hypot(v[1])
 }
 
 fn positive(key: &str, v: f64) -> Result<(), ScenarioError> {
@@ -716,6 +762,23 @@ mod tests {
             ("[gradient]\ntolerance = 0", "gradient.tolerance"),
             ("[aco]\nevaporation = 0", "aco.evaporation"),
             ("[early_stop]\ntolerance = -1", "early_stop.tolerance"),
+            // Finite but beyond the model's lengths: refused, never a panic or a NaN in the run.
+            ("uavs = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 2e7]]", "uavs[2]"),
+            ("emitter = [-2e7, 15000.0]", "emitter"),
+            ("speed = 1e300", "speed"),
+            ("dt = 1e300", "speed"),
+            ("l_min = 1e300", "l_min"),
+            ("d_min = 2e7", "d_min"),
+            ("r_min = 1e300", "r_min"),
+            ("sigma_t = 1e300", "sigma_t"),
+            ("sigma = 1e300", "sigma"),
+            ("sigma = 1e-300", "sigma"),
+            ("e0 = [1e300, 0.0]", "e0"),
+            ("scale = 1e300", "scale"),
+            ("emitter_velocity = [1e300, 0.0]", "emitter_velocity"),
+            ("velocity_prior_sigma = 1e300", "velocity_prior_sigma"),
+            ("process_noise_accel = 1e300", "process_noise_accel"),
+            ("[gradient]\ntolerance = 1e300", "gradient.tolerance"),
         ];
         for (text, key) in cases {
             let e = Scenario::from_toml_str(text).unwrap_err();

@@ -321,7 +321,8 @@ impl Gradient {
     /// [`POLISH_EVALUATIONS`] evaluations: what the quasi-Newton steps cannot do
     /// at a kink of the violation (a constraint meeting a bound, two constraints meeting).
     fn polish(&self, f: &mut Counted<'_>, space: &SearchSpace, mut p: Point, scale: f64) -> Point {
-        let mut step = scale.clamp(self.config.tolerance, 1e-3);
+        // At most 1e-3 rad, at least the tolerance (which may be the coarser of the two).
+        let mut step = scale.min(1e-3).max(self.config.tolerance);
         let mut x = p.x.clone();
         let budget = f.count + POLISH_EVALUATIONS;
         while step >= self.config.tolerance && f.count < budget {
@@ -447,6 +448,15 @@ mod tests {
     #[test]
     fn respects_bounds_straddling_pi() {
         common::respects_bounds_straddling_pi(&Gradient::default(), 1e-12);
+    }
+
+    #[test]
+    fn a_tolerance_coarser_than_the_polish_step_still_converges() {
+        // The polish starts at 1e-3 rad; a coarser tolerance (a scenario may give up to π) must not panic.
+        for tolerance in [2e-3, 0.1, std::f64::consts::PI] {
+            let g = Gradient { config: GradientConfig { tolerance, ..GradientConfig::default() } };
+            common::finds_quadratic_minimum(&g, 20.0 * tolerance);
+        }
     }
 
     #[test]

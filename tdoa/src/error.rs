@@ -19,6 +19,9 @@ pub enum TdoaError {
     /// A standard deviation that is zero or negative.
     #[error("{what} must be > 0 (got {value})")]
     NonPositive { what: String, value: f64 },
+    /// A finite value outside the range the model takes (e.g. a length beyond [`crate::MAX_EXTENT_M`]).
+    #[error("{what} must be between {min:e} and {max:e}, got {value:e}")]
+    OutOfRange { what: String, value: f64, min: f64, max: f64 },
     /// Two lists that must have matching lengths do not.
     #[error("{what}: expected {expected} values, got {got}")]
     LengthMismatch { what: String, expected: usize, got: usize },

@@ -12,6 +12,15 @@ pub const SPEED_OF_LIGHT: f64 = 299_792_458.0;
 /// Two UAVs closer than this (metres) are treated as coincident.
 pub const COINCIDENCE_TOLERANCE_M: f64 = 1e-3;
 
+/// The largest length the model takes, metres (10 000 km): a coordinate, a range σ, a distance flown
+/// per step. The method is two-dimensional on a flat plane, which stops describing the world long before
+/// this; the bound keeps every square, product and inverse the maths forms a finite number.
+pub const MAX_EXTENT_M: f64 = 1.0e7;
+
+/// The smallest range σ the noise model takes, metres (1 µm, about 3 fs of timing): below it `Q⁻¹`
+/// stops being a finite number long before any receiver could time that well.
+pub const MIN_SIGMA_M: f64 = 1.0e-6;
+
 /// Maximum number of range differences (`MAX_UAVS − 1`).
 pub const MAX_DIFFS: usize = MAX_UAVS - 1;
 
@@ -81,6 +90,14 @@ impl NoiseModel {
             check_finite(&format!("sigma of UAV {i}"), v)?;
             if v <= 0.0 {
                 return Err(TdoaError::NonPositive { what: format!("sigma of UAV {i}"), value: v });
+            }
+            if !(MIN_SIGMA_M..=MAX_EXTENT_M).contains(&v) {
+                return Err(TdoaError::OutOfRange {
+                    what: format!("the range sigma of UAV {i} (m)"),
+                    value: v,
+                    min: MIN_SIGMA_M,
+                    max: MAX_EXTENT_M,
+                });
             }
             s[i] = v;
         }

@@ -25,7 +25,7 @@ pub use chan::{ChanSolution, chan};
 pub use error::TdoaError;
 pub use fim::{Crlb, crlb, fim, fim_derivatives, trace_crlb, trace_derivatives};
 pub use fusion::{Outcome as FusionOutcome, Posterior, fuse, nees};
-pub use geometry::{NoiseModel, RangeDiffs, SPEED_OF_LIGHT, Sensors};
+pub use geometry::{MAX_EXTENT_M, MIN_SIGMA_M, NoiseModel, RangeDiffs, SPEED_OF_LIGHT, Sensors};
 pub use global::{GlobalCrlb, GlobalReport, GlobalValue, Method, global_crlb};
 pub use motion::{Dynamics, EmitterModel};
 pub use pcrlb::InformationBound;

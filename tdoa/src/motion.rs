@@ -15,7 +15,7 @@ use std::str::FromStr;
 
 use nalgebra::Matrix4;
 
-use crate::TdoaError;
+use crate::{MAX_EXTENT_M, TdoaError};
 
 /// Which emitter motion model the estimator assumes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
@@ -114,6 +114,16 @@ impl Dynamics {
         check("the snapshot interval dt (s)", dt, false)?;
         check("process_noise_accel (m/s²)", accel_sigma, true)?;
         check("velocity_prior_sigma (m/s)", velocity_prior_sigma, false)?;
+        // The lengths they make over one interval stay within the model's (their squares enter P and Q).
+        let within = |what: &str, length: f64| {
+            if length <= MAX_EXTENT_M {
+                Ok(())
+            } else {
+                Err(TdoaError::OutOfRange { what: what.into(), value: length, min: 0.0, max: MAX_EXTENT_M })
+            }
+        };
+        within("velocity_prior_sigma × dt (m)", velocity_prior_sigma * dt)?;
+        within("process_noise_accel × dt² (m)", accel_sigma * dt * dt)?;
         Ok(Self { model, dt, accel_sigma, velocity_prior_sigma })
     }
 
@@ -204,6 +214,12 @@ mod tests {
         let e = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, f64::NAN, 20.0).unwrap_err();
         assert!(e.to_string().contains("process_noise_accel"), "{e}");
         assert!(Dynamics::new(EmitterModel::Static, 0.0, 0.0, 1.0).is_err());
+        // Finite, but lengths beyond the model's over one interval (their squares would overflow P).
+        let e = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 0.05, 1e300).unwrap_err();
+        assert!(matches!(e, TdoaError::OutOfRange { .. }) && e.to_string().contains("velocity_prior_sigma"), "{e}");
+        let e = Dynamics::new(EmitterModel::ConstantVelocity, 1e200, 0.05, 1e-300).unwrap_err();
+        assert!(e.to_string().contains("process_noise_accel"), "{e}");
+        assert!(Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 1e5, 1e6).is_ok());
         assert_eq!("cv".parse::<EmitterModel>(), Ok(EmitterModel::ConstantVelocity));
         assert!("moving".parse::<EmitterModel>().is_err());
     }

@@ -20,7 +20,7 @@ fn refused(args: &[&str], needle: &str) {
 }
 
 /// (scenario file content, what the error must name).
-const BAD_SCENARIOS: [(&str, &str); 35] = [
+const BAD_SCENARIOS: [(&str, &str); 40] = [
     ("speeed = 10.0", "speeed"),                                                // unknown key
     ("[pso]\nparticle = 40", "particle"),                                       // unknown key in a table
     ("speed = \"fast\"", "speed"),                                              // wrong type
@@ -56,6 +56,13 @@ const BAD_SCENARIOS: [(&str, &str); 35] = [
     ("estimator = \"kalman\"", "estimator"),
     ("emitter_model = \"zigzag\"", "emitter_model"),
     ("speed = ", "speed"), // syntax error
+    // Finite but beyond the plane model's lengths: each made simulate or emitter-sim panic (NaN ranges
+    // from coordinates that overflowed, a heading tolerance above the polish step).
+    ("speed = 1e300", "speed"),
+    ("dt = 1e300", "speed × dt"),
+    ("emitter_velocity = [1e300, 0.0]", "emitter_velocity"),
+    ("[gradient]\ntolerance = 1e300", "gradient.tolerance"),
+    ("sigma = 1e-300", "sigma"),
 ];
 
 #[test]
@@ -100,6 +107,7 @@ fn malformed_flags_are_refused() {
         (&["simulate", "--estimator", "kalman"], "--estimator"),
         (&["process", "estimator", "--process-noise-accel=-1"], "--process-noise-accel"),
         (&["process", "estimator", "--velocity-prior-sigma", "0"], "--velocity-prior-sigma"),
+        (&["process", "estimator", "--interval-s", "1e300"], "--interval-s"),
         (&["launch", "--solver", "simplex"], "--solver"),
         (&["launch", "--transport", "pigeon"], "--transport"),
         (&["launch", "--wait", "sometimes"], "--wait"),

@@ -148,5 +148,11 @@ fn degenerate_input_is_an_error_not_a_number() {
     assert!(matches!(NoiseModel::uniform(9, 1.0), Err(TdoaError::UavCount { .. })));
     assert!(matches!(NoiseModel::uniform(3, 0.0), Err(TdoaError::NonPositive { .. })));
     assert!(matches!(NoiseModel::uniform(3, f64::NAN), Err(TdoaError::NotFinite { .. })));
+    // A σ whose square or inverse leaves the finite numbers (a CRLB of 0 or ∞ that would read as a
+    // singular geometry) is refused as out of range; the extremes themselves are taken.
+    for sigma in [1e300, 1e-300, 2.0 * tdoa::MAX_EXTENT_M, 0.5 * tdoa::MIN_SIGMA_M] {
+        assert!(matches!(NoiseModel::uniform(3, sigma), Err(TdoaError::OutOfRange { .. })), "{sigma}");
+    }
+    assert!(NoiseModel::uniform(3, tdoa::MAX_EXTENT_M).is_ok() && NoiseModel::uniform(3, tdoa::MIN_SIGMA_M).is_ok());
     assert!(RangeDiffs::from_slice(&[1.0, f64::INFINITY]).is_err());
 }
