@@ -114,6 +114,10 @@ impl Serialize for PaperReport {
 
 /// Runs `uavloc paper`.
 pub fn run(args: &PaperArgs) -> Result<PaperReport, CliError> {
+    // Checked first: `paper all` runs for a long time, and its tables are written only at the end.
+    if let Some(dir) = &args.out {
+        runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
+    }
     let settings = Settings {
         runs: args.runs.unwrap_or(if args.quick { QUICK_RUNS } else { experiments::PAPER_RUNS }),
         fixed_runs: args.runs.unwrap_or(experiments::PAPER_RUNS),

@@ -128,6 +128,8 @@ fn malformed_flags_are_refused() {
         (&["process", "monitor", "--domain", "bad-config-out", "--out", "/proc/version"], "--out"),
         (&["process", "monitor", "--domain", "bad-config-out", "--record", "/proc/none/run.json"], "--record"),
         (&["bench", "latency", "--cores", "5000"], "--cores"),
+        // Before the experiments run (`paper all` takes long; its tables are written at the end).
+        (&["paper", "all", "--out", "/proc/version"], "--out"),
         (&["bench", "planner", "--steps", "0"], "--steps"),
         (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "-1"], "sigma"),
         (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--target", "5,5", "--sigma", "1"], "3"),
