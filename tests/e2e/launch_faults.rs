@@ -82,7 +82,7 @@ fn a_start_that_cannot_be_localised_is_refused_up_front() {
     let dir = common::scratch("unlocalisable");
     for (name, text, key) in [
         ("collinear", "uavs = [[0.0, 0.0], [5000.0, 0.0], [10000.0, 0.0]]\n", "uavs"),
-        ("noisy", "sigma = 1e9\n", "sigma"),
+        ("noisy", "sigma = 1e6\n", "sigma"),
     ] {
         let path = dir.join(format!("{name}.toml"));
         std::fs::write(&path, text).unwrap();

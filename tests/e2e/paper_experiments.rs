@@ -253,12 +253,13 @@ fn bad_input_is_one_line_and_exit_2() {
         assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
         assert!(err.starts_with("error:"), "{args:?}: {err}");
     }
-    // An --out that cannot be a directory is a failure (exit 1) that names the path.
+    // An --out that cannot be a directory is bad input (exit 2) that names the path, refused before the
+    // experiments run.
     let dir = scratch("paper-bad-out");
     let file = dir.join("a-file");
     std::fs::write(&file, "x").unwrap();
     let out = uavloc(&["paper", "table8", "--runs", "2", "--out", file.to_str().unwrap()]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("a-file"));
     let _ = std::fs::remove_dir_all(&dir);
 }
