@@ -19,7 +19,8 @@ the turn-radius, spacing and approach constraints), and the UAVs fly a circular 
 
 Per step it reports the UAV positions, the estimate, the CRLB at the TRUE emitter for that geometry,
 the RMSE of Chan over R noise resamples (paper Section 5.3), the objective value and the planning time.
-Step 0 is the initial geometry; the last step is measured but not planned.
+Step 0 is the initial geometry; the last step is measured but not planned. On a terminal a progress
+bar shows the steps done, the rate and the time left.
 
 Without --scenario the paper's nominal case (Table 1) is used: 3 UAVs at [1500,500], [10000,1500],
 [5000,8500] m, emitter at [25000,15000] m, 50 m/s, 10 s, σ = 28.7712 m, 24 steps (see
@@ -101,7 +102,18 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
         )),
         false => None,
     };
+    // A long run shows its progress on a terminal (steps done, rate, ETA); nothing elsewhere.
+    let bar = indicatif::ProgressBar::with_draw_target(
+        Some(sc.steps as u64 + 1),
+        if live.is_some() { indicatif::ProgressDrawTarget::hidden() } else { indicatif::ProgressDrawTarget::stderr() },
+    );
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("simulate [{bar:30}] step {pos}/{len}, elapsed {elapsed}, ETA {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
     let run = experiments::closed_loop::run_closed_loop(&sc, objective, solver, |record, trace| {
+        bar.inc(1);
         if let Some(r) = &mut recorder {
             record_step(r, record, trace, objective, solver);
         }
@@ -114,6 +126,7 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
         }
     })
     .map_err(|e| CliError::Failed(e.to_string()))?;
+    bar.finish_and_clear();
     if let Some((mut terminal, mut view, _)) = live {
         view.note = "the run is over: q closes the view".into();
         let _ = terminal.draw(&view);
