@@ -203,6 +203,9 @@ impl Node {
     /// Joins the domain as `how` says (`detail`: free text on the control messages, e.g. the planner's
     /// solver), then tells the supervisor this process is ready (its ports exist).
     pub fn join(&self, how: Join, detail: &str) -> Result<(), ProcessError> {
+        if how != Join::TakeOver {
+            self.refuse_a_second_instance()?;
+        }
         match how {
             Join::Replay(from) => {
                 self.announce(ControlKind::Hello, 0, detail)?;
@@ -213,6 +216,26 @@ impl Node {
         }
         crate::tell(self.supervised, &SupervisorLine::Ready);
         Ok(())
+    }
+
+    /// Refuses to join a domain where another process of this role is running ([`ProcessError::Input`],
+    /// exit code 2): both would answer every step, and the one with the higher sequence numbers (the
+    /// newer) would win silently. Replacing a running process is a take-over (`uavloc swap`). A process
+    /// that crashed or was killed is no obstacle: its node is dead.
+    fn refuse_a_second_instance(&self) -> Result<(), ProcessError> {
+        let name = services::node_name(&self.domain, self.role());
+        let listed = protocol::resources::list(&self.domain).map_err(ProcessError::Failed)?;
+        let others: Vec<u32> = listed.alive_pids(&name).into_iter().filter(|p| *p != std::process::id()).collect();
+        match others.first() {
+            None => Ok(()),
+            Some(pid) => Err(ProcessError::Input(format!(
+                "a {role} is already running in domain {domain} (pid {pid}); two would both answer every step. \
+                 Stop it or choose another --domain (a running planner or estimator is replaced with `uavloc \
+                 swap`)",
+                role = self.role(),
+                domain = self.domain
+            ))),
+        }
     }
 
     /// Logs a line on stderr, prefixed with the role, unless `--quiet`.

@@ -190,3 +190,36 @@ fn a_swap_with_other_run_settings_is_refused_and_the_run_goes_on() {
     assert_eq!(run["restarts"].as_u64(), Some(0));
     common::assert_nothing_left(&d);
 }
+
+/// A second instance of a role started into a running pipeline without `--takeover` (by hand, not by
+/// `uavloc swap`) is refused at once (exit 2, naming the running one and `uavloc swap`), and the run goes
+/// on unharmed. Before, a second planner took over silently: its sequence numbers were the higher, so the
+/// world flew its plans (another solver) and rejected the launch's planner's commands as stale.
+#[test]
+fn a_second_instance_of_a_role_without_takeover_is_refused_and_the_run_goes_on() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("swap", "second");
+    let dir = scratch("swap-second");
+    let steps = "40";
+    let mut launch = Launch::start(&d, &dir, &["--steps", steps, "--step-delay-ms", "20"]);
+    launch.wait_for_step(3, Duration::from_secs(30));
+    for role in ["planner", "estimator", "monitor", "emitter-sim"] {
+        let mut args = vec!["process", role, "--domain", &d];
+        match role {
+            "planner" => args.extend(["--steps", steps, "--solver", "pso"]),
+            "estimator" => {}
+            _ => args.extend(["--steps", steps]),
+        }
+        let out = Command::new(UAVLOC).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{role}: {err}");
+        assert!(
+            err.contains(&format!("a {role} is already running in domain {d}")) && err.contains("uavloc swap"),
+            "{err}"
+        );
+    }
+    let run = launch.finish_json();
+    assert_same_run(&json_of(&["simulate", "--json", "--steps", steps]), &run, "a second instance refused");
+    assert_eq!((run["restarts"].as_u64(), run["rejected"].as_u64()), (Some(0), Some(0)), "{run}");
+    common::assert_nothing_left(&d);
+}
