@@ -273,6 +273,18 @@ impl Scenario {
         toml::to_string(self).expect("a scenario always serialises")
     }
 
+    /// A fingerprint of every value of the scenario: the 64-bit FNV-1a hash of its TOML, in hex. Two runs
+    /// with the same fingerprint ran the same scenario (steps and seed included); stable across builds
+    /// and processes (not `std`'s randomised hasher).
+    pub fn fingerprint(&self) -> String {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in self.to_toml_string().bytes() {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+        format!("{h:016x}")
+    }
+
     /// Checks every value; the error names the first offending key.
     pub fn validate(&self) -> Result<(), ScenarioError> {
         let n = self.uavs.len();
@@ -722,6 +734,20 @@ mod tests {
         assert_eq!(key_of("target = \"oracle\""), "target");
         assert_eq!(key_of("sigma = \"x\""), "sigma");
         assert_eq!(key_of("[early_stop]\nwindow = -1"), "early_stop.window");
+    }
+
+    #[test]
+    fn the_fingerprint_tells_scenarios_apart_and_is_stable() {
+        let a = Scenario::default();
+        assert_eq!(a.fingerprint(), Scenario::from_toml_str("").unwrap().fingerprint());
+        assert_eq!(a.fingerprint().len(), 16);
+        for b in [
+            Scenario { seed: 2, ..Scenario::default() },
+            Scenario { steps: 25, ..Scenario::default() },
+            Scenario { emitter: [25000.0, 15000.5], ..Scenario::default() },
+        ] {
+            assert_ne!(a.fingerprint(), b.fingerprint());
+        }
     }
 
     #[test]

@@ -8,7 +8,8 @@
 //!
 //! The JSON-lines log (`--log FILE`) has one object per line with `t_ns` (monotonic clock, the stamps'
 //! clock) and `event`:
-//! - `start` (domain, steps, seed) or `resume` (domain, steps recorded in the log);
+//! - `start` (domain, steps, seed, source, scenario: its [`model::Scenario::fingerprint`]) or `resume`
+//!   (domain, steps recorded in the log; a log whose `start` names another run is refused, exit 2);
 //!   `message` (kind, step, seq, age_us: publish → received here);
 //! - `rejected` (kind, reason, detail); `planner` (a new planner instance: instance, solver, objective, step);
 //! - `hello` / `take_over` (a process joined or took over: role, instance, detail, step);
@@ -79,7 +80,7 @@ pub use crate::latency::{LatencyStat, LatencySummary};
 use crate::record::RunRecord;
 use crate::recording::{Recordable, Recorder};
 use crate::runlog::EventLog;
-pub use crate::runlog::{LoggedRun, read_log};
+pub use crate::runlog::{LoggedRun, RunStart, read_log};
 use crate::session::Session;
 pub use crate::stamps::STAMPS_HEADER;
 use crate::stamps::StampsCsv;
@@ -354,7 +355,19 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let mut states = StateStore::new();
     let (assembler, resumed) = match (&args.log, args.resume) {
         (Some(path), true) => {
-            let LoggedRun { count, last, truth, names, states: logged, .. } = read_log(path, false);
+            let LoggedRun { count, last, truth, names, states: logged, start, .. } = read_log(path, false);
+            // Resuming another run's log would make one record of two runs.
+            let differences = start.map(|s| {
+                s.differences(scenario.steps as u64, scenario.seed, args.source.name(), &scenario.fingerprint())
+            });
+            if let Some(d) = differences.filter(|d| !d.is_empty()) {
+                return Err(ProcessError::Input(format!(
+                    "--log {}: the log of another run; this run has {}. Resuming would make one record of two \
+                     runs: give this run's log, or start without --resume",
+                    path.display(),
+                    d.join(", ")
+                )));
+            }
             for echo in logged {
                 states.keep(echo);
             }
@@ -401,7 +414,10 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     match resumed {
         None => session.log.write(
             "start",
-            json!({"domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed, "source": args.source}),
+            json!({
+                "domain": domain.as_str(), "steps": scenario.steps, "seed": scenario.seed, "source": args.source,
+                "scenario": scenario.fingerprint(),
+            }),
         ),
         Some(n) => session.log.write("resume", json!({"domain": domain.as_str(), "steps_in_log": n})),
     }

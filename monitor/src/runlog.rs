@@ -69,9 +69,42 @@ pub struct LoggedRun {
     pub truth: Option<[f64; 2]>,
     /// The run's (objective, solver).
     pub names: Option<(String, String)>,
+    /// What the log's first `start` event says of the run it belongs to.
+    pub start: Option<RunStart>,
     /// The estimator states the logged steps' commands echoed (the last
     /// [`HISTORY_STEPS`](runtime::recovery::HISTORY_STEPS) of them, oldest first).
     pub states: Vec<StateEcho>,
+}
+
+/// The run a log belongs to, from its `start` event (fields a log of an older build lacks are `None`).
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Deserialize)]
+pub struct RunStart {
+    pub steps: Option<u64>,
+    pub seed: Option<u64>,
+    pub source: Option<String>,
+    /// [`model::Scenario::fingerprint`] of the run's scenario.
+    pub scenario: Option<String>,
+}
+
+impl RunStart {
+    /// How a run of `steps`, `seed`, `source` and scenario `fingerprint` differs from this one
+    /// (`"seed 2, not 1"`, …); empty when it is the same run.
+    pub fn differences(&self, steps: u64, seed: u64, source: &str, fingerprint: &str) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.steps.is_some_and(|s| s != steps) {
+            out.push(format!("{steps} steps, not {}", self.steps.unwrap_or_default()));
+        }
+        if self.seed.is_some_and(|s| s != seed) {
+            out.push(format!("seed {seed}, not {}", self.seed.unwrap_or_default()));
+        }
+        if self.source.as_deref().is_some_and(|s| s != source) {
+            out.push(format!("source {source}, not {}", self.source.as_deref().unwrap_or_default()));
+        }
+        if out.is_empty() && self.scenario.as_deref().is_some_and(|s| s != fingerprint) {
+            out.push("another scenario".into());
+        }
+        out
+    }
 }
 
 /// A state echo as it is written in the log: its bytes in hex (exact, whatever the floats).
@@ -121,6 +154,10 @@ pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
     let (mut truth, mut names) = (None, None);
     for line in std::io::BufReader::new(file).lines() {
         let Ok(line) = line else { break };
+        if run.start.is_none() && line.contains("\"event\":\"start\"") {
+            run.start = serde_json::from_str::<RunStart>(&line).ok();
+            continue;
+        }
         if !line.contains("\"event\":\"step\"") {
             continue;
         }

@@ -272,3 +272,41 @@ fn a_service_left_half_created_by_kill_9_is_removed_by_the_next_launch() {
     assert_same_run(&json_of(&["simulate", "--json", "--steps", "4"]), &run, "after the clean-up");
     assert_nothing_left(&d);
 }
+
+/// A monitor resumed (`--resume`) from the log of another run is refused before it starts (exit 2, naming
+/// the log and what differs); before, it took the other run's steps as its first ones and recorded one
+/// run made of two. The same run's log is taken.
+#[test]
+fn a_monitor_resumed_from_another_runs_log_is_refused() {
+    let _scenario = common::scenario(module_path!());
+    let dir = common::scratch("resume-other-log");
+    let log = dir.join("run.jsonl");
+    let log = log.to_str().unwrap();
+    let out = Command::new(UAVLOC).args(["launch", "--headless", "--steps", "3", "--log", log]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let d = domain("resume", "other");
+    let monitor = |extra: &[&str]| {
+        let mut args = vec!["process", "monitor", "--domain", &d, "--quiet", "--resume", "--log", log];
+        args.extend_from_slice(extra);
+        Command::new(UAVLOC).args(&args).output().unwrap()
+    };
+    let scenario = dir.join("moved.toml");
+    std::fs::write(&scenario, "emitter = [25000.0, 15001.0]\n").unwrap();
+    for (extra, what) in [
+        (vec!["--steps", "3", "--seed", "2"], "seed 2, not 1"),
+        (vec!["--steps", "5"], "5 steps, not 3"),
+        (vec!["--steps", "3", "--scenario", scenario.to_str().unwrap()], "another scenario"),
+    ] {
+        let out = monitor(&extra);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains("the log of another run") && err.contains(what) && err.contains(log), "{err}");
+    }
+    // Its own run's log: every step is in it, so the monitor has the whole record at once.
+    let out = monitor(&["--steps", "3", "--print-record"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let record: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(record["steps"].as_array().map(Vec::len), Some(4));
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
