@@ -96,6 +96,8 @@ pub struct EmitterSummary {
 /// whether the command of the step before it was missed.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Saved {
+    /// The run's scenario ([`model::Scenario::fingerprint`]): a snapshot of another run is refused.
+    pub scenario: String,
     /// At most [`EMITTER_SNAPSHOTS`], one every [`recovery::SNAPSHOT_EVERY`] steps.
     pub snapshots: Vec<(Snapshot, bool)>,
 }
@@ -150,6 +152,8 @@ struct EmitterNode<'a> {
     before: Option<(Snapshot, bool)>,
     /// Measurements published (replays included).
     sent_count: u64,
+    /// The scenario's fingerprint, written with the snapshots.
+    fingerprint: String,
 }
 
 impl EmitterNode<'_> {
@@ -233,7 +237,7 @@ impl EmitterNode<'_> {
             && self.snapshots.last().is_none_or(|(s, _)| s.step < snapshot.0.step)
         {
             recovery::push_kept(&mut self.snapshots, snapshot, EMITTER_SNAPSHOTS);
-            let saved = Saved { snapshots: self.snapshots.clone() };
+            let saved = Saved { scenario: self.fingerprint.clone(), snapshots: self.snapshots.clone() };
             if let Err(e) = recovery::save(path, ROLE, node.domain().as_str(), &saved) {
                 node.warn(format_args!("{e}"));
             }
@@ -321,6 +325,17 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
             .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?,
         None => None,
     };
+    let fingerprint = scenario.fingerprint();
+    // A snapshot of another run (another scenario, steps or seed) would fly this run from that one's world.
+    if let (Some(path), Some(saved)) = (&args.checkpoint, &saved)
+        && saved.scenario != fingerprint
+    {
+        return Err(ProcessError::Input(format!(
+            "--checkpoint {}: the snapshots of another run (another scenario, steps or seed); give this run's \
+             checkpoint, or a file that does not exist yet for a new run",
+            path.display()
+        )));
+    }
     let snapshots: Vec<(Snapshot, bool)> = saved.map(|s| s.snapshots).unwrap_or_default();
     // Only a full set goes far enough back for every step the monitor may lack (see runtime::recovery).
     let oldest = snapshots.first().filter(|_| snapshots.len() >= EMITTER_SNAPSHOTS);
@@ -392,6 +407,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         snapshots,
         before: None,
         sent_count: 0,
+        fingerprint,
     };
     let ended = node.run(&[&commands], &mut world)?;
     if matches!(ended, Ended::Interrupted | Ended::Shutdown) && !world.schedule.is_done() {

@@ -310,3 +310,52 @@ fn a_monitor_resumed_from_another_runs_log_is_refused() {
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An emitter-sim given the `--checkpoint` of another run (another seed here) is refused before it starts
+/// (exit 2, naming the file); before, it flew this run on from that run's world snapshot. Its own run's
+/// checkpoint is taken (it then waits for a pipeline that is not there: exit 1 after the connect timeout).
+#[test]
+fn an_emitter_sim_checkpoint_of_another_run_is_refused() {
+    let _scenario = common::scenario(module_path!());
+    let dir = common::scratch("checkpoint-other-run");
+    let d = domain("ckpt", "other");
+    let file = dir.join("emitter-sim.ckpt");
+    let checkpoint = |seed: u64| {
+        let sc = model::scenario::load_scenario(None, Some(600), Some(seed)).unwrap();
+        let snapshot =
+            |step: u64| serde_json::json!([{"step": step, "positions": sc.uavs, "headings": [0.1, 0.2, 0.3]}, false]);
+        let text = serde_json::json!({
+            "role": "emitter-sim", "domain": d,
+            "state": {"scenario": sc.fingerprint(), "snapshots": [snapshot(0), snapshot(512)]},
+        });
+        std::fs::write(&file, text.to_string()).unwrap();
+    };
+    let emitter = || {
+        let f = file.to_str().unwrap();
+        let args = [
+            "process",
+            "emitter-sim",
+            "--domain",
+            &d,
+            "--steps",
+            "600",
+            "--checkpoint",
+            f,
+            "--connect-timeout-s",
+            "0.3",
+        ];
+        Command::new(UAVLOC).args(args).output().unwrap()
+    };
+    checkpoint(2);
+    let out = emitter();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("another run") && err.contains("emitter-sim.ckpt"), "{err}");
+    checkpoint(1);
+    let out = emitter();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("did not connect"), "{err}");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
