@@ -304,7 +304,7 @@ fn prepare(flags: &RunFlags) -> Result<Vec<usize>, CliError> {
         return Err(CliError::Input(format!("--scenario: {} is not a readable file", s.display())));
     }
     if let Some(dir) = &flags.out {
-        std::fs::create_dir_all(dir).map_err(|e| CliError::Failed(format!("--out {}: {e}", dir.display())))?;
+        runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
     sys::pin_current_process(&cores).map_err(|e| CliError::Failed(format!("--cores: {e}")))?;
     Ok(cores)

@@ -121,8 +121,10 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     if let Some(dir) = &args.out {
         runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
-    if let Some(file) = &args.record {
-        runtime::output::check_out_file("--record", file).map_err(CliError::Input)?;
+    for (flag, file) in [("--record", &args.record), ("--log", &args.log), ("--stamps", &args.stamps)] {
+        if let Some(file) = file {
+            runtime::output::check_out_file(flag, file).map_err(CliError::Input)?;
+        }
     }
     let domain = launch_domain(args.domain.as_deref(), args.source)?;
     // Held until the launch returns: a second launch into this domain is refused here, atomically.

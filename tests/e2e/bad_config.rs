@@ -130,6 +130,11 @@ fn malformed_flags_are_refused() {
         (&["bench", "latency", "--cores", "5000"], "--cores"),
         // Before the experiments run (`paper all` takes long; its tables are written at the end).
         (&["paper", "all", "--out", "/proc/version"], "--out"),
+        // The launch's own checks, before any child starts (before: the monitor's exit 2, then the launch's
+        // "stopped unexpectedly", exit 1).
+        (&["launch", "--headless", "--steps", "2", "--log", "/proc/none/run.jsonl"], "--log"),
+        (&["launch", "--headless", "--steps", "2", "--stamps", "/tmp"], "--stamps"),
+        (&["bench", "latency", "--steps", "10", "--out", "/proc/version"], "--out"),
         (&["bench", "planner", "--steps", "0"], "--steps"),
         (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "-1"], "sigma"),
         (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--target", "5,5", "--sigma", "1"], "3"),
