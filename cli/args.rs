@@ -55,6 +55,12 @@ fn parse_numbers(text: &str, n: Option<usize>, shape: &str) -> Result<Vec<f64>, 
 /// clap value parser for `X,Y`.
 pub fn parse_point(text: &str) -> Result<Point, String> {
     let v = parse_numbers(text, Some(2), "X,Y")?;
+    if let Some(x) = v.iter().find(|x| x.abs() > tdoa::MAX_EXTENT_M) {
+        return Err(format!(
+            "{x:e} m is beyond the plane model's extent (coordinates within ±{:e} m)",
+            tdoa::MAX_EXTENT_M
+        ));
+    }
     Ok(Point([v[0], v[1]]))
 }
 

@@ -140,6 +140,15 @@ fn malformed_flags_are_refused() {
         (&["crlb", "--uav", "0,0", "--uav", "1000,0", "--target", "5,5", "--sigma", "1"], "3"),
         (&["crlb", "--uav", "0,0", "--uav", "0,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1"], "coincide"),
         (&["crlb", "--uav", "0,nan", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1"], "--uav"),
+        // Beyond the plane model (before: reported as three collinear UAVs or a singular FIM).
+        (
+            &["crlb", "--uav", "1e300,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1"],
+            "extent",
+        ),
+        (
+            &["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1e300"],
+            "sigma",
+        ),
     ];
     for (args, needle) in cases {
         refused(args, needle);
