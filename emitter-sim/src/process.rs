@@ -358,6 +358,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Err(ProcessError::Interrupted);
     };
+    node.set_run(scenario.run_id());
     let truths = Topic::<Truth>::publisher(node.link(), &services::truth(&domain))?;
     let measurements = Topic::<Measurement>::publisher(node.link(), &services::measurement(&domain))?;
     let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;

@@ -30,13 +30,13 @@ extern "C" {
 #define UAVLOC_ESTIMATE_VERSION 3u
 #define UAVLOC_COMMAND_VERSION 4u
 #define UAVLOC_TRUTH_VERSION 2u
-#define UAVLOC_CONTROL_VERSION 4u
+#define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v1"
 #define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v3"
 #define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v4"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
-#define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v4"
+#define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
 
 /* Latency stamps (CLOCK_MONOTONIC, ns; 0 = not stamped) carried forward along one planning cycle. */
 typedef struct uavloc_stamps {
@@ -160,16 +160,18 @@ typedef struct uavloc_truth {
 #define UAVLOC_CONTROL_REPLAY 4u
 #define UAVLOC_CONTROL_STATUS 5u
 #define UAVLOC_CONTROL_STATE 6u
+#define UAVLOC_CONTROL_RUN 7u
 /* The step of a replay request that asks for the step in flight only. */
 #define UAVLOC_CONTROL_IN_FLIGHT UINT64_MAX
 
-/* every process -> every process: hello, take-over, shutdown, progress, replay. */
+/* every process -> every process: hello, take-over, shutdown, progress, replay, status, state, run. */
 typedef struct uavloc_control {
     uavloc_header header;
     uint64_t instance;     /* sender instance id */
     uint64_t started_ns;   /* sender start time, CLOCK_MONOTONIC ns (orders two instances of a role) */
     uint32_t kind;         /* UAVLOC_CONTROL_* */
     uint32_t reserved;
+    uint64_t run;          /* the sender's scenario fingerprint; 0: the sender has none */
     uavloc_name16 role;    /* "emitter-sim", "estimator", "planner", "monitor", "launch" */
     uavloc_name16 detail;  /* free text, e.g. "pso/analytical" */
 } uavloc_control;

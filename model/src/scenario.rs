@@ -277,12 +277,18 @@ impl Scenario {
     /// with the same fingerprint ran the same scenario (steps and seed included); stable across builds
     /// and processes (not `std`'s randomised hasher).
     pub fn fingerprint(&self) -> String {
+        format!("{:016x}", self.run_id())
+    }
+
+    /// [`Scenario::fingerprint`] as a number, never 0 (0 means "no scenario" on the wire:
+    /// `protocol::Control::run`).
+    pub fn run_id(&self) -> u64 {
         let mut h: u64 = 0xcbf2_9ce4_8422_2325;
         for b in self.to_toml_string().bytes() {
             h ^= u64::from(b);
             h = h.wrapping_mul(0x0100_0000_01b3);
         }
-        format!("{h:016x}")
+        h.max(1)
     }
 
     /// Checks every value; the error names the first offending key.

@@ -384,6 +384,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Err(ProcessError::Interrupted);
     };
+    node.set_run(scenario.run_id());
     let domain = node.domain().clone();
     let stamps = args.stamps.as_deref().map(|p| StampsCsv::create(p, resumed)).transpose()?;
     let recorder = match &args.mcap {

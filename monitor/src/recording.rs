@@ -177,13 +177,16 @@ impl Recordable for Control {
             self,
             json!({
                 "instance": self.instance, "started_ns": self.started_ns,
-                "kind": self.kind().map_or("unknown", ControlKind::name),
+                "kind": self.kind().map_or("unknown", ControlKind::name), "run": format!("{:016x}", self.run),
                 "role": self.role().unwrap_or("?"), "detail": self.detail(),
             }),
         )
     }
     fn schema_properties() -> Value {
-        json!({"instance": integer(), "started_ns": integer(), "kind": string(), "role": string(), "detail": string()})
+        json!({
+            "instance": integer(), "started_ns": integer(), "kind": string(), "run": string(), "role": string(),
+            "detail": string(),
+        })
     }
 }
 

@@ -338,6 +338,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Ok(PlannerSummary { node: runtime::NodeSummary::new(ROLE, 0), ..PlannerSummary::default() });
     };
+    node.set_run(scenario.run_id());
     let domain = node.domain().clone();
     let estimates = Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))?;
     let commands = Topic::<Command>::publisher(node.link(), &services::command(&domain))?;

@@ -35,6 +35,8 @@ pub struct ControlChannel {
     role: String,
     instance: u64,
     started_ns: u64,
+    /// The run this process belongs to ([`Control::run`]; 0: none).
+    run: Cell<u64>,
     seq: Cell<u64>,
     publisher: TopicPublisher<Control>,
     subscriber: TopicSubscriber<Control>,
@@ -55,6 +57,7 @@ impl ControlChannel {
             role: role.to_string(),
             instance,
             started_ns,
+            run: Cell::new(0),
             // Sequence numbers start at the clock: a later instance numbers above an earlier one.
             seq: Cell::new(now_ns()),
             subscriber: Topic::<Control>::subscriber(link, &name)?,
@@ -71,7 +74,8 @@ impl ControlChannel {
                 op: "building a control message",
                 service: self.publisher.name().into(),
                 detail: e.to_string(),
-            })?;
+            })?
+            .with_run(self.run.get());
         self.publisher.send(&msg)?;
         Ok(())
     }
@@ -94,6 +98,16 @@ impl ControlChannel {
     /// The subscriber (to attach to a `WaitSet`).
     pub fn subscriber(&self) -> &TopicSubscriber<Control> {
         &self.subscriber
+    }
+
+    /// Sets the run this process belongs to (every message it sends from now on carries it).
+    pub fn set_run(&self, run: u64) {
+        self.run.set(run);
+    }
+
+    /// The run this process belongs to (0: none).
+    pub fn run(&self) -> u64 {
+        self.run.get()
     }
 
     /// This instance's id.

@@ -1201,6 +1201,10 @@ pub enum ControlKind {
     /// was rewound further back than it remembers); the monitor, which keeps the state every command
     /// echoed, answers with an [`EstimatorState`] on `<domain>/state`.
     State = 6,
+    /// The sender's domain runs another scenario than the process of instance `header.step`, which joined
+    /// after it (v5; the sender's own run is in [`Control::run`]): that process leaves (exit code 2), so
+    /// that no run is made of two scenarios. Every other receiver ignores it.
+    Run = 7,
 }
 
 impl ControlKind {
@@ -1218,6 +1222,7 @@ impl ControlKind {
             4 => Some(ControlKind::Replay),
             5 => Some(ControlKind::Status),
             6 => Some(ControlKind::State),
+            7 => Some(ControlKind::Run),
             _ => None,
         }
     }
@@ -1232,6 +1237,7 @@ impl ControlKind {
             ControlKind::Replay => "replay",
             ControlKind::Status => "status",
             ControlKind::State => "state",
+            ControlKind::Run => "run",
         }
     }
 }
@@ -1241,7 +1247,7 @@ impl ControlKind {
 /// Many processes publish on this topic, each with its own sequence numbers: a receiver tracks the last
 /// accepted sequence number per `instance`.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Control/v4")]
+#[type_name("uavloc::Control/v5")]
 #[repr(C)]
 pub struct Control {
     /// Common header; `step` depends on the kind (see [`ControlKind`]).
@@ -1254,15 +1260,24 @@ pub struct Control {
     pub kind: u32,
     /// Explicit padding; 0 when sent.
     pub reserved: u32,
+    /// The run the sender belongs to (v5): its scenario's fingerprint (`model::Scenario::run_id`), 0 for a
+    /// sender without a scenario (the estimator, the launcher, `swap`). Processes of one domain must run
+    /// one scenario: see [`ControlKind::Run`].
+    pub run: u64,
     /// The sender's role: `emitter-sim`, `estimator`, `planner`, `monitor`, `launcher`, `swap`.
     pub role: Name16,
     /// Free detail for humans and the monitor, e.g. `ga/analytical` for a planner (may be empty).
     pub detail: Name16,
 }
 
-impl_message!(Control, MessageKind::Control, 4, "uavloc::Control/v4");
+impl_message!(Control, MessageKind::Control, 5, "uavloc::Control/v5");
 
 impl Control {
+    /// This message with the sender's run ([`Control::run`]).
+    pub fn with_run(self, run: u64) -> Self {
+        Control { run, ..self }
+    }
+
     /// A control message of `kind` from `role` (`detail` may be empty; beyond 16 characters it is cut).
     pub fn new(
         kind: ControlKind,
@@ -1279,6 +1294,7 @@ impl Control {
             started_ns,
             kind: kind as u32,
             reserved: 0,
+            run: 0,
             role: Name16::new("role", role)?,
             detail: if detail.is_empty() { Name16::default() } else { Name16::new("detail", Self::cut(detail))? },
         })
@@ -1326,7 +1342,7 @@ mod tests {
         assert_eq!((size_of::<Command>(), align_of::<Command>()), (504, 8));
         assert_eq!((size_of::<StateEcho>(), align_of::<StateEcho>()), (144, 8));
         assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
-        assert_eq!((size_of::<Control>(), align_of::<Control>()), (144, 8));
+        assert_eq!((size_of::<Control>(), align_of::<Control>()), (152, 8));
         assert_eq!((size_of::<EstimatorState>(), align_of::<EstimatorState>()), (240, 8));
     }
 
@@ -1349,7 +1365,8 @@ mod tests {
         assert_eq!(offset_of!(StateEcho, velocity_cov) + 32, size_of::<StateEcho>());
         assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));
         assert_eq!(offset_of!(Truth, reserved) + 4, size_of::<Truth>());
-        assert_eq!(offset_of!(Control, role), 88 + 24);
+        assert_eq!(offset_of!(Control, run), 88 + 24);
+        assert_eq!(offset_of!(Control, role), 88 + 32);
         assert_eq!(offset_of!(Control, detail) + 16, size_of::<Control>());
     }
 

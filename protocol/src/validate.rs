@@ -725,10 +725,13 @@ mod tests {
         assert_eq!(c.validate(Some(5)).unwrap_err().kind(), "stale");
         assert_eq!(with(c, |c| c.kind = 5).validate(None), Ok(()), "5 is a status (v3)");
         assert_eq!(with(c, |c| c.kind = 6).validate(None), Ok(()), "6 asks for a state (v4)");
+        assert_eq!(with(c, |c| c.kind = 7).validate(None), Ok(()), "7 tells a process of another run to leave (v5)");
         assert_eq!(
-            with(c, |c| c.kind = 7).validate(None),
-            Err(Rejection::UnknownKind { field: "control kind", kind: 7 })
+            with(c, |c| c.kind = 8).validate(None),
+            Err(Rejection::UnknownKind { field: "control kind", kind: 8 })
         );
+        // Any run: a fingerprint, or 0 for a sender without a scenario.
+        assert_eq!((c.run, c.with_run(u64::MAX).validate(None)), (0, Ok(())));
         assert_eq!(with(c, |c| c.role.bytes = [0; 16]).validate(None), Err(Rejection::BadName { field: "role" }));
         assert_eq!(with(c, |c| c.detail.bytes[0] = 0x80).validate(None).unwrap_err().kind(), "bad_name");
         assert_eq!(with(c, |c| c.header.version = 1).validate(None).unwrap_err().kind(), "bad_version");

@@ -111,6 +111,8 @@ pub struct Node {
     handover: Option<u64>,
     /// The rejection count last announced ([`ControlKind::Status`]).
     rejected_reported: u64,
+    /// The instances of another run this one told to leave ([`ControlKind::Run`]).
+    told_to_leave: Vec<u64>,
 }
 
 impl Node {
@@ -142,6 +144,7 @@ impl Node {
             seq: started_ns,
             handover: None,
             rejected_reported: 0,
+            told_to_leave: Vec::new(),
         }))
     }
 
@@ -193,6 +196,13 @@ impl Node {
     /// What this node did (the counts every data process reports).
     pub fn summary(&mut self) -> &mut NodeSummary {
         &mut self.summary
+    }
+
+    /// Sets the run this process belongs to: its scenario's fingerprint (`model::Scenario::run_id`), before
+    /// it joins. Every control message it sends carries it, and it refuses to run beside a process of
+    /// another run ([`ControlKind::Run`]).
+    pub fn set_run(&self, run: u64) {
+        self.control.set_run(run);
     }
 
     /// Publishes a control message of `kind` (e.g. a hello from `step`).
@@ -325,6 +335,9 @@ impl Node {
                     continue;
                 }
             };
+            if self.of_another_run(&c)? {
+                continue;
+            }
             if c.kind() == Some(ControlKind::Shutdown) {
                 return Ok(Some(Ended::Shutdown));
             }
@@ -339,6 +352,38 @@ impl Node {
             }
         }
         Ok(None)
+    }
+
+    /// Whether `c` comes from a process of another run (both senders name their run, and the runs differ;
+    /// see [`ControlKind::Run`]). One that joined before this one wins: this one leaves
+    /// ([`ProcessError::Input`], exit code 2). One that joined after it is told once to leave, and its
+    /// messages are ignored (`true`) — a replay it asks for, for one.
+    fn of_another_run(&mut self, c: &Control) -> Result<bool, ProcessError> {
+        let mine = self.control.run();
+        if c.run == 0 || mine == 0 || c.run == mine {
+            return Ok(false);
+        }
+        let theirs = c.role().unwrap_or("process");
+        if c.started_ns < self.control.started_ns() {
+            return Err(ProcessError::Input(format!(
+                "domain {} runs another scenario: the {theirs} (instance {:#x}) that joined before this {} runs \
+                 scenario {:016x}, this one {mine:016x}; give every process of a domain the same --scenario, --steps \
+                 and --seed",
+                self.domain,
+                c.instance,
+                self.role(),
+                c.run
+            )));
+        }
+        if !self.told_to_leave.contains(&c.instance) {
+            self.told_to_leave.push(c.instance);
+            self.warn(format_args!(
+                "a {theirs} of another scenario ({:016x}, instance {:#x}) joined domain {}; told it to leave",
+                c.run, c.instance, self.domain
+            ));
+            self.announce(ControlKind::Run, c.instance, "")?;
+        }
+        Ok(true)
     }
 
     /// Tells the domain how many messages this process has rejected, when that changed since it last

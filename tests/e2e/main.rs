@@ -34,6 +34,7 @@ mod shutdown;
 mod simulate_closed_loop;
 mod soak;
 mod staleness;
+mod standalone;
 mod stop_continue;
 mod swap_planner;
 mod wire_layout;

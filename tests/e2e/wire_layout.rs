@@ -104,7 +104,7 @@ fn layouts() -> Vec<Layout> {
             ]
         ),
         layout!(Truth, "uavloc_truth", [header, position, previous_command, reserved]),
-        layout!(Control, "uavloc_control", [header, instance, started_ns, kind, reserved, role, detail]),
+        layout!(Control, "uavloc_control", [header, instance, started_ns, kind, reserved, run, role, detail]),
     ]
 }
 
@@ -193,7 +193,7 @@ fn every_field_of_every_type_is_listed() {
         ("uavloc_command", vec![size_of::<Header>(), 8, 8, 8, 8, 4, 4, 8, 64, 128, 16, 16, size_of::<StateEcho>()]),
         ("uavloc_state_echo", vec![8, 1, 1, 1, 1, 4, 16, 32, 16, 32, 32]),
         ("uavloc_truth", vec![size_of::<Header>(), 16, 4, 4]),
-        ("uavloc_control", vec![size_of::<Header>(), 8, 8, 4, 4, 16, 16]),
+        ("uavloc_control", vec![size_of::<Header>(), 8, 8, 4, 4, 8, 16, 16]),
     ]);
     for l in layouts() {
         let field_sizes = &sizes[l.c_name];

@@ -1,0 +1,65 @@
+//! The four processes started by hand, one after the other in one domain, as on an onboard computer
+//! without `uavloc launch` (`uavloc process <role>` is what the standalone binaries run).
+
+use crate::common;
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{UAVLOC, assert_nothing_left, assert_same_steps, domain, json_of};
+use serde_json::Value;
+
+fn start(role: &str, d: &str, extra: &[&str]) -> Child {
+    Command::new(UAVLOC)
+        .args(["process", role, "--domain", d, "--quiet"])
+        .args(extra)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// Waits for `child` to exit (at most 30 s); its exit code, stdout and stderr.
+fn wait(child: Child) -> (Option<i32>, String, String) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let pid = child.id();
+    let waiter = std::thread::spawn(move || child.wait_with_output().unwrap());
+    while !waiter.is_finished() {
+        if Instant::now() > deadline {
+            common::kill(pid, libc::SIGKILL);
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let out = waiter.join().unwrap();
+    (out.status.code(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+/// A planner given another `--seed` than the monitor already running (so another scenario: another run) is
+/// told to leave by it and exits 2 naming the monitor, before it plans anything; the set then started
+/// with one seed runs the scenario exactly, as `simulate` does. Before, the planner of the other seed
+/// planned the run silently.
+#[test]
+fn a_process_of_another_scenario_is_told_to_leave_and_the_set_runs_on() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("hand", "other-run");
+    let monitor = start("monitor", &d, &["--steps", "12", "--print-record"]);
+    std::thread::sleep(Duration::from_millis(300));
+    let (code, _, err) = wait(start("planner", &d, &["--steps", "12", "--seed", "2"]));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("domain {d} runs another scenario")) && err.contains("the monitor"), "{err}");
+    let planner = start("planner", &d, &["--steps", "12"]);
+    let estimator = start("estimator", &d, &[]);
+    let (code, _, err) = wait(start("emitter-sim", &d, &["--steps", "12", "--min-subscribers", "2"]));
+    assert_eq!(code, Some(0), "emitter-sim: {err}");
+    let (code, record, err) = wait(monitor);
+    assert_eq!(code, Some(0), "monitor: {err}");
+    let record: Value = serde_json::from_str(&record).unwrap();
+    assert_same_steps(&json_of(&["simulate", "--json", "--steps", "12"]), &record, "a set of one scenario");
+    for p in [planner, estimator] {
+        common::kill(p.id(), libc::SIGTERM);
+        let (code, _, err) = wait(p);
+        assert_eq!(code, Some(0), "{err}");
+    }
+    assert_nothing_left(&d);
+}
