@@ -47,7 +47,9 @@
 //! state after every step (from the step's estimate or its command's echo; the last 4 096 steps), writes
 //! it with the step in its log (`state`: the [`protocol::StateEcho`]'s bytes in hex, read back on
 //! `--resume`), and answers an estimator's request for one ([`ControlKind::State`]; logged as
-//! `state_request`) on `<domain>/state`, at once or as soon as it has it.
+//! `state_request`) on `<domain>/state`, at once or as soon as it has it. A message it lacks (a newer
+//! step is [`STALL_STEPS`] ahead, or an estimator waits [`STATE_GRACE`] for the state after a step it
+//! has not recorded) it asks emitter-sim to replay (`replay_request`: step, and newest or state).
 //!
 //! With `--source external` there is no truth (an external front end publishes the measurements): steps
 //! complete without one and the truth-based fields stay absent ([`crate::assemble`]); no replay is asked
@@ -103,6 +105,10 @@ pub const PROGRESS_EVERY: u64 = 16;
 /// How long the monitor waits for a replay it asked for (a message lost) before it asks again: longer than
 /// emitter-sim's retry interval (1 s by default), which a running replay gets per step.
 pub const REASK: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// How long an estimator may wait for the state after a step this monitor has not recorded before the
+/// monitor takes the step's messages for lost and asks for a replay (they may be on their way).
+pub const STATE_GRACE: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
@@ -221,6 +227,8 @@ struct MonitorNode<'a> {
     state_answers: &'a TopicPublisher<EstimatorState>,
     /// The step a replay was last asked from because a message was lost, and when.
     replay_asked: Option<(u64, Instant)>,
+    /// The step after which an estimator waits for a state this monitor lacks, and since when.
+    state_waited: Option<(u64, Instant)>,
     progress_sent: Option<(u64, Instant)>,
     /// With an external source: the front end's presence.
     front_end: Option<FrontEndWatch>,
@@ -269,17 +277,44 @@ impl Handler for MonitorNode<'_> {
             node.announce(ControlKind::Progress, next, "")?;
             self.progress_sent = Some((next, Instant::now()));
         }
+        // An estimator waits for the state after a step not recorded here: the messages that carry it were
+        // lost, and no later step comes while it waits — once that has lasted STATE_GRACE (they may be on
+        // their way).
+        let state_lost = match session.lacks_wanted_state() {
+            None => {
+                self.state_waited = None;
+                None
+            }
+            Some((next, wanted)) => {
+                if self.state_waited.is_none_or(|(w, _)| w != wanted) {
+                    self.state_waited = Some((wanted, Instant::now()));
+                }
+                self.state_waited.filter(|(_, since)| since.elapsed() >= STATE_GRACE).map(|_| (next, wanted))
+            }
+        };
         // A message of the step we wait for was lost (e.g. overwritten in a full buffer while this monitor
-        // was starved of CPU, or never sent while it was restarting) if newer steps are in and it is not:
-        // ask emitter-sim to replay from it, as a restarted monitor would — again every REASK while it does
-        // not come (a replay that found the estimator down is dropped).
-        if let Some((next, newest)) = session.lost_step(STALL_STEPS)
+        // was starved of CPU, or never sent while it was restarting) if newer steps are in and it is not, or
+        // if an estimator waits for its state: ask emitter-sim to replay from it, as a restarted monitor
+        // would — again every REASK while it does not come (a replay that found the estimator down is
+        // dropped).
+        let lost = match (session.lost_step(STALL_STEPS), state_lost) {
+            (Some((next, newest)), _) => {
+                Some((next, json!({"step": next, "newest": newest}), format!("step {newest} is in")))
+            }
+            (None, Some((next, wanted))) => Some((
+                next,
+                json!({"step": next, "state": wanted}),
+                format!("an estimator waits for the state after step {wanted}"),
+            )),
+            (None, None) => None,
+        };
+        if let Some((next, event, why)) = lost
             && self.replay_asked.is_none_or(|(step, at)| step != next || at.elapsed() >= REASK)
         {
             self.replay_asked = Some((next, Instant::now()));
             session.summary.replays_requested += 1;
-            session.log.write("replay_request", json!({"step": next, "newest": newest}));
-            node.say(format_args!("a message of step {next} was lost (step {newest} is in); asking for a replay"));
+            session.log.write("replay_request", event);
+            node.say(format_args!("a message of step {next} was lost ({why}); asking for a replay"));
             node.announce(ControlKind::Replay, next, "lost")?;
         }
         if !session.assembler.is_done() {
@@ -408,6 +443,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         commands: &commands,
         state_answers: &state_answers,
         replay_asked: None,
+        state_waited: None,
         progress_sent: None,
         front_end: external.then(FrontEndWatch::default),
     };

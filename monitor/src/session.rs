@@ -149,6 +149,17 @@ impl Session {
             .then_some((next, newest))
     }
 
+    /// The first step this monitor lacks, and the step after which an estimator waits for the state, when
+    /// that step is not recorded here either: the messages that carry the state were lost (or sent while
+    /// this monitor restarted). No later step comes while the estimator waits, so [`Session::lost_step`]
+    /// never sees it; only a replay from the first step lacking makes them again. Only with a truth
+    /// source, as there.
+    pub(crate) fn lacks_wanted_state(&self) -> Option<(u64, u64)> {
+        let next = self.assembler.next_step();
+        let wanted = self.states.first_wanted_from(next)?;
+        (!self.assembler.is_done() && self.assembler.has_truth()).then_some((next, wanted))
+    }
+
     /// Adds a truth to the run.
     pub(crate) fn add_truth(&mut self, t: Truth) {
         self.assembler.add_truth(t);
@@ -367,6 +378,39 @@ mod tests {
     }
 
     const STALL: u64 = 3;
+
+    /// What the monitor saw in a long kill storm that stalled for emitter-sim's 60 s command timeout: the
+    /// estimator, restarted, waited for the state after step 396, whose estimate and command the monitor
+    /// (restarted just before) never got; no later step could come, so nothing looked lost. A state an
+    /// estimator waits for, of a step this monitor has not recorded, is a lost message of that step.
+    #[test]
+    fn a_state_wanted_of_a_step_not_recorded_means_its_messages_are_lost() {
+        let mut s =
+            Session::new(Assembler::new(scenario(8)), EventLog::open(None, false).unwrap(), StateStore::new(), true);
+        deliver(&mut s, stamped(truth(0)), Session::add_truth);
+        for k in 0..=2 {
+            deliver(&mut s, stamped(measurement(k)), Session::add_measurement);
+            deliver(&mut s, stamped(estimate(k, ok(25_000.0))), Session::add_estimate);
+            deliver(&mut s, stamped(command(k, 4.0, 0)), Session::add_command);
+            deliver(&mut s, stamped(flown(k + 1)), Session::add_truth);
+        }
+        deliver(&mut s, stamped(measurement(3)), Session::add_measurement);
+        s.complete_steps(0);
+        assert_eq!(s.assembler.next_step(), 3);
+        // A state it has (step 1) or that comes with a step it recorded is answered, not a loss.
+        s.heard(&request(1));
+        assert_eq!(s.states.take_answers().len(), 1);
+        assert_eq!(s.lacks_wanted_state(), None);
+        // The state after step 3: its estimate and command never came, and step 4 cannot come without it.
+        s.heard(&request(3));
+        assert!(s.states.take_answers().is_empty());
+        assert_eq!(s.lost_step(STALL), None, "no later step is in");
+        assert_eq!(s.lacks_wanted_state(), Some((3, 3)));
+        // A replay brings them: answered, nothing lacking any more.
+        deliver(&mut s, estimate(3, ok(25_000.0)), Session::add_estimate);
+        assert_eq!(s.states.take_answers().len(), 1);
+        assert_eq!(s.lacks_wanted_state(), None);
+    }
 
     #[test]
     fn a_session_logs_each_step_with_its_state_counts_what_never_came_and_answers_state_requests() {

@@ -148,6 +148,11 @@ impl StateStore {
         }
     }
 
+    /// The oldest step at or after `from` whose state was asked for and is not known yet.
+    pub fn first_wanted_from(&self, from: u64) -> Option<u64> {
+        self.wanted.range(from..).next().copied()
+    }
+
     /// The states asked for that are known now, oldest first; they are no longer wanted.
     pub fn take_answers(&mut self) -> Vec<StateEcho> {
         let known: Vec<u64> = self.wanted.iter().copied().filter(|s| self.states.contains_key(s)).collect();
