@@ -123,7 +123,7 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
         SwapRole::Estimator(a) => ("estimator", a.node.domain.as_deref(), None),
     };
     protocol::transport::quiet_logs();
-    let domain = Domain::resolve(domain_flag).map_err(|e| CliError::Input(format!("--domain: {e}")))?;
+    let domain = Domain::resolve_named(domain_flag).map_err(CliError::Input)?;
     let node_name = protocol::services::node_name(&domain, role);
     let running = |domain: &Domain| -> Result<usize, CliError> {
         Ok(resources::list(domain).map_err(CliError::Failed)?.alive_nodes().filter(|n| *n == node_name).count())

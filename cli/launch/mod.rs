@@ -91,7 +91,8 @@ fn launch_domain(flag: Option<&str>, source: runtime::Source) -> Result<Domain, 
         runtime::Source::Simulator => format!("uavloc-{}", std::process::id()),
     };
     let name = flag.map(str::to_string).or(env).unwrap_or(fallback);
-    Domain::new(&name).map_err(|e| CliError::Input(format!("--domain: {e}")))
+    let source = if flag.is_some() { "--domain" } else { DOMAIN_ENV };
+    Domain::new(&name).map_err(|e| CliError::Input(format!("{source}: {e}")))
 }
 
 /// Runs `uavloc launch` as the command line asks: with the live view on a terminal, unless `--headless`

@@ -314,8 +314,7 @@ impl Handler for EmitterNode<'_> {
 /// Runs the world to the end of the run.
 pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     args.check().map_err(ProcessError::Input)?;
-    let domain =
-        Domain::resolve(args.process.node.domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
+    let domain = Domain::resolve_named(args.process.node.domain.as_deref()).map_err(ProcessError::Input)?;
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let pacing = args.pacing(scenario.dt, scenario.steps).map_err(ProcessError::Input)?;

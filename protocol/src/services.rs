@@ -48,6 +48,13 @@ impl Domain {
         Self::resolve_with(flag, env.as_deref())
     }
 
+    /// [`resolve`](Self::resolve), its error naming where the bad name came from: `--domain` or
+    /// `UAVLOC_DOMAIN`.
+    pub fn resolve_named(flag: Option<&str>) -> Result<Self, String> {
+        let source = if flag.is_some() { "--domain" } else { DOMAIN_ENV };
+        Self::resolve(flag).map_err(|e| format!("{source}: {e}"))
+    }
+
     /// [`resolve`](Self::resolve) with the environment value passed in (for tests).
     pub fn resolve_with(flag: Option<&str>, env: Option<&str>) -> Result<Self, ProtocolError> {
         match (flag, env) {

@@ -121,7 +121,7 @@ impl Node {
     pub fn open(role: &'static str, args: &NodeArgs) -> Result<Option<Self>, ProcessError> {
         let NodeArgs { domain, link, quiet, supervised } = args;
         protocol::transport::quiet_logs();
-        let domain = Domain::resolve(domain.as_deref()).map_err(|e| ProcessError::Input(e.to_string()))?;
+        let domain = Domain::resolve_named(domain.as_deref()).map_err(ProcessError::Input)?;
         let opened = Link::open(link.transport, &services::node_name(&domain, role))?;
         // The first wait installs iceoryx2's SIGINT/SIGTERM handler, so a signal ends the loop cleanly.
         if opened.interrupted() {

@@ -6,6 +6,7 @@
 use crate::common;
 
 use common::{scratch, uavloc};
+use std::process::Command;
 
 /// Runs `args` and checks the refusal; `needle` must appear in the error line.
 fn refused(args: &[&str], needle: &str) {
@@ -152,5 +153,17 @@ fn malformed_flags_are_refused() {
     ];
     for (args, needle) in cases {
         refused(args, needle);
+    }
+}
+
+/// A bad `UAVLOC_DOMAIN` is named as such, not as a `--domain` the user never gave.
+#[test]
+fn a_bad_domain_from_the_environment_is_named_as_such() {
+    let _scenario = common::scenario(module_path!());
+    for args in [&["launch", "--headless", "--steps", "1"][..], &["process", "planner"], &["swap", "planner"]] {
+        let out = Command::new(common::UAVLOC).args(args).env("UAVLOC_DOMAIN", "bad/domain").output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("UAVLOC_DOMAIN") && !err.contains("--domain:"), "{args:?}: {err}");
     }
 }
