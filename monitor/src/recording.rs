@@ -263,7 +263,17 @@ impl Recorder {
         let fail = |e: &dyn std::fmt::Display| format!("--mcap {}: {e}", path.display());
         let earlier = if resume && path.exists() {
             let bytes = std::fs::read(path).map_err(|e| fail(&e))?;
-            read_messages_up_to_damage(&bytes)
+            let earlier = parse(&bytes, false).unwrap_or_default();
+            // Another run's messages would make one recording of two runs.
+            if let (Some(theirs), Some(ours)) = (earlier.metadata.get("scenario"), metadata.get("scenario"))
+                && theirs != ours
+            {
+                return Err(fail(
+                    &"the recording of another run (another scenario, steps or seed); give this run's \
+                                  recording, or start without --resume",
+                ));
+            }
+            earlier.messages
         } else {
             Vec::new()
         };
@@ -375,29 +385,29 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
     parse(&bytes, true).map_err(|(offset, what)| RecordingError { path: name, offset, what })
 }
 
-/// The messages of a recording up to its first damage (what a monitor killed mid-run left).
-fn read_messages_up_to_damage(bytes: &[u8]) -> Vec<RecordedMessage> {
-    match parse(bytes, false) {
-        Ok(r) => r.messages,
-        Err(_) => Vec::new(),
-    }
-}
-
-/// Walks the records; `strict`: the file must end with a footer and the magic.
+/// Walks the records; `strict`: the file must end with a footer and the magic, else (a recording a killed
+/// monitor left) the records before the first damage — a cut, a torn or corrupt record — are the result.
 fn parse(bytes: &[u8], strict: bool) -> Result<Recording, (u64, String)> {
     if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
         return Err((0, "not an MCAP file (no MCAP magic at the start)".into()));
     }
     let mut out = Recording::default();
+    match walk(bytes, &mut out) {
+        Ok(()) => Ok(out),
+        Err(_) if !strict => Ok(out),
+        Err(e) => Err(e),
+    }
+}
+
+/// Reads the records after the magic into `out`, up to the footer; an error at the first damage (what
+/// was read before it stays in `out`).
+fn walk(bytes: &[u8], out: &mut Recording) -> Result<(), (u64, String)> {
     let mut topics: BTreeMap<u16, String> = BTreeMap::new();
     let mut at = MAGIC.len();
     loop {
         let offset = at as u64;
         if at == bytes.len() {
-            if strict {
-                return Err((offset, "the file ends without a footer (cut short?)".into()));
-            }
-            return Ok(out);
+            return Err((offset, "the file ends without a footer (cut short?)".into()));
         }
         if bytes.len() - at < 9 {
             return Err((offset, "a record header cut short (the file ends inside it)".into()));
@@ -443,7 +453,7 @@ fn parse(bytes: &[u8], strict: bool) -> Result<Recording, (u64, String)> {
             if bytes.get(at..) != Some(MAGIC) {
                 return Err((at as u64, "no MCAP magic after the footer".into()));
             }
-            return Ok(out);
+            return Ok(());
         }
     }
 }
@@ -529,6 +539,30 @@ mod tests {
         let steps: Vec<u64> =
             read_recording(&path).unwrap().messages.iter().map(|m| m.json["step"].as_u64().unwrap()).collect();
         assert_eq!(steps, [0, 1, 2, 3]);
+        // Killed in the middle of writing a record (its buffer flushed in part): the records before the
+        // tear are kept, the torn one is not (before, nothing of the earlier recording was kept).
+        let mut r = Recorder::create(&path, BTreeMap::new(), false).unwrap();
+        for k in 0..3 {
+            r.record(&measurement(k), k);
+        }
+        r.flush();
+        std::mem::forget(r);
+        let whole = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &whole[..whole.len() - 30]).unwrap();
+        let mut r = Recorder::create(&path, BTreeMap::new(), true).unwrap();
+        r.record(&measurement(2), 2);
+        r.finish().unwrap();
+        let steps: Vec<u64> =
+            read_recording(&path).unwrap().messages.iter().map(|m| m.json["step"].as_u64().unwrap()).collect();
+        assert_eq!(steps, [0, 1, 2]);
+        // A resume into the recording of another run (other metadata) is refused, the file left as it was.
+        let run = |seed: &str| BTreeMap::from([("scenario".to_string(), format!("{{\"seed\":{seed}}}"))]);
+        Recorder::create(&path, run("1"), false).unwrap().finish().unwrap();
+        let before = std::fs::read(&path).unwrap();
+        let e = Recorder::create(&path, run("2"), true).map(|_| ()).unwrap_err();
+        assert!(e.contains("another run") && e.contains("run.mcap"), "{e}");
+        assert_eq!(std::fs::read(&path).unwrap(), before);
+        Recorder::create(&path, run("1"), true).unwrap().finish().unwrap();
         std::fs::remove_dir_all(path.parent().unwrap()).ok();
     }
 }
