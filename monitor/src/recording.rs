@@ -284,10 +284,10 @@ impl Recorder {
             .emit_message_indexes(false)
             .profile("")
             .library(concat!("uavloc ", env!("CARGO_PKG_VERSION")));
-        let mut writer = options.create(BufWriter::new(file)).map_err(|e| fail(&e))?;
+        let mut writer = options.create(BufWriter::new(file)).map_err(|e| fail(&with_causes(&e)))?;
         writer
             .write_metadata(&mcap::records::Metadata { name: METADATA_NAME.into(), metadata })
-            .map_err(|e| fail(&e))?;
+            .map_err(|e| fail(&with_causes(&e)))?;
         let mut r = Recorder { path: path.to_path_buf(), writer, channels: BTreeMap::new(), sequence: 0, error: None };
         for m in earlier {
             r.write_json(&m.topic, m.log_time, &m.json);
@@ -330,8 +330,14 @@ impl Recorder {
             )
         });
         if let Err(e) = result {
-            self.error = Some(format!("--mcap {}: {e}", self.path.display()));
+            self.error = Some(self.failed(&e));
         }
+    }
+
+    /// A write error naming the file, with its cause (the mcap crate's own message hides the I/O error's:
+    /// "No space left on device" and the like).
+    fn failed(&self, e: &dyn std::error::Error) -> String {
+        format!("--mcap {}: {}", self.path.display(), with_causes(e))
     }
 
     /// Pushes what was recorded to the file (a kill after this loses none of it).
@@ -339,7 +345,7 @@ impl Recorder {
         if self.error.is_none()
             && let Err(e) = self.writer.flush()
         {
-            self.error = Some(format!("--mcap {}: {e}", self.path.display()));
+            self.error = Some(self.failed(&e));
         }
     }
 
@@ -351,10 +357,24 @@ impl Recorder {
     /// Writes the summary and the footer and closes the file.
     pub fn finish(mut self) -> Result<(), String> {
         self.check()?;
-        self.writer.finish().map_err(|e| format!("--mcap {}: {e}", self.path.display()))?;
+        if let Err(e) = self.writer.finish() {
+            return Err(self.failed(&e));
+        }
+        let path = self.path.clone();
         let mut inner = self.writer.into_inner();
-        inner.flush().map_err(|e| format!("--mcap {}: {e}", self.path.display()))
+        inner.flush().map_err(|e| format!("--mcap {}: {e}", path.display()))
     }
+}
+
+/// An error with its causes, `outer: inner: …`.
+fn with_causes(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(cause) = source {
+        text.push_str(&format!(": {cause}"));
+        source = cause.source();
+    }
+    text
 }
 
 /// A damaged recording: where and what.

@@ -152,7 +152,9 @@ fn out_is_checked_before_the_run_and_a_late_failure_keeps_the_json() {
 #[test]
 fn a_full_disk_under_the_log_or_the_stamps_is_reported_naming_the_file() {
     let _scenario = common::scenario(module_path!());
-    for (flag, needle) in [("--log", "--log /dev/full"), ("--stamps", "--stamps /dev/full")] {
+    for (flag, needle) in
+        [("--log", "--log /dev/full"), ("--stamps", "--stamps /dev/full"), ("--record", "--mcap /dev/full")]
+    {
         let d = domain("full", &flag[2..]);
         let out = Command::new(UAVLOC)
             .args(["launch", "--headless", "--json", "--steps", "200", "--domain", &d, flag, "/dev/full"])
