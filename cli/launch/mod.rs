@@ -85,14 +85,12 @@ use supervisor::{STOP_GRACE, Supervisor, TICK};
 /// The domain of a launch: the flag, else `$UAVLOC_DOMAIN`, else `uavloc-<pid>` — or, for an external
 /// front end, which must know it beforehand, `uavloc` (every process's default).
 fn launch_domain(flag: Option<&str>, source: runtime::Source) -> Result<Domain, CliError> {
-    let env = std::env::var(DOMAIN_ENV).ok().filter(|v| !v.is_empty());
-    let fallback = match source {
-        runtime::Source::External => "uavloc".to_string(),
-        runtime::Source::Simulator => format!("uavloc-{}", std::process::id()),
-    };
-    let name = flag.map(str::to_string).or(env).unwrap_or(fallback);
-    let source = if flag.is_some() { "--domain" } else { DOMAIN_ENV };
-    Domain::new(&name).map_err(|e| CliError::Input(format!("{source}: {e}")))
+    let named = flag.is_some() || std::env::var(DOMAIN_ENV).is_ok_and(|v| !v.is_empty());
+    if source == runtime::Source::Simulator && !named {
+        return Domain::new(&format!("uavloc-{}", std::process::id())).map_err(|e| CliError::Failed(e.to_string()));
+    }
+    // As every process resolves it (an error names the flag or the variable).
+    Domain::resolve_named(flag).map_err(CliError::Input)
 }
 
 /// Runs `uavloc launch` as the command line asks: with the live view on a terminal, unless `--headless`

@@ -82,7 +82,7 @@ pub use crate::latency::{LatencyStat, LatencySummary};
 use crate::record::RunRecord;
 use crate::recording::{Recordable, Recorder};
 use crate::runlog::EventLog;
-pub use crate::runlog::{LoggedRun, RunStart, read_log};
+pub use crate::runlog::{LoggedRun, read_log};
 use crate::session::Session;
 pub use crate::stamps::STAMPS_HEADER;
 use crate::stamps::StampsCsv;
