@@ -344,6 +344,11 @@ mod tests {
         s.accept(msg, 5, add);
     }
 
+    /// A quiet session of a run of `steps` steps without a log file.
+    fn unlogged(steps: usize) -> Session {
+        Session::new(Assembler::new(scenario(steps)), EventLog::open(None, false).unwrap(), StateStore::new(), true)
+    }
+
     fn request(step: u64) -> Control {
         Control::new(ControlKind::State, step, 1, 42, 1, "estimator", "").unwrap()
     }
@@ -354,8 +359,7 @@ mod tests {
     /// is taken too (the monitor's second look, `MonitorNode::take_messages`).
     #[test]
     fn a_step_looks_lost_only_while_a_message_of_it_is_missing() {
-        let mut s =
-            Session::new(Assembler::new(scenario(8)), EventLog::open(None, false).unwrap(), StateStore::new(), true);
+        let mut s = unlogged(8);
         deliver(&mut s, stamped(truth(0)), Session::add_truth);
         for k in 1..=3 {
             deliver(&mut s, stamped(flown(k)), Session::add_truth);
@@ -385,8 +389,7 @@ mod tests {
     /// estimator waits for, of a step this monitor has not recorded, is a lost message of that step.
     #[test]
     fn a_state_wanted_of_a_step_not_recorded_means_its_messages_are_lost() {
-        let mut s =
-            Session::new(Assembler::new(scenario(8)), EventLog::open(None, false).unwrap(), StateStore::new(), true);
+        let mut s = unlogged(8);
         deliver(&mut s, stamped(truth(0)), Session::add_truth);
         for k in 0..=2 {
             deliver(&mut s, stamped(measurement(k)), Session::add_measurement);
