@@ -4,7 +4,7 @@
 use crate::common;
 
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use common::{UAVLOC, assert_nothing_left, assert_same_steps, domain, json_of};
 use serde_json::Value;
@@ -20,19 +20,15 @@ fn start(role: &str, d: &str, extra: &[&str]) -> Child {
         .unwrap()
 }
 
-/// Waits for `child` to exit (at most 30 s); its exit code, stdout and stderr.
-fn wait(child: Child) -> (Option<i32>, String, String) {
-    let deadline = Instant::now() + Duration::from_secs(30);
-    let pid = child.id();
-    let waiter = std::thread::spawn(move || child.wait_with_output().unwrap());
-    while !waiter.is_finished() {
-        if Instant::now() > deadline {
-            common::kill(pid, libc::SIGKILL);
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    let out = waiter.join().unwrap();
-    (out.status.code(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+/// Waits for `child` to exit (at most 30 s, [`common::wait_exit`]); its exit code, stdout and stderr (a
+/// few kB: the pipes hold them until then).
+fn wait(mut child: Child, what: &str) -> (Option<i32>, String, String) {
+    use std::io::Read as _;
+    let status = common::wait_exit(&mut child, Duration::from_secs(30), what);
+    let (mut out, mut err) = (String::new(), String::new());
+    child.stdout.take().unwrap().read_to_string(&mut out).unwrap();
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    (status.code(), out, err)
 }
 
 /// A planner given another `--seed` than the monitor already running (so another scenario: another run) is
@@ -45,20 +41,20 @@ fn a_process_of_another_scenario_is_told_to_leave_and_the_set_runs_on() {
     let d = domain("hand", "other-run");
     let monitor = start("monitor", &d, &["--steps", "12", "--print-record"]);
     std::thread::sleep(Duration::from_millis(300));
-    let (code, _, err) = wait(start("planner", &d, &["--steps", "12", "--seed", "2"]));
+    let (code, _, err) = wait(start("planner", &d, &["--steps", "12", "--seed", "2"]), "the planner of seed 2");
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains(&format!("domain {d} runs another scenario")) && err.contains("the monitor"), "{err}");
     let planner = start("planner", &d, &["--steps", "12"]);
     let estimator = start("estimator", &d, &[]);
-    let (code, _, err) = wait(start("emitter-sim", &d, &["--steps", "12", "--min-subscribers", "2"]));
+    let (code, _, err) = wait(start("emitter-sim", &d, &["--steps", "12", "--min-subscribers", "2"]), "emitter-sim");
     assert_eq!(code, Some(0), "emitter-sim: {err}");
-    let (code, record, err) = wait(monitor);
+    let (code, record, err) = wait(monitor, "the monitor");
     assert_eq!(code, Some(0), "monitor: {err}");
     let record: Value = serde_json::from_str(&record).unwrap();
     assert_same_steps(&json_of(&["simulate", "--json", "--steps", "12"]), &record, "a set of one scenario");
     for p in [planner, estimator] {
         common::kill(p.id(), libc::SIGTERM);
-        let (code, _, err) = wait(p);
+        let (code, _, err) = wait(p, "a process stopped");
         assert_eq!(code, Some(0), "{err}");
     }
     assert_nothing_left(&d);
