@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 
 use clap::{Args, ValueEnum};
-use protocol::transport::sweep::{self, HEADER, Receiver, STOP, Sender};
+use protocol::transport::sweep::{self, HEADER, Receiver, STOP, Sender, Waiting};
 use serde::Serialize;
 
 use super::histogram::LatencyHistogram;
@@ -25,13 +25,19 @@ the receiver's), for each payload size of --sizes.
 Per transport × size: the one-way latency (the sender stamps the payload once it is written, right
 before handing it over; the receiver stamps it when it has it; both on CLOCK_MONOTONIC) p50/p99/max over
 --messages payloads after a warm-up of 50, and the CPU time per message of both processes together. The
-receiver answers each payload with a 32-byte acknowledgement before the next is sent (one in flight),
-and both ends block while they wait (no spinning). The ratios are uds / iceoryx2.";
+receiver answers each payload with a 32-byte acknowledgement before the next is sent (one in flight).
+The ratios are uds / iceoryx2.
+
+--wait block (the default): both ends block while they wait, so every message pays a kernel wake-up
+(iceoryx2's notification, the socket's read). --wait spin: both ends busy-poll, yielding the CPU between
+polls (the pipeline's --wait spin), so what is timed is the transports' own cost: iceoryx2 a look into
+shared memory, the socket a read system call on a non-blocking socket.";
 
 pub const AFTER_HELP: &str = "\
 Examples:
   uavloc bench ipc
   uavloc bench ipc --sizes 256,1048576 --messages 500 --json
+  uavloc bench ipc --wait spin --sizes 256,4096        (no kernel wake-up: the transports' own cost)
   uavloc bench ipc --cores 2,3 --out runs/ipc        (table, JSON and ipc.svg/.png)";
 
 /// Payload sizes of the default sweep, bytes.
@@ -62,6 +68,33 @@ impl Carrier {
     }
 }
 
+/// How both ends of the sweep wait (`--wait`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IpcWait {
+    /// Block in the kernel until woken.
+    #[default]
+    Block,
+    /// Busy-poll, yielding the CPU between polls.
+    Spin,
+}
+
+impl IpcWait {
+    fn name(self) -> &'static str {
+        match self {
+            IpcWait::Block => "block",
+            IpcWait::Spin => "spin",
+        }
+    }
+
+    fn waiting(self) -> Waiting {
+        match self {
+            IpcWait::Block => Waiting::Block,
+            IpcWait::Spin => Waiting::Spin,
+        }
+    }
+}
+
 /// Flags of `uavloc bench ipc`.
 #[derive(Args, Debug, Clone, PartialEq)]
 pub struct IpcArgs {
@@ -75,6 +108,9 @@ pub struct IpcArgs {
     /// this process may run on).
     #[arg(long, value_name = "A,B")]
     pub cores: Option<String>,
+    /// How both ends wait: block (a kernel wake-up per message) or spin (busy-poll; no wake-up).
+    #[arg(long, value_enum, default_value_t = IpcWait::Block)]
+    pub wait: IpcWait,
     /// Write ipc.svg and ipc.png (p50 and p99 against the payload size) and ipc.json into DIR.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
@@ -95,6 +131,9 @@ pub struct EchoArgs {
     /// The core to run on.
     #[arg(long)]
     pub core: usize,
+    /// How it waits for payloads.
+    #[arg(long, value_enum, default_value_t = IpcWait::Block)]
+    pub wait: IpcWait,
 }
 
 /// One transport × size.
@@ -134,6 +173,8 @@ pub struct IpcRatio {
 pub struct IpcReport {
     /// The two cores (sender, echo).
     pub cores: [usize; 2],
+    /// How both ends waited: `block` or `spin`.
+    pub wait: IpcWait,
     /// Payloads timed per row.
     pub messages: u64,
     /// One row per transport × size.
@@ -178,11 +219,11 @@ impl Drop for Echo {
     }
 }
 
-fn spawn_echo(carrier: Carrier, name: &str, max_size: usize, core: usize) -> Result<Echo, CliError> {
+fn spawn_echo(carrier: Carrier, name: &str, max_size: usize, core: usize, wait: IpcWait) -> Result<Echo, CliError> {
     let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("finding this program: {e}")))?;
     let child = Command::new(exe)
         .args(["process", "ipc-echo", "--carrier", carrier.name(), "--name", name])
-        .args(["--max-size", &max_size.to_string(), "--core", &core.to_string()])
+        .args(["--max-size", &max_size.to_string(), "--core", &core.to_string(), "--wait", wait.name()])
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .spawn()
@@ -199,8 +240,8 @@ fn sweep_one(carrier: Carrier, args: &IpcArgs, cores: [usize; 2]) -> Result<Vec<
     let (mut sender, echo, _node): (Box<dyn Sender>, Echo, Option<protocol::transport::IpcNode>) = match carrier {
         Carrier::Iceoryx2 => {
             let node = protocol::transport::node(&format!("{tag}/sender")).map_err(failed)?;
-            let sender = sweep::IoxSender::create(&node, &tag, max_size).map_err(failed)?;
-            let echo = spawn_echo(carrier, &tag, max_size, cores[1])?;
+            let sender = sweep::IoxSender::create(&node, &tag, max_size, args.wait.waiting()).map_err(failed)?;
+            let echo = spawn_echo(carrier, &tag, max_size, cores[1], args.wait)?;
             (Box::new(sender), echo, Some(node))
         }
         Carrier::Uds => {
@@ -209,8 +250,9 @@ fn sweep_one(carrier: Carrier, args: &IpcArgs, cores: [usize; 2]) -> Result<Vec<
             let _ = std::fs::remove_file(&path);
             let listener = std::os::unix::net::UnixListener::bind(&path)
                 .map_err(|e| CliError::Failed(format!("{}: {e}", path.display())))?;
-            let echo = spawn_echo(carrier, path.to_str().unwrap_or_default(), max_size, cores[1])?;
-            let sender = sweep::SocketSender::accept(&listener, &path, max_size).map_err(failed)?;
+            let echo = spawn_echo(carrier, path.to_str().unwrap_or_default(), max_size, cores[1], args.wait)?;
+            let sender =
+                sweep::SocketSender::accept(&listener, &path, max_size, args.wait.waiting()).map_err(failed)?;
             (Box::new(sender), echo, None)
         }
     };
@@ -281,7 +323,7 @@ pub fn run(args: &IpcArgs) -> Result<IpcReport, CliError> {
             })
         })
         .collect();
-    let mut report = IpcReport { cores, messages: args.messages, rows, ratios, written: Vec::new() };
+    let mut report = IpcReport { cores, wait: args.wait, messages: args.messages, rows, ratios, written: Vec::new() };
     if let Some(dir) = &args.out {
         report.written = write_out(&report, dir)?;
     }
@@ -320,13 +362,14 @@ pub fn run_echo(args: &EchoArgs) -> std::process::ExitCode {
         let mut receiver: Box<dyn Receiver> = match args.carrier {
             Carrier::Iceoryx2 => {
                 let node = protocol::transport::node(&format!("{}/echo", args.name)).map_err(|e| e.to_string())?;
-                let r = sweep::IoxReceiver::create(&node, &args.name).map_err(|e| e.to_string())?;
+                let r =
+                    sweep::IoxReceiver::create(&node, &args.name, args.wait.waiting()).map_err(|e| e.to_string())?;
                 // The node lives as long as the process.
                 std::mem::forget(node);
                 Box::new(r)
             }
             Carrier::Uds => Box::new(
-                sweep::SocketReceiver::connect(std::path::Path::new(&args.name), args.max_size)
+                sweep::SocketReceiver::connect(std::path::Path::new(&args.name), args.max_size, args.wait.waiting())
                     .map_err(|e| e.to_string())?,
             ),
         };
@@ -353,6 +396,7 @@ fn size_label(bytes: usize) -> String {
 impl Report for IpcReport {
     fn table(&self) -> Table {
         let mut t = Table::new().row("cores", format!("sender {}, echo {}", self.cores[0], self.cores[1]));
+        t = t.row("wait", self.wait.name());
         t = t.row("messages per row", self.messages.to_string());
         for r in &self.rows {
             t = t.row(

@@ -42,9 +42,35 @@ fn a_small_sweep_reports_every_transport_and_size() {
     for f in ["ipc.svg", "ipc.png", "ipc.json"] {
         assert!(std::fs::metadata(dir.join(f)).is_ok_and(|m| m.len() > 0), "{f} missing");
     }
+    assert_eq!(report["wait"], "block");
     // The echo processes and their services are gone (every sweep's names start with `uavloc-ipc-`).
     common::assert_nothing_left("uavloc-ipc-");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_busy_polling_sweep_times_every_transport_and_size_too() {
+    // --wait spin: both ends poll (the socket non-blocking); a payload larger than a socket's buffer is
+    // written and read in parts.
+    let _scenario = common::scenario(module_path!());
+    let out = Command::new(UAVLOC)
+        .args(["bench", "ipc", "--wait", "spin", "--messages", "40", "--sizes", "256,1048576", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["wait"], "spin");
+    let rows = report["rows"].as_array().unwrap();
+    let got: Vec<(&str, u64, u64)> = rows
+        .iter()
+        .map(|r| (r["transport"].as_str().unwrap(), r["size_bytes"].as_u64().unwrap(), r["n"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(got, vec![("iceoryx2", 256, 40), ("iceoryx2", 1048576, 40), ("uds", 256, 40), ("uds", 1048576, 40)]);
+    for r in rows {
+        let (p50, p99, max) = (num(r, "p50_us"), num(r, "p99_us"), num(r, "max_us"));
+        assert!(p50 > 0.0 && p50 <= p99 * 1.001 && p99 <= max * 1.001, "{r}");
+    }
+    common::assert_nothing_left("uavloc-ipc-");
 }
 
 #[test]
@@ -56,6 +82,7 @@ fn bad_sweeps_are_one_line_errors_with_exit_2() {
         &["bench", "ipc", "--messages", "0"],
         &["bench", "ipc", "--cores", "0"],
         &["bench", "ipc", "--sizes", "lots"],
+        &["bench", "ipc", "--wait", "spin-then-block"],
     ] {
         let out = Command::new(UAVLOC).args(args).output().unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);

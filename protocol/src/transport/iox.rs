@@ -1,6 +1,8 @@
 //! The iceoryx2 transport: a topic is a publish/subscribe service (zero-copy shared memory) plus a
 //! companion event service of the same name whose notifications wake the subscribers up.
 
+use core::cell::RefCell;
+use core::mem::MaybeUninit;
 use core::time::Duration;
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
@@ -8,6 +10,7 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use iceoryx2::sample_mut_uninit::SampleMutUninit;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
 
 use super::{
@@ -57,7 +60,15 @@ fn open<T: Message>(node: &IpcNode, name: &str) -> Result<Services<T>, Transport
 }
 
 /// A publisher and the notifier that wakes its subscribers.
+///
+/// It keeps the sample of its next message loaned ([`spare`](Self::spare)): loaning takes back the samples
+/// the subscribers have released (one look into every connection's return queue, lines the subscribers
+/// wrote last) and allocates a chunk, ≈ 0.3–0.5 µs of the hop on this kind of VM. Done right after a send,
+/// it runs while the receivers work, so the next message is only written and delivered.
 pub struct IoxPublisher<T: Message> {
+    /// The sample the next message is written into (`None` until the first send, or when a loan failed:
+    /// the send then loans and reports the error). Declared first: dropped before the publisher.
+    spare: RefCell<Option<SampleMutUninit<ipc::Service, MaybeUninit<T>, ()>>>,
     name: String,
     pubsub: publish_subscribe::PortFactory<ipc::Service, T, ()>,
     publisher: Publisher<ipc::Service, T, ()>,
@@ -77,18 +88,29 @@ impl<T: Message> IoxPublisher<T> {
         let publisher =
             services.pubsub.publisher_builder().create().map_err(|e| failed("creating publisher", name, e))?;
         let notifier = services.event.notifier_builder().create().map_err(|e| failed("creating notifier", name, e))?;
-        Ok(IoxPublisher { name: name.to_owned(), pubsub: services.pubsub, publisher, notifier })
+        Ok(IoxPublisher {
+            spare: RefCell::new(None),
+            name: name.to_owned(),
+            pubsub: services.pubsub,
+            publisher,
+            notifier,
+        })
     }
 }
 
 impl<T: Message> PublishPort<T> for IoxPublisher<T> {
     fn deliver(&self, msg: &T) -> Result<usize, TransportError> {
-        let sample = self.publisher.loan_uninit().map_err(|e| failed("loaning sample", &self.name, e))?;
-        let sample = sample.write_payload(*msg);
-        let subscribers = sample.send().map_err(|e| failed("sending sample", &self.name, e))?;
+        let spare = self.spare.borrow_mut().take();
+        let sample = match spare {
+            Some(sample) => sample,
+            None => self.publisher.loan_uninit().map_err(|e| failed("loaning sample", &self.name, e))?,
+        };
+        let subscribers = sample.write_payload(*msg).send().map_err(|e| failed("sending sample", &self.name, e))?;
         self.notifier
             .notify_with_custom_event_id(EventId::new(event_id::SAMPLE))
             .map_err(|e| failed("notifying", &self.name, e))?;
+        // The next message's sample, off the hot path (a failure shows at the next send's own loan).
+        *self.spare.borrow_mut() = self.publisher.loan_uninit().ok();
         Ok(subscribers)
     }
 

@@ -6,8 +6,11 @@
 //! A payload starts with a 16-byte header: the sequence number and the send time (CLOCK_MONOTONIC, ns)
 //! taken once the payload is written, right before it is handed to the transport; the rest is filled by
 //! the sender. The receiver answers each payload with an [`Ack`]: the sequence number, the send time, its
-//! receive time and the CPU time it has used so far. Both ends block (the iceoryx2 ends on a listener,
-//! the socket ends in `read`), one payload in flight at a time.
+//! receive time and the CPU time it has used so far. One payload in flight at a time. The ends either
+//! block ([`Waiting::Block`]: the iceoryx2 ends on a listener, the socket ends in `read`) or busy-poll
+//! ([`Waiting::Spin`]: the iceoryx2 ends look into the subscriber's queue, the socket ends `read` a
+//! non-blocking socket, yielding the CPU between looks) — the transports' own cost, without a kernel
+//! wake-up.
 
 use std::io::{Read as _, Write as _};
 use std::os::unix::net::{UnixListener, UnixStream};
@@ -31,6 +34,36 @@ pub const STOP: u64 = u64::MAX;
 
 /// How long an end waits for the other before it gives up.
 pub const PATIENCE: Duration = Duration::from_secs(10);
+
+/// How both ends of a sweep wait for the other's next message.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Waiting {
+    /// Block in the kernel until woken (a notification, or data on the socket).
+    #[default]
+    Block,
+    /// Busy-poll, yielding the CPU between polls (the pipeline's `--wait spin`); the iceoryx2 sender
+    /// still notifies, as the pipeline's does (a bit set in shared memory once the last wake-up is
+    /// unconsumed).
+    Spin,
+}
+
+/// Polls `ready` until it returns `Some`, yielding the CPU between polls; a timeout after [`PATIENCE`].
+fn spin<T>(
+    what: &'static str,
+    name: &str,
+    mut ready: impl FnMut() -> Result<Option<T>, TransportError>,
+) -> Result<T, TransportError> {
+    let deadline = std::time::Instant::now() + PATIENCE;
+    loop {
+        if let Some(v) = ready()? {
+            return Ok(v);
+        }
+        if std::time::Instant::now() >= deadline {
+            return Err(timeout(what, name));
+        }
+        std::thread::yield_now();
+    }
+}
 
 /// The receiver's answer to one payload.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -132,11 +165,12 @@ fn event_pair(
 pub struct IoxSender {
     name: String,
     ports: IoxServices,
+    waiting: Waiting,
 }
 
 impl IoxSender {
-    /// Creates the sending end of sweep `name`.
-    pub fn create(node: &IpcNode, name: &str, max_size: usize) -> Result<Self, TransportError> {
+    /// Creates the sending end of sweep `name`, waiting for acknowledgements as `waiting` says.
+    pub fn create(node: &IpcNode, name: &str, max_size: usize, waiting: Waiting) -> Result<Self, TransportError> {
         let (data_name, ack_name) = (crate::services::sweep_data(name), crate::services::sweep_ack(name));
         let data = sweep_service::<[u8]>(node, &data_name)?
             .open_or_create()
@@ -153,7 +187,7 @@ impl IoxSender {
             .create()
             .map_err(|e| failed("creating subscriber", &ack_name, e))?;
         let (notifier, listener) = event_pair(node, &data_name, &ack_name)?;
-        Ok(IoxSender { name: name.to_owned(), ports: IoxServices { data, notifier, acks, listener } })
+        Ok(IoxSender { name: name.to_owned(), ports: IoxServices { data, notifier, acks, listener }, waiting })
     }
 }
 
@@ -180,13 +214,14 @@ impl Sender for IoxSender {
     }
 
     fn ack(&mut self) -> Result<Ack, TransportError> {
-        let p = &self.ports;
-        let deadline = std::time::Instant::now() + PATIENCE;
-        loop {
-            if let Some(s) = p.acks.receive().map_err(|e| failed("receiving an ack", &self.name, e))? {
-                return Ok(Ack::from_words(*s.payload()));
-            }
-            wait_until(&p.listener, deadline, "waiting for an ack", &self.name)?;
+        let (p, name) = (&self.ports, &self.name);
+        let receive = || {
+            let sample = p.acks.receive().map_err(|e| failed("receiving an ack", name, e))?;
+            Ok(sample.map(|s| Ack::from_words(*s.payload())))
+        };
+        match self.waiting {
+            Waiting::Spin => spin("waiting for an ack", name, receive),
+            Waiting::Block => block(&p.listener, "waiting for an ack", name, receive),
         }
     }
 }
@@ -198,11 +233,13 @@ pub struct IoxReceiver {
     acks: Publisher<ipc::Service, [u64; 4], ()>,
     notifier: Notifier<ipc::Service>,
     listener: Listener<ipc::Service>,
+    waiting: Waiting,
 }
 
 impl IoxReceiver {
-    /// Creates the receiving end of sweep `name` and says it is there (an ack numbered [`STOP`]).
-    pub fn create(node: &IpcNode, name: &str) -> Result<Self, TransportError> {
+    /// Creates the receiving end of sweep `name` (waiting for payloads as `waiting` says) and says it is
+    /// there (an ack numbered [`STOP`]).
+    pub fn create(node: &IpcNode, name: &str, waiting: Waiting) -> Result<Self, TransportError> {
         let (data_name, ack_name) = (crate::services::sweep_data(name), crate::services::sweep_ack(name));
         let data = sweep_service::<[u8]>(node, &data_name)?
             .open_or_create()
@@ -218,7 +255,7 @@ impl IoxReceiver {
             .create()
             .map_err(|e| failed("creating publisher", &ack_name, e))?;
         let (notifier, listener) = event_pair(node, &ack_name, &data_name)?;
-        let r = IoxReceiver { name: name.to_owned(), data, acks, notifier, listener };
+        let r = IoxReceiver { name: name.to_owned(), data, acks, notifier, listener, waiting };
         r.answer(Ack { seq: STOP, sent_ns: 0, received_ns: now_ns(), cpu_ns: cpu_ns() })?;
         Ok(r)
     }
@@ -232,37 +269,47 @@ impl IoxReceiver {
 
 impl Receiver for IoxReceiver {
     fn echo(&mut self) -> Result<bool, TransportError> {
-        let deadline = std::time::Instant::now() + PATIENCE;
-        loop {
-            if let Some(sample) = self.data.receive().map_err(|e| failed("receiving", &self.name, e))? {
+        let (data, name) = (&self.data, &self.name);
+        let receive = || {
+            let sample = data.receive().map_err(|e| failed("receiving", name, e))?;
+            Ok(sample.map(|sample| {
                 let received_ns = now_ns();
                 let (seq, sent_ns) = header(sample.payload());
-                drop(sample);
-                if seq == STOP {
-                    return Ok(false);
-                }
-                self.answer(Ack { seq, sent_ns, received_ns, cpu_ns: cpu_ns() })?;
-                return Ok(true);
-            }
-            wait_until(&self.listener, deadline, "waiting for a payload", &self.name)?;
+                (seq, sent_ns, received_ns)
+            }))
+        };
+        let (seq, sent_ns, received_ns) = match self.waiting {
+            Waiting::Spin => spin("waiting for a payload", name, receive)?,
+            Waiting::Block => block(&self.listener, "waiting for a payload", name, receive)?,
+        };
+        if seq == STOP {
+            return Ok(false);
         }
+        self.answer(Ack { seq, sent_ns, received_ns, cpu_ns: cpu_ns() })?;
+        Ok(true)
     }
 }
 
-/// Waits on `listener` for a notification until `deadline`: a wait that returns early without one (a
-/// signal, a spurious wake-up) is no timeout — the caller looks for its sample and waits again — only
-/// reaching the deadline is.
-fn wait_until(
+/// Looks for a sample with `receive`, blocking on `listener` between looks, for at most [`PATIENCE`]: a wait
+/// that returns early without a sample (a signal, a spurious or stale wake-up) is no timeout, only reaching
+/// the deadline is.
+fn block<T>(
     listener: &iceoryx2::port::listener::Listener<ipc::Service>,
-    deadline: std::time::Instant,
     what: &'static str,
     name: &str,
-) -> Result<(), TransportError> {
-    let left = deadline.saturating_duration_since(std::time::Instant::now());
-    if left.is_zero() {
-        return Err(timeout(what, name));
+    mut receive: impl FnMut() -> Result<Option<T>, TransportError>,
+) -> Result<T, TransportError> {
+    let deadline = std::time::Instant::now() + PATIENCE;
+    loop {
+        if let Some(v) = receive()? {
+            return Ok(v);
+        }
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        if left.is_zero() {
+            return Err(timeout(what, name));
+        }
+        listener.timed_wait(|_| {}, left).map(|_| ()).map_err(|e| failed(what, name, e))?;
     }
-    listener.timed_wait(|_| {}, left).map(|_| ()).map_err(|e| failed(what, name, e))
 }
 
 /// Waits until a receiver has connected to `sender` (its readiness ack, numbered [`STOP`], came).
@@ -285,6 +332,51 @@ fn io<'a>(op: &'static str, path: &'a Path) -> impl Fn(std::io::Error) -> Transp
     move |e| TransportError::Failed { op, service: path.display().to_string(), detail: e.to_string() }
 }
 
+/// Reads exactly `buf.len()` bytes from a stream, blocking or (non-blocking socket) busy-polling for them;
+/// `Ok(false)` at the end of the stream before the first byte.
+fn read_full(stream: &mut UnixStream, buf: &mut [u8], op: &'static str, path: &Path) -> Result<bool, TransportError> {
+    let mut done = 0;
+    let deadline = std::time::Instant::now() + PATIENCE;
+    while done < buf.len() {
+        match stream.read(&mut buf[done..]) {
+            Ok(0) if done == 0 => return Ok(false),
+            Ok(0) => return Err(io(op, path)(std::io::ErrorKind::UnexpectedEof.into())),
+            Ok(n) => done += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock && std::time::Instant::now() < deadline => {
+                std::thread::yield_now();
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                return Err(timeout(op, &path.display().to_string()));
+            }
+            Err(e) => return Err(io(op, path)(e)),
+        }
+    }
+    Ok(true)
+}
+
+/// Writes all of `buf` to a stream, blocking or (non-blocking socket, a payload larger than its buffer)
+/// busy-polling until the other end has read enough.
+fn write_full(stream: &mut UnixStream, buf: &[u8], op: &'static str, path: &Path) -> Result<(), TransportError> {
+    let mut done = 0;
+    let deadline = std::time::Instant::now() + PATIENCE;
+    while done < buf.len() {
+        match stream.write(&buf[done..]) {
+            Ok(0) => return Err(io(op, path)(std::io::ErrorKind::WriteZero.into())),
+            Ok(n) => done += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock && std::time::Instant::now() < deadline => {
+                std::thread::yield_now();
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                return Err(timeout(op, &path.display().to_string()));
+            }
+            Err(e) => return Err(io(op, path)(e)),
+        }
+    }
+    Ok(())
+}
+
 /// The sending end over a Unix stream socket: a length (u64) then the payload; a 32-byte ack back.
 pub struct SocketSender {
     stream: UnixStream,
@@ -293,8 +385,14 @@ pub struct SocketSender {
 }
 
 impl SocketSender {
-    /// Listens at `path` (a fresh path in a private directory) for one receiver, at most [`PATIENCE`].
-    pub fn accept(listener: &UnixListener, path: &Path, max_size: usize) -> Result<Self, TransportError> {
+    /// Listens at `path` (a fresh path in a private directory) for one receiver, at most [`PATIENCE`];
+    /// waits for acknowledgements as `waiting` says.
+    pub fn accept(
+        listener: &UnixListener,
+        path: &Path,
+        max_size: usize,
+        waiting: Waiting,
+    ) -> Result<Self, TransportError> {
         listener.set_nonblocking(true).map_err(io("listening", path))?;
         let start = std::time::Instant::now();
         let stream = loop {
@@ -306,7 +404,7 @@ impl SocketSender {
                 Err(e) => return Err(io("accepting", path)(e)),
             }
         };
-        stream.set_nonblocking(false).map_err(io("accepting", path))?;
+        stream.set_nonblocking(waiting == Waiting::Spin).map_err(io("accepting", path))?;
         stream.set_read_timeout(Some(PATIENCE)).map_err(io("accepting", path))?;
         Ok(SocketSender { stream, buf: vec![0; max_size.max(HEADER)], path: path.to_path_buf() })
     }
@@ -316,13 +414,15 @@ impl Sender for SocketSender {
     fn send(&mut self, seq: u64, size: usize) -> Result<(), TransportError> {
         let payload = &mut self.buf[..size];
         fill(payload, seq);
-        self.stream.write_all(&(size as u64).to_le_bytes()).map_err(io("sending", &self.path))?;
-        self.stream.write_all(payload).map_err(io("sending", &self.path))
+        write_full(&mut self.stream, &(size as u64).to_le_bytes(), "sending", &self.path)?;
+        write_full(&mut self.stream, payload, "sending", &self.path)
     }
 
     fn ack(&mut self) -> Result<Ack, TransportError> {
         let mut raw = [0u8; 32];
-        self.stream.read_exact(&mut raw).map_err(io("receiving an ack", &self.path))?;
+        if !read_full(&mut self.stream, &mut raw, "receiving an ack", &self.path)? {
+            return Err(io("receiving an ack", &self.path)(std::io::ErrorKind::UnexpectedEof.into()));
+        }
         let word = |i: usize| u64::from_le_bytes(raw[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
         Ok(Ack::from_words([word(0), word(1), word(2), word(3)]))
     }
@@ -336,10 +436,12 @@ pub struct SocketReceiver {
 }
 
 impl SocketReceiver {
-    /// Connects to the sender listening at `path` and says it is there.
-    pub fn connect(path: &Path, max_size: usize) -> Result<Self, TransportError> {
+    /// Connects to the sender listening at `path` (waiting for payloads as `waiting` says) and says it is
+    /// there.
+    pub fn connect(path: &Path, max_size: usize, waiting: Waiting) -> Result<Self, TransportError> {
         let stream = UnixStream::connect(path).map_err(io("connecting", path))?;
         stream.set_read_timeout(Some(PATIENCE)).map_err(io("connecting", path))?;
+        stream.set_nonblocking(waiting == Waiting::Spin).map_err(io("connecting", path))?;
         let mut r = SocketReceiver { stream, buf: vec![0; max_size.max(HEADER)], path: path.to_path_buf() };
         r.answer(Ack { seq: STOP, sent_ns: 0, received_ns: now_ns(), cpu_ns: cpu_ns() })?;
         Ok(r)
@@ -350,17 +452,15 @@ impl SocketReceiver {
         for (i, w) in ack.to_words().iter().enumerate() {
             raw[i * 8..i * 8 + 8].copy_from_slice(&w.to_le_bytes());
         }
-        self.stream.write_all(&raw).map_err(io("sending an ack", &self.path))
+        write_full(&mut self.stream, &raw, "sending an ack", &self.path)
     }
 }
 
 impl Receiver for SocketReceiver {
     fn echo(&mut self) -> Result<bool, TransportError> {
         let mut len = [0u8; 8];
-        match self.stream.read_exact(&mut len) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(false),
-            Err(e) => return Err(io("receiving", &self.path)(e)),
+        if !read_full(&mut self.stream, &mut len, "receiving", &self.path)? {
+            return Ok(false);
         }
         let len = u64::from_le_bytes(len) as usize;
         if len < HEADER || len > self.buf.len() {
@@ -370,7 +470,9 @@ impl Receiver for SocketReceiver {
                 detail: format!("a payload of {len} bytes (expected {HEADER}..={})", self.buf.len()),
             });
         }
-        self.stream.read_exact(&mut self.buf[..len]).map_err(io("receiving", &self.path))?;
+        if !read_full(&mut self.stream, &mut self.buf[..len], "receiving", &self.path)? {
+            return Err(io("receiving", &self.path)(std::io::ErrorKind::UnexpectedEof.into()));
+        }
         let received_ns = now_ns();
         let (seq, sent_ns) = header(&self.buf[..len]);
         if seq == STOP {
@@ -400,23 +502,31 @@ mod tests {
 
     #[test]
     fn the_socket_ends_echo_each_payload_and_stop() {
-        let dir = std::env::temp_dir().join(format!("uavloc-sweep-test-{}", std::process::id()));
+        for waiting in [Waiting::Block, Waiting::Spin] {
+            socket_echo(waiting);
+        }
+    }
+
+    fn socket_echo(waiting: Waiting) {
+        let dir = std::env::temp_dir().join(format!("uavloc-sweep-test-{}-{waiting:?}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("s.sock");
         let listener = UnixListener::bind(&path).unwrap();
         let p = path.clone();
         let echo = std::thread::spawn(move || {
-            let mut r = SocketReceiver::connect(&p, 4096).unwrap();
+            let mut r = SocketReceiver::connect(&p, 1 << 20, waiting).unwrap();
             let mut n = 0;
             while r.echo().unwrap() {
                 n += 1;
             }
             n
         });
-        let mut s = SocketSender::accept(&listener, &path, 4096).unwrap();
+        let mut s = SocketSender::accept(&listener, &path, 1 << 20, waiting).unwrap();
         wait_ready(&mut s).unwrap();
-        for seq in 0..5 {
-            s.send(seq, 100 + seq as usize).unwrap();
+        // The last payload is larger than a socket's buffer: written and read in parts.
+        for (seq, size) in [100, 101, 4096, 65_536, 1 << 20].into_iter().enumerate() {
+            let seq = seq as u64;
+            s.send(seq, size).unwrap();
             let ack = s.ack().unwrap();
             assert_eq!(ack.seq, seq);
             assert!(ack.received_ns >= ack.sent_ns && ack.cpu_ns > 0);

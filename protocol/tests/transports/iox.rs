@@ -235,8 +235,39 @@ fn a_late_subscriber_gets_no_history() {
     assert_eq!(publisher.send(&measurement(1)).unwrap().subscribers, 0);
     let subscriber = Topic::<Measurement>::subscriber(&node, &name).unwrap();
     assert!(subscriber.receive_all().unwrap().is_empty());
+    // Sent from the sample loaned ahead while nobody subscribed: it still reaches the new subscriber.
     publisher.send(&measurement(2)).unwrap();
-    assert_eq!(subscriber.receive_all().unwrap().len(), 1);
+    let got = subscriber.receive_all().unwrap();
+    assert_eq!(got.iter().map(|m| m.header.seq).collect::<Vec<_>>(), [2]);
+}
+
+#[test]
+fn every_send_writes_its_own_message_into_the_sample_loaned_ahead() {
+    // The publisher loans the next sample right after a send: each message must still arrive whole and
+    // as sent, at every subscriber, also when the pool's chunks have all been used several times over
+    // (more sends than the subscribers' buffers hold) and one subscriber never reads.
+    let d = unique_domain();
+    let name = services::measurement(&d);
+    let node = iox_link("ahead").unwrap();
+    let readers: Vec<_> = (0..3).map(|_| Topic::<Measurement>::subscriber(&node, &name).unwrap()).collect();
+    let idle = Topic::<Measurement>::subscriber(&node, &name).unwrap();
+    let publisher = Topic::<Measurement>::publisher(&node, &name).unwrap();
+    for seq in 1..=4 * SUBSCRIBER_BUFFER as u64 {
+        let mut m = measurement(seq);
+        m.header.step = seq;
+        m.diffs[0] = seq as f64;
+        let sent = publisher.send(&m).unwrap();
+        assert_eq!(sent.subscribers, 4);
+        m.header.stamps.mark_published(Measurement::KIND, sent.published_ns);
+        for r in &readers {
+            let got = r.receive_all().unwrap();
+            assert_eq!(got.len(), 1, "message {seq}");
+            assert_eq!(bytes_of(&got[0]), bytes_of(&m), "message {seq}");
+        }
+    }
+    let kept: Vec<u64> = idle.receive_all().unwrap().iter().map(|m| m.header.seq).collect();
+    let total = 4 * SUBSCRIBER_BUFFER as u64;
+    assert_eq!(kept, (total - SUBSCRIBER_BUFFER as u64 + 1..=total).collect::<Vec<_>>());
 }
 
 #[test]
