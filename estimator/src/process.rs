@@ -22,7 +22,9 @@
 //! - When Chan fails the library keeps its previous estimate; on the wire that is a `failed` estimate
 //!   carrying that standing estimate (v3), which the planner plans from and the monitor records — the
 //!   numbers of `uavloc simulate`, with no fallback state in either.
-//! - Invalid measurements are counted (per rejection kind) and ignored.
+//! - Invalid measurements are counted (per rejection kind) and ignored. The estimator takes the run of the
+//!   first measurement that states one ([`protocol::Header::run`]; its estimates carry it on) and rejects
+//!   messages of another run from then on (`other_run`).
 //! - SIGINT/SIGTERM, or a [`ControlKind::Shutdown`] on the control topic, end the loop cleanly (exit 0).
 //!
 //! # Swapping estimators (`--takeover`, what `uavloc swap estimator` starts)
@@ -289,6 +291,9 @@ impl Handler for EstimatorNode<'_> {
         }
         let (batch, received_ns) = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
         for m in batch {
+            // The estimator has no scenario: it belongs to the run of its first measurement that states one
+            // (commands, state answers and measurements of another run are rejected from then on).
+            node.counter().adopt_run(m.header.run);
             if node.hands_over(m.header.step) {
                 return Ok(Flow::Stop);
             }

@@ -48,11 +48,12 @@ class Stamps(ctypes.Structure):
 
 
 class Header(ctypes.Structure):
-    """Common header: layout version, step, sequence number (strictly increasing per publisher), stamps."""
+    """Common header: layout version, run tag (0: not stated), step, sequence number (strictly increasing
+    per publisher), stamps."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
-        ("reserved", ctypes.c_uint32),
+        ("run", ctypes.c_uint32),
         ("step", ctypes.c_uint64),
         ("seq", ctypes.c_uint64),
         ("stamps", Stamps),

@@ -53,7 +53,7 @@ typedef struct uavloc_stamps {
 /* Common header of every message. */
 typedef struct uavloc_header {
     uint32_t version;  /* the type's layout version (UAVLOC_*_VERSION) */
-    uint32_t reserved; /* ignored */
+    uint32_t run;      /* the sender's run tag; 0 = not stated (what a front end sends; accepted by all) */
     uint64_t step;     /* planning step k */
     uint64_t seq;      /* strictly increasing per publisher */
     uavloc_stamps stamps;

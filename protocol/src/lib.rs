@@ -38,7 +38,7 @@ pub use control::{ControlChannel, instance_id};
 pub use messages::{
     Command, CommandOutcome, Control, ControlKind, EchoedState, Estimate, EstimateStatus, EstimatorState, Fix, Header,
     Latencies, Measurement, Message, MessageKind, Name16, PlanInfo, PosteriorExtra, Stamps, StateEcho, Truth, cpu_ns,
-    now_ns,
+    now_ns, run_tag,
 };
 pub use services::Domain;
 pub use transport::{

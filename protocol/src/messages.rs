@@ -215,8 +215,11 @@ pub struct Latencies {
 pub struct Header {
     /// Layout version of the message type (its `VERSION`).
     pub version: u32,
-    /// Explicit padding; 0 when sent, ignored when received.
-    pub reserved: u32,
+    /// The sender's run ([`run_tag`] of its scenario's fingerprint); 0: not stated (a process without a
+    /// scenario that did not carry one forward, a foreign front end). A receiver that knows its run rejects
+    /// a message of another one ([`Rejection::OtherRun`](crate::Rejection::OtherRun)); 0 is accepted by
+    /// everyone. (The field was explicit padding, sent as 0, before: old senders state no run.)
+    pub run: u32,
     /// Planning step (0-based).
     pub step: u64,
     /// Sequence number of this publisher's stream; strictly increasing.
@@ -228,7 +231,16 @@ pub struct Header {
 impl Header {
     /// A header with no stamps.
     pub fn new(version: u32, step: u64, seq: u64) -> Self {
-        Header { version, reserved: 0, step, seq, stamps: Stamps::default() }
+        Header { version, run: 0, step, seq, stamps: Stamps::default() }
+    }
+}
+
+/// The 32-bit tag of a run (its scenario's 64-bit fingerprint, `model::Scenario::run_id`) that a message
+/// header carries ([`Header::run`]): the two halves folded together, never 0 (0 states no run).
+pub fn run_tag(run: u64) -> u32 {
+    match (run ^ (run >> 32)) as u32 {
+        0 if run != 0 => 1,
+        tag => tag,
     }
 }
 
@@ -280,6 +292,8 @@ pub trait Message: AnyBitPattern + ZeroCopySend + fmt::Debug + Copy + Send + 'st
     /// (see [`Stamps::carried_from`]).
     fn carrying<U: Message>(mut self, upstream: &U, received_ns: u64) -> Self {
         self.header_mut().stamps = Stamps::carried_from(U::KIND, &upstream.header().stamps, received_ns);
+        // The run goes down the chain (the estimator knows none of its own).
+        self.header_mut().run = upstream.header().run;
         self
     }
 

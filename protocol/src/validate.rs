@@ -85,6 +85,15 @@ pub enum Rejection {
         /// Which name.
         field: &'static str,
     },
+    /// The message belongs to another run than the receiver's ([`Header::run`](crate::Header::run)): a
+    /// process of another scenario in the domain (it is told to leave on the control topic).
+    #[error("of another run (tag {got:#010x}, this run's {expected:#010x})")]
+    OtherRun {
+        /// The receiver's run tag.
+        expected: u32,
+        /// The message's.
+        got: u32,
+    },
     /// An enumerated field has an unknown value: a control message's kind (not one of [`ControlKind`]),
     /// a truth's `previous_command` (not one of [`CommandOutcome`](crate::CommandOutcome)).
     #[error("unknown {field} {kind}")]
@@ -98,7 +107,7 @@ pub enum Rejection {
 
 impl Rejection {
     /// All kind strings, in [`kind_index`](Self::kind_index) order.
-    pub const KINDS: [&'static str; 9] = [
+    pub const KINDS: [&'static str; 10] = [
         "bad_version",
         "bad_count",
         "not_finite",
@@ -108,6 +117,7 @@ impl Rejection {
         "stale",
         "bad_name",
         "unknown_kind",
+        "other_run",
     ];
 
     /// Stable snake_case name of the reason (for logs and counters).
@@ -127,6 +137,7 @@ impl Rejection {
             Rejection::Stale { .. } => 6,
             Rejection::BadName { .. } => 7,
             Rejection::UnknownKind { .. } => 8,
+            Rejection::OtherRun { .. } => 9,
         }
     }
 }
@@ -336,6 +347,8 @@ impl Control {
 pub struct RejectionCounter {
     rejected: [[u64; Rejection::KINDS.len()]; MessageKind::ALL.len()],
     accepted: [u64; MessageKind::ALL.len()],
+    /// The receiver's run tag ([`crate::run_tag`]); 0: none known yet (every run accepted).
+    run: u32,
 }
 
 impl RejectionCounter {
@@ -344,10 +357,37 @@ impl RejectionCounter {
         Self::default()
     }
 
-    /// Validates `msg` against the stream's last accepted sequence number, counts the outcome and, on
-    /// acceptance, advances `last_seq`.
+    /// Sets the receiver's run tag ([`crate::run_tag`] of its scenario's fingerprint): data messages of
+    /// another run are rejected from now on ([`Rejection::OtherRun`]).
+    pub fn set_run(&mut self, tag: u32) {
+        self.run = tag;
+    }
+
+    /// Takes `tag` as the receiver's run if it knows none yet (a process without a scenario, the
+    /// estimator, belongs to the run of the first measurement it accepts).
+    pub fn adopt_run(&mut self, tag: u32) {
+        if self.run == 0 {
+            self.run = tag;
+        }
+    }
+
+    /// The receiver's run tag (0: none).
+    pub fn run(&self) -> u32 {
+        self.run
+    }
+
+    /// Validates `msg` against the receiver's run and the stream's last accepted sequence number, counts
+    /// the outcome and, on acceptance, advances `last_seq`. A message of another run (both runs stated and
+    /// different) is rejected before its sequence number is looked at, so it moves nothing; control
+    /// messages are exempt (they state their run themselves: that is how another run is told to leave).
     pub fn check<T: Message>(&mut self, msg: &T, last_seq: &mut Option<u64>) -> Result<(), Rejection> {
-        match msg.validate(*last_seq) {
+        let got = msg.header().run;
+        let verdict = if T::KIND != MessageKind::Control && self.run != 0 && got != 0 && got != self.run {
+            Err(Rejection::OtherRun { expected: self.run, got })
+        } else {
+            msg.validate(*last_seq)
+        };
+        match verdict {
             Ok(()) => {
                 *last_seq = Some(msg.header().seq);
                 self.record_accepted(T::KIND);
@@ -750,6 +790,44 @@ mod tests {
     }
 
     #[test]
+    fn a_receiver_that_knows_its_run_rejects_data_of_another_run_and_moves_nothing() {
+        let mut counter = RejectionCounter::new();
+        let of_run = |run: u32, seq: u64| with(truth(), |t| (t.header.run, t.header.seq) = (run, seq));
+        // No run known: any run is accepted.
+        let mut last = None;
+        assert_eq!(counter.check(&of_run(0xAB, 5), &mut last), Ok(()));
+        counter.set_run(0x1234);
+        // Another run (with a newer sequence number) is rejected before its number is looked at: the
+        // stream's last accepted number stays.
+        let r = counter.check(&of_run(0x9999, u64::MAX), &mut last).unwrap_err();
+        assert_eq!((r, r.kind()), (Rejection::OtherRun { expected: 0x1234, got: 0x9999 }, "other_run"));
+        assert_eq!(last, Some(5));
+        // This run, and no run stated (a foreign front end), are accepted.
+        assert_eq!(counter.check(&of_run(0x1234, 6), &mut last), Ok(()));
+        assert_eq!(counter.check(&of_run(0, 7), &mut last), Ok(()));
+        assert_eq!(last, Some(7));
+        assert_eq!(counter.count(MessageKind::Truth, "other_run"), 1);
+        // Control messages state their run themselves (how another run is told to leave): exempt.
+        let mut c = Control::new(ControlKind::Hello, 0, 1, 7, 1, "planner", "").unwrap();
+        c.header.run = 0x9999;
+        assert_eq!(counter.check(&c, &mut None), Ok(()));
+        // adopt_run takes a run only while none is known.
+        let mut fresh = RejectionCounter::new();
+        fresh.adopt_run(0);
+        fresh.adopt_run(0x77);
+        fresh.adopt_run(0x88);
+        assert_eq!(fresh.run(), 0x77);
+    }
+
+    #[test]
+    fn run_tags_are_never_zero_for_a_run() {
+        assert_eq!(crate::run_tag(0), 0);
+        assert_eq!(crate::run_tag(0xFFFF_FFFF_FFFF_FFFF), 1);
+        assert_eq!(crate::run_tag(0x0000_0001_0000_0001), 1);
+        assert_eq!(crate::run_tag(0x1234_5678_0000_0000), 0x1234_5678);
+    }
+
+    #[test]
     fn kinds_are_stable_and_distinct() {
         let all = [
             Rejection::BadVersion { expected: 1, got: 2 },
@@ -761,6 +839,7 @@ mod tests {
             Rejection::Stale { seq: 1, last: 2 },
             Rejection::BadName { field: "solver" },
             Rejection::UnknownKind { field: "control kind", kind: 7 },
+            Rejection::OtherRun { expected: 1, got: 2 },
         ];
         for (i, r) in all.iter().enumerate() {
             assert_eq!(r.kind_index(), i);

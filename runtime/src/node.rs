@@ -199,10 +199,17 @@ impl Node {
     }
 
     /// Sets the run this process belongs to: its scenario's fingerprint (`model::Scenario::run_id`), before
-    /// it joins. Every control message it sends carries it, and it refuses to run beside a process of
-    /// another run ([`ControlKind::Run`]).
-    pub fn set_run(&self, run: u64) {
+    /// it opens its topics and joins. Every message it sends carries it (a control message in full, a data
+    /// message as its header's [`protocol::run_tag`]); it refuses to run beside a process of another run
+    /// ([`ControlKind::Run`]), and rejects data messages of another run (`other_run`) — also those a
+    /// process of another run that joined while its role was absent sends before it is told to leave.
+    pub fn set_run(&mut self, run: u64) {
         self.control.set_run(run);
+        // The data messages carry the run too (the topics are opened after this) and those of another run
+        // are rejected.
+        let tag = protocol::run_tag(run);
+        self.link.set_run(tag);
+        self.counter.set_run(tag);
     }
 
     /// Publishes a control message of `kind` (e.g. a hello from `step`).

@@ -1,7 +1,9 @@
 //! A test publisher joins a running pipeline (a slow `uavloc launch`) on its domain and sends invalid
 //! messages on every topic: NaN fields, a UAV count of 200, a negative σ, a covariance that is not positive
-//! definite, an unknown version, and valid-looking messages with a stale sequence number. Every receiver of
-//! a topic counts and ignores each of them; the run completes with exactly `simulate`'s trajectory.
+//! definite, an unknown version, valid-looking messages with a stale sequence number, and valid messages
+//! of another run (another scenario's tag in the header, the newest sequence number there is). Every
+//! receiver of a topic counts and ignores each of them; the run completes with exactly `simulate`'s
+//! trajectory.
 
 use crate::common;
 
@@ -55,6 +57,15 @@ fn version<T: Message>(msg: T) -> T {
     with(msg, |m| m.header_mut().version = 99)
 }
 
+/// `msg` as a process of another run would send it: its run tag, and a sequence number above any a real
+/// process uses (accepted, it would make every later real message of its topic stale).
+fn other_run<T: Message>(msg: T) -> T {
+    with(msg, |m| {
+        m.header_mut().run = 0x0BAD_5EED;
+        m.header_mut().seq = u64::MAX - 1;
+    })
+}
+
 /// The bad messages of each topic, with the rejection kind each must be counted as.
 struct Batch {
     measurements: Vec<(Measurement, &'static str)>,
@@ -71,6 +82,7 @@ fn batch() -> Batch {
             (with(measurement(), |m| m.sigmas[2] = -28.0), "non_positive_sigma"),
             (measurement(), "stale"),
             (version(measurement()), "bad_version"),
+            (other_run(measurement()), "other_run"),
         ],
         estimates: vec![
             (with(estimate(), |e| e.position[0] = f64::NAN), "not_finite"),
@@ -78,17 +90,20 @@ fn batch() -> Batch {
             (with(estimate(), |e| e.covariance = [[-4.0e4, 0.0], [0.0, 9.0e4]]), "not_positive_definite"),
             (estimate(), "stale"),
             (version(estimate()), "bad_version"),
+            (other_run(estimate()), "other_run"),
         ],
         commands: vec![
             (with(command(), |c| c.headings[0] = f64::INFINITY), "not_finite"),
             (with(command(), |c| c.count = 200), "bad_count"),
             (command(), "stale"),
             (version(command()), "bad_version"),
+            (other_run(command()), "other_run"),
         ],
         truths: vec![
             (with(truth(), |t| t.position[1] = f64::NAN), "not_finite"),
             (truth(), "stale"),
             (version(truth()), "bad_version"),
+            (other_run(truth()), "other_run"),
         ],
     }
 }

@@ -44,7 +44,7 @@ fn layouts() -> Vec<Layout> {
                 command_published_ns,
             ]
         ),
-        layout!(Header, "uavloc_header", [version, reserved, step, seq, stamps]),
+        layout!(Header, "uavloc_header", [version, run, step, seq, stamps]),
         layout!(Name16, "uavloc_name16", [bytes]),
         layout!(Measurement, "uavloc_measurement", [header, count, reserved, uavs, diffs, sigmas, headings]),
         layout!(

@@ -333,18 +333,27 @@ pub fn cleanup_dead_nodes(node: &IpcNode) -> CleanupState {
 pub struct Link {
     node: IpcNode,
     kind: TransportKind,
+    /// The run tag the publishers opened from now on write into every message ([`Link::set_run`]).
+    run: std::cell::Cell<u32>,
 }
 
 impl Link {
     /// Creates the process's node `name` (see [`node`]) for topics over `kind`.
     pub fn open(kind: TransportKind, name: &str) -> Result<Self, TransportError> {
-        Ok(Link { node: node(name)?, kind })
+        Ok(Link { node: node(name)?, kind, run: std::cell::Cell::new(0) })
     }
 
     /// [`open`](Self::open) for a process that handles SIGINT/SIGTERM itself (see
     /// [`node_without_signal_handling`]).
     pub fn open_without_signal_handling(kind: TransportKind, name: &str) -> Result<Self, TransportError> {
-        Ok(Link { node: node_without_signal_handling(name)?, kind })
+        Ok(Link { node: node_without_signal_handling(name)?, kind, run: std::cell::Cell::new(0) })
+    }
+
+    /// Sets the run tag ([`crate::run_tag`]) that the publishers opened on this link from now on write into
+    /// the header of every message they send ([`Header::run`](crate::Header::run)); 0 (the default): they
+    /// leave the message's own (a process without a scenario forwards its input's).
+    pub fn set_run(&self, tag: u32) {
+        self.run.set(tag);
     }
 
     /// The iceoryx2 node.
@@ -434,7 +443,7 @@ pub struct Topic<T: Message>(PhantomData<T>);
 impl<T: Message> Topic<T> {
     /// Opens (or creates) the topic `name` on the link's transport and adds a publisher to it.
     pub fn publisher(link: &Link, name: &str) -> Result<TopicPublisher<T>, TransportError> {
-        Ok(TopicPublisher { name: name.to_owned(), port: T::publish_port(link, name)? })
+        Ok(TopicPublisher { name: name.to_owned(), port: T::publish_port(link, name)?, run: link.run.get() })
     }
 
     /// Opens (or creates) the topic `name` on the link's transport and adds a subscriber to it.
@@ -480,13 +489,15 @@ pub struct Sent {
 pub struct TopicPublisher<T: Message> {
     name: String,
     port: Box<dyn PublishPort<T>>,
+    /// The run tag written into every message sent (0: the message's own is kept).
+    run: u32,
 }
 
 impl<T: Message> TopicPublisher<T> {
-    /// Stamps `msg` with the publish time ([`Stamps::mark_published`](crate::Stamps::mark_published)),
-    /// delivers it to the subscribers and wakes them.
+    /// Stamps `msg` with the publish time ([`Stamps::mark_published`](crate::Stamps::mark_published)) and
+    /// the link's run (if it has one: [`Link::set_run`]), delivers it to the subscribers and wakes them.
     pub fn send(&self, msg: &T) -> Result<Sent, TransportError> {
-        let mut msg = *msg;
+        let mut msg = self.of_this_run(msg);
         let published_ns = now_ns();
         msg.header_mut().stamps.mark_published(T::KIND, published_ns);
         let subscribers = self.port.deliver(&msg)?;
@@ -498,10 +509,19 @@ impl<T: Message> TopicPublisher<T> {
     /// tells it from a first publication (`published_ns` 0), and no copy is timed as the step's.
     /// [`Sent::published_ns`] is 0.
     pub fn resend(&self, msg: &T) -> Result<Sent, TransportError> {
-        let mut msg = *msg;
+        let mut msg = self.of_this_run(msg);
         msg.header_mut().stamps.mark_published(T::KIND, 0);
         let subscribers = self.port.deliver(&msg)?;
         Ok(Sent { published_ns: 0, subscribers })
+    }
+
+    /// `msg` with this publisher's run in its header (unchanged when the publisher has none).
+    fn of_this_run(&self, msg: &T) -> T {
+        let mut msg = *msg;
+        if self.run != 0 {
+            msg.header_mut().run = self.run;
+        }
+        msg
     }
 
     /// The topic's service name.
