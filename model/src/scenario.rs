@@ -485,6 +485,7 @@ pub fn load_scenario(path: Option<&Path>, steps: Option<usize>, seed: Option<u64
         sc.seed = s;
     }
     sc.validate()?;
+    sc.check_path()?;
     sc.check_start()?;
     Ok(sc)
 }
@@ -494,6 +495,28 @@ pub fn load_scenario(path: Option<&Path>, steps: Option<usize>, seed: Option<u64
 pub const START_CRLB_FACTOR: f64 = 100.0;
 
 impl Scenario {
+    /// Whether the emitter stays within the plane model's extent (±[`MAX_EXTENT_M`]) to the last step: its
+    /// whole path is known (`emitter + k·dt·emitter_velocity`), and the extent is convex, so the end of the
+    /// path decides. Checked by [`load_scenario`] once `--steps` is applied (a file may be fine for fewer
+    /// steps than its own).
+    pub fn check_path(&self) -> Result<(), ScenarioError> {
+        let end = self.emitter_at(self.steps as u64);
+        if end.iter().all(|c| c.abs() <= MAX_EXTENT_M) {
+            return Ok(());
+        }
+        let speed = norm(self.emitter_velocity) * self.dt;
+        let first = (1..=self.steps as u64).find(|&k| self.emitter_at(k).iter().any(|c| c.abs() > MAX_EXTENT_M));
+        Err(invalid(
+            "emitter_velocity",
+            format!(
+                "the emitter ({speed:e} m per step) leaves the plane model's extent, ±{MAX_EXTENT_M:e} m, at step \
+                 {} of {}: slow it down or shorten the run",
+                first.unwrap_or(self.steps as u64),
+                self.steps
+            ),
+        ))
+    }
+
     /// Whether the run can localise the emitter from its start: Chan must solve the noise-free step 0
     /// (it refuses three collinear UAVs, for one), and the CRLB at the true emitter must be below
     /// [`START_CRLB_FACTOR`] = 100 times the UAVs' mean distance to it. The bound of n fused snapshots of
@@ -816,6 +839,17 @@ mod tests {
             let e = Scenario::from_toml_str(text).unwrap_err();
             assert_eq!(e.key(), Some(key), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn an_emitter_that_leaves_the_extent_before_the_last_step_is_refused_for_that_run_only() {
+        // 50 km/s × 10 s per step: within the per-step bound; out of ±1e7 m at step 20 (x = 25 km + 20 · 500 km).
+        let s = Scenario::from_toml_str("emitter_velocity = [50000.0, 0.0]").unwrap();
+        let e = s.check_path().unwrap_err();
+        assert_eq!(e.key(), Some("emitter_velocity"), "{e}");
+        assert!(e.to_string().contains("at step 20 of 24"), "{e}");
+        let short = Scenario { steps: 19, ..s };
+        assert!(short.check_path().is_ok());
     }
 
     #[test]

@@ -177,7 +177,8 @@ pub struct Sensors {
 }
 
 impl Sensors {
-    /// Validates 3..=8 finite, pairwise distinct UAV positions and a noise model of the same size.
+    /// Validates 3..=8 pairwise distinct UAV positions within ±[`MAX_EXTENT_M`] (finite) and a noise model of
+    /// the same size. (A world whose UAVs flew out of the extent fails here, at its next measurement.)
     pub fn new(uavs: &[[f64; 2]], noise: NoiseModel) -> Result<Self, TdoaError> {
         let n = uavs.len();
         if !(3..=MAX_UAVS).contains(&n) {
@@ -189,9 +190,15 @@ impl Sensors {
         let mut pos = [Vector2::zeros(); MAX_UAVS];
         for (i, p) in uavs.iter().enumerate() {
             // Format the message only on failure: this runs for every planner candidate.
-            if !(p[0].is_finite() && p[1].is_finite()) {
+            if !(p[0].abs() <= MAX_EXTENT_M && p[1].abs() <= MAX_EXTENT_M) {
                 check_finite(&format!("x of UAV {i}"), p[0])?;
                 check_finite(&format!("y of UAV {i}"), p[1])?;
+                return Err(TdoaError::OutOfRange {
+                    what: format!("a coordinate of UAV {i}"),
+                    value: p[0].abs().max(p[1].abs()),
+                    min: -MAX_EXTENT_M,
+                    max: MAX_EXTENT_M,
+                });
             }
             pos[i] = Vector2::new(p[0], p[1]);
         }

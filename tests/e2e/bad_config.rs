@@ -21,7 +21,7 @@ fn refused(args: &[&str], needle: &str) {
 }
 
 /// (scenario file content, what the error must name).
-const BAD_SCENARIOS: [(&str, &str); 40] = [
+const BAD_SCENARIOS: [(&str, &str); 41] = [
     ("speeed = 10.0", "speeed"),                                                // unknown key
     ("[pso]\nparticle = 40", "particle"),                                       // unknown key in a table
     ("speed = \"fast\"", "speed"),                                              // wrong type
@@ -62,6 +62,8 @@ const BAD_SCENARIOS: [(&str, &str); 40] = [
     ("speed = 1e300", "speed"),
     ("dt = 1e300", "speed × dt"),
     ("emitter_velocity = [1e300, 0.0]", "emitter_velocity"),
+    // Within the per-step bound but out of the extent at step 1: the run left the model's extent silently.
+    ("emitter_velocity = [999000.0, 0.0]", "emitter_velocity"),
     ("[gradient]\ntolerance = 1e300", "gradient.tolerance"),
     ("sigma = 1e-300", "sigma"),
 ];

@@ -144,7 +144,19 @@ fn degenerate_input_is_an_error_not_a_number() {
         Sensors::new(&[[0.0, 0.0], [0.0, 0.0], [0.0, 1000.0]], noise3.clone()),
         Err(TdoaError::CoincidentUavs { .. })
     ));
-    assert!(matches!(Sensors::new(&[[0.0, 0.0], [1.0, 0.0]], noise3), Err(TdoaError::UavCount { .. })));
+    assert!(matches!(Sensors::new(&[[0.0, 0.0], [1.0, 0.0]], noise3.clone()), Err(TdoaError::UavCount { .. })));
+    // A UAV beyond the plane model's extent (a world flown out of it) is out of range, a NaN not finite;
+    // the extent itself is taken.
+    let m = tdoa::MAX_EXTENT_M;
+    assert!(matches!(
+        Sensors::new(&[[0.0, 0.0], [1000.0, 0.0], [0.0, -1.5 * m]], noise3.clone()),
+        Err(TdoaError::OutOfRange { .. })
+    ));
+    assert!(matches!(
+        Sensors::new(&[[0.0, 0.0], [1000.0, f64::NAN], [0.0, 1000.0]], noise3.clone()),
+        Err(TdoaError::NotFinite { .. })
+    ));
+    assert!(Sensors::new(&[[-m, 0.0], [m, 0.0], [0.0, m]], noise3).is_ok());
     assert!(matches!(NoiseModel::uniform(9, 1.0), Err(TdoaError::UavCount { .. })));
     assert!(matches!(NoiseModel::uniform(3, 0.0), Err(TdoaError::NonPositive { .. })));
     assert!(matches!(NoiseModel::uniform(3, f64::NAN), Err(TdoaError::NotFinite { .. })));
