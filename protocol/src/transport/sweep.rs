@@ -332,15 +332,20 @@ fn io<'a>(op: &'static str, path: &'a Path) -> impl Fn(std::io::Error) -> Transp
     move |e| TransportError::Failed { op, service: path.display().to_string(), detail: e.to_string() }
 }
 
-/// Reads exactly `buf.len()` bytes from a stream, blocking or (non-blocking socket) busy-polling for them;
-/// `Ok(false)` at the end of the stream before the first byte.
-fn read_full(stream: &mut UnixStream, buf: &mut [u8], op: &'static str, path: &Path) -> Result<bool, TransportError> {
+/// Moves `len` bytes with `step` (one read or write from offset `done`, returning how many bytes it moved),
+/// again while the socket would block (a non-blocking socket: busy-polling, yielding the CPU) for at most
+/// [`PATIENCE`]; stops early when a step moves nothing (the end of the stream). How many bytes moved.
+fn transfer(
+    len: usize,
+    op: &'static str,
+    path: &Path,
+    mut step: impl FnMut(usize) -> std::io::Result<usize>,
+) -> Result<usize, TransportError> {
     let mut done = 0;
     let deadline = std::time::Instant::now() + PATIENCE;
-    while done < buf.len() {
-        match stream.read(&mut buf[done..]) {
-            Ok(0) if done == 0 => return Ok(false),
-            Ok(0) => return Err(io(op, path)(std::io::ErrorKind::UnexpectedEof.into())),
+    while done < len {
+        match step(done) {
+            Ok(0) => break,
             Ok(n) => done += n,
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
             Err(e) if e.kind() == std::io::ErrorKind::WouldBlock && std::time::Instant::now() < deadline => {
@@ -352,29 +357,28 @@ fn read_full(stream: &mut UnixStream, buf: &mut [u8], op: &'static str, path: &P
             Err(e) => return Err(io(op, path)(e)),
         }
     }
-    Ok(true)
+    Ok(done)
+}
+
+/// Reads exactly `buf.len()` bytes from a stream, blocking or (non-blocking socket) busy-polling for them;
+/// `Ok(false)` at the end of the stream before the first byte.
+fn read_full(stream: &mut UnixStream, buf: &mut [u8], op: &'static str, path: &Path) -> Result<bool, TransportError> {
+    let len = buf.len();
+    match transfer(len, op, path, |done| stream.read(&mut buf[done..]))? {
+        0 if len > 0 => Ok(false),
+        n if n == len => Ok(true),
+        _ => Err(io(op, path)(std::io::ErrorKind::UnexpectedEof.into())),
+    }
 }
 
 /// Writes all of `buf` to a stream, blocking or (non-blocking socket, a payload larger than its buffer)
 /// busy-polling until the other end has read enough.
 fn write_full(stream: &mut UnixStream, buf: &[u8], op: &'static str, path: &Path) -> Result<(), TransportError> {
-    let mut done = 0;
-    let deadline = std::time::Instant::now() + PATIENCE;
-    while done < buf.len() {
-        match stream.write(&buf[done..]) {
-            Ok(0) => return Err(io(op, path)(std::io::ErrorKind::WriteZero.into())),
-            Ok(n) => done += n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock && std::time::Instant::now() < deadline => {
-                std::thread::yield_now();
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                return Err(timeout(op, &path.display().to_string()));
-            }
-            Err(e) => return Err(io(op, path)(e)),
-        }
+    if transfer(buf.len(), op, path, |done| stream.write(&buf[done..]))? == buf.len() {
+        Ok(())
+    } else {
+        Err(io(op, path)(std::io::ErrorKind::WriteZero.into()))
     }
-    Ok(())
 }
 
 /// The sending end over a Unix stream socket: a length (u64) then the payload; a 32-byte ack back.
