@@ -217,7 +217,7 @@ pub struct Header {
     pub version: u32,
     /// The sender's run ([`run_tag`] of its scenario's fingerprint); 0: not stated (a process without a
     /// scenario that did not carry one forward, a foreign front end). A receiver that knows its run rejects
-    /// a message of another one ([`Rejection::OtherRun`](crate::Rejection::OtherRun)); 0 is accepted by
+    /// a message of another one ([`crate::Rejection::OtherRun`]); 0 is accepted by
     /// everyone. (The field was explicit padding, sent as 0, before: old senders state no run.)
     pub run: u32,
     /// Planning step (0-based).

@@ -61,7 +61,7 @@ fn open<T: Message>(node: &IpcNode, name: &str) -> Result<Services<T>, Transport
 
 /// A publisher and the notifier that wakes its subscribers.
 ///
-/// It keeps the sample of its next message loaned ([`spare`](Self::spare)): loaning takes back the samples
+/// It keeps the sample of its next message loaned (its `spare`): loaning takes back the samples
 /// the subscribers have released (one look into every connection's return queue, lines the subscribers
 /// wrote last) and allocates a chunk, ≈ 0.3–0.5 µs of the hop on this kind of VM. Done right after a send,
 /// it runs while the receivers work, so the next message is only written and delivered.
