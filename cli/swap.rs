@@ -33,7 +33,9 @@ one plans the step in progress and exits: no step is missed or planned twice. Th
 switch, and its record names the planner of every step.
 
 The new process is started detached (it outlives this command) and stops with the pipeline: `uavloc
-launch` stops it at the end of the run. Give it the flags of the run it joins (--domain, and for the
+launch` stops it at the end of the run. One swap of a role at a time: a second `uavloc swap` of the same
+role in the domain while one runs is refused (exit 2); a swap whose new process is itself replaced
+before this command returns (by a process started with --takeover) fails (exit 1). Give it the flags of the run it joins (--domain, and for the
 planner --scenario, --steps and --seed as given to the launch).";
 
 pub const AFTER_HELP: &str = "\
@@ -124,6 +126,8 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     };
     protocol::transport::quiet_logs();
     let domain = Domain::resolve_named(domain_flag).map_err(CliError::Input)?;
+    // One swap of a role at a time (held until this command returns).
+    let _lock = crate::launch::state_dir::DomainLock::acquire_swap(&domain, role)?;
     let node_name = protocol::services::node_name(&domain, role);
     let running = |domain: &Domain| -> Result<usize, CliError> {
         Ok(resources::list(domain).map_err(CliError::Failed)?.alive_nodes().filter(|n| *n == node_name).count())
@@ -219,6 +223,14 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
             )));
         }
         std::thread::sleep(Duration::from_millis(5));
+    }
+    // The new process must be the one running now: a process started with --takeover by hand may have
+    // taken over from it in the meantime.
+    if let Ok(Some(status)) = child.try_wait() {
+        return Err(CliError::Failed(format!(
+            "the new {role} (pid {pid}) took over from step {from_step}, but it has already exited ({status}): \
+             another process took over from it (a {role} started with --takeover?)"
+        )));
     }
     // The new process runs on by itself (its later `summary` line goes nowhere).
     drop(child);

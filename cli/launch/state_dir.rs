@@ -1,5 +1,6 @@
 //! The launcher's files: the per-user state root `$TMPDIR/uavloc-<uid>` (mode 0700), the lock of a
-//! domain held for a launch's lifetime (`DomainLock`), and the private directory of one launch
+//! domain held for a launch's lifetime and that of a swap in progress (`DomainLock`), and the private
+//! directory of one launch
 //! (`StateDir`); state directories of launchers that died (SIGKILL) are removed by the next launch.
 
 use std::fs::File;
@@ -40,13 +41,33 @@ pub(super) fn state_root() -> Result<PathBuf, CliError> {
 /// root, `flock(LOCK_EX | LOCK_NB)`. The kernel releases it when the launcher exits, however it exits
 /// (SIGKILL included), so a lock is never stale. Two launches into one domain at the same instant: one
 /// gets it, the other is refused (exit 2) before it touches the domain.
-pub(super) struct DomainLock {
+pub(crate) struct DomainLock {
     _file: File,
 }
 
 impl DomainLock {
     pub(super) fn acquire(domain: &Domain) -> Result<Self, CliError> {
-        let path = state_root()?.join(format!("domain-{domain}.lock"));
+        Self::take(&format!("domain-{domain}.lock"), |path| {
+            format!("domain {domain} is in use (another launch holds {}); choose another --domain", path.display())
+        })
+    }
+
+    /// The lock of a swap of `role` in `domain` (`swap-<domain>-<role>.lock`), held while `uavloc swap`
+    /// runs: of two swaps at once, both new processes would take over from the same step and the second
+    /// at once from the first, while both swaps reported success. The second is refused (exit 2).
+    pub(crate) fn acquire_swap(domain: &Domain, role: &str) -> Result<Self, CliError> {
+        Self::take(&format!("swap-{domain}-{role}.lock"), |path| {
+            format!(
+                "a swap of the {role} in domain {domain} is in progress (another `uavloc swap` holds {}); run this \
+                 one once it has finished",
+                path.display()
+            )
+        })
+    }
+
+    /// `flock(LOCK_EX | LOCK_NB)` on `name` in the state root; `busy` words the refusal.
+    fn take(name: &str, busy: impl FnOnce(&Path) -> String) -> Result<Self, CliError> {
+        let path = state_root()?.join(name);
         let file = std::fs::OpenOptions::new()
             .create(true)
             .truncate(false)
@@ -58,10 +79,7 @@ impl DomainLock {
         if rc != 0 {
             let e = std::io::Error::last_os_error();
             if e.raw_os_error() == Some(libc::EWOULDBLOCK) {
-                return Err(CliError::Input(format!(
-                    "domain {domain} is in use (another launch holds {}); choose another --domain",
-                    path.display()
-                )));
+                return Err(CliError::Input(busy(&path)));
             }
             return Err(failed(&path, e));
         }

@@ -223,3 +223,55 @@ fn a_second_instance_of_a_role_without_takeover_is_refused_and_the_run_goes_on()
     assert_eq!((run["restarts"].as_u64(), run["rejected"].as_u64()), (Some(0), Some(0)), "{run}");
     common::assert_nothing_left(&d);
 }
+
+/// Two `uavloc swap planner` started at the same instant: one swaps (the run's planner from then on is
+/// its solver alone), the other is refused at once (exit 2, "in progress"). Before, both reported a swap
+/// from the same step, but the first new planner handed over to the second at once and planned nothing.
+#[test]
+fn of_two_swaps_at_once_one_swaps_and_the_other_is_refused() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("swap", "twice");
+    let dir = scratch("swap-twice");
+    let mut launch = Launch::start(&d, &dir, &["--steps", "60", "--step-delay-ms", "40"]);
+    launch.wait_for_step(3, Duration::from_secs(30));
+    let start = |solver: &str, n: usize| {
+        Command::new(UAVLOC)
+            .args(["swap", "planner", "--domain", &d, "--solver", solver, "--json"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(dir.join(format!("swap-{n}.stderr"))).unwrap())
+            .spawn()
+            .unwrap()
+    };
+    let swaps = [start("pso", 1), start("ga", 2)];
+    let outcomes: Vec<(Option<i32>, String, String)> = swaps
+        .into_iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let out = c.wait_with_output().unwrap();
+            (
+                out.status.code(),
+                String::from_utf8_lossy(&out.stdout).into_owned(),
+                std::fs::read_to_string(dir.join(format!("swap-{}.stderr", i + 1))).unwrap(),
+            )
+        })
+        .collect();
+    let codes: Vec<Option<i32>> = outcomes.iter().map(|o| o.0).collect();
+    let mut sorted = codes.clone();
+    sorted.sort();
+    assert_eq!(sorted, [Some(0), Some(2)], "{outcomes:?}");
+    let (_, stdout, _) = outcomes.iter().find(|o| o.0 == Some(0)).unwrap();
+    let (_, _, refused) = outcomes.iter().find(|o| o.0 == Some(2)).unwrap();
+    assert!(refused.contains("a swap of the planner") && refused.contains("in progress"), "{refused}");
+    let report: Value = serde_json::from_str(stdout).unwrap();
+    let (from, solver) = (report["from_step"].as_u64().unwrap(), report["planner"].as_str().unwrap().to_string());
+    let run = launch.finish_json();
+    assert_eq!(run["restarts"].as_u64(), Some(0));
+    // Every step from the swap on was planned by the swap that succeeded, with the solver it reported.
+    for s in &run["steps"].as_array().unwrap()[from as usize..60] {
+        let planner =
+            format!("{}/{}", s["planner"]["solver"].as_str().unwrap(), s["planner"]["objective"].as_str().unwrap());
+        assert_eq!(planner, solver, "step {}", s["step"]);
+    }
+    common::assert_nothing_left(&d);
+}
