@@ -4,7 +4,7 @@
 //! flights: with the recorded settings the estimates come out exactly as recorded.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 use estimator::{EmitterModel, Estimator, EstimatorConfig, EstimatorKind};
@@ -24,8 +24,10 @@ FILE.mcap`) and set each step's new estimate and plan beside the recorded ones. 
 where they flew in the recording, whatever the new plans say — the way to compare estimators, objectives
 or solvers on the same recorded flight.
 
-Without flags the recorded settings are used (the scenario stored in the file, the objective and solver
-of the recorded commands), and the estimates come out exactly as recorded (`estimates_equal` =
+Without flags the recorded settings are used (the scenario stored in the file; for each step the
+objective and solver of its recorded command — a run whose planner was swapped is replayed with each
+planner on its own steps; a step without a recorded command takes the settings of the last one before
+it), and the estimates come out exactly as recorded (`estimates_equal` =
 `estimates_compared`). A step measured more than once in the file (a replay after a crash) is taken
 once, as first recorded.
 
@@ -87,6 +89,9 @@ pub struct ReplayStep {
     pub recorded_headings: Option<Vec<f64>>,
     /// The replay's planned headings (`null` on the last step, or with nothing to plan from).
     pub replayed_headings: Option<Vec<f64>>,
+    /// The planner it was replayed with, `solver/objective` (`null` on the last step, which is not
+    /// planned).
+    pub planner: Option<String>,
     /// The largest heading difference, radians (wrapped to [0, π]).
     pub heading_delta_rad: Option<f64>,
 }
@@ -100,9 +105,10 @@ pub struct ReplayReport {
     pub estimator: String,
     /// The emitter model replayed with.
     pub emitter_model: String,
-    /// The objective and solver replayed with.
+    /// The objective replayed with; several in the order first used, joined by ` → `, when the recording's
+    /// planner changed (a swap) and no `--objective` was given.
     pub objective: String,
-    /// The solver replayed with.
+    /// The solver replayed with (several as `objective`).
     pub solver: String,
     /// Steps replayed.
     pub steps: u64,
@@ -194,6 +200,45 @@ fn first_per_step<'a>(messages: &'a [RecordedMessage], topic: &str) -> BTreeMap<
     out
 }
 
+/// The objective and solver of each step's recorded command (from the command's `objective_name` and
+/// `solver`); a name this uavloc does not know is an error naming the step and the flag to give instead.
+fn recorded_planners(
+    commands: &BTreeMap<u64, &Value>,
+    file: &Path,
+) -> Result<BTreeMap<u64, (ObjectiveKind, SolverKind)>, CliError> {
+    let mut out = BTreeMap::new();
+    for (&step, c) in commands {
+        let name = |key: &str| c[key].as_str().unwrap_or_default().to_string();
+        let unknown = |what: &str, name: String, flag: &str| {
+            CliError::Input(format!(
+                "{}: the recorded command of step {step} names the {what} `{name}`, which this uavloc does not know; \
+                 give {flag}",
+                file.display()
+            ))
+        };
+        let objective =
+            name("objective_name").parse().map_err(|_| unknown("objective", name("objective_name"), "--objective"))?;
+        let solver = name("solver").parse().map_err(|_| unknown("solver", name("solver"), "--solver"))?;
+        out.insert(step, (objective, solver));
+    }
+    Ok(out)
+}
+
+/// Part `i` (0: solver, 1: objective) of the steps' `solver/objective`, each name once in the order first
+/// used, joined by ` → ` (one name when the whole run was replayed with one).
+fn in_order_used(steps: &[ReplayStep], i: usize) -> String {
+    let mut names: Vec<&str> = Vec::new();
+    for s in steps {
+        if let Some(name) = s.planner.as_deref().and_then(|p| p.split('/').nth(i))
+            && names.last() != Some(&name)
+            && !names.contains(&name)
+        {
+            names.push(name);
+        }
+    }
+    names.join(" → ")
+}
+
 /// Runs `uavloc replay`.
 pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
     let recording = read_recording(&args.file).map_err(|e| CliError::Input(e.to_string()))?;
@@ -215,15 +260,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
     let measurements = first_per_step(&recording.messages, "/measurement");
     let estimates = first_per_step(&recording.messages, "/estimate");
     let commands = first_per_step(&recording.messages, "/command");
-    let recorded_name = |key: &str| commands.values().find_map(|c| c[key].as_str().map(str::to_string));
-    let objective = match args.objective {
-        Some(o) => o,
-        None => recorded_name("objective_name").and_then(|n| n.parse().ok()).unwrap_or(ObjectiveKind::Analytical),
-    };
-    let solver = match args.solver {
-        Some(s) => s,
-        None => recorded_name("solver").and_then(|n| n.parse().ok()).unwrap_or(SolverKind::Pso),
-    };
+    let planners = recorded_planners(&commands, &args.file)?;
     if measurements.is_empty() {
         return Err(CliError::Input(format!("{}: the recording has no measurement", args.file.display())));
     }
@@ -254,6 +291,10 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             _ => None,
         });
         let planned = step < sc.steps as u64;
+        // The flags, else the planner of this step's recorded command (or the last one before it).
+        let as_recorded = planners.range(..=step).next_back().or_else(|| planners.iter().next()).map(|(_, p)| *p);
+        let objective = args.objective.or(as_recorded.map(|p| p.0)).unwrap_or(ObjectiveKind::Analytical);
+        let solver = args.solver.or(as_recorded.map(|p| p.1)).unwrap_or(SolverKind::Gradient);
         let replayed_headings = match replayed.plan_from() {
             Some((position, covariance)) if planned => {
                 let (z, cov) = tdoa::estimate_from_arrays(&position, &covariance);
@@ -291,6 +332,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             recorded_headings,
             replayed_headings,
             heading_delta_rad,
+            planner: planned.then(|| format!("{}/{}", solver.name(), objective.name())),
         });
     }
     let max = |it: &mut dyn Iterator<Item = f64>| it.fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
@@ -300,8 +342,8 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         file: args.file.display().to_string(),
         estimator: sc.estimator.name().to_string(),
         emitter_model: sc.emitter_model.name().to_string(),
-        objective: objective.name().to_string(),
-        solver: solver.name().to_string(),
+        objective: in_order_used(&per_step, 1),
+        solver: in_order_used(&per_step, 0),
         steps: per_step.len() as u64,
         estimates_compared: per_step.iter().filter(|s| s.recorded.is_some()).count() as u64,
         estimates_equal: per_step.iter().filter(|s| s.estimate_equal).count() as u64,

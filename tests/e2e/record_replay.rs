@@ -126,6 +126,44 @@ fn a_monitor_killed_mid_run_still_leaves_a_whole_recording() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A run whose planner was swapped (pso, then ga) replays, without flags, with each planner on its own
+/// steps: every plan as recorded. Before, the first recorded planner replayed every step, and the steps of
+/// the second read as different plans (24 of 40 equal in the probe).
+#[test]
+fn a_recording_of_a_swapped_planner_replays_each_step_with_its_own_planner() {
+    let _scenario = common::scenario(module_path!());
+    let dir = scratch("record-swap");
+    let file = dir.join("run.mcap");
+    let d = domain("rec", "swap");
+    let mut launch = Launch::start(
+        &d,
+        &dir,
+        &["--steps", "24", "--step-delay-ms", "40", "--solver", "pso", "--record", file.to_str().unwrap()],
+    );
+    launch.wait_for_step(3, Duration::from_secs(30));
+    // stderr to a file: the detached new planner keeps writing there until the launch ends.
+    let swapped = Command::new(common::UAVLOC)
+        .args(["swap", "planner", "--domain", &d, "--solver", "ga", "--json"])
+        .stderr(std::fs::File::create(dir.join("swap.stderr")).unwrap())
+        .output()
+        .unwrap();
+    assert!(swapped.status.success(), "{}", std::fs::read_to_string(dir.join("swap.stderr")).unwrap_or_default());
+    let from = serde_json::from_slice::<Value>(&swapped.stdout).unwrap()["from_step"].as_u64().unwrap();
+    launch.finish_json();
+    let r = replay(&file, &[]);
+    assert_eq!((r["solver"].as_str(), r["objective"].as_str()), (Some("pso → ga"), Some("analytical")), "{r}");
+    assert_eq!(r["plans_compared"], 24, "{r}");
+    assert_eq!(r["plans_equal"], 24, "{r}");
+    for s in r["per_step"].as_array().unwrap().iter().take(24) {
+        let k = s["step"].as_u64().unwrap();
+        assert_eq!(s["planner"], if k < from { "pso/analytical" } else { "ga/analytical" }, "step {k}");
+    }
+    // A flag still replays every step with one planner.
+    let one = replay(&file, &["--solver", "gradient"]);
+    assert_eq!(one["solver"], "gradient", "{one}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_recording_with_a_step_missing_or_without_its_scenario_is_refused() {
     let _scenario = common::scenario(module_path!());
