@@ -1,18 +1,20 @@
-//! The launcher's termination signals: SIGINT/SIGTERM (and the live view's `q`) are recorded, not fatal,
-//! so that the launcher stops its children in order before it exits.
+//! The launcher's termination signals: SIGINT/SIGTERM/SIGHUP (and the live view's `q`) are recorded, not
+//! fatal, so that the launcher stops its children in order and writes the steps done before it exits
+//! (SIGHUP: the terminal of an ssh session that closed; a launch with its output in files keeps it).
 
 use std::sync::atomic::{AtomicI32, Ordering};
 
-/// The last SIGINT/SIGTERM the launcher received (0: none).
+/// The last SIGINT/SIGTERM/SIGHUP the launcher received (0: none).
 static SIGNAL: AtomicI32 = AtomicI32::new(0);
 
 extern "C" fn on_signal(signal: libc::c_int) {
     SIGNAL.store(signal, Ordering::SeqCst);
 }
 
-/// Routes SIGINT and SIGTERM to [`SIGNAL`] (instead of killing the launcher before it stops its children).
+/// Routes SIGINT, SIGTERM and SIGHUP to [`SIGNAL`] (instead of killing the launcher before it stops its
+/// children).
 pub(super) fn catch_termination() {
-    for signal in [libc::SIGINT, libc::SIGTERM] {
+    for signal in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
         // SAFETY: `on_signal` only performs an atomic store, which is async-signal-safe; the sigaction struct
         // is fully initialised (zeroed, then handler and an empty mask set) before the call.
         unsafe {
@@ -44,6 +46,7 @@ fn signal_name(signal: i32) -> &'static str {
     match signal {
         QUIT_KEY => "the q key",
         libc::SIGINT => "SIGINT",
+        libc::SIGHUP => "SIGHUP",
         _ => "SIGTERM",
     }
 }

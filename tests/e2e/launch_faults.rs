@@ -218,16 +218,22 @@ fn constraint_labels_of_launch_and_simulate_agree() {
     assert_nothing_left(&d);
 }
 
-/// `launch --json` stopped by SIGINT prints the partial record — the steps done, `"interrupted": true` —
-/// instead of nothing, and exits 1.
+/// `launch --json` stopped by SIGINT — or SIGHUP, the hang-up of the ssh session it was started from —
+/// prints the partial record — the steps done, `"interrupted": true` — instead of nothing, and exits 1.
+/// (Before, SIGHUP killed the launcher at once: exit 129, nothing on stdout.)
 #[test]
 fn an_interrupted_launch_prints_the_steps_done() {
+    interrupted_by(libc::SIGINT, "SIGINT");
+    interrupted_by(libc::SIGHUP, "SIGHUP");
+}
+
+fn interrupted_by(signal: i32, name: &str) {
     let _scenario = common::scenario(module_path!());
     let dir = common::scratch("sigint");
-    let d = domain("sigint", "partial");
+    let d = domain("sigint", name);
     let mut launch = common::Launch::start(&d, &dir, &["--steps", "400", "--step-delay-ms", "10"]);
     launch.wait_for_step(20, std::time::Duration::from_secs(30));
-    common::kill(launch.child.id(), libc::SIGINT);
+    common::kill(launch.child.id(), signal);
     let (status, stdout, stderr) = launch.finish();
     assert_eq!(status.code(), Some(1), "{stderr}");
     let run: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("no JSON ({e}): {stdout:?}\n{stderr}"));
@@ -239,7 +245,7 @@ fn an_interrupted_launch_prints_the_steps_done() {
     let first: Vec<Value> = sim["steps"].as_array().unwrap()[..steps.len()].to_vec();
     let partial = serde_json::json!({"steps": first});
     common::assert_same_steps(&partial, &serde_json::json!({"steps": steps}), "interrupted");
-    assert!(stderr.contains("interrupted by SIGINT"), "{stderr}");
+    assert!(stderr.contains(&format!("interrupted by {name}")), "{stderr}");
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -59,3 +59,19 @@ fn a_process_of_another_scenario_is_told_to_leave_and_the_set_runs_on() {
     }
     assert_nothing_left(&d);
 }
+
+/// A process started by hand from a terminal that hangs up (an ssh session closed) ends as on SIGTERM:
+/// the monitor says its record is partial and exits 130, leaving nothing of the domain behind. Before,
+/// SIGHUP killed it on the spot (no exit code, its record lost, its iceoryx2 resources left).
+#[test]
+fn a_hang_up_ends_a_process_cleanly() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("hand", "hangup");
+    let monitor = start("monitor", &d, &["--steps", "12"]);
+    std::thread::sleep(Duration::from_millis(500));
+    common::kill(monitor.id(), libc::SIGHUP);
+    let (code, _, err) = wait(monitor, "the monitor hung up");
+    assert_eq!(code, Some(130), "{err}");
+    assert!(err.contains("interrupted before the last step"), "{err}");
+    assert_nothing_left(&d);
+}

@@ -274,6 +274,9 @@ fn make_node(name: &str, signals: SignalHandlingMode) -> Result<IpcNode, Transpo
     // clean. A signal that came meanwhile is delivered on unblocking, to the handler: the process then
     // ends cleanly at its first check.
     let handled = signals == SignalHandlingMode::HandleTerminationRequests;
+    if handled {
+        hang_up_as_termination();
+    }
     let _held = handled.then(TerminationSignalsHeld::new);
     let node = NodeBuilder::new()
         .name(&node_name)
@@ -285,6 +288,27 @@ fn make_node(name: &str, signals: SignalHandlingMode) -> Result<IpcNode, Transpo
     }
     cleanup_dead_nodes(&node);
     Ok(node)
+}
+
+/// Takes SIGHUP — the hang-up of the terminal (an ssh session) a process was started from by hand — as a
+/// request to terminate: its handler sends the process SIGTERM, which iceoryx2's handler turns into the
+/// clean end every process has (the monitor writes its partial record; exit code 130). By default SIGHUP
+/// killed the process on the spot, its record and its iceoryx2 resources left behind.
+fn hang_up_as_termination() {
+    extern "C" fn forward(_: libc::c_int) {
+        // SAFETY: kill and getpid are async-signal-safe.
+        unsafe {
+            libc::kill(libc::getpid(), libc::SIGTERM);
+        }
+    }
+    // SAFETY: `forward` makes only async-signal-safe calls; the sigaction struct is fully initialised
+    // (zeroed, then handler and an empty mask) before the call.
+    unsafe {
+        let mut action: libc::sigaction = core::mem::zeroed();
+        action.sa_sigaction = forward as extern "C" fn(libc::c_int) as libc::sighandler_t;
+        libc::sigemptyset(&mut action.sa_mask);
+        libc::sigaction(libc::SIGHUP, &action, core::ptr::null_mut());
+    }
 }
 
 /// SIGINT and SIGTERM blocked for this thread while it lives (the previous mask restored on drop).
