@@ -125,6 +125,9 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
             runtime::output::check_out_file(flag, file).map_err(CliError::Input)?;
         }
     }
+    if args.link.transport == protocol::TransportKind::Uds {
+        protocol::transport::uds::check_socket_dir().map_err(CliError::Input)?;
+    }
     let domain = launch_domain(args.domain.as_deref(), args.source)?;
     // Held until the launch returns: a second launch into this domain is refused here, atomically.
     let _lock = state_dir::DomainLock::acquire(&domain)?;

@@ -50,6 +50,7 @@ impl From<TransportError> for ProcessError {
     fn from(e: TransportError) -> Self {
         match e {
             TransportError::Interrupted => ProcessError::Interrupted,
+            TransportError::Environment(why) => ProcessError::Input(why),
             e => ProcessError::Failed(e.to_string()),
         }
     }

@@ -169,3 +169,27 @@ fn a_bad_domain_from_the_environment_is_named_as_such() {
         assert!(err.contains("UAVLOC_DOMAIN") && !err.contains("--domain:"), "{args:?}: {err}");
     }
 }
+
+/// A `UAVLOC_UDS_DIR` the socket transport cannot use — a directory that cannot be created, or one so long
+/// that a socket path under it would not fit a Unix socket address — is refused up front as bad input
+/// (exit 2, one line naming `UAVLOC_UDS_DIR`), by `launch` before any child starts and by a process on its
+/// own. Before, the first process to open a topic failed (exit 1) naming only the topic and the system's
+/// error ("creating the socket directory on \"d/control\" failed: No such file or directory").
+#[test]
+fn an_unusable_socket_directory_is_named_as_such() {
+    let _scenario = common::scenario(module_path!());
+    let long = std::env::temp_dir().join("u".repeat(90));
+    for dir in [std::path::PathBuf::from("/proc/uavloc-no-such-dir"), long] {
+        for args in [
+            &["launch", "--headless", "--steps", "1", "--transport", "uds"][..],
+            &["process", "planner", "--transport", "uds"],
+        ] {
+            let out = Command::new(common::UAVLOC).args(args).env("UAVLOC_UDS_DIR", &dir).output().unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{args:?} {}: {err}", dir.display());
+            assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+            assert!(err.contains(&format!("UAVLOC_UDS_DIR={}", dir.display())), "{args:?}: {err}");
+        }
+        assert!(!dir.exists() || dir.starts_with("/proc"), "{} was created", dir.display());
+    }
+}

@@ -123,6 +123,10 @@ pub enum TransportError {
     /// A blocking wait was interrupted by SIGINT/SIGTERM: shut down.
     #[error("interrupted by a signal")]
     Interrupted,
+    /// The environment does not let the transport work: a bad setting (e.g. `UAVLOC_UDS_DIR`), reported
+    /// as bad input.
+    #[error("{0}")]
+    Environment(String),
 }
 
 pub(crate) fn failed(op: &'static str, service: &str, e: impl fmt::Debug) -> TransportError {
@@ -362,8 +366,12 @@ pub struct Link {
 }
 
 impl Link {
-    /// Creates the process's node `name` (see [`node`]) for topics over `kind`.
+    /// Creates the process's node `name` (see [`node`]) for topics over `kind` (the socket transport's
+    /// directory checked first: [`uds::check_socket_dir`]).
     pub fn open(kind: TransportKind, name: &str) -> Result<Self, TransportError> {
+        if kind == TransportKind::Uds {
+            uds::check_socket_dir().map_err(TransportError::Environment)?;
+        }
         Ok(Link { node: node(name)?, kind, run: std::cell::Cell::new(0) })
     }
 

@@ -56,6 +56,34 @@ pub fn base_dir() -> PathBuf {
     }
 }
 
+/// Checks, before any topic is opened, that the socket directory ([`base_dir`]) can hold this transport's
+/// sockets: it is (or can be created as) this user's private directory, and the longest socket path
+/// under it fits a Unix socket address (107 bytes). The error names the directory and where it came from
+/// (`UAVLOC_UDS_DIR` or the default), so a bad setting is reported as such — before, the first process
+/// to open a topic failed with the topic's name and the system's error only.
+pub fn check_socket_dir() -> Result<PathBuf, String> {
+    let dir = base_dir();
+    let source = match std::env::var_os(UDS_DIR_ENV) {
+        Some(d) if !d.is_empty() => format!("{UDS_DIR_ENV}={}", dir.display()),
+        _ => format!("the socket directory {} (set {UDS_DIR_ENV} to use another)", dir.display()),
+    };
+    // The longest socket path: <dir>/<16 hex digits>/<prefix>.<pid>.<counter>.
+    let longest = topic_dir("").join(format!("s.{}.{}", i32::MAX, u32::MAX));
+    let room = core::mem::size_of::<libc::sockaddr_un>() - core::mem::offset_of!(libc::sockaddr_un, sun_path) - 1;
+    let len = longest.as_os_str().len();
+    if len > room {
+        return Err(format!(
+            "{source}: a socket path under it takes up to {len} bytes, more than the {room} a Unix socket address \
+             holds; choose a shorter directory"
+        ));
+    }
+    private_dir(&dir, "the socket directory").map_err(|e| match e {
+        TransportError::Failed { op, detail, .. } => format!("{source}: {op}: {detail}"),
+        e => format!("{source}: {e}"),
+    })?;
+    Ok(dir)
+}
+
 /// The directory of topic `name` (a 64-bit FNV-1a hash of the name under [`base_dir`]).
 pub fn topic_dir(name: &str) -> PathBuf {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
