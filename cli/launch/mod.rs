@@ -120,11 +120,17 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     if let Some(dir) = &args.out {
         runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
-    for (flag, file) in [("--record", &args.record), ("--log", &args.log), ("--stamps", &args.stamps)] {
-        if let Some(file) = file {
-            runtime::output::check_out_file(flag, file).map_err(CliError::Input)?;
-        }
+    let files: Vec<(&str, &std::path::Path)> =
+        [("--record", &args.record), ("--log", &args.log), ("--stamps", &args.stamps)]
+            .into_iter()
+            .filter_map(|(flag, file)| Some((flag, file.as_deref()?)))
+            .collect();
+    for (flag, file) in &files {
+        runtime::output::check_out_file(flag, file).map_err(CliError::Input)?;
     }
+    let out: Vec<(&str, &std::path::Path, &[&str])> =
+        args.out.iter().map(|d| ("--out", d.as_path(), &monitor::export::RUN_FILES[..])).collect();
+    runtime::output::check_distinct(&files, &out).map_err(CliError::Input)?;
     if args.link.transport == protocol::TransportKind::Uds {
         protocol::transport::uds::check_socket_dir().map_err(CliError::Input)?;
     }

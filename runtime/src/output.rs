@@ -32,6 +32,42 @@ pub fn check_out_file(flag: &str, file: &Path) -> Result<PathBuf, String> {
     Ok(abs)
 }
 
+/// Checks that no two outputs of a run are one file: each `(flag, file)`, and each file an `--out`
+/// directory will hold (`(flag, dir, its file names)`). Paths are compared as the system resolves them
+/// (relative or absolute, through symbolic links of their directories or of the files themselves).
+/// Before, `--log` and `--stamps` on one file left a CSV where the log had been, with exit code 0.
+pub fn check_distinct(files: &[(&str, &Path)], dirs: &[(&str, &Path, &[&str])]) -> Result<(), String> {
+    let mut seen: Vec<(String, PathBuf, PathBuf)> = Vec::new();
+    let listed = files.iter().map(|(flag, f)| (flag.to_string(), f.to_path_buf()));
+    let inside = dirs.iter().flat_map(|(flag, dir, names)| {
+        names.iter().map(move |n| (format!("{flag} {} (its {n})", dir.display()), dir.join(n)))
+    });
+    for (what, file) in listed.chain(inside) {
+        let key = resolved(&file);
+        if let Some((other, _, _)) = seen.iter().find(|(_, _, k)| *k == key) {
+            return Err(format!(
+                "{other} and {what} are one file, {}: give each output a file of its own",
+                key.display()
+            ));
+        }
+        seen.push((what, file, key));
+    }
+    Ok(())
+}
+
+/// `file` as the system resolves it: the file itself if it exists, else its directory (if it exists) and
+/// its name; else the absolute path.
+fn resolved(file: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(file) {
+        return p;
+    }
+    let abs = std::path::absolute(file).unwrap_or_else(|_| file.to_path_buf());
+    match (abs.parent().and_then(|d| std::fs::canonicalize(d).ok()), abs.file_name()) {
+        (Some(dir), Some(name)) => dir.join(name),
+        _ => abs,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -49,6 +85,29 @@ mod tests {
         assert!(check_out_file("--record", &nested).unwrap_err().starts_with("--record"));
         assert!(check_out_file("--record", &file.join("under-a-file.json")).is_err());
         assert!(check_out_file("--record", Path::new("rel.json")).unwrap().is_absolute());
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn two_outputs_on_one_file_are_refused_however_the_file_is_named() {
+        let root = std::env::temp_dir().join(format!("uavloc-output-distinct-{}", std::process::id()));
+        std::fs::create_dir_all(root.join("d")).unwrap();
+        let (a, b) = (root.join("a.jsonl"), root.join("b.csv"));
+        assert_eq!(check_distinct(&[("--log", &a), ("--stamps", &b)], &[]), Ok(()));
+        // The same file by another name: through `..`, and through a symbolic link to its directory.
+        let dotted = root.join("d/../a.jsonl");
+        let e = check_distinct(&[("--log", &a), ("--stamps", &dotted)], &[]).unwrap_err();
+        assert!(e.starts_with("--log and --stamps are one file"), "{e}");
+        std::os::unix::fs::symlink(&root, root.join("d/link")).unwrap();
+        assert!(check_distinct(&[("--log", &a), ("--record", &root.join("d/link/a.jsonl"))], &[]).is_err());
+        // A file that an --out directory will hold.
+        let e = check_distinct(&[("--log", &root.join("d/run.json"))], &[("--out", &root.join("d"), &["run.json"])])
+            .unwrap_err();
+        assert!(e.contains("--out") && e.contains("(its run.json)"), "{e}");
+        assert_eq!(
+            check_distinct(&[("--log", &root.join("d/log"))], &[("--out", &root.join("d"), &["run.json"])]),
+            Ok(())
+        );
         std::fs::remove_dir_all(&root).ok();
     }
 }

@@ -367,3 +367,54 @@ fn an_emitter_sim_checkpoint_of_another_run_is_refused() {
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Two outputs of one run on one file — `--log` and `--stamps`, `--log` and `--record`, a file the `--out`
+/// directory will hold, by another name of the same path — are refused before the run (exit 2, one line
+/// naming both flags), and the file is left as it was. Before, `--log` and `--stamps` on one file ended
+/// with exit 0 and a CSV where the log had been; `--log` and `--record` failed the monitor 5 times.
+#[test]
+fn two_outputs_on_one_file_are_refused_before_the_run() {
+    let _scenario = common::scenario(module_path!());
+    let dir = common::scratch("same-file");
+    let kept = dir.join("kept.txt");
+    std::fs::write(&kept, "keep me").unwrap();
+    let k = kept.to_str().unwrap();
+    let other_name = dir.join("sub/../kept.txt");
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    let o = other_name.to_str().unwrap();
+    let d = domain("same", "file");
+    let out_dir = dir.to_str().unwrap();
+    let run_json = dir.join("run.json");
+    let cases: [(&[&str], &str); 5] = [
+        (&["launch", "--headless", "--steps", "3", "--domain", &d, "--log", k, "--stamps", o], "--log and --stamps"),
+        (&["launch", "--headless", "--steps", "3", "--domain", &d, "--log", k, "--record", k], "--record and --log"),
+        (
+            &[
+                "launch",
+                "--headless",
+                "--steps",
+                "3",
+                "--domain",
+                &d,
+                "--log",
+                run_json.to_str().unwrap(),
+                "--out",
+                out_dir,
+            ],
+            "(its run.json)",
+        ),
+        (&["process", "monitor", "--domain", &d, "--log", k, "--mcap", o], "--log and --mcap"),
+        (&["simulate", "--steps", "3", "--record", run_json.to_str().unwrap(), "--out", out_dir], "(its run.json)"),
+    ];
+    for (args, needle) in cases {
+        let out = common::uavloc(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+        assert!(err.contains(needle) && err.contains("are one file"), "{args:?}: {err}");
+        assert_eq!(std::fs::read_to_string(&kept).unwrap(), "keep me", "{args:?} touched the file");
+        assert!(!run_json.exists(), "{args:?} wrote run.json");
+    }
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
