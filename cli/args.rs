@@ -86,6 +86,16 @@ pub fn parse_cov(text: &str) -> Result<Matrix2<f64>, String> {
     Ok(Matrix2::new(v[0], v[1], v[1], v[2]))
 }
 
+/// A count flag within `min..=max` (the upper bounds: what can be held in memory or computed, the
+/// scenario's `model::scenario::MAX_STEPS` and `MAX_COUNT`); checked before any work starts.
+pub fn require_count(flag: &str, value: usize, min: usize, max: usize) -> Result<usize, CliError> {
+    if (min..=max).contains(&value) {
+        Ok(value)
+    } else {
+        Err(CliError::Input(format!("{flag} must be in {min}..={max}, got {value}")))
+    }
+}
+
 /// `value > 0`, else an input error naming `flag`.
 pub fn require_positive(flag: &str, value: f64, unit: &str) -> Result<f64, CliError> {
     if value > 0.0 { Ok(value) } else { Err(CliError::Input(format!("{flag} must be > 0 {unit}(got {value})"))) }

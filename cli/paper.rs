@@ -118,6 +118,12 @@ pub fn run(args: &PaperArgs) -> Result<PaperReport, CliError> {
     if let Some(dir) = &args.out {
         runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
+    use model::scenario::MAX_COUNT;
+    if let Some(runs) = args.runs {
+        crate::args::require_count("--runs", runs, 1, MAX_COUNT)?;
+    }
+    crate::args::require_count("--resamples", args.resamples, 1, MAX_COUNT)?;
+    crate::args::require_count("--samples", args.samples, 2, MAX_COUNT)?;
     let settings = Settings {
         runs: args.runs.unwrap_or(if args.quick { QUICK_RUNS } else { experiments::PAPER_RUNS }),
         fixed_runs: args.runs.unwrap_or(experiments::PAPER_RUNS),

@@ -193,9 +193,8 @@ fn check(args: &IpcArgs) -> Result<[usize; 2], CliError> {
     if let Some(bad) = args.sizes.iter().find(|&&s| !(HEADER..=MAX_SIZE).contains(&s)) {
         return Err(CliError::Input(format!("--sizes: {bad} bytes is outside {HEADER}..={MAX_SIZE}")));
     }
-    if args.messages == 0 {
-        return Err(CliError::Input("--messages must be at least 1".into()));
-    }
+    // At most a million a row: with both ends blocking, ≈ 50 s.
+    crate::args::require_count("--messages", args.messages as usize, 1, 1_000_000)?;
     let cores = match &args.cores {
         Some(s) => sys::parse_cores(s).map_err(|e| CliError::Input(format!("--cores: {e}")))?,
         None => sys::allowed_cores().map_err(CliError::Failed)?,

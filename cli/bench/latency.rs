@@ -294,9 +294,7 @@ fn unique_domain() -> String {
 
 /// Checks the shared flags and pins this thread (and so the children it spawns) to the cores.
 fn prepare(flags: &RunFlags) -> Result<Vec<usize>, CliError> {
-    if flags.steps == 0 {
-        return Err(CliError::Input("--steps must be ≥ 1".into()));
-    }
+    crate::args::require_count("--steps", flags.steps, 1, model::scenario::MAX_STEPS)?;
     let cores = sys::parse_cores(&flags.cores).map_err(|e| CliError::Input(format!("--cores: {e}")))?;
     if let Some(s) = &flags.scenario
         && !s.is_file()

@@ -392,17 +392,14 @@ fn cpu_model() -> Option<String> {
 
 /// Runs `uavloc bench planner`.
 pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
-    if args.steps == 0 {
-        return Err(CliError::Input("--steps must be at least 1, got 0".into()));
-    }
-    if args.repeats == 0 {
-        return Err(CliError::Input("--repeats must be at least 1, got 0".into()));
+    use model::scenario::{MAX_COUNT, MAX_STEPS};
+    crate::args::require_count("--steps", args.steps, 1, MAX_STEPS)?;
+    crate::args::require_count("--repeats", args.repeats, 1, MAX_COUNT)?;
+    if let Some(n) = args.run_steps {
+        crate::args::require_count("--run-steps", n, 1, MAX_STEPS)?;
     }
     let objectives = parse_list("--objective", &args.objective, &ObjectiveKind::ALL)?;
     let solvers = parse_list("--solver", &args.solver, &SolverKind::ALL)?;
-    if args.run_steps == Some(0) {
-        return Err(CliError::Input("--run-steps must be at least 1, got 0".into()));
-    }
     let sc = scenario_from(args.scenario.as_ref(), None, args.seed)?;
     let run_steps = args.run_steps.unwrap_or(sc.steps);
     let (inputs, input_runs) = collect_inputs_of_runs(&sc, args.steps, run_steps)?;

@@ -335,7 +335,7 @@ impl Scenario {
             }
         }
         self.noise_model()?;
-        nonzero("steps", self.steps)?;
+        count("steps", self.steps, 1, MAX_STEPS)?;
         finite("delta_alpha_deg", self.delta_alpha)?;
         if !(self.delta_alpha > 0.0 && self.delta_alpha <= std::f64::consts::PI) {
             return Err(invalid(
@@ -350,10 +350,8 @@ impl Scenario {
         positive("sigma_t", self.sigma_t)?;
         length("sigma_t", "sigma_t", self.sigma_t)?;
         non_negative("kappa", self.kappa)?;
-        if self.mc_samples < 2 {
-            return Err(invalid("mc_samples", format!("need at least 2 samples, got {}", self.mc_samples)));
-        }
-        nonzero("rmse_resamples", self.rmse_resamples)?;
+        count("mc_samples", self.mc_samples, 2, MAX_COUNT)?;
+        count("rmse_resamples", self.rmse_resamples, 1, MAX_COUNT)?;
         within_extent("e0", &self.e0)?;
         non_negative("scale", self.scale)?;
         length(
@@ -381,14 +379,12 @@ impl Scenario {
             ));
         }
         non_negative("early_stop.tolerance", self.early_stop.tolerance)?;
-        nonzero("pso.particles", self.pso.particles)?;
-        nonzero("pso.iterations", self.pso.iterations)?;
+        count("pso.particles", self.pso.particles, 1, MAX_COUNT)?;
+        count("pso.iterations", self.pso.iterations, 1, MAX_COUNT)?;
         positive("pso.v_max_fraction", self.pso.v_max_fraction)?;
-        if self.ga.population < 2 {
-            return Err(invalid("ga.population", format!("need at least 2 individuals, got {}", self.ga.population)));
-        }
-        nonzero("ga.generations", self.ga.generations)?;
-        nonzero("ga.tournament", self.ga.tournament)?;
+        count("ga.population", self.ga.population, 2, MAX_COUNT)?;
+        count("ga.generations", self.ga.generations, 1, MAX_COUNT)?;
+        count("ga.tournament", self.ga.tournament, 1, MAX_COUNT)?;
         probability("ga.crossover_rate", self.ga.crossover_rate)?;
         non_negative("ga.blx_alpha", self.ga.blx_alpha)?;
         probability("ga.mutation_rate", self.ga.mutation_rate)?;
@@ -396,13 +392,13 @@ impl Scenario {
         if self.ga.elites >= self.ga.population {
             return Err(invalid("ga.elites", format!("must be below ga.population ({})", self.ga.population)));
         }
-        nonzero("aco.archive", self.aco.archive)?;
-        nonzero("aco.ants", self.aco.ants)?;
-        nonzero("aco.iterations", self.aco.iterations)?;
+        count("aco.archive", self.aco.archive, 1, MAX_COUNT)?;
+        count("aco.ants", self.aco.ants, 1, MAX_COUNT)?;
+        count("aco.iterations", self.aco.iterations, 1, MAX_COUNT)?;
         positive("aco.evaporation", self.aco.evaporation)?;
         positive("aco.elite_fraction", self.aco.elite_fraction)?;
-        nonzero("gradient.starts", self.gradient.starts)?;
-        nonzero("gradient.iterations", self.gradient.iterations)?;
+        count("gradient.starts", self.gradient.starts, 1, MAX_COUNT)?;
+        count("gradient.iterations", self.gradient.iterations, 1, MAX_COUNT)?;
         positive("gradient.tolerance", self.gradient.tolerance)?;
         if self.gradient.tolerance > std::f64::consts::PI {
             return Err(invalid(
@@ -606,8 +602,17 @@ fn probability(key: &str, v: f64) -> Result<(), ScenarioError> {
     if (0.0..=1.0).contains(&v) { Ok(()) } else { Err(invalid(key, format!("must be in [0, 1], got {v}"))) }
 }
 
-fn nonzero(key: &str, v: usize) -> Result<(), ScenarioError> {
-    if v > 0 { Ok(()) } else { Err(invalid(key, "must be at least 1, got 0")) }
+/// The most steps a run may have: the run record is held in memory at its end (≈ 1.5 KB per step).
+pub const MAX_STEPS: usize = 1_000_000;
+
+/// The most of any solver's population or iterations, of the `mc` criterion's samples and of the RMSE's
+/// resamples: the criterion is evaluated for every candidate of every step, and a population is held in
+/// memory; beyond this a step takes hours, or the allocation fails (a count of 10¹¹ aborted the run).
+pub const MAX_COUNT: usize = 100_000;
+
+/// A count `v` of `key` within `min..=max`.
+fn count(key: &str, v: usize, min: usize, max: usize) -> Result<(), ScenarioError> {
+    if (min..=max).contains(&v) { Ok(()) } else { Err(invalid(key, format!("must be in {min}..={max}, got {v}"))) }
 }
 
 /// Turns a TOML error into [`ScenarioError::Parse`], locating the key from the error's byte span.
@@ -804,6 +809,10 @@ mod tests {
             ("sigma_t = 0", "sigma_t"),
             ("kappa = -0.1", "kappa"),
             ("mc_samples = 1", "mc_samples"),
+            ("mc_samples = 100001", "mc_samples"),
+            ("steps = 1000001", "steps"),
+            ("[pso]\nparticles = 100001", "pso.particles"),
+            ("[gradient]\niterations = 100001", "gradient.iterations"),
             ("rmse_resamples = 0", "rmse_resamples"),
             ("scale = -1", "scale"),
             ("headings_deg = [0.0, 1.0]", "headings_deg"),

@@ -46,6 +46,11 @@ pub struct RmseReport {
     pub failures: usize,
 }
 
+/// The most samples or draws a Monte Carlo computation takes (the global CRLB's samples are held in
+/// memory, 24 bytes each; the RMSE's draws are one Chan solve each): beyond it the run takes hours or the
+/// allocation fails — 10¹¹ aborted `uavloc global`, `usize::MAX` panicked it.
+pub const MAX_SAMPLES: usize = 10_000_000;
+
 /// RMSE of Chan over `draws` noisy measurements of the emitter at `z`, seeded. `prior` resolves the
 /// 3-UAV ambiguity (without one, ambiguous draws count as failures and are left out of the RMSE).
 pub fn rmse(
@@ -57,6 +62,14 @@ pub fn rmse(
 ) -> Result<RmseReport, TdoaError> {
     if draws == 0 {
         return Err(TdoaError::NonPositive { what: "draws".into(), value: 0.0 });
+    }
+    if draws > MAX_SAMPLES {
+        return Err(TdoaError::OutOfRange {
+            what: "draws".into(),
+            value: draws as f64,
+            min: 1.0,
+            max: MAX_SAMPLES as f64,
+        });
     }
     let bound = crlb(sensors, z)?;
     let mut rng = stream(seed, 0, Purpose::RmseResamples);

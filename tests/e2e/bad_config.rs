@@ -21,7 +21,7 @@ fn refused(args: &[&str], needle: &str) {
 }
 
 /// (scenario file content, what the error must name).
-const BAD_SCENARIOS: [(&str, &str); 41] = [
+const BAD_SCENARIOS: [(&str, &str); 45] = [
     ("speeed = 10.0", "speeed"),                                                // unknown key
     ("[pso]\nparticle = 40", "particle"),                                       // unknown key in a table
     ("speed = \"fast\"", "speed"),                                              // wrong type
@@ -66,6 +66,11 @@ const BAD_SCENARIOS: [(&str, &str); 41] = [
     ("emitter_velocity = [999000.0, 0.0]", "emitter_velocity"),
     ("[gradient]\ntolerance = 1e300", "gradient.tolerance"),
     ("sigma = 1e-300", "sigma"),
+    // Counts beyond what can be held or computed: each aborted the run on a failed allocation.
+    ("[pso]\nparticles = 100000000000", "pso.particles"),
+    ("mc_samples = 100000000000", "mc_samples"),
+    ("[ga]\npopulation = 100000000000", "ga.population"),
+    ("rmse_resamples = 100000000000", "rmse_resamples"),
 ];
 
 #[test]
@@ -152,6 +157,49 @@ fn malformed_flags_are_refused() {
             &["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1e300"],
             "sigma",
         ),
+        // Counts beyond what can be held or computed (session 16: usize::MAX samples panicked `global`,
+        // 10¹¹ aborted it; `simulate --steps 10¹¹` would build a record of that many steps).
+        (
+            &[
+                "global",
+                "--uav",
+                "0,0",
+                "--uav",
+                "1000,0",
+                "--uav",
+                "0,1000",
+                "--estimate",
+                "3000,3000",
+                "--cov",
+                "100,0,100",
+                "--sigma",
+                "10",
+                "--method",
+                "mc",
+                "--samples",
+                "18446744073709551615",
+            ],
+            "--samples",
+        ),
+        (
+            &[
+                "rmse",
+                "--uav",
+                "0,0",
+                "--uav",
+                "1000,0",
+                "--uav",
+                "0,1000",
+                "--target",
+                "5,5",
+                "--sigma",
+                "1",
+                "--draws",
+                "100000000000",
+            ],
+            "--draws",
+        ),
+        (&["simulate", "--steps", "100000000000"], "steps"),
     ];
     for (args, needle) in cases {
         refused(args, needle);

@@ -35,6 +35,14 @@ impl MonteCarlo {
                 what: "Monte Carlo samples − 1".into(), value: samples as f64 - 1.0
             });
         }
+        if samples > crate::montecarlo::MAX_SAMPLES {
+            return Err(TdoaError::OutOfRange {
+                what: "Monte Carlo samples".into(),
+                value: samples as f64,
+                min: 2.0,
+                max: crate::montecarlo::MAX_SAMPLES as f64,
+            });
+        }
         Ok(Self { samples, seed, scheme })
     }
 
