@@ -157,53 +157,21 @@ fn malformed_flags_are_refused() {
             &["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1e300"],
             "sigma",
         ),
-        // Counts beyond what can be held or computed (session 16: usize::MAX samples panicked `global`,
-        // 10¹¹ aborted it; `simulate --steps 10¹¹` would build a record of that many steps).
-        (
-            &[
-                "global",
-                "--uav",
-                "0,0",
-                "--uav",
-                "1000,0",
-                "--uav",
-                "0,1000",
-                "--estimate",
-                "3000,3000",
-                "--cov",
-                "100,0,100",
-                "--sigma",
-                "10",
-                "--method",
-                "mc",
-                "--samples",
-                "18446744073709551615",
-            ],
-            "--samples",
-        ),
-        (
-            &[
-                "rmse",
-                "--uav",
-                "0,0",
-                "--uav",
-                "1000,0",
-                "--uav",
-                "0,1000",
-                "--target",
-                "5,5",
-                "--sigma",
-                "1",
-                "--draws",
-                "100000000000",
-            ],
-            "--draws",
-        ),
+        // Counts beyond what can be held or computed (session 16; `simulate --steps 10¹¹` would build a
+        // record of that many steps; the calculators' below).
         (&["simulate", "--steps", "100000000000"], "steps"),
     ];
     for (args, needle) in cases {
         refused(args, needle);
     }
+    // usize::MAX Monte Carlo samples panicked `global` ("capacity overflow"), 10¹¹ aborted it.
+    let triangle = ["--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000"];
+    let global = ["--estimate", "3000,3000", "--cov", "100,0,100", "--sigma", "10", "--method", "mc"];
+    refused(&[&["global"][..], &triangle, &global, &["--samples", "18446744073709551615"]].concat(), "--samples");
+    refused(
+        &[&["rmse"][..], &triangle, &["--target", "5,5", "--sigma", "1", "--draws", "100000000000"]].concat(),
+        "--draws",
+    );
 }
 
 /// A bad `UAVLOC_DOMAIN` is named as such, not as a `--domain` the user never gave.
