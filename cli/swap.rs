@@ -106,8 +106,8 @@ fn reconcile(
         (Some(given), None) => {
             return Err(mismatch("--scenario", given.display().to_string(), "default scenario".into()));
         }
-        (None, running) => a.process.run.scenario = running.clone(),
-        _ => {}
+        // The launch's own copy: the original may have been edited since the launch started.
+        _ => a.process.run.scenario = run.scenario_copy.clone().or_else(|| run.scenario.clone()),
     }
     Ok(())
 }

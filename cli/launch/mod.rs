@@ -156,11 +156,20 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // Checkpoints (and the monitor's log when --log is not given) live in a private directory of this
     // launch, removed at the end: a restarted child resumes from what its predecessor wrote there.
     let state = StateDir::create(&domain)?;
+    // The processes read the launch's own copy of the scenario file: a restart long after the start, or a
+    // swapped-in process, runs the scenario the launch started with even if the file was edited since
+    // (before, it read the edited file, was of another run and the launch failed).
+    let copy = args.run.scenario.as_deref().map(|file| state.copy_scenario(file, &sc)).transpose()?;
     state.write_run_settings(&state_dir::RunSettings {
         scenario: args.run.scenario.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
+        scenario_copy: copy.clone(),
         steps: sc.steps,
         seed: sc.seed,
     })?;
+    let args = &LaunchArgs {
+        run: crate::args::RunChoice { scenario: copy.or_else(|| args.run.scenario.clone()), ..args.run.clone() },
+        ..args.clone()
+    };
     let log = args.log.clone().unwrap_or_else(|| state.path("monitor.jsonl"));
     let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts);
     let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log);

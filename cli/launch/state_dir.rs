@@ -123,6 +123,10 @@ pub(super) fn remove_stale_state_dirs(root: &Path) -> usize {
 pub struct RunSettings {
     /// The scenario file (absolute), if not the default.
     pub scenario: Option<PathBuf>,
+    /// The launch's own copy of that file (in its state directory), which its processes — and a process
+    /// swapped in — read: an edit of the original during the run changes no restart.
+    #[serde(default)]
+    pub scenario_copy: Option<PathBuf>,
     /// Planning steps.
     pub steps: usize,
     /// Run seed.
@@ -166,6 +170,23 @@ impl StateDir {
 
     pub(super) fn path(&self, name: &str) -> PathBuf {
         self.0.join(name)
+    }
+
+    /// Copies the scenario `file` into this directory (`scenario.toml`) and checks that the copy is the
+    /// scenario `loaded` (the file did not change between the load and the copy); the copy's path.
+    pub(super) fn copy_scenario(&self, file: &Path, loaded: &model::Scenario) -> Result<PathBuf, CliError> {
+        let copy = self.path("scenario.toml");
+        std::fs::copy(file, &copy)
+            .map_err(|e| CliError::Input(format!("--scenario {}: cannot copy it: {e}", file.display())))?;
+        let again = model::load_scenario(Some(&copy), Some(loaded.steps), Some(loaded.seed))
+            .map_err(|e| CliError::Input(format!("--scenario {}: {e}", file.display())))?;
+        if again.fingerprint() != loaded.fingerprint() {
+            return Err(CliError::Input(format!(
+                "--scenario {}: the file changed while the launch started; start it again",
+                file.display()
+            )));
+        }
+        Ok(copy)
     }
 
     /// Writes the run's settings for `uavloc swap` ([`find_run_settings`]).

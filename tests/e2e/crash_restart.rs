@@ -251,3 +251,29 @@ fn summary_of(child: &mut std::process::Child) -> Value {
         })
         .unwrap_or_else(|| panic!("no summary line in:\n{out}"))
 }
+
+/// The scenario file edited during a run (the user preparing the next experiment) changes no restart: the
+/// processes read the launch's own copy, so the planner restarted after the edit plans the scenario the
+/// launch started with and the run equals `simulate` of the original file. Before, the restarted planner
+/// read the edited file, was of another run, was told to leave (exit 2) and the launch failed.
+#[test]
+fn a_scenario_file_edited_during_the_run_changes_no_restart() {
+    let _scenario = common::scenario(module_path!());
+    let dir = scratch("edited-scenario");
+    let (file, original) = (dir.join("edited.toml"), dir.join("original.toml"));
+    for f in [&file, &original] {
+        std::fs::write(f, "speed = 45.0\n").unwrap();
+    }
+    let d = domain("edit", "scenario");
+    let mut launch =
+        Launch::start(&d, &dir, &["--steps", "40", "--step-delay-ms", "20", "--scenario", file.to_str().unwrap()]);
+    launch.wait_for_step(5, Duration::from_secs(30));
+    std::fs::write(&file, "speed = 60.0\n").unwrap();
+    kill(pid_of(&d, "planner").expect("the planner"), libc::SIGKILL);
+    let run = launch.finish_json();
+    assert_eq!(run["restarts"].as_u64(), Some(1), "{}", run["processes"]);
+    let sim = json_of(&["simulate", "--json", "--steps", "40", "--scenario", original.to_str().unwrap()]);
+    assert_same_run(&sim, &run, "the original scenario");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
