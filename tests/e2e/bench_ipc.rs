@@ -10,6 +10,19 @@ use std::process::Command;
 use common::UAVLOC;
 use serde_json::Value;
 
+/// Runs `uavloc <args>` to its end; its output and the prefix of its sweep's names (`uavloc-ipc-<pid>-`:
+/// what must be gone afterwards — a prefix of this sweep alone, as the tests run side by side).
+fn sweep(args: &[&str]) -> (std::process::Output, String) {
+    let child = Command::new(UAVLOC)
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let prefix = format!("uavloc-ipc-{}-", child.id());
+    (child.wait_with_output().unwrap(), prefix)
+}
+
 fn num(v: &Value, key: &str) -> f64 {
     v[key].as_f64().unwrap_or_else(|| panic!("{key} is not a number in {v}"))
 }
@@ -18,11 +31,8 @@ fn num(v: &Value, key: &str) -> f64 {
 fn a_small_sweep_reports_every_transport_and_size() {
     let _scenario = common::scenario(module_path!());
     let dir = common::scratch("bench-ipc");
-    let out = Command::new(UAVLOC)
-        .args(["bench", "ipc", "--messages", "60", "--sizes", "256,65536", "--json", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
+    let (out, prefix) =
+        sweep(&["bench", "ipc", "--messages", "60", "--sizes", "256,65536", "--json", "--out", dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: Value = serde_json::from_slice(&out.stdout).unwrap();
     let rows = report["rows"].as_array().unwrap();
@@ -43,8 +53,8 @@ fn a_small_sweep_reports_every_transport_and_size() {
         assert!(std::fs::metadata(dir.join(f)).is_ok_and(|m| m.len() > 0), "{f} missing");
     }
     assert_eq!(report["wait"], "block");
-    // The echo processes and their services are gone (every sweep's names start with `uavloc-ipc-`).
-    common::assert_nothing_left("uavloc-ipc-");
+    // The echo processes and their services are gone (the sweep's names start with `uavloc-ipc-<pid>-`).
+    common::assert_nothing_left(&prefix);
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -53,10 +63,8 @@ fn a_busy_polling_sweep_times_every_transport_and_size_too() {
     // --wait spin: both ends poll (the socket non-blocking); a payload larger than a socket's buffer is
     // written and read in parts.
     let _scenario = common::scenario(module_path!());
-    let out = Command::new(UAVLOC)
-        .args(["bench", "ipc", "--wait", "spin", "--messages", "40", "--sizes", "256,1048576", "--json"])
-        .output()
-        .unwrap();
+    let (out, prefix) =
+        sweep(&["bench", "ipc", "--wait", "spin", "--messages", "40", "--sizes", "256,1048576", "--json"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(report["wait"], "spin");
@@ -70,7 +78,7 @@ fn a_busy_polling_sweep_times_every_transport_and_size_too() {
         let (p50, p99, max) = (num(r, "p50_us"), num(r, "p99_us"), num(r, "max_us"));
         assert!(p50 > 0.0 && p50 <= p99 * 1.001 && p99 <= max * 1.001, "{r}");
     }
-    common::assert_nothing_left("uavloc-ipc-");
+    common::assert_nothing_left(&prefix);
 }
 
 #[test]

@@ -68,7 +68,15 @@ fn a_hang_up_ends_a_process_cleanly() {
     let _scenario = common::scenario(module_path!());
     let d = domain("hand", "hangup");
     let monitor = start("monitor", &d, &["--steps", "12"]);
-    std::thread::sleep(Duration::from_millis(500));
+    // Once its node exists (a loaded machine may take long to get there): a hang-up before the process
+    // has set up its signals kills it, as for any program.
+    let dom = protocol::services::Domain::new(&d).unwrap();
+    let node = protocol::services::node_name(&dom, "monitor");
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    while !protocol::resources::list(&dom).is_ok_and(|r| r.alive_nodes().any(|n| *n == node)) {
+        assert!(std::time::Instant::now() < deadline, "the monitor's node did not appear");
+        std::thread::sleep(Duration::from_millis(20));
+    }
     common::kill(monitor.id(), libc::SIGHUP);
     let (code, _, err) = wait(monitor, "the monitor hung up");
     assert_eq!(code, Some(130), "{err}");
