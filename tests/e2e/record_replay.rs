@@ -138,7 +138,7 @@ fn a_recording_of_a_swapped_planner_replays_each_step_with_its_own_planner() {
     let mut launch = Launch::start(
         &d,
         &dir,
-        &["--steps", "24", "--step-delay-ms", "40", "--solver", "pso", "--record", file.to_str().unwrap()],
+        &["--steps", "24", "--step-delay-ms", "80", "--solver", "pso", "--record", file.to_str().unwrap()],
     );
     launch.wait_for_step(3, Duration::from_secs(30));
     // stderr to a file: the detached new planner keeps writing there until the launch ends.
