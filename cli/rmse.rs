@@ -88,9 +88,7 @@ pub fn compute(
     seed: u64,
     prior: Option<Vector2<f64>>,
 ) -> Result<RmseReport, CliError> {
-    if !(1..=tdoa::montecarlo::MAX_SAMPLES).contains(&draws) {
-        return Err(CliError::Input(format!("--draws must be in 1..={} (got {draws})", tdoa::montecarlo::MAX_SAMPLES)));
-    }
+    crate::args::require_count("--draws", draws, 1, tdoa::montecarlo::MAX_SAMPLES)?;
     let r = tdoa::montecarlo::rmse(sensors, target, draws, seed, prior)
         .map_err(CliError::tdoa_in(format!("--target {},{}", target.x, target.y)))?;
     let ok = r.failures < r.draws;

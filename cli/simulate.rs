@@ -81,10 +81,11 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     if let Some(dir) = &args.out {
         runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
-    if let (Some(file), Some(dir)) = (&args.record, &args.out) {
-        runtime::output::check_distinct(&[("--record", file)], &[("--out", dir, &monitor::export::RUN_FILES)])
-            .map_err(CliError::Input)?;
-    }
+    runtime::output::check_distinct(
+        &[("--record", args.record.as_deref())],
+        &[("--out", args.out.as_deref(), &monitor::export::RUN_FILES)],
+    )
+    .map_err(CliError::Input)?;
     let mut recorder = match &args.record {
         Some(file) => {
             let file = runtime::output::check_out_file("--record", file).map_err(CliError::Input)?;

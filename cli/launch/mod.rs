@@ -120,17 +120,15 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     if let Some(dir) = &args.out {
         runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
-    let files: Vec<(&str, &std::path::Path)> =
-        [("--record", &args.record), ("--log", &args.log), ("--stamps", &args.stamps)]
-            .into_iter()
-            .filter_map(|(flag, file)| Some((flag, file.as_deref()?)))
-            .collect();
-    for (flag, file) in &files {
-        runtime::output::check_out_file(flag, file).map_err(CliError::Input)?;
+    let files =
+        [("--record", args.record.as_deref()), ("--log", args.log.as_deref()), ("--stamps", args.stamps.as_deref())];
+    for (flag, file) in files {
+        if let Some(file) = file {
+            runtime::output::check_out_file(flag, file).map_err(CliError::Input)?;
+        }
     }
-    let out: Vec<(&str, &std::path::Path, &[&str])> =
-        args.out.iter().map(|d| ("--out", d.as_path(), &monitor::export::RUN_FILES[..])).collect();
-    runtime::output::check_distinct(&files, &out).map_err(CliError::Input)?;
+    runtime::output::check_distinct(&files, &[("--out", args.out.as_deref(), &monitor::export::RUN_FILES)])
+        .map_err(CliError::Input)?;
     if args.link.transport == protocol::TransportKind::Uds {
         protocol::transport::uds::check_socket_dir().map_err(CliError::Input)?;
     }

@@ -385,14 +385,14 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         runtime::output::check_out_dir("--out", dir).map_err(ProcessError::Input)?;
     }
     // No two outputs on one file (one would overwrite the other, or the log read back another's lines).
-    let files: Vec<(&str, &std::path::Path)> =
-        [("--log", &args.log), ("--stamps", &args.stamps), ("--mcap", &args.mcap), ("--record", &args.record)]
-            .into_iter()
-            .filter_map(|(flag, file)| Some((flag, file.as_deref()?)))
-            .collect();
-    let out: Vec<(&str, &std::path::Path, &[&str])> =
-        args.out.iter().map(|d| ("--out", d.as_path(), &crate::export::RUN_FILES[..])).collect();
-    runtime::output::check_distinct(&files, &out).map_err(ProcessError::Input)?;
+    let files = [
+        ("--log", args.log.as_deref()),
+        ("--stamps", args.stamps.as_deref()),
+        ("--mcap", args.mcap.as_deref()),
+        ("--record", args.record.as_deref()),
+    ];
+    runtime::output::check_distinct(&files, &[("--out", args.out.as_deref(), &crate::export::RUN_FILES)])
+        .map_err(ProcessError::Input)?;
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
     // With a log, the step records live there, not in memory (read back at the end); a restart takes the
     // steps its predecessor logged, and the estimator states they echoed.

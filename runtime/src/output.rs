@@ -32,25 +32,27 @@ pub fn check_out_file(flag: &str, file: &Path) -> Result<PathBuf, String> {
     Ok(abs)
 }
 
-/// Checks that no two outputs of a run are one file: each `(flag, file)`, and each file an `--out`
-/// directory will hold (`(flag, dir, its file names)`). Paths are compared as the system resolves them
-/// (relative or absolute, through symbolic links of their directories or of the files themselves).
+/// Checks that no two outputs of a run are one file: each `(flag, file)` given, and each file an `--out`
+/// directory given will hold (`(flag, dir, its file names)`); `None`: the flag is not given. Paths are
+/// compared as the system resolves them (relative or absolute, through symbolic links of their
+/// directories or of the files themselves).
 /// Before, `--log` and `--stamps` on one file left a CSV where the log had been, with exit code 0.
-pub fn check_distinct(files: &[(&str, &Path)], dirs: &[(&str, &Path, &[&str])]) -> Result<(), String> {
-    let mut seen: Vec<(String, PathBuf, PathBuf)> = Vec::new();
-    let listed = files.iter().map(|(flag, f)| (flag.to_string(), f.to_path_buf()));
-    let inside = dirs.iter().flat_map(|(flag, dir, names)| {
-        names.iter().map(move |n| (format!("{flag} {} (its {n})", dir.display()), dir.join(n)))
-    });
+pub fn check_distinct(files: &[(&str, Option<&Path>)], dirs: &[(&str, Option<&Path>, &[&str])]) -> Result<(), String> {
+    let mut seen: Vec<(String, PathBuf)> = Vec::new();
+    let listed = files.iter().filter_map(|&(flag, f)| Some((flag.to_string(), f?.to_path_buf())));
+    let inside =
+        dirs.iter().filter_map(|&(flag, dir, names)| Some((flag, dir?, names))).flat_map(|(flag, dir, names)| {
+            names.iter().map(move |n| (format!("{flag} {} (its {n})", dir.display()), dir.join(n)))
+        });
     for (what, file) in listed.chain(inside) {
         let key = resolved(&file);
-        if let Some((other, _, _)) = seen.iter().find(|(_, _, k)| *k == key) {
+        if let Some((other, _)) = seen.iter().find(|(_, k)| *k == key) {
             return Err(format!(
                 "{other} and {what} are one file, {}: give each output a file of its own",
                 key.display()
             ));
         }
-        seen.push((what, file, key));
+        seen.push((what, key));
     }
     Ok(())
 }
@@ -93,19 +95,19 @@ mod tests {
         let root = std::env::temp_dir().join(format!("uavloc-output-distinct-{}", std::process::id()));
         std::fs::create_dir_all(root.join("d")).unwrap();
         let (a, b) = (root.join("a.jsonl"), root.join("b.csv"));
-        assert_eq!(check_distinct(&[("--log", &a), ("--stamps", &b)], &[]), Ok(()));
+        assert_eq!(check_distinct(&[("--log", Some(&a)), ("--stamps", Some(&b)), ("--record", None)], &[]), Ok(()));
         // The same file by another name: through `..`, and through a symbolic link to its directory.
         let dotted = root.join("d/../a.jsonl");
-        let e = check_distinct(&[("--log", &a), ("--stamps", &dotted)], &[]).unwrap_err();
+        let e = check_distinct(&[("--log", Some(&a)), ("--stamps", Some(&dotted))], &[]).unwrap_err();
         assert!(e.starts_with("--log and --stamps are one file"), "{e}");
         std::os::unix::fs::symlink(&root, root.join("d/link")).unwrap();
-        assert!(check_distinct(&[("--log", &a), ("--record", &root.join("d/link/a.jsonl"))], &[]).is_err());
+        assert!(check_distinct(&[("--log", Some(&a)), ("--record", Some(&root.join("d/link/a.jsonl")))], &[]).is_err());
         // A file that an --out directory will hold.
-        let e = check_distinct(&[("--log", &root.join("d/run.json"))], &[("--out", &root.join("d"), &["run.json"])])
-            .unwrap_err();
+        let (d, run_json, log) = (root.join("d"), root.join("d/run.json"), root.join("d/log"));
+        let e = check_distinct(&[("--log", Some(&run_json))], &[("--out", Some(&d), &["run.json"])]).unwrap_err();
         assert!(e.contains("--out") && e.contains("(its run.json)"), "{e}");
         assert_eq!(
-            check_distinct(&[("--log", &root.join("d/log"))], &[("--out", &root.join("d"), &["run.json"])]),
+            check_distinct(&[("--log", Some(&log))], &[("--out", Some(&d), &["run.json"]), ("--out", None, &["log"])]),
             Ok(())
         );
         std::fs::remove_dir_all(&root).ok();
