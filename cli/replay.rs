@@ -224,19 +224,15 @@ fn recorded_planners(
     Ok(out)
 }
 
-/// Part `i` (0: solver, 1: objective) of the steps' `solver/objective`, each name once in the order first
-/// used, joined by ` → ` (one name when the whole run was replayed with one).
-fn in_order_used(steps: &[ReplayStep], i: usize) -> String {
-    let mut names: Vec<&str> = Vec::new();
-    for s in steps {
-        if let Some(name) = s.planner.as_deref().and_then(|p| p.split('/').nth(i))
-            && names.last() != Some(&name)
-            && !names.contains(&name)
-        {
-            names.push(name);
+/// `names`, each once in the order first seen, joined by ` → ` (one name when all are one).
+fn in_order_used(names: impl Iterator<Item = &'static str>) -> String {
+    let mut used: Vec<&str> = Vec::new();
+    for name in names {
+        if !used.contains(&name) {
+            used.push(name);
         }
     }
-    names.join(" → ")
+    used.join(" → ")
 }
 
 /// Runs `uavloc replay`.
@@ -266,6 +262,8 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
     }
     let mut estimator = Estimator::with_config(EstimatorConfig::new(sc.estimator, dynamics));
     let mut per_step = Vec::new();
+    // The objective and solver of each planned step, in step order.
+    let mut planners_used: Vec<(ObjectiveKind, SolverKind)> = Vec::new();
     for (expected, (&step, json)) in measurements.iter().enumerate() {
         if step != expected as u64 {
             return Err(CliError::Input(format!(
@@ -323,6 +321,9 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             }
             _ => None,
         };
+        if planned {
+            planners_used.push((objective, solver));
+        }
         per_step.push(ReplayStep {
             step,
             recorded,
@@ -342,8 +343,8 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         file: args.file.display().to_string(),
         estimator: sc.estimator.name().to_string(),
         emitter_model: sc.emitter_model.name().to_string(),
-        objective: in_order_used(&per_step, 1),
-        solver: in_order_used(&per_step, 0),
+        objective: in_order_used(planners_used.iter().map(|p| p.0.name())),
+        solver: in_order_used(planners_used.iter().map(|p| p.1.name())),
         steps: per_step.len() as u64,
         estimates_compared: per_step.iter().filter(|s| s.recorded.is_some()).count() as u64,
         estimates_equal: per_step.iter().filter(|s| s.estimate_equal).count() as u64,

@@ -219,10 +219,7 @@ impl Sender for IoxSender {
             let sample = p.acks.receive().map_err(|e| failed("receiving an ack", name, e))?;
             Ok(sample.map(|s| Ack::from_words(*s.payload())))
         };
-        match self.waiting {
-            Waiting::Spin => spin("waiting for an ack", name, receive),
-            Waiting::Block => block(&p.listener, "waiting for an ack", name, receive),
-        }
+        wait_for(self.waiting, &p.listener, "waiting for an ack", name, receive)
     }
 }
 
@@ -278,15 +275,28 @@ impl Receiver for IoxReceiver {
                 (seq, sent_ns, received_ns)
             }))
         };
-        let (seq, sent_ns, received_ns) = match self.waiting {
-            Waiting::Spin => spin("waiting for a payload", name, receive)?,
-            Waiting::Block => block(&self.listener, "waiting for a payload", name, receive)?,
-        };
+        let (seq, sent_ns, received_ns) =
+            wait_for(self.waiting, &self.listener, "waiting for a payload", name, receive)?;
         if seq == STOP {
             return Ok(false);
         }
         self.answer(Ack { seq, sent_ns, received_ns, cpu_ns: cpu_ns() })?;
         Ok(true)
+    }
+}
+
+/// Looks for a sample with `receive` until it comes, as `waiting` says: polling ([`spin`]) or blocking on
+/// `listener` between looks ([`block`]).
+fn wait_for<T>(
+    waiting: Waiting,
+    listener: &iceoryx2::port::listener::Listener<ipc::Service>,
+    what: &'static str,
+    name: &str,
+    receive: impl FnMut() -> Result<Option<T>, TransportError>,
+) -> Result<T, TransportError> {
+    match waiting {
+        Waiting::Spin => spin(what, name, receive),
+        Waiting::Block => block(listener, what, name, receive),
     }
 }
 
