@@ -284,12 +284,14 @@ impl EstimatorNode<'_> {
 
 impl Handler for EstimatorNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
+        // The measurements are taken (and stamped) first; the states that came before them are remembered
+        // before any is answered.
+        let (batch, received_ns) = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
         self.follow_predecessor(node)?;
         self.take_states(node)?;
         for (held, answer) in self.state.release() {
             self.publish(node, &held.measurement, held.received_ns, answer)?;
         }
-        let (batch, received_ns) = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
         for m in batch {
             // The estimator has no scenario: it belongs to the run of its first measurement that states one
             // (commands, state answers and measurements of another run are rejected from then on).

@@ -110,6 +110,11 @@ pub const REASK: std::time::Duration = std::time::Duration::from_secs(2);
 /// monitor takes the step's messages for lost and asks for a replay (they may be on their way).
 pub const STATE_GRACE: std::time::Duration = std::time::Duration::from_secs(1);
 
+/// While a run streams, the monitor takes its messages every this long instead of per message
+/// ([`Node::drain_every`]): it is off the control loop. The subscriber buffers ([`protocol::transport::SUBSCRIBER_BUFFER`]
+/// samples per topic) hold the 3–4 steps a lock-step run makes meanwhile many times over.
+pub const DRAIN_EVERY: std::time::Duration = std::time::Duration::from_micros(250);
+
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
 The monitor subscribes to <domain>/measurement, /estimate, /command and /truth and needs the run's
@@ -429,6 +434,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         return Err(ProcessError::Interrupted);
     };
     node.set_run(scenario.run_id());
+    node.drain_every(DRAIN_EVERY);
     let domain = node.domain().clone();
     let stamps = args.stamps.as_deref().map(|p| StampsCsv::create(p, resumed)).transpose()?;
     let recorder = match &args.mcap {

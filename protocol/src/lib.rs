@@ -43,7 +43,7 @@ pub use messages::{
 pub use services::Domain;
 pub use transport::{
     Link, Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, TransportKind, WaitMode,
-    WaitPolicy, Waitable, node, wait_attached,
+    WaitPolicy, Waitable, node, poll, wait_attached,
 };
 pub use validate::{Rejection, RejectionCounter};
 

@@ -113,6 +113,8 @@ pub struct Node {
     rejected_reported: u64,
     /// The instances of another run this one told to leave ([`ControlKind::Run`]).
     told_to_leave: Vec<u64>,
+    /// An observer's drain period ([`Node::drain_every`]).
+    drain_every: Option<Duration>,
 }
 
 impl Node {
@@ -145,7 +147,18 @@ impl Node {
             handover: None,
             rejected_reported: 0,
             told_to_leave: Vec::new(),
+            drain_every: None,
         }))
+    }
+
+    /// Makes this node an observer off the control loop: while messages stream in it sleeps `period`
+    /// between wake-ups and then takes everything that came, instead of being woken (or busy-polling) per
+    /// message; once a period brings nothing it waits as its `--wait` policy says again. So it never
+    /// takes a core from the loop in the middle of a step, and its senders never pay a wake-up for it (an
+    /// iceoryx2 listener that is not about to block costs its notifiers no system call): what the monitor
+    /// does. `period` must leave the subscriber buffers room for what comes meanwhile.
+    pub fn drain_every(&mut self, period: Duration) {
+        self.drain_every = Some(period);
     }
 
     /// The link (to create topics on).
@@ -424,23 +437,48 @@ impl Node {
         let _idle = waitset.attach_interval(IDLE_WAKEUP).map_err(attach_failed)?;
         let waited: Vec<&dyn Waitable> =
             inputs.iter().copied().chain(std::iter::once(control.subscriber() as &dyn Waitable)).collect();
-        loop {
-            let left = handler.deadline().map(|d| d.saturating_duration_since(Instant::now()));
-            let (spin, block) = self.policy.split(left.unwrap_or(IDLE_WAKEUP).min(IDLE_WAKEUP));
+        let policy = self.policy;
+        // One wait as the `--wait` policy says: spin, then block until a message, the deadline (`left`
+        // from now) or a signal. Only a wait that blocks sets up its deadline: attaching one costs
+        // iceoryx2 four system calls (it reads the epoll capacity from /proc), which a message caught by
+        // the spin never pays.
+        let wait = |left: Option<Duration>| -> Result<Option<Ended>, ProcessError> {
+            let (spin, block) = policy.split(left.unwrap_or(IDLE_WAKEUP).min(IDLE_WAKEUP));
+            if protocol::poll(spin, &waited)? || block.is_zero() {
+                return Ok(None);
+            }
             // The deadline is a one-shot attachment of this wait (iceoryx2 rounds it up to whole
             // milliseconds; a message wakes the wait at once).
             let _deadline = match left {
-                Some(left) if !block.is_zero() => Some(
+                Some(left) => Some(
                     waitset
                         .attach_interval(left.saturating_sub(spin).max(Duration::from_micros(1)))
                         .map_err(attach_failed)?,
                 ),
-                _ => None,
+                None => None,
             };
-            match protocol::wait_attached(&waitset, spin, !block.is_zero(), &waited) {
-                Ok(()) => {}
-                Err(TransportError::Interrupted) => return Ok(Ended::Interrupted),
-                Err(e) => return Err(e.into()),
+            match protocol::wait_attached(&waitset, &waited) {
+                Ok(()) => Ok(None),
+                Err(TransportError::Interrupted) => Ok(Some(Ended::Interrupted)),
+                Err(e) => Err(e.into()),
+            }
+        };
+        // Whether messages are streaming in (an observer then drains every period instead of waiting).
+        let mut streaming = false;
+        loop {
+            let left = handler.deadline().map(|d| d.saturating_duration_since(Instant::now()));
+            if let (Some(period), true) = (self.drain_every, streaming) {
+                match self.link.sleep(left.map_or(period, |l| l.min(period))) {
+                    Ok(()) => {}
+                    Err(TransportError::Interrupted) => return Ok(Ended::Interrupted),
+                    Err(e) => return Err(e.into()),
+                }
+                streaming = protocol::poll(Duration::ZERO, &waited)?;
+            } else {
+                if let Some(ended) = wait(left)? {
+                    return Ok(ended);
+                }
+                streaming = self.drain_every.is_some();
             }
             if self.link.interrupted() {
                 return Ok(Ended::Interrupted);

@@ -735,16 +735,20 @@ impl<T: Message> Waitable for TopicSubscriber<T> {
     }
 }
 
-/// Waits on a `WaitSet` to which `inputs` are attached and whose deadlines are its own attachments (an
-/// interval, a one-shot deadline): busy-polls `inputs` for `spin` first, then, when `block` is set, blocks
-/// until a message, an attached deadline or a signal wakes the `WaitSet`. Errors as [`wait_any`].
-pub fn wait_attached(
-    waitset: &WaitSet<ipc::Service>,
-    spin: Duration,
-    block: bool,
-    inputs: &[&dyn Waitable],
-) -> Result<(), TransportError> {
-    if spin_until(spin, || any_ready(inputs))? || !block || about_to_block(inputs)? {
+/// Busy-polls `inputs` for up to `spin` (at least once; the CPU is yielded between polls): whether a
+/// message came. Touches shared memory only (no system call but the yields), so a process that spins
+/// first and sets up its blocking wait (e.g. attaches a deadline to its `WaitSet`) only when nothing came
+/// pays for that set-up only when it blocks.
+pub fn poll(spin: Duration, inputs: &[&dyn Waitable]) -> Result<bool, TransportError> {
+    spin_until(spin, || any_ready(inputs))
+}
+
+/// Blocks on a `WaitSet` to which `inputs` are attached and whose deadlines are its own attachments (an
+/// interval, a one-shot deadline) until a message, an attached deadline or a signal wakes it — unless a
+/// message is already buffered (the wake-ups are consumed, then the buffers looked at once more: see
+/// the module docs). Call it after [`poll`] found nothing. Errors as [`wait_any`].
+pub fn wait_attached(waitset: &WaitSet<ipc::Service>, inputs: &[&dyn Waitable]) -> Result<(), TransportError> {
+    if about_to_block(inputs)? {
         return Ok(());
     }
     match waitset.wait_and_process_once(|_| CallbackProgression::Continue) {
