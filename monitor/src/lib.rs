@@ -14,6 +14,7 @@ pub mod chart;
 pub mod export;
 pub mod front_end;
 pub mod latency;
+mod lines;
 pub mod metrics;
 pub mod plot;
 pub mod png;

@@ -69,7 +69,7 @@ use model::load_scenario;
 use protocol::services;
 use protocol::{
     Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, RejectionCounter, Topic,
-    TopicPublisher, TopicSubscriber, Truth, Waitable, now_ns,
+    TopicPublisher, TopicSubscriber, Truth, Waitable,
 };
 use runtime::recovery::StateStore;
 use runtime::{Flow, Handler, IDLE_WAKEUP, Join, Node};
@@ -110,10 +110,12 @@ pub const REASK: std::time::Duration = std::time::Duration::from_secs(2);
 /// monitor takes the step's messages for lost and asks for a replay (they may be on their way).
 pub const STATE_GRACE: std::time::Duration = std::time::Duration::from_secs(1);
 
-/// While a run streams, the monitor takes its messages every this long instead of per message
-/// ([`Node::drain_every`]): it is off the control loop. The subscriber buffers ([`protocol::transport::SUBSCRIBER_BUFFER`]
-/// samples per topic) hold the 3–4 steps a lock-step run makes meanwhile many times over.
-pub const DRAIN_EVERY: std::time::Duration = std::time::Duration::from_micros(250);
+/// While a run streams, the monitor takes its messages every this long (plus the kernel's timer slack,
+/// ≤ 50 µs) instead of per message ([`Node::drain_every`]): it is off the control loop, which then has the
+/// cores to itself between two drains. The subscriber buffers
+/// ([`protocol::transport::SUBSCRIBER_BUFFER`] samples per topic) hold the ≈ 5 steps a lock-step run makes
+/// meanwhile many times over.
+pub const DRAIN_EVERY: std::time::Duration = std::time::Duration::from_micros(100);
 
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
@@ -247,8 +249,7 @@ impl MonitorNode<'_> {
         sub: &TopicSubscriber<T>,
         add: fn(&mut Session, T),
     ) -> Result<(), ProcessError> {
-        let batch = sub.receive_all()?;
-        let received_ns = now_ns();
+        let (batch, received_ns) = sub.receive_stamped()?;
         for msg in batch {
             self.session.arrived(&msg, received_ns);
             match node.counter().check(&msg, &mut self.last_seq[T::KIND.index()]) {
@@ -263,6 +264,7 @@ impl MonitorNode<'_> {
 impl Handler for MonitorNode<'_> {
     fn on_control(&mut self, _node: &mut Node, msg: &Control) -> Result<Flow, ProcessError> {
         self.session.heard(msg);
+        self.session.flush_outputs()?;
         Ok(Flow::Continue)
     }
 
@@ -325,6 +327,7 @@ impl Handler for MonitorNode<'_> {
         if !session.assembler.is_done() {
             self.watch_front_end(node, next)?;
         }
+        self.session.flush_outputs()?;
         Ok(if self.session.assembler.is_done() { Flow::Stop } else { Flow::Continue })
     }
 }
@@ -342,8 +345,9 @@ impl MonitorNode<'_> {
             self.state_answers.send(&EstimatorState::new(echo, seq, node.instance()))?;
         }
         self.session.complete_steps(node.counter().total());
-        // A write error of the log or the stamps ends the run at once, naming the file (disk full, …).
-        self.session.check_outputs()
+        // The lines of the steps recorded go out before the progress says so; a write error of the log or
+        // the stamps ends the run at once, naming the file (disk full, …).
+        self.session.flush_outputs()
     }
 
     /// With an external source: a front end that left the measurement topic before the last step ends the
@@ -486,6 +490,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         }
         Some(n) => node.say(format_args!("domain {domain}, resumed with {n} steps from the log")),
     }
+    session.flush_outputs()?;
     if !session.assembler.is_done() {
         let inputs: [&dyn Waitable; 4] = [&truths, &measurements, &estimates, &commands];
         node.run(&inputs, &mut monitor)?;
@@ -493,6 +498,8 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let mut session = monitor.session;
     let counter = node.counter().clone();
 
+    // What the last wake-up gathered (a run ended by a signal or a shutdown ends between two).
+    session.flush_outputs()?;
     let mut run = session.assembler.record();
     if let Some(path) = &args.log {
         // The records are in the log (this instance's and its predecessors').
@@ -529,6 +536,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             "stale_steps": summary.stale_steps,
         }),
     );
+    session.log.flush();
     // The record is the run's result: a failure to write files from it does not lose it (it still goes
     // to the supervisor), it is reported.
     // Each output is tried whatever became of the others.

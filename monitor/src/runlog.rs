@@ -2,8 +2,9 @@
 //! reading a run back from it (a restarted monitor's steps, the record at the end).
 
 use std::fs::File;
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+use crate::lines::LineFile;
 
 use protocol::messages::AnyBitPattern as _;
 use protocol::{StateEcho, now_ns};
@@ -12,47 +13,44 @@ use serde_json::json;
 use crate::record::StepRecord;
 use runtime::ProcessError;
 
-/// The JSON-lines run log (a no-op without `--log`), opened for appending: each line goes out in one
-/// `write`, so lines of other writers (the launcher's `restart` events) never land inside one.
+/// The JSON-lines run log (a no-op without `--log`), opened for appending: whole lines, one `write` per
+/// wake-up ([`LineFile`]), so lines of other writers (the launcher's `restart` events) never land inside
+/// one.
 pub(crate) struct EventLog {
-    file: Option<(File, PathBuf)>,
-    /// The first write error, reported when it happened; the run cannot go on without its log.
-    error: Option<String>,
+    file: Option<LineFile>,
 }
 
 impl EventLog {
     /// Opens `path` for appending; truncates it first unless `append`.
     pub(crate) fn open(path: Option<&Path>, append: bool) -> Result<Self, ProcessError> {
-        let Some(p) = path else { return Ok(EventLog { file: None, error: None }) };
+        let Some(p) = path else { return Ok(EventLog { file: None }) };
         // Cannot be opened: a bad flag (exit 2), not worth a restart.
         let failed = |e: std::io::Error| ProcessError::Input(format!("--log {}: {e}", p.display()));
         if !append {
             File::create(p).map_err(failed)?;
         }
         let file = std::fs::OpenOptions::new().create(true).append(true).open(p).map_err(failed)?;
-        Ok(EventLog { file: Some((file, p.to_path_buf())), error: None })
+        let consequence = " (the step records live in the log: the run cannot be recorded)";
+        Ok(EventLog { file: Some(LineFile::new(file, p, "--log", consequence)) })
     }
 
+    /// Adds an event line (written at the next [`flush`](Self::flush)).
     pub(crate) fn write(&mut self, event: &str, fields: impl serde::Serialize) {
-        if let Some((out, path)) = &mut self.file {
-            let line = event_line(event, now_ns(), &fields);
-            if let Err(e) = out.write_all(line.as_bytes())
-                && self.error.is_none()
-            {
-                self.error = Some(format!(
-                    "--log {}: {e} (the step records live in the log: the run cannot be recorded)",
-                    path.display()
-                ));
-            }
+        if let Some(file) = &mut self.file {
+            file.push(&event_line(event, now_ns(), &fields));
+        }
+    }
+
+    /// Writes the lines added since the last flush.
+    pub(crate) fn flush(&mut self) {
+        if let Some(file) = &mut self.file {
+            file.flush();
         }
     }
 
     /// The first write error, as the unrecoverable end of the run (a restart would hit it again).
     pub(crate) fn check(&self) -> Result<(), ProcessError> {
-        match &self.error {
-            Some(e) => Err(ProcessError::Unrecoverable(e.clone())),
-            None => Ok(()),
-        }
+        self.file.as_ref().map_or(Ok(()), LineFile::check)
     }
 }
 
@@ -195,6 +193,8 @@ pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
 
 #[cfg(test)]
 pub(crate) mod tests {
+    use std::path::PathBuf;
+
     use super::*;
 
     /// A fresh directory for a test's log (the test removes it), and the log's path in it.
@@ -230,6 +230,7 @@ pub(crate) mod tests {
             let record = crate::record::tests::record(k, crlb);
             log.write("step", json!({"step": k, "record": record}));
         }
+        log.flush();
         let run = read_log(&path, true);
         assert_eq!(run.count, 3);
         assert_eq!(run.steps[1].crlb_true_m, Some(f64::INFINITY));
@@ -253,6 +254,7 @@ pub(crate) mod tests {
             let record = crate::record::tests::record(k, 10.0);
             log.write("step", json!({"step": k, "record": record, "state": e.map(|e| state_to_hex(&e))}));
         }
+        log.flush();
         let run = read_log(&path, false);
         assert_eq!(run.count, 4);
         assert_eq!(run.states, vec![echo(0), empty, echo(3)]);

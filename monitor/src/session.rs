@@ -185,8 +185,14 @@ impl Session {
         self.assembler.add_command(c);
     }
 
-    /// A write error of the log, the recording or the stamps (disk full, …), naming the file.
-    pub(crate) fn check_outputs(&self) -> Result<(), ProcessError> {
+    /// Writes the stamps rows and log lines gathered since the last call (the rows first: a monitor
+    /// killed between the two has a row of a step its log lacks, which its successor drops), then
+    /// reports a write error of the log, the recording or the stamps (disk full, …), naming the file.
+    pub(crate) fn flush_outputs(&mut self) -> Result<(), ProcessError> {
+        if let Some(stamps) = &mut self.stamps {
+            stamps.flush();
+        }
+        self.log.flush();
         self.log.check()?;
         if let Some(r) = &self.recorder {
             r.check().map_err(ProcessError::Failed)?;
@@ -449,7 +455,7 @@ mod tests {
         assert_eq!(s.summary.missing_messages, 1, "step 1's estimate never came as first published");
         assert_eq!(s.summary.planners, 1);
         assert!(s.received.is_empty(), "the receive times of recorded steps are forgotten");
-        s.check_outputs().unwrap();
+        s.flush_outputs().unwrap();
         drop(s);
 
         let text = std::fs::read_to_string(&path).unwrap();

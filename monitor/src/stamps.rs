@@ -3,17 +3,17 @@
 
 use std::fs::File;
 use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+use crate::lines::LineFile;
 
 use protocol::Stamps;
 use runtime::ProcessError;
 
-/// The `--stamps` CSV file: one row per recorded step, written (one `write`) before the step's log line.
+/// The `--stamps` CSV file: one row per recorded step, flushed ([`LineFile`]) before the log's lines of
+/// the same wake-up.
 pub(crate) struct StampsCsv {
-    out: File,
-    path: PathBuf,
-    /// The first write error, reported when it happened.
-    error: Option<String>,
+    out: LineFile,
 }
 
 /// Header of the `--stamps` CSV (see [`crate::process::MonitorArgs::stamps`]).
@@ -47,7 +47,7 @@ impl StampsCsv {
         };
         let mut out = File::create(path).map_err(|e| ProcessError::Input(msg(e)))?;
         out.write_all(start.as_bytes()).map_err(|e| ProcessError::Unrecoverable(msg(e)))?;
-        Ok(StampsCsv { out, path: path.to_owned(), error: None })
+        Ok(StampsCsv { out: LineFile::new(out, path, "--stamps", "") })
     }
 
     pub(crate) fn row(&mut self, step: u64, s: &Stamps, command_received_ns: u64, rx: [u64; 4]) {
@@ -65,22 +65,21 @@ impl StampsCsv {
             rx[2],
             rx[3]
         );
-        if let Err(e) = self.out.write_all(line.as_bytes())
-            && self.error.is_none()
-        {
-            self.error = Some(format!("--stamps {}: {e}", self.path.display()));
-        }
+        self.out.push(&line);
+    }
+
+    /// Writes the rows added since the last flush.
+    pub(crate) fn flush(&mut self) {
+        self.out.flush();
     }
 
     /// The first write error, as the unrecoverable end of the run.
     pub(crate) fn check(&self) -> Result<(), ProcessError> {
-        match &self.error {
-            Some(e) => Err(ProcessError::Unrecoverable(e.clone())),
-            None => Ok(()),
-        }
+        self.out.check()
     }
 
-    pub(crate) fn finish(self) -> Result<(), ProcessError> {
+    pub(crate) fn finish(mut self) -> Result<(), ProcessError> {
+        self.flush();
         self.check()
     }
 }

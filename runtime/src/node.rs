@@ -290,17 +290,17 @@ impl Node {
     /// number of that topic) and when they were received (CLOCK_MONOTONIC ns); each rejected one is
     /// counted and logged ("rejected a `what`: …"), each accepted one counted.
     ///
-    /// The receive time is taken once the messages are in hand, not when the wake-up began: a message
-    /// published in between (the wake-up was for one already taken) would otherwise be stamped as
-    /// received before it was sent, and its latency sample lost.
+    /// The receive time is when the last of them was in hand ([`TopicSubscriber::receive_stamped`]: an
+    /// iceoryx2 sample once taken, before its payload is copied out; a datagram once received), not when
+    /// the wake-up began: a message published in between (the wake-up was for one already taken) would
+    /// otherwise be stamped as received before it was sent, and its latency sample lost.
     pub fn receive<T: Message>(
         &mut self,
         sub: &TopicSubscriber<T>,
         last_seq: &mut Option<u64>,
         what: &str,
     ) -> Result<(Vec<T>, u64), ProcessError> {
-        let mut out = sub.receive_all()?;
-        let received_ns = now_ns();
+        let (mut out, received_ns) = sub.receive_stamped()?;
         out.retain(|m| match self.counter.check(m, last_seq) {
             Ok(()) => true,
             Err(r) => {
@@ -480,9 +480,6 @@ impl Node {
                 }
                 streaming = self.drain_every.is_some();
             }
-            if self.link.interrupted() {
-                return Ok(Ended::Interrupted);
-            }
             if let Some(ended) = self.on_control(handler)? {
                 return Ok(ended);
             }
@@ -495,6 +492,11 @@ impl Node {
             self.report_rejections()?;
             if let Some(f) = self.handover_due(handler.last_answered()) {
                 return Ok(Ended::HandedOver(f));
+            }
+            // SIGINT/SIGTERM: a blocking wait and a drain's sleep end on one at once; a polling wait is
+            // checked here, after the messages it found (off their hop: the check takes a lock).
+            if self.link.interrupted() {
+                return Ok(Ended::Interrupted);
             }
         }
     }

@@ -17,7 +17,7 @@ use super::{
     HISTORY, IpcNode, MAX_PUBLISHERS, MAX_SUBSCRIBERS, PublishPort, SUBSCRIBER_BUFFER, SubscribePort, TopicEvents,
     TransportError, event_id, failed,
 };
-use crate::messages::Message;
+use crate::messages::{Message, now_ns};
 
 fn service_name(name: &str) -> Result<ServiceName, TransportError> {
     ServiceName::new(name).map_err(|e| TransportError::BadName {
@@ -157,6 +157,8 @@ impl<T: Message> SubscribePort<T> for IoxSubscriber<T> {
         // Shared memory only: the listener is left alone (see `consume_wakeups`).
         let mut events = TopicEvents::default();
         while let Some(sample) = self.subscriber.receive().map_err(|e| failed("receiving", &self.name, e))? {
+            // In hand: the sample is ours to read in place; the copy below is this port's choice.
+            events.in_hand_ns = now_ns();
             out.push(*sample.payload());
             events.samples += 1;
         }

@@ -590,6 +590,11 @@ pub struct TopicEvents {
     pub publishers_dead: u64,
     /// Any other event id (socket transport: datagrams of the wrong size, dropped).
     pub other: u64,
+    /// When the last message received was taken from the transport (CLOCK_MONOTONIC ns; 0: none): an
+    /// iceoryx2 sample once it is the receiver's to read in place (before its payload is copied out), a
+    /// datagram once `recv` returned it (also when a poll took it, [`TopicSubscriber::has_samples`]). A
+    /// hop ends here.
+    pub in_hand_ns: u64,
 }
 
 impl TopicEvents {
@@ -618,6 +623,15 @@ impl<T: Message> TopicSubscriber<T> {
     /// and not validated.
     pub fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError> {
         self.port.receive_into(out)
+    }
+
+    /// Returns every buffered message (oldest first; possibly none) and when the last of them was in hand
+    /// ([`TopicEvents::in_hand_ns`]; the time of the call when there is none): the receive stamp of
+    /// the batch, which no message in it was published after.
+    pub fn receive_stamped(&self) -> Result<(Vec<T>, u64), TransportError> {
+        let mut out = Vec::new();
+        let events = self.receive_into(&mut out)?;
+        Ok((out, if events.in_hand_ns == 0 { now_ns() } else { events.in_hand_ns }))
     }
 
     /// Returns every buffered message (oldest first; possibly none).

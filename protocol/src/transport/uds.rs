@@ -36,7 +36,7 @@ use std::path::{Path, PathBuf};
 use iceoryx2::prelude::FileDescriptor;
 
 use super::{PublishPort, SubscribePort, TopicEvents, TransportError};
-use crate::messages::Message;
+use crate::messages::{Message, now_ns};
 
 /// Environment variable naming the directory of the socket files.
 pub const UDS_DIR_ENV: &str = "UAVLOC_UDS_DIR";
@@ -438,7 +438,9 @@ pub struct UdsSubscriber<T: Message> {
     fd: OwnedFd,
     descriptor: FileDescriptor,
     generation: Generation,
-    pending: RefCell<VecDeque<T>>,
+    /// Messages a poll took from the socket ([`SubscribePort::has_samples`]), each with when it was
+    /// taken (its in-hand stamp, [`TopicEvents::in_hand_ns`]).
+    pending: RefCell<VecDeque<(T, u64)>>,
 }
 
 impl<T: Message> core::fmt::Debug for UdsSubscriber<T> {
@@ -515,10 +517,14 @@ impl<T: Message> SubscribePort<T> for UdsSubscriber<T> {
         let mut events = TopicEvents::default();
         let mut pending = self.pending.borrow_mut();
         events.samples += pending.len() as u64;
-        out.extend(pending.drain(..));
+        for (m, in_hand_ns) in pending.drain(..) {
+            events.in_hand_ns = in_hand_ns;
+            out.push(m);
+        }
         loop {
             match self.try_receive()? {
                 Received::Message(m) => {
+                    events.in_hand_ns = now_ns();
                     events.samples += 1;
                     out.push(m);
                 }
@@ -541,7 +547,7 @@ impl<T: Message> SubscribePort<T> for UdsSubscriber<T> {
         loop {
             match self.try_receive()? {
                 Received::Message(m) => {
-                    pending.push_back(m);
+                    pending.push_back((m, now_ns()));
                     return Ok(true);
                 }
                 Received::Malformed => continue,
