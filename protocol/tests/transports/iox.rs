@@ -459,3 +459,24 @@ fn event_services_take_only_the_ids_in_use() {
     assert!(event_id::MAX >= event_id::SAMPLE.max(event_id::PUBLISHER_CREATED).max(event_id::PUBLISHER_DROPPED));
     assert_eq!(event_id::MAX, event_id::PUBLISHER_DEAD);
 }
+
+#[test]
+fn a_sample_is_in_hand_once_taken_not_once_seen() {
+    // A poll only looks (the sample stays in the queue); the receive takes it, and its stamp is then.
+    let domain = unique_domain();
+    let link = iox_link(&services::node_name(&domain, "in-hand")).unwrap();
+    let name = services::measurement(&domain);
+    let sub = Topic::<Measurement>::subscriber(&link, &name).unwrap();
+    let publisher = Topic::<Measurement>::publisher(&link, &name).unwrap();
+    let published = publisher.send(&measurement(1)).unwrap().published_ns;
+    assert!(sub.has_samples().unwrap());
+    std::thread::sleep(Duration::from_millis(5));
+    let before = now_ns();
+    let (got, in_hand) = sub.receive_stamped().unwrap();
+    assert_eq!(got.len(), 1);
+    assert!(published < before && before <= in_hand && in_hand <= now_ns(), "{published} < {before} ≤ {in_hand}");
+    // A batch is stamped when its last message was taken: none of it was published after.
+    let last = (2..5).map(|seq| publisher.send(&measurement(seq)).unwrap().published_ns).max().unwrap();
+    let (got, in_hand) = sub.receive_stamped().unwrap();
+    assert!(got.len() == 3 && in_hand >= last);
+}

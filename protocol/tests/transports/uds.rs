@@ -222,3 +222,29 @@ fn iceoryx2_and_socket_topics_of_one_name_do_not_meet() {
     assert_eq!(publisher.send(&Truth::new(0, 1, [0.0, 0.0])).unwrap().subscribers, 0);
     assert!(sub.receive_all().unwrap().is_empty());
 }
+
+#[test]
+fn a_datagram_is_in_hand_when_a_poll_took_it() {
+    // The receive stamp of a batch is when its last message was taken from the socket: a poll that took
+    // it (has_samples) is that moment, not the later receive.
+    let link = link();
+    let name = unique("in-hand");
+    let sub = Topic::<Measurement>::subscriber(&link, &name).unwrap();
+    let publisher = Topic::<Measurement>::publisher(&link, &name).unwrap();
+    let published = publisher.send(&measurement(1, 1)).unwrap().published_ns;
+    assert!(sub.has_samples().unwrap());
+    let polled = now_ns();
+    std::thread::sleep(Duration::from_millis(5));
+    let (got, in_hand) = sub.receive_stamped().unwrap();
+    assert_eq!(got.len(), 1);
+    assert!(published <= in_hand && in_hand <= polled, "{published} ≤ {in_hand} ≤ {polled}");
+    // A message received without a poll first is in hand during the receive; an empty batch is stamped
+    // when the receive ran.
+    let published = publisher.send(&measurement(2, 2)).unwrap().published_ns;
+    std::thread::sleep(Duration::from_millis(5));
+    let before = now_ns();
+    let (got, in_hand) = sub.receive_stamped().unwrap();
+    assert!(got.len() == 1 && published < before && before <= in_hand && in_hand <= now_ns());
+    let (got, at) = sub.receive_stamped().unwrap();
+    assert!(got.is_empty() && at >= in_hand);
+}
