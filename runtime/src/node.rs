@@ -5,15 +5,20 @@
 //! [`Handler`]. The loop waits in one iceoryx2 `WaitSet` — the subscribers and the control topic as
 //! notification attachments, the idle wake-up ([`IDLE_WAKEUP`]) as an interval attachment and the
 //! handler's next deadline ([`Handler::deadline`]) as a one-shot interval attachment — busy-polling first
-//! as the `--wait` policy says. Per wake-up it
+//! as the `--wait` policy says; the deadline is attached only when the wait is about to block (attaching
+//! costs iceoryx2 four system calls, which a message caught by the busy poll never pays). An observer
+//! off the control loop (the monitor, [`Node::drain_every`]) instead sleeps a fixed period between
+//! wake-ups while messages stream in. Per wake-up it
 //!
 //! 1. reads the control topic: a rejected message is counted and logged, a shutdown ends the loop
 //!    ([`Ended::Shutdown`]), a take-over by a newer instance of the same role sets the hand-over step,
 //!    anything else goes to [`Handler::on_control`];
 //! 2. calls [`Handler::on_wake`], which drains its inputs ([`Node::receive`] validates and counts) and
-//!    publishes its answers;
+//!    publishes its answers; a polling process then yields its core once (a process it just sent to on
+//!    the same core runs at once);
 //! 3. ends the loop with [`Ended::HandedOver`] once the handler has answered every step before the
-//!    hand-over step, and with [`Ended::Interrupted`] on SIGINT/SIGTERM.
+//!    hand-over step, and with [`Ended::Interrupted`] on SIGINT/SIGTERM (a blocking wait or a drain's
+//!    sleep ends on the signal at once; a polling loop checks for it after each wake-up).
 //!
 //! The take-over side of a swap is [`Node::take_over`]; the hand-over side is [`Node::hands_over`] (a
 //! handler asks it before answering a step). Joining the domain ([`Node::join`], as a [`Join`] policy
@@ -27,8 +32,8 @@ use std::time::{Duration, Instant};
 use protocol::control::{instance_id_at, is_newer};
 use protocol::services::{self, Domain};
 use protocol::{
-    Control, ControlChannel, ControlKind, Link, Message, RejectionCounter, TopicSubscriber, TransportError, WaitPolicy,
-    Waitable, now_ns,
+    Control, ControlChannel, ControlKind, Link, Message, RejectionCounter, TopicSubscriber, TransportError, WaitMode,
+    WaitPolicy, Waitable, now_ns,
 };
 
 use crate::{NodeArgs, NodeSummary, ProcessError, SupervisorLine};
@@ -488,6 +493,12 @@ impl Node {
             }
             if handler.on_wake(self)? == Flow::Stop {
                 return Ok(self.stopped());
+            }
+            // A polling process hands its core over once it has handled the wake-up: a process it just sent
+            // to that polls on the same core runs now, not after this one's bookkeeping and first poll (its
+            // polls yield too; a blocking one was woken by the kernel).
+            if policy.mode != WaitMode::Block {
+                std::thread::yield_now();
             }
             self.report_rejections()?;
             if let Some(f) = self.handover_due(handler.last_answered()) {
