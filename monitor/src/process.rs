@@ -2,9 +2,10 @@
 //! run record ([`Assembler`]), shows one status line per step, logs every event as JSON lines, and writes
 //! the record (and CSVs and plots) when the last step is in.
 //!
-//! A handler on the node runtime ([`runtime::node`]: one `WaitSet` over the topics' listeners, event-driven)
-//! that drains every subscriber on each wake-up; every message is validated first ([`RejectionCounter`]), invalid ones
-//! are counted, logged and ignored.
+//! A handler on the node runtime ([`runtime::node`]: one `WaitSet` over the topics' listeners) that drains
+//! every subscriber on each wake-up — woken by a message, or, while a run streams, every [`DRAIN_EVERY`]
+//! ([`Node::drain_every`]: the monitor is off the control loop); every message is validated first
+//! ([`RejectionCounter`]), invalid ones are counted, logged and ignored.
 //!
 //! The JSON-lines log (`--log FILE`) has one object per line with `t_ns` (monotonic clock, the stamps'
 //! clock) and `event`:
