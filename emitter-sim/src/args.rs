@@ -59,6 +59,9 @@ impl std::fmt::Display for Mode {
 }
 
 /// Checks `--time-scale` against `--mode`: given only with `realtime`, and then a valid scale.
+/// The longest `--step-delay-ms`: a minute per step (a typo of hours per step would otherwise run as asked).
+pub const MAX_STEP_DELAY_MS: u64 = 60_000;
+
 fn check_time_scale_flag(mode: Mode, time_scale: Option<f64>) -> Result<(), String> {
     match (mode, time_scale) {
         (Mode::Lockstep, Some(_)) => {
@@ -122,7 +125,8 @@ pub struct EmitterSimArgs {
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub min_subscribers: usize,
     /// Wait this many milliseconds before each step after step 0 (slows a lock-step run down for a demo or
-    /// a test; the results do not change). 0: lock-step at full speed. Lock-step mode only.
+    /// a test; the results do not change). 0: lock-step at full speed. At most 60000 (a minute per step).
+    /// Lock-step mode only.
     #[arg(long, value_name = "MS", default_value_t = 0)]
     pub step_delay_ms: u64,
     /// Pacing: lockstep (the next step as soon as the command arrives; benchmarks, tests, exact
@@ -164,6 +168,13 @@ impl EmitterSimArgs {
     /// an error names the flag.
     pub fn check(&self) -> Result<(), String> {
         check_time_scale_flag(self.mode, self.time_scale)?;
+        if self.step_delay_ms > MAX_STEP_DELAY_MS {
+            return Err(format!(
+                "--step-delay-ms must be at most {MAX_STEP_DELAY_MS} (a minute per step), got {}; for a run in the \
+                 scenario's own time use --mode realtime",
+                self.step_delay_ms
+            ));
+        }
         if self.mode == Mode::Realtime && self.step_delay_ms > 0 {
             return Err(
                 "--step-delay-ms applies to lock-step mode only; in realtime mode --time-scale sets the pace".into()

@@ -132,6 +132,10 @@ fn malformed_flags_are_refused() {
         (&["process", "estimator", "--transport", "tcp"], "--transport"),
         (&["process", "emitter-sim", "--retry-interval-ms", "0"], "retry-interval-ms"),
         (&["process", "emitter-sim", "--monitor-window", "256"], "monitor-window"),
+        // Hours per step (session 17; it used to run as asked). The process first: without the check it
+        // fails at once (nothing to connect to within 0 s), where the launch would run for hours.
+        (&["process", "emitter-sim", "--step-delay-ms", "60001", "--connect-timeout-s", "0"], "step-delay-ms"),
+        (&["launch", "--step-delay-ms", "36000000"], "step-delay-ms"),
         // The monitor's outputs are checked before it waits for a run (it used to learn at the end).
         (&["process", "monitor", "--domain", "bad-config-out", "--out", "/proc/version"], "--out"),
         (&["process", "monitor", "--domain", "bad-config-out", "--record", "/proc/none/run.json"], "--record"),
