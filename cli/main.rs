@@ -3,16 +3,17 @@
 use std::io::Write;
 use std::process::ExitCode;
 
-use clap::Parser;
 use clap::error::ErrorKind;
+use clap::{CommandFactory, FromArgMatches};
 use uavloc::{
     Cli, CliError, Command, Diagnostic, Report, bench, crlb, global, launch, locate, one_line_clap_error, paper,
     replay, rmse, simulate, swap,
 };
 
 fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
-        Ok(cli) => cli,
+    let parsed = Cli::command().try_get_matches().and_then(|m| Cli::from_arg_matches(&m).map(|cli| (cli, m)));
+    let (cli, matches) = match parsed {
+        Ok(parsed) => parsed,
         Err(e) => {
             return match e.kind() {
                 ErrorKind::DisplayHelp
@@ -38,7 +39,7 @@ fn main() -> ExitCode {
             emit(simulate::run(&simulate::SimulateArgs { live: a.live && !json, ..a.clone() }), json)
         }
         Command::Launch(a) => emit(launch::run_from_cli(a, json), json),
-        Command::Swap(a) => emit(swap::run(a), json),
+        Command::Swap(a) => emit(swap::run(a, &swap::given_flags(&matches)), json),
         Command::Replay(a) => emit(replay::run(a), json),
         Command::Paper(a) => emit(paper::run(a), json),
         Command::Bench(a) => match &a.what {

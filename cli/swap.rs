@@ -35,8 +35,13 @@ switch, and its record names the planner of every step.
 The new process is started detached (it outlives this command) and stops with the pipeline: `uavloc
 launch` stops it at the end of the run. One swap of a role at a time: a second `uavloc swap` of the same
 role in the domain while one runs is refused (exit 2); a swap whose new process is itself replaced
-before this command returns (by a process started with --takeover) fails (exit 1). Give it the flags of the run it joins (--domain, and for the
-planner --scenario, --steps and --seed as given to the launch).";
+before this command returns (by a process started with --takeover) fails (exit 1).
+
+Give it --domain and the flags to change: every flag not given is the running launch's (its solver,
+objective, transport, wait mode, estimator settings, …), not the process's default, so a swap without
+flags restarts the role as it was. A planner's --scenario, --steps and --seed must be the launch's if
+given (exit 2 otherwise). A pipeline started by hand has no launch to take them from: then the flags not
+given are the defaults.";
 
 pub const AFTER_HELP: &str = "\
 Examples:
@@ -112,17 +117,67 @@ fn reconcile(
     Ok(())
 }
 
-/// Runs `uavloc swap`.
-pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
+/// The ids of the flags of `uavloc swap <role>` given on the command line (or by an environment
+/// variable) in `matches` (the whole command line's): what a swap takes from the user rather than from the
+/// running launch.
+pub fn given_flags(matches: &clap::ArgMatches) -> Vec<String> {
+    use clap::parser::ValueSource;
+    let Some((_, role)) = matches.subcommand_matches("swap").and_then(|m| m.subcommand()) else { return Vec::new() };
+    role.ids()
+        .filter(|id| {
+            matches!(role.value_source(id.as_str()), Some(ValueSource::CommandLine | ValueSource::EnvVariable))
+        })
+        .map(|id| id.as_str().to_owned())
+        .collect()
+}
+
+/// The flags of a swapped-in process: the running launch's for the role, but each one whose id is in
+/// `given` taken from `user` instead (both `--name=value` lists, as `runtime::flags::to_flags` writes
+/// them). `--quiet` is not taken from the launch (its children are quiet; a swapped-in process speaks to
+/// the swap's terminal unless told not to).
+fn merged_flags(launch: &[String], user: &[String], given: &[String]) -> Vec<String> {
+    let id = |flag: &str| flag.trim_start_matches("--").split('=').next().unwrap_or_default().replace('-', "_");
+    let mut out: Vec<String> = launch.iter().filter(|f| !given.contains(&id(f)) && id(f) != "quiet").cloned().collect();
+    out.extend(user.iter().filter(|f| given.contains(&id(f))).cloned());
+    out
+}
+
+/// `T` parsed from `flags` (a process's own parser).
+fn parse_flags<T: clap::Args + clap::FromArgMatches>(role: &'static str, flags: &[String]) -> Result<T, CliError> {
+    let parsed = T::augment_args(clap::Command::new(role))
+        .try_get_matches_from(std::iter::once(role.to_owned()).chain(flags.iter().cloned()))
+        .and_then(|m| T::from_arg_matches(&m));
+    parsed.map_err(|e| {
+        CliError::Input(format!(
+            "the running launch's {role} flags with this swap's: {}",
+            crate::one_line_clap_error(&e)
+        ))
+    })
+}
+
+/// `user` (the swap's flags of the role) completed from the launch's flags for the role (`launch`), each
+/// flag the user did not give (`given`) taken from there.
+fn completed<T>(role: &'static str, user: &T, launch: &[String], given: &[String]) -> Result<T, CliError>
+where
+    T: clap::Args + clap::FromArgMatches + Serialize + Clone,
+{
+    if launch.is_empty() {
+        return Ok(user.clone()); // a launch of an older build, or a pipeline started by hand
+    }
+    let mine = runtime::flags::to_flags(user).map_err(|e| CliError::Input(format!("{role}: {e}")))?;
+    parse_flags(role, &merged_flags(launch, &mine, given))
+}
+
+/// Runs `uavloc swap`; `given`: the ids of the role's flags given on the command line ([`given_flags`]).
+/// A flag not given is the running launch's (when a launch runs the domain), not the process's default.
+pub fn run(args: &SwapArgs, given: &[String]) -> Result<SwapReport, CliError> {
     if !(args.timeout_s > 0.0 && args.timeout_s.is_finite()) {
         return Err(CliError::Input(format!("--timeout-s must be > 0, got {}", args.timeout_s)));
     }
     let timeout = Duration::from_secs_f64(args.timeout_s);
-    let (role, domain_flag, planner) = match &args.role {
-        SwapRole::Planner(a) => {
-            ("planner", a.process.node.domain.as_deref(), Some(format!("{}/{}", a.solver.name(), a.objective.name())))
-        }
-        SwapRole::Estimator(a) => ("estimator", a.node.domain.as_deref(), None),
+    let (role, domain_flag) = match &args.role {
+        SwapRole::Planner(a) => ("planner", a.process.node.domain.as_deref()),
+        SwapRole::Estimator(a) => ("estimator", a.node.domain.as_deref()),
     };
     protocol::transport::quiet_logs();
     let domain = Domain::resolve_named(domain_flag).map_err(CliError::Input)?;
@@ -144,20 +199,30 @@ pub fn run(args: &SwapArgs) -> Result<SwapReport, CliError> {
     // The new process runs in the domain found above, under this command's supervision.
     let node =
         |a: &runtime::NodeArgs| runtime::NodeArgs { domain: Some(domain.to_string()), supervised: true, ..a.clone() };
+    let no_flags: Vec<String> = Vec::new();
+    let launch_flags = |f: fn(&crate::launch::state_dir::RunSettings) -> &Vec<String>| {
+        run.as_ref().map_or(&no_flags, |(settings, _)| f(settings))
+    };
+    let mut planner = None;
     let flags = match &args.role {
         SwapRole::Planner(a) => {
             let mut a = a.clone();
+            // The run's scenario, steps and seed (a given one that differs is refused), the launch's other
+            // flags where none is given.
+            let mut given = given.to_vec();
             if let Some((settings, file)) = &run {
                 reconcile(&mut a, settings, file)?;
+                given.extend(["scenario", "steps", "seed"].map(String::from));
             }
+            let a = completed(role, &a, launch_flags(|s| &s.planner), &given)?;
+            planner = Some(format!("{}/{}", a.solver.name(), a.objective.name()));
             let process = runtime::ProcessArgs { node: node(&a.process.node), ..a.process.clone() };
             runtime::flags::to_flags(&planner::process::PlannerArgs { process, takeover: true, ..a })
         }
-        SwapRole::Estimator(a) => runtime::flags::to_flags(&estimator::process::EstimatorArgs {
-            node: node(&a.node),
-            takeover: true,
-            ..a.clone()
-        }),
+        SwapRole::Estimator(a) => {
+            let a = completed(role, a, launch_flags(|s| &s.estimator), given)?;
+            runtime::flags::to_flags(&estimator::process::EstimatorArgs { node: node(&a.node), takeover: true, ..a })
+        }
     }
     .map_err(|e| CliError::Input(format!("{role}: {e}")))?;
 
@@ -270,6 +335,35 @@ impl Report for SwapReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_swapped_in_process_takes_the_launchs_flags_but_those_given() {
+        let launch: Vec<String> =
+            ["--domain=d", "--quiet", "--solver=pso", "--transport=uds", "--plan-delay-steps=1,2"]
+                .map(String::from)
+                .into();
+        let user: Vec<String> =
+            ["--solver=gradient", "--objective=mc", "--transport=iceoryx2"].map(String::from).into();
+        // Nothing given: the launch's, but its --quiet.
+        assert_eq!(
+            merged_flags(&launch, &user, &[]),
+            ["--domain=d", "--solver=pso", "--transport=uds", "--plan-delay-steps=1,2"]
+        );
+        // Given ones replace the launch's (all of a flag's values), in the user's words.
+        let given = ["solver", "objective", "plan_delay_steps"].map(String::from);
+        assert_eq!(
+            merged_flags(&launch, &user, &given),
+            ["--domain=d", "--transport=uds", "--solver=gradient", "--objective=mc"]
+        );
+        // Parsed back by the process's own parser: the launch's transport, the user's solver.
+        let a: planner::process::PlannerArgs =
+            parse_flags("planner", &merged_flags(&launch, &user, &["solver".to_string()])).unwrap();
+        assert_eq!((a.solver.name(), a.process.node.link.transport), ("gradient", protocol::TransportKind::Uds));
+        assert!(!a.process.node.quiet);
+        // A launch's flag the process does not know (a newer launch) is an error naming both sides.
+        let e = parse_flags::<planner::process::PlannerArgs>("planner", &["--no-such=1".to_string()]).unwrap_err();
+        assert!(e.to_string().contains("running launch's planner flags"), "{e}");
+    }
 
     #[test]
     fn a_take_over_after_the_last_step_is_refused() {

@@ -158,17 +158,24 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // swapped-in process, runs the scenario the launch started with even if the file was edited since
     // (before, it read the edited file, was of another run and the launch failed).
     let copy = args.run.scenario.as_deref().map(|file| state.copy_scenario(file, &sc)).transpose()?;
-    state.write_run_settings(&state_dir::RunSettings {
-        scenario: args.run.scenario.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
-        scenario_copy: copy.clone(),
-        steps: sc.steps,
-        seed: sc.seed,
-    })?;
+    let scenario = args.run.scenario.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone()));
     let args = &LaunchArgs {
-        run: crate::args::RunChoice { scenario: copy.or_else(|| args.run.scenario.clone()), ..args.run.clone() },
+        run: crate::args::RunChoice {
+            scenario: copy.clone().or_else(|| args.run.scenario.clone()),
+            ..args.run.clone()
+        },
         ..args.clone()
     };
     let log = args.log.clone().unwrap_or_else(|| state.path("monitor.jsonl"));
+    let flags_of = |role| children::child_flags(role, args, &sc, &domain, &state, &log);
+    state.write_run_settings(&state_dir::RunSettings {
+        scenario,
+        scenario_copy: copy,
+        steps: sc.steps,
+        seed: sc.seed,
+        planner: flags_of(Role::Planner)?,
+        estimator: flags_of(Role::Estimator)?,
+    })?;
     let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts);
     let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log);
     sup.stop_all();

@@ -131,6 +131,13 @@ pub struct RunSettings {
     pub steps: usize,
     /// Run seed.
     pub seed: u64,
+    /// The flags the launch gave its planner and its estimator (`--name=value`, as
+    /// [`runtime::flags::to_flags`] writes them): a process swapped in takes every flag its `uavloc swap`
+    /// does not give from there, so a swap meant to restart a role changes nothing else.
+    #[serde(default)]
+    pub planner: Vec<String>,
+    #[serde(default)]
+    pub estimator: Vec<String>,
 }
 
 /// The settings of the launch running in `domain` (its launcher alive), with the file they came from.

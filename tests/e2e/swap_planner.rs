@@ -105,6 +105,32 @@ fn the_planner_is_swapped_from_pso_to_ga_mid_run() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A swap without flags restarts the planner as the launch runs it: the launch's solver and transport,
+/// not the process's defaults (before: a gradient planner on iceoryx2, which could not even reach this
+/// launch's sockets; session 17).
+#[test]
+fn a_swap_without_flags_keeps_the_launchs_solver_and_transport() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("swap", "same");
+    let dir = scratch("swap-same");
+    let steps = STEPS.to_string();
+    let mut launch =
+        Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "40", "--solver", "pso", "--transport", "uds"]);
+    launch.wait_for_step(5, Duration::from_secs(30));
+    let report = swap(&dir, &["planner", "--domain", &d]);
+    assert_eq!(report["planner"], "pso/analytical", "{report}");
+    let from = report["from_step"].as_u64().unwrap();
+    let run = launch.finish_json();
+    for s in &run["steps"].as_array().unwrap()[..STEPS as usize] {
+        assert_eq!(s["planner"]["solver"], "pso", "step {}", s["step"]);
+    }
+    // The same planner after the swap as before it: the run is simulate's, bit for bit.
+    let sim = json_of(&["simulate", "--json", "--steps", &steps, "--solver", "pso"]);
+    assert_same_run(&sim, &run, &format!("a planner swapped at step {from} with no flags"));
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn the_estimator_is_swapped_and_the_run_is_unchanged() {
     let _scenario = common::scenario(module_path!());
