@@ -206,6 +206,17 @@ impl Planner<'_> {
     /// The command of one estimate; `None` when it cannot be planned (counted and logged).
     fn plan(&mut self, node: &mut Node, est: &Estimate, received_ns: u64) -> Result<Option<Command>, ProcessError> {
         let step = est.header.step;
+        // A valid estimate of another formation than the scenario's (an external front end flying other
+        // UAVs than the launch's --scenario): rejected, naming both counts — not planned as a length error.
+        let (got, want) = (est.uavs().len(), self.scenario.uav_count());
+        if got != want {
+            node.summary().rejected += 1;
+            node.warn(format_args!(
+                "rejected the estimate of step {step}: {got} UAVs, this run's scenario has {want} (a front end flying \
+                 another formation than --scenario?); nothing to plan"
+            ));
+            return Ok(None);
+        }
         let Some((position, covariance)) = est.plan_from() else {
             self.summary.errors += 1;
             node.warn(format_args!("step {step}: the estimator has no fix yet, nothing to plan from"));

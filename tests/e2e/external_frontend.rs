@@ -137,3 +137,39 @@ fn a_front_end_that_leaves_before_the_last_step_ends_the_launch_with_a_clear_err
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A front end flying another formation than the launch's scenario (4 UAVs against 3): the planner rejects
+/// its estimates naming both counts (before: "positions: expected 3 values, got 4", as if the planner had
+/// erred), plans nothing, and the launch ends once the front end gives up waiting for a command.
+#[test]
+fn a_front_end_with_another_uav_count_is_rejected_naming_both_counts() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("ext", "count");
+    let dir = scratch("ext-count");
+    let nominal =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/nominal.toml")).unwrap();
+    let four: String = nominal
+        .lines()
+        .map(|l| {
+            if l.starts_with("uavs =") {
+                "uavs = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0], [7000.0, 3000.0]]"
+            } else {
+                l
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert_ne!(four, nominal);
+    let world = dir.join("four.toml");
+    std::fs::write(&world, four).unwrap();
+    let launch = Launch::start(&d, &dir, &["--source", "external", "--steps", "6"]);
+    let out = front_end(&d, "6", &["--scenario", world.to_str().unwrap(), "--timeout-s", "3", "--linger-s", "0"])
+        .expect("run the front end");
+    assert!(!out.status.success(), "the front end got a command for another formation");
+    let (status, _stdout, stderr) = launch.finish();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("rejected the estimate of step 0: 4 UAVs, this run's scenario has 3"), "{stderr}");
+    assert!(!stderr.contains("expected 3 values"), "{stderr}");
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
