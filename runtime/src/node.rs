@@ -158,10 +158,11 @@ impl Node {
 
     /// Makes this node an observer off the control loop: while messages stream in it sleeps `period`
     /// between wake-ups and then takes everything that came, instead of being woken (or busy-polling) per
-    /// message; once a period brings nothing it waits as its `--wait` policy says again. So it never
-    /// takes a core from the loop in the middle of a step, and its senders never pay a wake-up for it (an
-    /// iceoryx2 listener that is not about to block costs its notifiers no system call): what the monitor
-    /// does. `period` must leave the subscriber buffers room for what comes meanwhile.
+    /// message; once a period brings nothing it waits as its `--wait` policy says again. So it no longer
+    /// competes with the loop for a core message by message (a drain takes one for a burst instead), and
+    /// its senders never pay a wake-up for it (an iceoryx2 listener that is not about to block costs its
+    /// notifiers no system call): what the monitor does. `period` must leave the subscriber buffers room
+    /// for what comes meanwhile.
     pub fn drain_every(&mut self, period: Duration) {
         self.drain_every = Some(period);
     }

@@ -750,9 +750,10 @@ impl<T: Message> Waitable for TopicSubscriber<T> {
 }
 
 /// Busy-polls `inputs` for up to `spin` (at least once; the CPU is yielded between polls): whether a
-/// message came. Touches shared memory only (no system call but the yields), so a process that spins
-/// first and sets up its blocking wait (e.g. attaches a deadline to its `WaitSet`) only when nothing came
-/// pays for that set-up only when it blocks.
+/// message came. Over iceoryx2 it touches shared memory only (no system call but the yields; a socket
+/// subscriber's poll is a `recv`), so a process that spins first and sets up its blocking wait (e.g.
+/// attaches a deadline to its `WaitSet`) only when nothing came pays for that set-up only when it
+/// blocks.
 pub fn poll(spin: Duration, inputs: &[&dyn Waitable]) -> Result<bool, TransportError> {
     spin_until(spin, || any_ready(inputs))
 }
