@@ -43,7 +43,7 @@ impl RangeDiffs {
         }
         let mut out = [0.0; MAX_DIFFS];
         for (i, &v) in values.iter().enumerate() {
-            check_finite(&format!("range difference d{}", i + 1), v)?;
+            check_finite(format_args!("range difference d{}", i + 1), v)?;
             out[i] = v;
         }
         Ok(Self { values: out, len: values.len() })
@@ -55,7 +55,10 @@ impl RangeDiffs {
     }
 }
 
-pub(crate) fn check_finite(what: &str, value: f64) -> Result<(), TdoaError> {
+/// `value` if finite, else [`TdoaError::NotFinite`] naming it `what` — written only then: the
+/// constructors below run for every candidate geometry of a planning step and every Monte Carlo draw, so
+/// their callers pass `format_args!`, not a `String` built each time.
+pub(crate) fn check_finite(what: impl std::fmt::Display, value: f64) -> Result<(), TdoaError> {
     if value.is_finite() { Ok(()) } else { Err(TdoaError::NotFinite { what: what.to_string(), value }) }
 }
 
@@ -87,7 +90,7 @@ impl NoiseModel {
         }
         let mut s = [0.0; MAX_UAVS];
         for (i, &v) in sigmas.iter().enumerate() {
-            check_finite(&format!("sigma of UAV {i}"), v)?;
+            check_finite(format_args!("sigma of UAV {i}"), v)?;
             if v <= 0.0 {
                 return Err(TdoaError::NonPositive { what: format!("sigma of UAV {i}"), value: v });
             }
@@ -191,8 +194,8 @@ impl Sensors {
         for (i, p) in uavs.iter().enumerate() {
             // Format the message only on failure: this runs for every planner candidate.
             if !(p[0].abs() <= MAX_EXTENT_M && p[1].abs() <= MAX_EXTENT_M) {
-                check_finite(&format!("x of UAV {i}"), p[0])?;
-                check_finite(&format!("y of UAV {i}"), p[1])?;
+                check_finite(format_args!("x of UAV {i}"), p[0])?;
+                check_finite(format_args!("y of UAV {i}"), p[1])?;
                 return Err(TdoaError::OutOfRange {
                     what: format!("a coordinate of UAV {i}"),
                     value: p[0].abs().max(p[1].abs()),
