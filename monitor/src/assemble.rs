@@ -271,39 +271,44 @@ impl Assembler {
 
     /// Completes every step whose messages are all in, in order.
     pub fn complete_ready(&mut self) -> Vec<CompletedStep> {
-        let mut done = Vec::new();
-        while !self.is_done() {
-            let k = self.next;
-            let planned = k < self.last_step();
-            // What became of step k's command, from the truth of step k + 1.
-            let next_truth = self.pending.get(&(k + 1)).and_then(|p| p.truth.as_ref());
-            let outcome = next_truth.map(Truth::previous_command);
-            let command_received_ns = next_truth.map_or(0, |t| t.header.stamps.trigger_command_received_ns);
-            let missed = outcome == Some(Some(CommandOutcome::Missed));
-            let truth = self.truth;
-            let ready = self.pending.get(&k).is_some_and(|p| {
-                p.measurement.is_some()
-                    && p.estimate.is_some()
-                    && (p.truth.is_some() || !truth)
-                    && (!planned || ((outcome.is_some() || !truth) && (missed || p.command.is_some())))
-            });
-            if !ready {
-                break;
-            }
-            let p = self.pending.remove(&k).unwrap_or_default();
-            let (Some(m), Some(e), t) = (p.measurement, p.estimate, p.truth) else { break };
-            if missed && p.command.is_some() {
-                self.ignored += 1; // it came, but too late for the world
-            }
-            let command = if missed { None } else { p.command.as_ref() };
-            let mut step = self.complete(k, &m, &e, t.as_ref(), command, planned && missed);
-            if command.is_some() {
-                step.command_received_ns = command_received_ns;
-            }
-            done.push(step);
-            self.next += 1;
+        std::iter::from_fn(|| self.complete_next()).collect()
+    }
+
+    /// Completes the next step if its messages are all in (one at a time: a caller may do other work, or
+    /// give the CPU away, between two steps).
+    pub fn complete_next(&mut self) -> Option<CompletedStep> {
+        if self.is_done() {
+            return None;
         }
-        done
+        let k = self.next;
+        let planned = k < self.last_step();
+        // What became of step k's command, from the truth of step k + 1.
+        let next_truth = self.pending.get(&(k + 1)).and_then(|p| p.truth.as_ref());
+        let outcome = next_truth.map(Truth::previous_command);
+        let command_received_ns = next_truth.map_or(0, |t| t.header.stamps.trigger_command_received_ns);
+        let missed = outcome == Some(Some(CommandOutcome::Missed));
+        let truth = self.truth;
+        let ready = self.pending.get(&k).is_some_and(|p| {
+            p.measurement.is_some()
+                && p.estimate.is_some()
+                && (p.truth.is_some() || !truth)
+                && (!planned || ((outcome.is_some() || !truth) && (missed || p.command.is_some())))
+        });
+        if !ready {
+            return None;
+        }
+        let p = self.pending.remove(&k).unwrap_or_default();
+        let (Some(m), Some(e), t) = (p.measurement, p.estimate, p.truth) else { return None };
+        if missed && p.command.is_some() {
+            self.ignored += 1; // it came, but too late for the world
+        }
+        let command = if missed { None } else { p.command.as_ref() };
+        let mut step = self.complete(k, &m, &e, t.as_ref(), command, planned && missed);
+        if command.is_some() {
+            step.command_received_ns = command_received_ns;
+        }
+        self.next += 1;
+        Some(step)
     }
 
     fn complete(

@@ -21,6 +21,12 @@ use crate::runlog::EventLog;
 use crate::stamps::StampsCsv;
 use crate::status::status_line;
 
+/// The monitor gives the CPU away between two steps it records while fewer than this many steps are
+/// waiting behind them; further behind (a CPU hog beside it takes whole time slices for each yield) it
+/// records without pause until it has caught up, long before its subscriber buffers (64 messages a topic)
+/// could overflow.
+pub(crate) const KEEP_UP_STEPS: u64 = 8;
+
 fn us(ns: Option<u64>) -> Option<f64> {
     ns.map(|v| v as f64 / 1e3)
 }
@@ -253,12 +259,28 @@ impl Session {
 
     /// Records every step that is complete now: logs it (with the state after it), shows its status line,
     /// counts its missing messages and writes its stamps row; `rejected`: the messages rejected so far.
+    ///
+    /// One step at a time, giving the CPU away between two while it keeps up ([`KEEP_UP_STEPS`]): the
+    /// monitor drains several steps at once ([`runtime::Node::drain_every`]), and a process of the
+    /// control loop waiting for this core then runs between them instead of after all of them.
     pub(crate) fn complete_steps(&mut self, rejected: u64) {
-        let completed = self.assembler.complete_ready();
-        if let (Some(r), false) = (&mut self.recorder, completed.is_empty()) {
-            r.flush();
+        let mut first = true;
+        while let Some(done) = self.assembler.complete_next() {
+            // The recording holds every message of a step before its log line says it is recorded.
+            if let (Some(r), true) = (&mut self.recorder, std::mem::take(&mut first)) {
+                r.flush();
+            }
+            self.record_step(done, rejected);
+            if self.assembler.newest_pending_step().is_none_or(|n| n < self.assembler.next_step() + KEEP_UP_STEPS) {
+                std::thread::yield_now();
+            }
         }
-        for done in completed {
+    }
+
+    /// Logs a completed step (with the state after it), shows its status line, counts its missing
+    /// messages and writes its stamps row.
+    fn record_step(&mut self, done: CompletedStep, rejected: u64) {
+        {
             self.account(&done);
             if let Some(p) = &done.planner
                 && self.planner.as_ref() != Some(p)
