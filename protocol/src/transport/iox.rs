@@ -99,13 +99,17 @@ impl<T: Message> IoxPublisher<T> {
 }
 
 impl<T: Message> PublishPort<T> for IoxPublisher<T> {
-    fn deliver(&self, msg: &T) -> Result<usize, TransportError> {
+    fn deliver(&self, msg: &T, stamp: &mut dyn FnMut(&mut T)) -> Result<usize, TransportError> {
         let spare = self.spare.borrow_mut().take();
         let sample = match spare {
             Some(sample) => sample,
             None => self.publisher.loan_uninit().map_err(|e| failed("loaning sample", &self.name, e))?,
         };
-        let subscribers = sample.write_payload(*msg).send().map_err(|e| failed("sending sample", &self.name, e))?;
+        // Written in place in the shared memory (the lines of a recycled sample come back from the core
+        // that read it last), then stamped and sent.
+        let mut sample = sample.write_payload(*msg);
+        stamp(sample.payload_mut());
+        let subscribers = sample.send().map_err(|e| failed("sending sample", &self.name, e))?;
         self.notifier
             .notify_with_custom_event_id(EventId::new(event_id::SAMPLE))
             .map_err(|e| failed("notifying", &self.name, e))?;

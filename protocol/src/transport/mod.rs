@@ -425,9 +425,10 @@ impl Link {
 
 /// The sending half of a transport (implemented by [`iox::IoxPublisher`] and [`uds::UdsPublisher`]).
 pub trait PublishPort<T: Message>: fmt::Debug {
-    /// Delivers `msg` (already stamped) to every current subscriber and wakes them; returns how many it
-    /// was delivered to.
-    fn deliver(&self, msg: &T) -> Result<usize, TransportError>;
+    /// Delivers `msg` to every current subscriber and wakes them; returns how many it was delivered to.
+    /// `stamp` marks the message as it leaves: once its bytes are in place (written into the loaned
+    /// sample; for a socket, in the datagram's buffer), right before it is sent.
+    fn deliver(&self, msg: &T, stamp: &mut dyn FnMut(&mut T)) -> Result<usize, TransportError>;
 
     /// How many subscribers the topic has now (for start-up checks).
     fn subscriber_count(&self) -> Result<usize, TransportError>;
@@ -529,10 +530,13 @@ impl<T: Message> TopicPublisher<T> {
     /// Stamps `msg` with the publish time ([`Stamps::mark_published`](crate::Stamps::mark_published)) and
     /// the link's run (if it has one: [`Link::set_run`]), delivers it to the subscribers and wakes them.
     pub fn send(&self, msg: &T) -> Result<Sent, TransportError> {
-        let mut msg = self.of_this_run(msg);
-        let published_ns = now_ns();
-        msg.header_mut().stamps.mark_published(T::KIND, published_ns);
-        let subscribers = self.port.deliver(&msg)?;
+        let msg = self.of_this_run(msg);
+        let mut published_ns = 0;
+        // Stamped once written in place, right before it is sent (iceoryx2: in the loaned sample).
+        let subscribers = self.port.deliver(&msg, &mut |m: &mut T| {
+            published_ns = now_ns();
+            m.header_mut().stamps.mark_published(T::KIND, published_ns);
+        })?;
         Ok(Sent { published_ns, subscribers })
     }
 
@@ -541,9 +545,8 @@ impl<T: Message> TopicPublisher<T> {
     /// tells it from a first publication (`published_ns` 0), and no copy is timed as the step's.
     /// [`Sent::published_ns`] is 0.
     pub fn resend(&self, msg: &T) -> Result<Sent, TransportError> {
-        let mut msg = self.of_this_run(msg);
-        msg.header_mut().stamps.mark_published(T::KIND, 0);
-        let subscribers = self.port.deliver(&msg)?;
+        let msg = self.of_this_run(msg);
+        let subscribers = self.port.deliver(&msg, &mut |m: &mut T| m.header_mut().stamps.mark_published(T::KIND, 0))?;
         Ok(Sent { published_ns: 0, subscribers })
     }
 

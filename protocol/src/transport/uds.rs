@@ -355,11 +355,13 @@ impl<T: Message> UdsPublisher<T> {
 }
 
 impl<T: Message> PublishPort<T> for UdsPublisher<T> {
-    fn deliver(&self, msg: &T) -> Result<usize, TransportError> {
+    fn deliver(&self, msg: &T, stamp: &mut dyn FnMut(&mut T)) -> Result<usize, TransportError> {
         let mut peers = self.peers.borrow_mut();
         if peers.generation != Some(self.generation.load()) {
             self.rescan(&mut peers)?;
         }
+        let mut msg = *msg;
+        stamp(&mut msg);
         let bytes = msg.as_bytes();
         let mut delivered = 0;
         let mut stale = Vec::new();
