@@ -144,10 +144,7 @@ fn merged_flags(launch: &[String], user: &[String], given: &[String]) -> Vec<Str
 
 /// `T` parsed from `flags` (a process's own parser).
 fn parse_flags<T: clap::Args + clap::FromArgMatches>(role: &'static str, flags: &[String]) -> Result<T, CliError> {
-    let parsed = T::augment_args(clap::Command::new(role))
-        .try_get_matches_from(std::iter::once(role.to_owned()).chain(flags.iter().cloned()))
-        .and_then(|m| T::from_arg_matches(&m));
-    parsed.map_err(|e| {
+    runtime::flags::from_flags(flags).map_err(|e| {
         CliError::Input(format!(
             "the running launch's {role} flags with this swap's: {}",
             crate::one_line_clap_error(&e)

@@ -14,9 +14,7 @@ use crate::error::CliError;
 
 /// The default value of every flag of a process's argument type (what its parser gives for no flags).
 fn defaults<T: clap::Args + clap::FromArgMatches>() -> T {
-    let cmd = T::augment_args(clap::Command::new("defaults"));
-    let matches = cmd.get_matches_from(["defaults"]);
-    T::from_arg_matches(&matches).expect("every flag of a process has a default or is optional")
+    runtime::flags::from_flags(&[]).expect("every flag of a process has a default or is optional")
 }
 
 /// The command line of `role` in this launch, built from the role's own argument type.
@@ -152,10 +150,7 @@ mod tests {
     where
         T: clap::Args + FromArgMatches + serde::Serialize + PartialEq + std::fmt::Debug,
     {
-        let cmd = T::augment_args(clap::Command::new("p"));
-        let flags = to_flags(&a).unwrap();
-        let matches = cmd.try_get_matches_from(std::iter::once("p".to_string()).chain(flags)).unwrap();
-        assert_eq!(T::from_arg_matches(&matches).unwrap(), a);
+        assert_eq!(runtime::flags::from_flags::<T>(&to_flags(&a).unwrap()).unwrap(), a);
     }
 
     #[test]

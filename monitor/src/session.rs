@@ -280,56 +280,54 @@ impl Session {
     /// Logs a completed step (with the state after it), shows its status line, counts its missing
     /// messages and writes its stamps row.
     fn record_step(&mut self, done: CompletedStep, rejected: u64) {
+        self.account(&done);
+        if let Some(p) = &done.planner
+            && self.planner.as_ref() != Some(p)
         {
-            self.account(&done);
-            if let Some(p) = &done.planner
-                && self.planner.as_ref() != Some(p)
-            {
-                self.summary.planners += 1;
-                self.log.write(
-                    "planner",
-                    json!({"instance": p.instance, "solver": p.solver, "objective": p.objective, "step": done.record.step}),
-                );
-                if !self.quiet && self.planner.is_some() {
-                    eprintln!("monitor: planner switched to {}/{} (instance {:#x})", p.solver, p.objective, p.instance);
-                }
-                self.planner = Some(p.clone());
+            self.summary.planners += 1;
+            self.log.write(
+                "planner",
+                json!({"instance": p.instance, "solver": p.solver, "objective": p.objective, "step": done.record.step}),
+            );
+            if !self.quiet && self.planner.is_some() {
+                eprintln!("monitor: planner switched to {}/{} (instance {:#x})", p.solver, p.objective, p.instance);
             }
-            if done.planner.is_some() {
-                self.samples.add(&done.latencies);
-            }
-            let l = &done.latencies;
-            let line = StepLine {
-                step: done.record.step,
-                record: &done.record,
-                latency_us: LatencyUs {
-                    command_hop: us(l.trigger_hop_ns),
-                    emitter: us(l.emitter_ns),
-                    measurement_hop: us(l.measurement_hop_ns),
-                    estimator: us(l.estimator_ns),
-                    estimate_hop: us(l.estimate_hop_ns),
-                    planner: us(l.planner_ns),
-                    end_to_end: us(l.end_to_end_ns),
-                    cycle: us(l.cycle_ns),
-                },
-                planner: done.planner.as_ref(),
-                truth: done.truth,
-                command_missed: done.missed,
-                estimate_stale: done.held,
-                state: self.states.echo(done.record.step).map(|e| crate::runlog::state_to_hex(&e)),
-            };
-            self.log.write("step", &line);
-            if done.missed {
-                self.summary.missed_commands += 1;
-                self.log.write("command_missed", json!({"step": done.record.step}));
-            }
-            if done.held {
-                self.summary.stale_steps += 1;
-                self.log.write("estimate_stale", json!({"step": done.record.step}));
-            }
-            if !self.quiet {
-                eprintln!("{}", status_line(&done, self.assembler.last_step(), rejected));
-            }
+            self.planner = Some(p.clone());
+        }
+        if done.planner.is_some() {
+            self.samples.add(&done.latencies);
+        }
+        let l = &done.latencies;
+        let line = StepLine {
+            step: done.record.step,
+            record: &done.record,
+            latency_us: LatencyUs {
+                command_hop: us(l.trigger_hop_ns),
+                emitter: us(l.emitter_ns),
+                measurement_hop: us(l.measurement_hop_ns),
+                estimator: us(l.estimator_ns),
+                estimate_hop: us(l.estimate_hop_ns),
+                planner: us(l.planner_ns),
+                end_to_end: us(l.end_to_end_ns),
+                cycle: us(l.cycle_ns),
+            },
+            planner: done.planner.as_ref(),
+            truth: done.truth,
+            command_missed: done.missed,
+            estimate_stale: done.held,
+            state: self.states.echo(done.record.step).map(|e| crate::runlog::state_to_hex(&e)),
+        };
+        self.log.write("step", &line);
+        if done.missed {
+            self.summary.missed_commands += 1;
+            self.log.write("command_missed", json!({"step": done.record.step}));
+        }
+        if done.held {
+            self.summary.stale_steps += 1;
+            self.log.write("estimate_stale", json!({"step": done.record.step}));
+        }
+        if !self.quiet {
+            eprintln!("{}", status_line(&done, self.assembler.last_step(), rejected));
         }
     }
 

@@ -40,6 +40,14 @@ pub fn to_flags(args: &impl Serialize) -> Result<Vec<String>, String> {
     Ok(out)
 }
 
+/// `T` parsed from `flags` by its own parser (clap): the other way of [`to_flags`]; no flags give every
+/// flag's default.
+pub fn from_flags<T: clap::Args + clap::FromArgMatches>(flags: &[String]) -> Result<T, clap::Error> {
+    let matches = T::augment_args(clap::Command::new("flags"))
+        .try_get_matches_from(std::iter::once("flags").chain(flags.iter().map(String::as_str)))?;
+    T::from_arg_matches(&matches)
+}
+
 fn scalar(v: &Value) -> Result<String, String> {
     match v {
         Value::String(s) => Ok(s.clone()),

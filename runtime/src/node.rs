@@ -122,6 +122,15 @@ pub struct Node {
     drain_every: Option<Duration>,
 }
 
+/// What a wait (or a drain's sleep) means for the loop: SIGINT/SIGTERM ends it, another error fails it.
+fn ended_by(waited: Result<(), TransportError>) -> Result<Option<Ended>, ProcessError> {
+    match waited {
+        Ok(()) => Ok(None),
+        Err(TransportError::Interrupted) => Ok(Some(Ended::Interrupted)),
+        Err(e) => Err(e.into()),
+    }
+}
+
 impl Node {
     /// Opens the node of `role` in the domain of `args` (default: `$UAVLOC_DOMAIN`, else `uavloc`) on
     /// its link; `Ok(None)` when SIGINT/SIGTERM came while it opened (the process then ends cleanly).
@@ -463,21 +472,15 @@ impl Node {
                 ),
                 None => None,
             };
-            match protocol::wait_attached(&waitset, &waited) {
-                Ok(()) => Ok(None),
-                Err(TransportError::Interrupted) => Ok(Some(Ended::Interrupted)),
-                Err(e) => Err(e.into()),
-            }
+            ended_by(protocol::wait_attached(&waitset, &waited))
         };
         // Whether messages are streaming in (an observer then drains every period instead of waiting).
         let mut streaming = false;
         loop {
             let left = handler.deadline().map(|d| d.saturating_duration_since(Instant::now()));
             if let (Some(period), true) = (self.drain_every, streaming) {
-                match self.link.sleep(left.map_or(period, |l| l.min(period))) {
-                    Ok(()) => {}
-                    Err(TransportError::Interrupted) => return Ok(Ended::Interrupted),
-                    Err(e) => return Err(e.into()),
+                if let Some(ended) = ended_by(self.link.sleep(left.map_or(period, |l| l.min(period))))? {
+                    return Ok(ended);
                 }
                 streaming = protocol::poll(Duration::ZERO, &waited)?;
             } else {
