@@ -59,8 +59,8 @@ pub struct SimulateArgs {
 
 /// Loads the scenario of the flags (file or default) with `--steps`/`--seed` applied, validated.
 pub fn scenario_from(path: Option<&PathBuf>, steps: Option<usize>, seed: Option<u64>) -> Result<Scenario, CliError> {
-    // The same rule every process applies (planner::process::load_scenario), so a run agrees on it.
-    planner::process::load_scenario(path.map(PathBuf::as_path), steps, seed).map_err(|e| match path {
+    // The same rule every process applies (model::load_scenario), so a run agrees on it.
+    model::load_scenario(path.map(PathBuf::as_path), steps, seed).map_err(|e| match path {
         Some(p) => CliError::Input(format!("--scenario {}: {e}", p.display())),
         None => CliError::Input(format!("scenario: {e}")),
     })

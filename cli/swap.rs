@@ -63,9 +63,9 @@ pub struct SwapArgs {
 #[derive(Subcommand, Debug, Clone, PartialEq)]
 pub enum SwapRole {
     /// A new planner (e.g. another --solver or --objective) takes over from the running one.
-    Planner(planner::process::PlannerArgs),
+    Planner(planner::args::PlannerArgs),
     /// A new estimator takes over from the running one (its state is handed over exactly).
-    Estimator(estimator::process::EstimatorArgs),
+    Estimator(estimator::args::EstimatorArgs),
 }
 
 /// What `uavloc swap` prints.
@@ -86,7 +86,7 @@ pub struct SwapReport {
 /// not given; a given one that differs is refused (exit 2) — a planner with another horizon or seed would
 /// stall the run or plan another one.
 fn reconcile(
-    a: &mut planner::process::PlannerArgs,
+    a: &mut planner::args::PlannerArgs,
     run: &crate::launch::state_dir::RunSettings,
     file: &std::path::Path,
 ) -> Result<(), CliError> {
@@ -214,11 +214,11 @@ pub fn run(args: &SwapArgs, given: &[String]) -> Result<SwapReport, CliError> {
             let a = completed(role, &a, launch_flags(|s| &s.planner), &given)?;
             planner = Some(format!("{}/{}", a.solver.name(), a.objective.name()));
             let process = runtime::ProcessArgs { node: node(&a.process.node), ..a.process.clone() };
-            runtime::flags::to_flags(&planner::process::PlannerArgs { process, takeover: true, ..a })
+            runtime::flags::to_flags(&planner::args::PlannerArgs { process, takeover: true, ..a })
         }
         SwapRole::Estimator(a) => {
             let a = completed(role, a, launch_flags(|s| &s.estimator), given)?;
-            runtime::flags::to_flags(&estimator::process::EstimatorArgs { node: node(&a.node), takeover: true, ..a })
+            runtime::flags::to_flags(&estimator::args::EstimatorArgs { node: node(&a.node), takeover: true, ..a })
         }
     }
     .map_err(|e| CliError::Input(format!("{role}: {e}")))?;
@@ -353,12 +353,12 @@ mod tests {
             ["--domain=d", "--transport=uds", "--solver=gradient", "--objective=mc"]
         );
         // Parsed back by the process's own parser: the launch's transport, the user's solver.
-        let a: planner::process::PlannerArgs =
+        let a: planner::args::PlannerArgs =
             parse_flags("planner", &merged_flags(&launch, &user, &["solver".to_string()])).unwrap();
         assert_eq!((a.solver.name(), a.process.node.link.transport), ("gradient", protocol::TransportKind::Uds));
         assert!(!a.process.node.quiet);
         // A launch's flag the process does not know (a newer launch) is an error naming both sides.
-        let e = parse_flags::<planner::process::PlannerArgs>("planner", &["--no-such=1".to_string()]).unwrap_err();
+        let e = parse_flags::<planner::args::PlannerArgs>("planner", &["--no-such=1".to_string()]).unwrap_err();
         assert!(e.to_string().contains("running launch's planner flags"), "{e}");
     }
 

@@ -203,11 +203,11 @@ pub struct StepStamps {
     pub monitor_command: u64,
 }
 
-/// Parses the monitor's `--stamps` CSV (header checked against [`monitor::process::STAMPS_HEADER`]).
+/// Parses the monitor's `--stamps` CSV (header checked against [`monitor::stamps::STAMPS_HEADER`]).
 pub fn parse_stamps(text: &str) -> Result<Vec<StepStamps>, String> {
     let mut lines = text.lines();
     match lines.next() {
-        Some(h) if h == monitor::process::STAMPS_HEADER => {}
+        Some(h) if h == monitor::stamps::STAMPS_HEADER => {}
         other => return Err(format!("unexpected stamps header {other:?}")),
     }
     lines
@@ -801,15 +801,15 @@ mod tests {
 
     #[test]
     fn parses_the_monitor_csv() {
-        let text = format!("{}\n0,0,0,10,30,35,75,275,315,50,95,300,20\n", monitor::process::STAMPS_HEADER);
+        let text = format!("{}\n0,0,0,10,30,35,75,275,315,50,95,300,20\n", monitor::stamps::STAMPS_HEADER);
         let rows = parse_stamps(&text).unwrap();
         assert_eq!(rows.len(), 1);
         assert_eq!(rows[0].command_received, 315);
         assert_eq!(rows[0].monitor_command, 300);
         assert!(parse_stamps("step\n").unwrap_err().contains("header"));
-        let bad = format!("{}\n1,2,3\n", monitor::process::STAMPS_HEADER);
+        let bad = format!("{}\n1,2,3\n", monitor::stamps::STAMPS_HEADER);
         assert!(parse_stamps(&bad).unwrap_err().contains("13"));
-        let bad = format!("{}\n1,2,3,4,5,6,7,8,9,10,11,12,x\n", monitor::process::STAMPS_HEADER);
+        let bad = format!("{}\n1,2,3,4,5,6,7,8,9,10,11,12,x\n", monitor::stamps::STAMPS_HEADER);
         assert!(parse_stamps(&bad).unwrap_err().contains("line 2"));
     }
 

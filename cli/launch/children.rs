@@ -30,7 +30,7 @@ pub(super) fn child_flags(
         |quiet| runtime::NodeArgs { domain: Some(domain.to_string()), link: args.link, quiet, supervised: false };
     let run = runtime::RunArgs { scenario: args.run.scenario.clone(), steps: args.run.steps, seed: args.run.seed };
     let flags = match role {
-        Role::Monitor => to_flags(&monitor::process::MonitorArgs {
+        Role::Monitor => to_flags(&monitor::args::MonitorArgs {
             source: args.source,
             mcap: args.record.as_ref().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
             stamps: args.stamps.clone(),
@@ -39,7 +39,7 @@ pub(super) fn child_flags(
             out: args.out.clone(),
             ..defaults()
         }),
-        Role::Planner => to_flags(&planner::process::PlannerArgs {
+        Role::Planner => to_flags(&planner::args::PlannerArgs {
             process: runtime::ProcessArgs { node: node(true), run: run.clone() },
             objective: args.run.objective,
             solver: args.run.solver,
@@ -48,7 +48,7 @@ pub(super) fn child_flags(
             plan_delay_steps: if args.plan_delay_ms > 0 { args.plan_delay_steps.clone() } else { Vec::new() },
             ..defaults()
         }),
-        Role::Estimator => to_flags(&estimator::process::EstimatorArgs {
+        Role::Estimator => to_flags(&estimator::args::EstimatorArgs {
             estimator: sc.estimator,
             emitter_model: sc.emitter_model,
             process_noise_accel: sc.process_noise_accel,
@@ -156,7 +156,7 @@ mod tests {
     #[test]
     fn every_process_writes_its_own_flags_back() {
         let link = runtime::LinkArgs { transport: protocol::TransportKind::Uds, wait: None, spin_us: Some(30) };
-        let m = monitor::process::MonitorArgs {
+        let m = monitor::args::MonitorArgs {
             process: runtime::ProcessArgs {
                 node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: true },
                 run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
@@ -172,7 +172,7 @@ mod tests {
             resume: true,
         };
         round_trip(m);
-        let p = planner::process::PlannerArgs {
+        let p = planner::args::PlannerArgs {
             process: runtime::ProcessArgs {
                 node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: false, supervised: true },
                 run: runtime::RunArgs { scenario: None, steps: Some(3), seed: None },

@@ -104,7 +104,7 @@ pub fn run_from_cli(args: &LaunchArgs, json: bool) -> Result<LaunchReport, CliEr
 pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let start = Instant::now();
     let sc = args.run.scenario()?;
-    planner::process::check_scenario(&sc).map_err(CliError::Input)?;
+    planner::args::check_scenario(&sc).map_err(CliError::Input)?;
     if args.source == runtime::Source::External
         && (args.mode != Mode::Lockstep || args.time_scale.is_some() || args.step_delay_ms > 0)
     {

@@ -23,14 +23,14 @@ pub enum ProcessRole {
     #[command(after_help = emitter_sim::args::AFTER_HELP)]
     EmitterSim(emitter_sim::args::EmitterSimArgs),
     /// Chan's estimator: an estimate per measurement.
-    #[command(after_help = estimator::process::AFTER_HELP)]
-    Estimator(estimator::process::EstimatorArgs),
+    #[command(after_help = estimator::args::AFTER_HELP)]
+    Estimator(estimator::args::EstimatorArgs),
     /// The planner: a command per estimate.
-    #[command(after_help = planner::process::AFTER_HELP)]
-    Planner(planner::process::PlannerArgs),
+    #[command(after_help = planner::args::AFTER_HELP)]
+    Planner(planner::args::PlannerArgs),
     /// The monitor: live view, event log, run record, plots.
-    #[command(after_help = monitor::process::AFTER_HELP)]
-    Monitor(monitor::process::MonitorArgs),
+    #[command(after_help = monitor::args::AFTER_HELP)]
+    Monitor(monitor::args::MonitorArgs),
     /// Lists the iceoryx2 nodes and services of a domain as JSON (optionally removing dead nodes first).
     Resources(ResourcesArgs),
     /// The echo end of `uavloc bench ipc`.

@@ -14,6 +14,7 @@
 
 pub mod args;
 pub mod backpressure;
+pub mod checkpoint;
 pub mod process;
 pub mod schedule;
 

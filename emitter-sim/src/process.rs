@@ -7,16 +7,10 @@
 //! numbers of `uavloc simulate`), publishes, keeps what it published and applies commands
 //! ([`World::apply`]).
 //!
-//! # Modes (`--mode`)
-//!
-//! - **lockstep** (default): the next step starts as soon as the command for the current one arrives.
-//!   Fast and deterministic: for benchmarks and tests, and the exact reproduction of `uavloc simulate`.
-//! - **realtime**: the world keeps its own clock. Step k is published at `t0 + k·dt/X` (`dt` the
-//!   scenario's interval, `X` = `--time-scale`); the command for step k is applied if it arrives before
-//!   step k + 1 is due; otherwise the step is *missed*: the UAVs keep their headings, the miss is counted
-//!   (`missed_commands`) and logged, and the truth of step k + 1 tells the monitor
-//!   ([`CommandOutcome::Missed`]). A command for a step whose time is over is ignored and counted
-//!   (`late_commands`). If every command arrives in time the run equals the lock-step one.
+//! Two paces (`--mode`, see [`crate::args::Mode`] and the `--help`): **lockstep** (the next step once
+//! the command for the current one arrives: the exact reproduction of `uavloc simulate`) and **realtime**
+//! (step k at `t0 + k·dt/X`; a command that comes after the next step is due is *missed*, the UAVs keep
+//! their headings and the truth of step k + 1 tells the monitor: [`CommandOutcome::Missed`]).
 //!
 //! Per step: publish the [`Truth`] (with the outcome of the previous step's command) and the
 //! [`Measurement`] (UAV positions, noisy range differences, σ, current headings, the stamps of the
@@ -52,9 +46,10 @@ use protocol::{
     Command, CommandOutcome, Control, ControlKind, Measurement, Message, Stamps, Topic, TopicSubscriber, Truth,
 };
 use runtime::recovery::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
-use runtime::{Ended, Flow, Handler, Join, Node, SupervisorLine};
+use runtime::{Ended, Flow, Handler, Join, Node, ProcessError, SupervisorLine};
 
 use crate::args::{EmitterSimArgs, Mode};
+use crate::checkpoint::{self, Start};
 use crate::schedule::{Action, Config, Counts, Other, Pacing, Schedule};
 use crate::{Snapshot, World};
 
@@ -66,8 +61,6 @@ pub use runtime::EXIT_INTERRUPTED;
 
 /// How often the start-up wait re-checks whether the pipeline is connected.
 pub const CONNECT_POLL: Duration = Duration::from_millis(2);
-
-pub use runtime::ProcessError;
 
 /// What emitter-sim did, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -90,16 +83,6 @@ pub struct EmitterSummary {
     pub started_at: u64,
     /// CPU time this process used, seconds.
     pub cpu_s: f64,
-}
-
-/// What emitter-sim writes to its `--checkpoint` file: the last world snapshots (oldest first), each with
-/// whether the command of the step before it was missed.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Saved {
-    /// The run's scenario ([`model::Scenario::fingerprint`]): a snapshot of another run is refused.
-    pub scenario: String,
-    /// At most [`EMITTER_SNAPSHOTS`], one every [`recovery::SNAPSHOT_EVERY`] steps.
-    pub snapshots: Vec<(Snapshot, bool)>,
 }
 
 /// Waits until the measurement topic has `min_subscribers` subscribers and the command topic a
@@ -237,8 +220,7 @@ impl EmitterNode<'_> {
             && self.snapshots.last().is_none_or(|(s, _)| s.step < snapshot.0.step)
         {
             recovery::push_kept(&mut self.snapshots, snapshot, EMITTER_SNAPSHOTS);
-            let saved = Saved { scenario: self.fingerprint.clone(), snapshots: self.snapshots.clone() };
-            if let Err(e) = recovery::save(path, ROLE, node.domain().as_str(), &saved) {
+            if let Err(e) = checkpoint::save(path, node.domain(), &self.fingerprint, &self.snapshots) {
                 node.warn(format_args!("{e}"));
             }
         }
@@ -318,42 +300,9 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
     let pacing = args.pacing(scenario.dt, scenario.steps).map_err(ProcessError::Input)?;
-    // A restart in the same run flies on from the oldest snapshot of its checkpoint file.
-    let saved = match &args.checkpoint {
-        Some(path) => recovery::load::<Saved>(path, ROLE, domain.as_str())
-            .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?,
-        None => None,
-    };
+    let Start { world, step: start_step, missed: start_missed, snapshots } =
+        checkpoint::start(args.checkpoint.as_deref(), &domain, &scenario)?;
     let fingerprint = scenario.fingerprint();
-    // A snapshot of another run (another scenario, steps or seed) would fly this run from that one's world.
-    if let (Some(path), Some(saved)) = (&args.checkpoint, &saved)
-        && saved.scenario != fingerprint
-    {
-        return Err(ProcessError::Input(format!(
-            "--checkpoint {}: the snapshots of another run (another scenario, steps or seed); give this run's \
-             checkpoint, or a file that does not exist yet for a new run",
-            path.display()
-        )));
-    }
-    let snapshots: Vec<(Snapshot, bool)> = saved.map(|s| s.snapshots).unwrap_or_default();
-    // Only a full set goes far enough back for every step the monitor may lack (see runtime::recovery).
-    let oldest = snapshots.first().filter(|_| snapshots.len() >= EMITTER_SNAPSHOTS);
-    let (world, start_step, start_missed) = match oldest {
-        Some((snapshot, missed)) => (
-            World::restore(&scenario, snapshot).map_err(|e| {
-                ProcessError::Input(format!("--checkpoint: a snapshot that does not fit the scenario: {e}"))
-            })?,
-            snapshot.step,
-            *missed,
-        ),
-        None => (World::from_scenario(&scenario).map_err(|e| ProcessError::Input(format!("scenario: {e}")))?, 0, false),
-    };
-    if start_step > scenario.steps as u64 {
-        return Err(ProcessError::Input(format!(
-            "--checkpoint: its snapshot is of step {start_step}, beyond the run's {} steps",
-            scenario.steps
-        )));
-    }
     let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Err(ProcessError::Interrupted);
     };

@@ -22,6 +22,7 @@
 //!
 //! Units: metres (positions), m² (covariance), m/s (velocity).
 
+pub mod args;
 pub mod chain;
 pub mod process;
 

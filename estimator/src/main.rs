@@ -3,7 +3,8 @@
 //! the same code.
 
 use clap::Parser;
-use estimator::process::{AFTER_HELP, EstimatorArgs, main_with};
+use estimator::args::{AFTER_HELP, EstimatorArgs};
+use estimator::process::main_with;
 
 /// The estimator process of the uavloc pipeline: on each TDOA measurement, fixes the emitter with Chan's
 /// method (the previous estimate as prior) and publishes the estimate with its covariance.

@@ -8,6 +8,7 @@
 //! [`latency`]: its log, stamp file and latency statistics), [`front_end`] tells whether an external
 //! front end is still there, and [`recording`] writes the run as MCAP.
 
+pub mod args;
 pub mod assemble;
 mod canvas;
 pub mod chart;
@@ -25,6 +26,7 @@ pub mod runlog;
 mod session;
 pub mod stamps;
 mod status;
+pub mod summary;
 
 pub use assemble::{Assembler, CompletedStep};
 pub use chart::{BarGroup, Series, plot_bars, plot_curves};

@@ -3,7 +3,8 @@
 //! the same code.
 
 use clap::Parser;
-use monitor::process::{AFTER_HELP, MonitorArgs, main_with};
+use monitor::args::{AFTER_HELP, MonitorArgs};
+use monitor::process::main_with;
 
 /// The monitor of the uavloc pipeline: subscribes to every topic of a domain, shows one status line per
 /// step (CRLB and RMSE at the truth, latencies, active planner, rejected messages), logs every event as

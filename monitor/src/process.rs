@@ -7,30 +7,8 @@
 //! ([`Node::drain_every`]: the monitor is off the control loop); every message is validated first
 //! ([`RejectionCounter`]), invalid ones are counted, logged and ignored.
 //!
-//! The JSON-lines log (`--log FILE`) has one object per line with `t_ns` (monotonic clock, the stamps'
-//! clock) and `event`:
-//! - `start` (domain, steps, seed, source, scenario: its [`model::Scenario::fingerprint`]) or `resume`
-//!   (domain, steps recorded in the log; a log whose `start` names another run is refused, exit 2);
-//!   `message` (kind, step, seq, age_us: publish → received here);
-//! - `rejected` (kind, reason, detail); `planner` (a new planner instance: instance, solver, objective, step);
-//! - `hello` / `take_over` (a process joined or took over: role, instance, detail, step);
-//! - `step` (the step's record, its truth, its latencies in µs and planner; `command_missed: true` when
-//!   the step's command did not reach emitter-sim in time — real-time mode — and the UAVs kept their
-//!   headings: the record then has `active_constraints: ["command_missed"]`, `objective_value` null);
-//!   `command_missed` (step) for such a step; `estimate_stale: true` when the step's command was the
-//!   planner's hold (no fresh estimate within its `--estimate-deadline-ms`; the record then has
-//!   `active_constraints: ["estimate_stale"]`), and an `estimate_stale` (step) event; `end` (complete,
-//!   steps, rejected, ignored, missed_commands, stale_steps);
-//! - `front_end_left` (step: the first step not recorded) with `--source external`, when the front end
-//!   left the measurement topic before the last step.
-//!
-//! `uavloc launch` appends `restart` events (role, attempt, exit, backoff_ms) to the same file: every line
-//! is written with one `write` on a file opened for appending.
-//!
-//! The status line of a step (stderr, unless `--quiet`): step, CRLB at the truth, RMSE, estimate error,
-//! the hops measurement→estimator and estimate→planner, the planning time, the whole cycle, the active
-//! planner and the rejected-message count; `COMMAND MISSED` for a step flown without its command,
-//! `ESTIMATE STALE` for a step whose command was the planner's hold.
+//! The JSON-lines log (`--log`, its events in [`crate::runlog`]) and the status lines
+//! ([`crate::status`]) show the run as it goes.
 //!
 //! A step is recorded when the truth of the next one is in: only emitter-sim knows whether a command
 //! reached the world in time (see [`crate::assemble`]).
@@ -61,32 +39,27 @@
 //! It exits 0 after the last step, or 130 on SIGINT/SIGTERM or a [`ControlKind::Shutdown`] before it
 //! (writing the partial record).
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use clap::Args;
 use model::load_scenario;
 use protocol::services;
 use protocol::{
-    Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, RejectionCounter, Topic,
-    TopicPublisher, TopicSubscriber, Truth, Waitable,
+    Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, Topic, TopicPublisher,
+    TopicSubscriber, Truth, Waitable,
 };
-use runtime::recovery::StateStore;
-use runtime::{Flow, Handler, IDLE_WAKEUP, Join, Node};
+use runtime::{Flow, Handler, IDLE_WAKEUP, Join, Node, ProcessError};
 use serde_json::json;
 
-use crate::assemble::Assembler;
-pub use crate::front_end::FRONT_END_GRACE;
-use crate::front_end::{FrontEnd, FrontEndWatch};
-pub use crate::latency::{LatencyStat, LatencySummary};
+use crate::args::MonitorArgs;
+use crate::front_end::{FRONT_END_GRACE, FrontEnd, FrontEndWatch};
 use crate::record::RunRecord;
 use crate::recording::{Recordable, Recorder};
 use crate::runlog::EventLog;
-pub use crate::runlog::{LoggedRun, read_log};
+use crate::runlog::{read_log, resume};
 use crate::session::Session;
-pub use crate::stamps::STAMPS_HEADER;
 use crate::stamps::StampsCsv;
+use crate::summary::MonitorSummary;
 
 /// The role name (node name suffix, `uavloc process monitor`).
 pub const ROLE: &str = "monitor";
@@ -117,109 +90,6 @@ pub const STATE_GRACE: std::time::Duration = std::time::Duration::from_secs(1);
 /// ([`protocol::transport::SUBSCRIBER_BUFFER`] samples per topic) hold the ≈ 5 steps a lock-step run makes
 /// meanwhile many times over.
 pub const DRAIN_EVERY: std::time::Duration = std::time::Duration::from_micros(100);
-
-/// What `monitor --help` shows after the flags.
-pub const AFTER_HELP: &str = "\
-The monitor subscribes to <domain>/measurement, /estimate, /command and /truth and needs the run's
---scenario, --steps and --seed (for the RMSE resamples and the record). Start it before emitter-sim.
-It exits after the last step (or on Ctrl-C, writing what it has).
-
-Examples:
-  monitor --domain lab1 --log run.jsonl --record run.json
-  monitor --domain lab1 --steps 6 --seed 3 --out runs/lab1 --quiet";
-
-/// Flags of the monitor process (`monitor [FLAGS]` or `uavloc process monitor [FLAGS]`).
-/// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
-#[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
-pub struct MonitorArgs {
-    /// The node (domain, link, quiet, supervised) and the run (scenario, steps, seed).
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub process: runtime::ProcessArgs,
-    /// Where the measurements come from: simulator (emitter-sim, which also publishes the truth) or
-    /// external (a front end outside uavloc; no truth: the columns that need one are absent, not zero).
-    #[arg(long, value_name = "SOURCE", default_value = "simulator")]
-    pub source: runtime::Source,
-    /// Write the raw stamps of every recorded step to FILE as CSV (one row per step, CLOCK_MONOTONIC
-    /// nanoseconds; 0 = missing): the chain's publish/receive stamps, when emitter-sim received the step's
-    /// command (from the next step's messages) and when the monitor received each of the step's messages.
-    /// What `uavloc bench latency` reads.
-    #[arg(long, value_name = "FILE")]
-    pub stamps: Option<PathBuf>,
-    /// Write every event as one JSON object per line to FILE.
-    #[arg(long, value_name = "FILE")]
-    pub log: Option<PathBuf>,
-    /// Record every message of the run to FILE as MCAP (JSON channels with JSON schemas: Foxglove and the
-    /// Python `mcap` package open it; `uavloc replay FILE` runs the estimator and planner on it again).
-    /// With --resume the messages already in FILE are kept.
-    #[arg(long, value_name = "FILE")]
-    pub mcap: Option<PathBuf>,
-    /// Write the run record (the JSON of `uavloc simulate --json`) to FILE at the end.
-    #[arg(long, value_name = "FILE")]
-    pub record: Option<PathBuf>,
-    /// Write trajectory.csv, steps.csv, run.json and the plots into DIR at the end.
-    #[arg(long, value_name = "DIR")]
-    pub out: Option<PathBuf>,
-    /// Print the run record as JSON on stdout at the end.
-    #[arg(long)]
-    pub print_record: bool,
-    /// A restart: append to --log instead of truncating it, take the steps recorded there, and have
-    /// emitter-sim replay the rest of the run.
-    #[arg(long)]
-    pub resume: bool,
-}
-
-pub use runtime::ProcessError;
-
-/// What the monitor saw, printed as its `summary` line.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct MonitorSummary {
-    /// `"monitor"`.
-    pub role: &'static str,
-    /// Writing `--record` or `--out` at the end failed (the record itself still went to the supervisor).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub output_error: Option<String>,
-    /// Whether every step up to the last one was recorded.
-    pub complete: bool,
-    /// Steps recorded.
-    pub steps: u64,
-    /// Valid messages received.
-    pub accepted: u64,
-    /// Invalid messages ignored.
-    pub rejected: u64,
-    /// Valid messages for steps already recorded or beyond the last one.
-    pub ignored: u64,
-    /// Distinct planner instances seen.
-    pub planners: u64,
-    /// Steps recorded whose command was missed (real-time mode).
-    pub missed_commands: u64,
-    /// Steps recorded whose command was the planner's hold (no fresh estimate within its deadline).
-    pub stale_steps: u64,
-    /// Latencies of the planned steps.
-    pub latency: LatencySummary,
-    /// Messages of the recorded steps that never reached the monitor as first published (measurement,
-    /// estimate, command and truth of each step; the last step has no command): lost on the way (a full
-    /// buffer) or never sent (its sender died first), the step then recorded from a copy sent again (a
-    /// replay: no publish stamp). 0 when nothing was lost.
-    pub missing_messages: u64,
-    /// Replays this monitor asked for because a message was lost (see [`STALL_STEPS`]).
-    pub replays_requested: u64,
-    /// CPU time this process used, seconds.
-    pub cpu_s: f64,
-}
-
-fn write_outputs(args: &MonitorArgs, run: &RunRecord) -> Result<(), ProcessError> {
-    if let Some(path) = &args.record {
-        let text = serde_json::to_string_pretty(run).map_err(|e| ProcessError::Failed(e.to_string()))?;
-        std::fs::write(path, text + "\n")
-            .map_err(|e| ProcessError::Failed(format!("--record {}: {e}", path.display())))?;
-    }
-    if let Some(dir) = &args.out {
-        crate::export::write_run(run, dir)
-            .map_err(|e| ProcessError::Failed(format!("--out {}: {e}", dir.display())))?;
-    }
-    Ok(())
-}
 
 /// The monitor's handler: the four data topics, the record being assembled, the progress reports and
 /// the replay requests.
@@ -387,54 +257,10 @@ impl MonitorNode<'_> {
 pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
-    // The outputs written at the end are checked now: a run is never recorded for nothing.
-    if let Some(file) = &args.record {
-        runtime::output::check_out_file("--record", file).map_err(ProcessError::Input)?;
-    }
-    if let Some(dir) = &args.out {
-        runtime::output::check_out_dir("--out", dir).map_err(ProcessError::Input)?;
-    }
-    // No two outputs on one file (one would overwrite the other, or the log read back another's lines).
-    let files = [
-        ("--log", args.log.as_deref()),
-        ("--stamps", args.stamps.as_deref()),
-        ("--mcap", args.mcap.as_deref()),
-        ("--record", args.record.as_deref()),
-    ];
-    runtime::output::check_distinct(&files, &[("--out", args.out.as_deref(), &crate::export::RUN_FILES)])
-        .map_err(ProcessError::Input)?;
+    args.check_outputs()?;
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
-    // With a log, the step records live there, not in memory (read back at the end); a restart takes the
-    // steps its predecessor logged, and the estimator states they echoed.
-    let mut states = StateStore::new();
-    let (assembler, resumed) = match (&args.log, args.resume) {
-        (Some(path), true) => {
-            let LoggedRun { count, last, truth, names, states: logged, start, .. } = read_log(path, false);
-            // Resuming another run's log would make one record of two runs.
-            let differences = start.map(|s| {
-                s.differences(scenario.steps as u64, scenario.seed, args.source.name(), &scenario.fingerprint())
-            });
-            if let Some(d) = differences.filter(|d| !d.is_empty()) {
-                return Err(ProcessError::Input(format!(
-                    "--log {}: the log of another run; this run has {}. Resuming would make one record of two \
-                     runs: give this run's log, or start without --resume",
-                    path.display(),
-                    d.join(", ")
-                )));
-            }
-            for echo in logged {
-                states.keep(echo);
-            }
-            match Assembler::resume_forgetting(scenario.clone(), count, last.as_ref(), truth, names) {
-                Some(a) => (a, Some(count)),
-                None => (Assembler::new(scenario.clone()).forgetting(), Some(0)),
-            }
-        }
-        (Some(_), false) => (Assembler::new(scenario.clone()).forgetting(), None),
-        (None, _) => (Assembler::new(scenario.clone()), None),
-    };
     let external = args.source == runtime::Source::External;
-    let assembler = if external { assembler.without_truth() } else { assembler };
+    let (assembler, states, resumed) = resume(args.log.as_deref(), args.resume, &scenario, args.source)?;
     let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Err(ProcessError::Interrupted);
     };
@@ -518,7 +344,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let mut summary = MonitorSummary {
         complete: session.assembler.is_done(),
         steps: run.steps.len() as u64,
-        accepted: accepted_total(&counter),
+        accepted: counter.accepted_total(),
         rejected: counter.total(),
         ignored: session.assembler.ignored(),
         latency: session.samples.summary(),
@@ -542,33 +368,16 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     // to the supervisor), it is reported.
     // Each output is tried whatever became of the others.
     let errors: Vec<String> =
-        [recorded.err(), write_outputs(args, &run).err().map(|e| e.to_string())].into_iter().flatten().collect();
+        [recorded.err(), args.write_outputs(&run).err().map(|e| e.to_string())].into_iter().flatten().collect();
     if !errors.is_empty() {
         let e = errors.join("; ");
         eprintln!("error: monitor: {e}");
         summary.output_error = Some(e);
     }
     if !args.process.node.quiet {
-        let l = &summary.latency;
-        let p50 = |s: &Option<LatencyStat>| s.map_or("-".into(), |s| format!("{:.0} µs", s.p50_us));
-        eprintln!(
-            "monitor: {} of {} steps recorded, {}; median hops: command {}, measurement {}, estimate {}; median \
-             cycle {}",
-            summary.steps,
-            scenario.steps + 1,
-            counter,
-            p50(&l.command_hop),
-            p50(&l.measurement_hop),
-            p50(&l.estimate_hop),
-            p50(&l.cycle)
-        );
+        eprintln!("monitor: {}", summary.closing_line(scenario.steps as u64 + 1, &counter));
     }
     Ok((run, summary))
-}
-
-/// Accepted messages of every kind.
-fn accepted_total(counter: &RejectionCounter) -> u64 {
-    protocol::MessageKind::ALL.iter().map(|k| counter.accepted(*k)).sum()
 }
 
 /// Runs the monitor and maps the outcome to an exit code (errors as one `error:` line on stderr); in

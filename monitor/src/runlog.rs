@@ -1,5 +1,25 @@
 //! The monitor's JSON-lines run log (`--log`): writing it (one `write` per event line, appended) and
 //! reading a run back from it (a restarted monitor's steps, the record at the end).
+//!
+//! One object per line with `t_ns` (monotonic clock, the stamps'
+//! clock) and `event`:
+//! - `start` (domain, steps, seed, source, scenario: its [`model::Scenario::fingerprint`]) or `resume`
+//!   (domain, steps recorded in the log; a log whose `start` names another run is refused, exit 2);
+//!   `message` (kind, step, seq, age_us: publish → received here);
+//! - `rejected` (kind, reason, detail); `planner` (a new planner instance: instance, solver, objective, step);
+//! - `hello` / `take_over` (a process joined or took over: role, instance, detail, step);
+//! - `step` (the step's record, its truth, its latencies in µs and planner; `command_missed: true` when
+//!   the step's command did not reach emitter-sim in time — real-time mode — and the UAVs kept their
+//!   headings: the record then has `active_constraints: ["command_missed"]`, `objective_value` null);
+//!   `command_missed` (step) for such a step; `estimate_stale: true` when the step's command was the
+//!   planner's hold (no fresh estimate within its `--estimate-deadline-ms`; the record then has
+//!   `active_constraints: ["estimate_stale"]`), and an `estimate_stale` (step) event; `end` (complete,
+//!   steps, rejected, ignored, missed_commands, stale_steps);
+//! - `front_end_left` (step: the first step not recorded) with `--source external`, when the front end
+//!   left the measurement topic before the last step.
+//!
+//! `uavloc launch` appends `restart` events (role, attempt, exit, backoff_ms) to the same file: every line
+//! is written with one `write` on a file opened for appending.
 
 use std::fs::File;
 use std::path::Path;
@@ -10,8 +30,11 @@ use protocol::messages::AnyBitPattern as _;
 use protocol::{StateEcho, now_ns};
 use serde_json::json;
 
+use crate::assemble::Assembler;
 use crate::record::StepRecord;
+use model::Scenario;
 use runtime::ProcessError;
+use runtime::recovery::StateStore;
 
 /// The JSON-lines run log (a no-op without `--log`), opened for appending: whole lines, one `write` per
 /// wake-up ([`LineFile`]), so lines of other writers (the launcher's `restart` events) never land inside
@@ -52,6 +75,45 @@ impl EventLog {
     pub(crate) fn check(&self) -> Result<(), ProcessError> {
         self.file.as_ref().map_or(Ok(()), LineFile::check)
     }
+}
+
+/// Where a monitor starts: a new record; or, with `--resume` and a `log`, the steps its predecessor
+/// logged there and the estimator states they echoed (a log of another run is refused, exit 2). With a
+/// log the step records live there, not in memory (read back at the end). Also the steps resumed.
+pub(crate) fn resume(
+    log: Option<&Path>,
+    resume: bool,
+    scenario: &Scenario,
+    source: runtime::Source,
+) -> Result<(Assembler, StateStore, Option<u64>), ProcessError> {
+    let mut states = StateStore::new();
+    let (assembler, resumed) = match (log, resume) {
+        (Some(path), true) => {
+            let LoggedRun { count, last, truth, names, states: logged, start, .. } = read_log(path, false);
+            // Resuming another run's log would make one record of two runs.
+            let differences = start
+                .map(|s| s.differences(scenario.steps as u64, scenario.seed, source.name(), &scenario.fingerprint()));
+            if let Some(d) = differences.filter(|d| !d.is_empty()) {
+                return Err(ProcessError::Input(format!(
+                    "--log {}: the log of another run; this run has {}. Resuming would make one record of two \
+                     runs: give this run's log, or start without --resume",
+                    path.display(),
+                    d.join(", ")
+                )));
+            }
+            for echo in logged {
+                states.keep(echo);
+            }
+            match Assembler::resume_forgetting(scenario.clone(), count, last.as_ref(), truth, names) {
+                Some(a) => (a, Some(count)),
+                None => (Assembler::new(scenario.clone()).forgetting(), Some(0)),
+            }
+        }
+        (Some(_), false) => (Assembler::new(scenario.clone()).forgetting(), None),
+        (None, _) => (Assembler::new(scenario.clone()), None),
+    };
+    let assembler = if source == runtime::Source::External { assembler.without_truth() } else { assembler };
+    Ok((assembler, states, resumed))
 }
 
 /// What a monitor's log says about a run.
@@ -267,5 +329,30 @@ pub(crate) mod tests {
         nan.covariance[0][0] = f64::NAN;
         assert_eq!(state_from_hex(&state_to_hex(&nan)), None);
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn a_resume_takes_its_own_runs_log_and_refuses_another_runs() {
+        let (dir, path) = scratch_log("resume");
+        let sc = Scenario { steps: 5, ..Scenario::default() };
+        let simulator = runtime::Source::Simulator;
+        // No log, or a new run: a new record (with a log it forgets the steps, which live there).
+        let (a, states, resumed) = resume(None, true, &sc, simulator).unwrap();
+        assert_eq!((a.next_step(), a.has_truth(), states.len(), resumed), (0, true, 0, None));
+        assert_eq!(resume(Some(&path), false, &sc, simulator).unwrap().2, None);
+        // This run's log with no step yet: resumed from step 0.
+        let mut log = EventLog::open(Some(&path), false).unwrap();
+        let start = json!({"steps": 5, "seed": sc.seed, "source": "simulator", "scenario": sc.fingerprint()});
+        log.write("start", &start);
+        log.flush();
+        let (a, _, resumed) = resume(Some(&path), true, &sc, simulator).unwrap();
+        assert_eq!((a.next_step(), resumed), (0, Some(0)));
+        // Another run's log (another seed, another source): refused, naming the difference.
+        let other = Scenario { seed: sc.seed + 1, ..sc.clone() };
+        let e = resume(Some(&path), true, &other, simulator).err().unwrap();
+        assert!(matches!(&e, ProcessError::Input(m) if m.contains("another run") && m.contains("seed")), "{e}");
+        let e = resume(Some(&path), true, &sc, runtime::Source::External).err().unwrap();
+        assert!(matches!(&e, ProcessError::Input(m) if m.contains("source external")), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -16,7 +16,7 @@ pub(crate) struct StampsCsv {
     out: LineFile,
 }
 
-/// Header of the `--stamps` CSV (see [`crate::process::MonitorArgs::stamps`]).
+/// Header of the `--stamps` CSV (see [`crate::args::MonitorArgs::stamps`]).
 pub const STAMPS_HEADER: &str = "step,trigger_command_published_ns,trigger_command_received_ns,\
 measurement_published_ns,measurement_received_ns,estimate_published_ns,estimate_received_ns,command_published_ns,\
 command_received_ns,monitor_measurement_ns,monitor_estimate_ns,monitor_command_ns,monitor_truth_ns";

@@ -1,5 +1,10 @@
 //! The monitor's status line: one line on stderr per recorded step (what `monitor` shows unless
 //! `--quiet`).
+//!
+//! Its fields: step, CRLB at the truth, RMSE, estimate error,
+//! the hops measurement→estimator and estimate→planner, the planning time, the whole cycle, the active
+//! planner and the rejected-message count; `COMMAND MISSED` for a step flown without its command,
+//! `ESTIMATE STALE` for a step whose command was the planner's hold.
 
 use crate::assemble::CompletedStep;
 

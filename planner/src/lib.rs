@@ -19,6 +19,7 @@
 //! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
 
 pub mod aco;
+pub mod args;
 // The shared model, re-exported under the planner's historical paths.
 pub use model::{active_mask, kinematics, scenario};
 pub mod constraints;

@@ -3,7 +3,8 @@
 //! process planner` runs the same code.
 
 use clap::Parser;
-use planner::process::{AFTER_HELP, PlannerArgs, main_with};
+use planner::args::{AFTER_HELP, PlannerArgs};
+use planner::process::main_with;
 
 /// The planner process of the uavloc pipeline: on each estimate, plans one heading per UAV (the chosen
 /// objective minimised by PSO, GA or ACO under the motion constraints) and publishes the command.

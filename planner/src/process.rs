@@ -47,74 +47,22 @@
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use clap::Args;
 use nalgebra::Vector2;
 use protocol::services;
 use protocol::{Command, ControlKind, Estimate, Measurement, PlanInfo, Topic, TopicPublisher, TopicSubscriber};
 use runtime::recovery::HISTORY_STEPS;
-use runtime::{Flow, Handler, Join, Node};
+use runtime::{Flow, Handler, Join, Node, ProcessError};
 
 use crate::active_mask;
-use crate::objective::ObjectiveKind;
-use crate::scenario::{Scenario, TargetMode};
-use crate::solver::SolverKind;
-use crate::staleness::{self, Freshness, HoldTracker, hold_plan};
+use crate::args::{PlannerArgs, check_scenario};
+use crate::scenario::Scenario;
+use crate::staleness::{self, Freshness, HoldTracker};
 use crate::step::{PlanRequest, plan_step};
 
 /// The role name (node name suffix, `uavloc process planner`).
 pub const ROLE: &str = "planner";
 
-/// What `planner --help` shows after the flags.
-pub const AFTER_HELP: &str = "\
-The planner subscribes to <domain>/estimate and publishes <domain>/command. Start it with the same
---scenario, --steps and --seed as emitter-sim (the scenario gives the motion, constraints, objective
-and solver settings; the seed drives the MC samples and the solver). Only target = \"chan\" scenarios
-are supported (controlled mode needs the truth, which only `uavloc simulate` can give the planner).
-
-Examples:
-  planner --domain lab1
-  planner --domain lab1 --objective mc --solver ga --scenario scenarios/nominal.toml --seed 7
-  planner --domain lab1 --estimate-deadline-ms 50   hold course when a step's estimate is 50 ms late
-  UAVLOC_DOMAIN=lab1 planner --spin-us 50";
-
-/// Flags of the planner process (`planner [FLAGS]` or `uavloc process planner [FLAGS]`).
-/// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
-#[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
-pub struct PlannerArgs {
-    /// The node (domain, link, quiet, supervised) and the run (scenario, steps, seed).
-    #[command(flatten)]
-    #[serde(flatten)]
-    pub process: runtime::ProcessArgs,
-    /// Planning objective: single | mc | analytical | cubature | formation.
-    #[arg(long, default_value = "analytical")]
-    #[serde(serialize_with = "runtime::flags::display")]
-    pub objective: ObjectiveKind,
-    /// Solver: gradient | pso | ga | aco (ignored by formation).
-    #[arg(long, default_value = "gradient")]
-    #[serde(serialize_with = "runtime::flags::display")]
-    pub solver: SolverKind,
-    /// Take over from the running planner at the next step (see `uavloc swap planner`).
-    #[arg(long)]
-    pub takeover: bool,
-    /// Staleness deadline: when a step's estimate has not arrived this many milliseconds after its
-    /// measurement, hold course (command the current headings, flagged as a hold; the monitor shows
-    /// `estimate_stale`). 0: no deadline (wait for every estimate; what lock-step reproductions need).
-    #[arg(long, value_name = "MS", default_value_t = 0)]
-    pub estimate_deadline_ms: u64,
-    /// Test / fault-injection aid: sleep this many milliseconds before planning a step (see
-    /// --plan-delay-steps), as a slow planner would; e.g. to make commands miss their step in emitter-sim's
-    /// realtime mode. 0: no delay. The plan itself does not change.
-    #[arg(long, value_name = "MS", default_value_t = 0)]
-    pub plan_delay_ms: u64,
-    /// Test / fault-injection aid: the steps --plan-delay-ms applies to, comma-separated (default: every
-    /// step).
-    #[arg(long, value_name = "K,..", value_delimiter = ',')]
-    pub plan_delay_steps: Vec<u64>,
-}
-
-pub use runtime::ProcessError;
-
-pub use model::scenario::load_scenario;
+use model::load_scenario;
 
 /// What the planner did, printed as its `summary` line.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -203,6 +151,12 @@ impl Planner<'_> {
         Ok(())
     }
 
+    /// The hold command of a step whose estimate missed the deadline ([`staleness::hold_command`]).
+    fn hold(&self, step: u64, at: &[Vector2<f64>], headings: &[f64], instance: u64) -> Result<Command, ProcessError> {
+        let names = (self.args.solver, self.args.objective);
+        staleness::hold_command(step, at, headings, &self.scenario, names, instance).map_err(ProcessError::Failed)
+    }
+
     /// The command of one estimate; `None` when it cannot be planned (counted and logged).
     fn plan(&mut self, node: &mut Node, est: &Estimate, received_ns: u64) -> Result<Option<Command>, ProcessError> {
         let step = est.header.step;
@@ -285,14 +239,7 @@ impl Handler for Planner<'_> {
                 // Held already: the step's answer is its hold.
                 self.summary.late_estimates += 1;
                 node.summary().resent += 1;
-                Some(hold_command(
-                    step,
-                    &points(est.uavs()),
-                    est.headings(),
-                    &self.scenario,
-                    self.args,
-                    node.instance(),
-                )?)
+                Some(self.hold(step, &points(est.uavs()), est.headings(), node.instance())?)
             } else {
                 if again {
                     node.summary().resent += 1; // a replayed estimate: planned again, the same command
@@ -309,8 +256,7 @@ impl Handler for Planner<'_> {
             if self.args.takeover && self.from_step.is_none_or(|f| due.step < f) {
                 continue; // the running planner's step
             }
-            let hold =
-                hold_command(due.step, &due.positions, &due.headings, &self.scenario, self.args, node.instance())?;
+            let hold = self.hold(due.step, &due.positions, &due.headings, node.instance())?;
             self.answer(node, hold, false)?;
             self.summary.held += 1;
             node.warn(format_args!(
@@ -328,17 +274,6 @@ impl Handler for Planner<'_> {
     fn last_answered(&self) -> Option<u64> {
         self.last_planned
     }
-}
-
-/// Checks that the process pipeline can run `scenario` (also what `uavloc launch` checks): only
-/// `target = "chan"`, because controlled mode needs the true emitter, which the planner never receives.
-pub fn check_scenario(scenario: &Scenario) -> Result<(), String> {
-    if scenario.target == TargetMode::Controlled {
-        return Err("scenario key `target`: \"controlled\" is not supported by the process pipeline (it needs \
-                    the true emitter, which the planner never receives); use `uavloc simulate` for controlled runs"
-            .into());
-    }
-    Ok(())
 }
 
 /// Runs the planner until SIGINT/SIGTERM, a shutdown or a hand-over.
@@ -398,36 +333,6 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
 /// UAV positions of a message as vectors, metres.
 fn points(uavs: &[[f64; 2]]) -> Vec<Vector2<f64>> {
     uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect()
-}
-
-/// The hold command of a step whose estimate missed the deadline (see the module docs).
-fn hold_command(
-    step: u64,
-    positions: &[Vector2<f64>],
-    headings: &[f64],
-    scenario: &Scenario,
-    args: &PlannerArgs,
-    instance: u64,
-) -> Result<Command, ProcessError> {
-    let (headings, waypoints) = hold_plan(positions, headings, scenario.speed, scenario.dt);
-    let mut hold = Command::new(
-        step,
-        0,
-        instance,
-        &PlanInfo {
-            headings: &headings,
-            waypoints: &waypoints,
-            objective: -1.0,
-            solver: args.solver.name(),
-            objective_name: args.objective.name(),
-            plan_time_us: 0,
-            active_constraints: 0,
-            violated_constraints: 0,
-        },
-    )
-    .map_err(|e| ProcessError::Failed(format!("step {step}: hold command: {e}")))?;
-    hold.flags |= Command::FLAG_HOLD;
-    Ok(hold)
 }
 
 /// Runs the planner and maps the outcome to an exit code (errors as one `error:` line on stderr); in

@@ -18,6 +18,9 @@ use std::time::{Duration, Instant};
 use nalgebra::Vector2;
 
 use crate::kinematics::next_position;
+use crate::objective::ObjectiveKind;
+use crate::scenario::Scenario;
+use crate::solver::SolverKind;
 
 /// A step whose deadline passed: where the UAVs were and how they headed when it was measured.
 #[derive(Debug, Clone, PartialEq)]
@@ -165,6 +168,34 @@ pub fn hold_plan(positions: &[Vector2<f64>], headings: &[f64], speed: f64, dt: f
         })
         .collect();
     (headings.to_vec(), waypoints)
+}
+
+/// The hold command of `step`: the UAVs at `positions` fly straight on at `headings` ([`hold_plan`] over
+/// the scenario's speed and interval), flagged [`protocol::Command::FLAG_HOLD`], objective −1 (no value)
+/// and no plan time; named after the planner's `solver` and `objective`.
+pub fn hold_command(
+    step: u64,
+    positions: &[Vector2<f64>],
+    headings: &[f64],
+    scenario: &Scenario,
+    (solver, objective): (SolverKind, ObjectiveKind),
+    instance: u64,
+) -> Result<protocol::Command, String> {
+    let (headings, waypoints) = hold_plan(positions, headings, scenario.speed, scenario.dt);
+    let info = protocol::PlanInfo {
+        headings: &headings,
+        waypoints: &waypoints,
+        objective: -1.0,
+        solver: solver.name(),
+        objective_name: objective.name(),
+        plan_time_us: 0,
+        active_constraints: 0,
+        violated_constraints: 0,
+    };
+    let mut hold =
+        protocol::Command::new(step, 0, instance, &info).map_err(|e| format!("step {step}: hold command: {e}"))?;
+    hold.flags |= protocol::Command::FLAG_HOLD;
+    Ok(hold)
 }
 
 #[cfg(test)]

@@ -425,6 +425,11 @@ impl RejectionCounter {
         self.accepted[msg.index()]
     }
 
+    /// Accepted messages of every kind.
+    pub fn accepted_total(&self) -> u64 {
+        self.accepted.iter().sum()
+    }
+
     /// All rejections.
     pub fn total(&self) -> u64 {
         self.rejected.iter().flatten().sum()

@@ -1,0 +1,67 @@
+//! The planner's flags (`planner [FLAGS]`, `uavloc process planner [FLAGS]`) and the check of the
+//! scenarios the process pipeline can run.
+
+use clap::Args;
+
+use crate::objective::ObjectiveKind;
+use crate::scenario::{Scenario, TargetMode};
+use crate::solver::SolverKind;
+
+/// What `planner --help` shows after the flags.
+pub const AFTER_HELP: &str = "\
+The planner subscribes to <domain>/estimate and publishes <domain>/command. Start it with the same
+--scenario, --steps and --seed as emitter-sim (the scenario gives the motion, constraints, objective
+and solver settings; the seed drives the MC samples and the solver). Only target = \"chan\" scenarios
+are supported (controlled mode needs the truth, which only `uavloc simulate` can give the planner).
+
+Examples:
+  planner --domain lab1
+  planner --domain lab1 --objective mc --solver ga --scenario scenarios/nominal.toml --seed 7
+  planner --domain lab1 --estimate-deadline-ms 50   hold course when a step's estimate is 50 ms late
+  UAVLOC_DOMAIN=lab1 planner --spin-us 50";
+
+/// Flags of the planner process (`planner [FLAGS]` or `uavloc process planner [FLAGS]`).
+/// Also `Serialize`: [`runtime::flags::to_flags`] writes the command line of these flags.
+#[derive(Args, serde::Serialize, Debug, Clone, PartialEq)]
+pub struct PlannerArgs {
+    /// The node (domain, link, quiet, supervised) and the run (scenario, steps, seed).
+    #[command(flatten)]
+    #[serde(flatten)]
+    pub process: runtime::ProcessArgs,
+    /// Planning objective: single | mc | analytical | cubature | formation.
+    #[arg(long, default_value = "analytical")]
+    #[serde(serialize_with = "runtime::flags::display")]
+    pub objective: ObjectiveKind,
+    /// Solver: gradient | pso | ga | aco (ignored by formation).
+    #[arg(long, default_value = "gradient")]
+    #[serde(serialize_with = "runtime::flags::display")]
+    pub solver: SolverKind,
+    /// Take over from the running planner at the next step (see `uavloc swap planner`).
+    #[arg(long)]
+    pub takeover: bool,
+    /// Staleness deadline: when a step's estimate has not arrived this many milliseconds after its
+    /// measurement, hold course (command the current headings, flagged as a hold; the monitor shows
+    /// `estimate_stale`). 0: no deadline (wait for every estimate; what lock-step reproductions need).
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub estimate_deadline_ms: u64,
+    /// Test / fault-injection aid: sleep this many milliseconds before planning a step (see
+    /// --plan-delay-steps), as a slow planner would; e.g. to make commands miss their step in emitter-sim's
+    /// realtime mode. 0: no delay. The plan itself does not change.
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub plan_delay_ms: u64,
+    /// Test / fault-injection aid: the steps --plan-delay-ms applies to, comma-separated (default: every
+    /// step).
+    #[arg(long, value_name = "K,..", value_delimiter = ',')]
+    pub plan_delay_steps: Vec<u64>,
+}
+
+/// Checks that the process pipeline can run `scenario` (also what `uavloc launch` checks): only
+/// `target = "chan"`, because controlled mode needs the true emitter, which the planner never receives.
+pub fn check_scenario(scenario: &Scenario) -> Result<(), String> {
+    if scenario.target == TargetMode::Controlled {
+        return Err("scenario key `target`: \"controlled\" is not supported by the process pipeline (it needs \
+                    the true emitter, which the planner never receives); use `uavloc simulate` for controlled runs"
+            .into());
+    }
+    Ok(())
+}
