@@ -20,6 +20,7 @@ pub mod live;
 pub mod locate;
 pub mod output;
 pub mod paper;
+pub mod process_cmd;
 pub mod replay;
 pub mod rmse;
 pub mod simulate;
@@ -129,7 +130,7 @@ pub enum Command {
     /// Run one pipeline process in this binary (what `uavloc launch` starts): emitter-sim, estimator,
     /// planner, monitor.
     #[command(hide = true)]
-    Process(launch::ProcessArgs),
+    Process(process_cmd::ProcessArgs),
 }
 
 /// A clap parse error as one line: the first paragraph of clap's message with its lines joined

@@ -7,7 +7,7 @@ use clap::error::ErrorKind;
 use clap::{CommandFactory, FromArgMatches};
 use uavloc::{
     Cli, CliError, Command, Diagnostic, Report, bench, crlb, global, launch, locate, one_line_clap_error, paper,
-    replay, rmse, simulate, swap,
+    process_cmd, replay, rmse, simulate, swap,
 };
 
 fn main() -> ExitCode {
@@ -48,7 +48,7 @@ fn main() -> ExitCode {
             bench::BenchCommand::Planner(a) => emit(bench::planner::run(a), json),
             bench::BenchCommand::Ipc(a) => emit(bench::ipc::run(a), json),
         },
-        Command::Process(a) => launch::run_process(a),
+        Command::Process(a) => process_cmd::run_process(a),
     }
 }
 

@@ -185,6 +185,20 @@ pub fn anon_rss_bytes(pid: u32) -> Result<u64, String> {
     Ok(kib * 1024)
 }
 
+/// CPU use (% of one core) of each process (name, pid) over `window`, from /proc (for processes that idle:
+/// `uavloc launch`'s children waiting for messages that do not come yet).
+pub fn idle_cpu(procs: &[(String, u32)], window: std::time::Duration) -> std::collections::BTreeMap<String, f64> {
+    let before: Vec<(&String, u32, Option<f64>)> =
+        procs.iter().map(|(name, pid)| (name, *pid, process_cpu_seconds(*pid).ok())).collect();
+    let start = std::time::Instant::now();
+    std::thread::sleep(window);
+    let elapsed = start.elapsed().as_secs_f64();
+    before
+        .into_iter()
+        .filter_map(|(name, pid, t0)| Some((name.clone(), 100.0 * (process_cpu_seconds(pid).ok()? - t0?) / elapsed)))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

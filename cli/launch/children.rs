@@ -9,7 +9,7 @@ use runtime::flags::to_flags;
 use super::args::LaunchArgs;
 use super::role::Role;
 use super::state_dir::StateDir;
-use super::supervisor::{Supervisor, probe_idle_cpu};
+use super::supervisor::Supervisor;
 use crate::error::CliError;
 
 /// The default value of every flag of a process's argument type (what its parser gives for no flags).
@@ -95,7 +95,8 @@ pub(super) fn start_and_run(
 ) -> Result<(), CliError> {
     for role in Role::started(args.source) {
         if role == Role::EmitterSim && args.idle_probe_ms > 0 {
-            sup.idle_cpu = probe_idle_cpu(sup, Duration::from_millis(args.idle_probe_ms));
+            let idle: Vec<(String, u32)> = sup.procs.iter().map(|p| (p.role.to_string(), p.child.id())).collect();
+            sup.idle_cpu = crate::bench::sys::idle_cpu(&idle, Duration::from_millis(args.idle_probe_ms));
         }
         sup.spawn(role, child_flags(role, args, sc, domain, state, log)?)?;
         sup.wait_ready(role)?;
@@ -140,78 +141,18 @@ pub(super) fn start_and_run(
 
 #[cfg(test)]
 mod tests {
-    use clap::{FromArgMatches, Parser};
+    use clap::Parser;
 
     use super::*;
 
-    /// `parse(to_flags(a)) == a`: the type that parses a process's flags writes them, and loses nothing
-    /// on the way.
-    fn round_trip<T>(a: T)
-    where
-        T: clap::Args + FromArgMatches + serde::Serialize + PartialEq + std::fmt::Debug,
-    {
-        assert_eq!(runtime::flags::from_flags::<T>(&to_flags(&a).unwrap()).unwrap(), a);
-    }
-
+    /// Each process's own flags round-trip (tested beside its argument type); here the launch's children:
+    /// every one parses the command line the launch builds for it (no flag it does not know).
     #[test]
-    fn every_process_writes_its_own_flags_back() {
-        let link = runtime::LinkArgs { transport: protocol::TransportKind::Uds, wait: None, spin_us: Some(30) };
-        let m = monitor::args::MonitorArgs {
-            process: runtime::ProcessArgs {
-                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: true },
-                run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
-            },
-            source: runtime::Source::External,
-            mcap: Some("run.mcap".into()),
-            stamps: Some("s.csv".into()),
-            log: Some("l.jsonl".into()),
-            record: Some("r.json".into()),
-            // A value that begins with `-` (written `--out=-o`, not taken for a flag).
-            out: Some("-o".into()),
-            print_record: true,
-            resume: true,
-        };
-        round_trip(m);
-        let p = planner::args::PlannerArgs {
-            process: runtime::ProcessArgs {
-                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: false, supervised: true },
-                run: runtime::RunArgs { scenario: None, steps: Some(3), seed: None },
-            },
-            objective: planner::ObjectiveKind::PosteriorCubature,
-            solver: planner::SolverKind::Aco,
-            takeover: true,
-            estimate_deadline_ms: 12,
-            plan_delay_ms: 5,
-            plan_delay_steps: vec![1, 4],
-        };
-        round_trip(p);
-        let e = emitter_sim::args::EmitterSimArgs {
-            process: runtime::ProcessArgs {
-                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: false },
-                run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
-            },
-            command_timeout_s: 0.1 + 0.2,
-            retry_interval_ms: 77,
-            connect_timeout_s: 3.5,
-            min_subscribers: 2,
-            step_delay_ms: 4,
-            mode: emitter_sim::args::Mode::Realtime,
-            time_scale: Some(1.0 / 3.0),
-            checkpoint: None,
-            linger: true,
-            monitor_window: 17,
-        };
-        round_trip(e.clone());
-        // A value that is not a finite number is an error, not a flag left out (the child's default).
-        let nan = emitter_sim::args::EmitterSimArgs { time_scale: Some(f64::NAN), ..e.clone() };
-        assert!(to_flags(&nan).unwrap_err().contains("finite"));
-        let inf = emitter_sim::args::EmitterSimArgs { command_timeout_s: f64::INFINITY, ..e };
-        assert!(to_flags(&inf).is_err());
-        // The launch's children: every one parses its command line (no flag it does not know).
+    fn every_child_parses_its_command_line() {
         #[derive(Parser)]
         struct Cli {
             #[command(subcommand)]
-            process: super::super::ProcessRole,
+            process: crate::process_cmd::ProcessRole,
         }
         let args = LaunchArgs::try_parse_from_defaults();
         let sc = Scenario::default();

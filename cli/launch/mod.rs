@@ -1,64 +1,12 @@
-//! `uavloc launch`: the process pipeline — monitor, planner, estimator and emitter-sim as child processes
-//! talking over iceoryx2 — run to the end of a scenario, in lock-step or in real time (`--mode`,
-//! `--time-scale`, passed to emitter-sim; see `emitter_sim::process`); and the hidden
-//! `uavloc process <role>` that makes `uavloc` a multi-call binary (each child is `uavloc` itself, running
-//! the same library entry point as the standalone `monitor`, `planner`, `estimator`, `emitter-sim`
-//! binaries).
-//!
-//! # How a launch runs
-//!
-//! 1. The scenario is loaded as `uavloc simulate` loads it; the domain is `--domain`, else
-//!    `$UAVLOC_DOMAIN`, else `uavloc-<pid>` (unique per launch). A domain with live processes is refused;
-//!    dead leftovers of an earlier crash in it are cleaned up.
-//! 2. The children start in the order monitor → planner → estimator → emitter-sim, each only after the
-//!    previous one has printed `ready` on its stdout (its subscriptions exist), so no message is published
-//!    before its subscribers are there (the topics keep no history). emitter-sim also checks the topics
-//!    itself (≥ 2 measurement subscribers, a planner) before step 0.
-//! 3. The run ends when emitter-sim has published the last step (it prints `finished` and, started with
-//!    `--linger`, stays to replay the run to a monitor that fell behind or was restarted meanwhile) and the
-//!    monitor has recorded it and exited 0; emitter-sim, the estimator and the planner are then stopped
-//!    with SIGTERM (SIGKILL after a grace period).
-//! 4. A child that exits before that (a crash, a kill, an error) is restarted: the restart is written to
-//!    the `--log` (`{"event": "restart", "role", "pid", "exit", "attempt", "backoff_ms"}`) and counted in
-//!    `restarts`; the dead node's iceoryx2 resources are removed; after min(50 ms · 2^(attempt − 1), 1.6 s)
-//!    the same role starts again with the same flags (a monitor with `--resume`: it takes the steps of its
-//!    log). The new process announces itself on the control topic and emitter-sim replays the run to it (see
-//!    `emitter_sim::process`), so the run resumes exactly where it was; a restarted emitter-sim starts
-//!    from the older world snapshot of its checkpoint (step 0 in a run younger than 512 steps) and flies
-//!    on from there; the estimator and the planner keep no state of their own (it rides the messages, see
-//!    `runtime::recovery`). In lock-step mode emitter-sim runs at most 48 steps ahead of the monitor (its
-//!    `--monitor-window`), so a monitor starved of CPU never loses a message from its full buffers and one
-//!    restarted many times does not fall behind what can be replayed to it. A child that exits with code 2
-//!    (bad input) or 3 (the run cannot go on: two UAVs collided, so the world cannot measure), or crashes
-//!    more than `--max-restarts` times, stops the others and fails the launch.
-//!    (`tests/e2e/crash_restart.rs`.)
-//! 5. At the end (or on an error or a signal), once its children are stopped, the launcher publishes a
-//!    shutdown on the domain's control topic if processes of the domain are still alive — processes
-//!    swapped in by `uavloc swap` are not its children and stop on it — and waits for them. A planner
-//!    or estimator that exits because a swapped-in one took over (`handed_over_at` in its summary) is
-//!    not restarted.
-//! 6. Stale iceoryx2 resources of the domain (a child killed) are removed, and the launcher checks that
-//!    none are left.
-//!
-//! Limits of restarts: in real-time mode emitter-sim does not wait for the monitor (the world keeps its
-//! clock), so a monitor down for more than 256 steps while emitter-sim is restarted too may ask for a step
-//! no longer kept (the run then stops with an error naming the steps); a process SIGKILLed inside
-//! iceoryx2's node creation (a window of microseconds between its details file and its monitoring token)
-//! leaves a node directory iceoryx2 cannot list or clean.
-//!
-//! Every child runs in its own process group (a terminal's Ctrl-C reaches only the launcher, which stops
-//! the children in order) with `PR_SET_PDEATHSIG = SIGTERM`, so none outlives a launcher that dies.
-//! SIGINT/SIGTERM on the launcher stop all children (exit code 1) and remove the iceoryx2 resources any of
-//! them left behind (`tests/e2e/shutdown.rs`).
-//!
-//! The output is the monitor's run record, i.e. the JSON of `uavloc simulate --json` (built only from what
-//! the monitor received), plus `restarts`, `rejected` (invalid messages counted by all four processes),
-//! `rejected_by` (the same per process role; `tests/e2e/bad_messages.rs`) and `processes` (every instance
-//! started: role, pid, exit, whether it was restarted, its summary).
+//! `uavloc launch`: the process pipeline — monitor, planner, estimator and emitter-sim as children
+//! (`uavloc process <role>`) over iceoryx2 or Unix sockets — run to the end of a scenario in lock-step or
+//! real time, or fed by an external front end (`--source external`). What the user sees is the `--help`
+//! ([`LONG_ABOUT`]); how a launch runs — the domain and its lock, the start order, the end, restarts by
+//! each [`Role`]'s policy, the shutdown of swapped-in processes, the clean-up of iceoryx2 resources — is
+//! ARCHITECTURE.md, "The launcher"; [`run`] below is that sequence.
 
 mod args;
 mod children;
-mod process_cmd;
 mod report;
 mod role;
 mod signals;
@@ -74,7 +22,6 @@ use protocol::resources;
 use protocol::services::{self, DOMAIN_ENV, Domain};
 
 pub use args::{AFTER_HELP, LONG_ABOUT, LaunchArgs};
-pub use process_cmd::{ProcessArgs, ProcessRole, ResourcesArgs, run_process};
 pub use report::{ChildReport, LaunchReport};
 pub use role::{RestartDecision, Role};
 

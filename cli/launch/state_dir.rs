@@ -95,26 +95,20 @@ pub(crate) fn pid_alive(pid: u32) -> bool {
         .unwrap_or(false)
 }
 
-/// Removes the state directories `launch-<pid>-<domain>` in `root` whose launcher is gone (it was killed
-/// and could not clean up); returns how many.
+/// The launches' state directories `launch-<pid>-<domain>` in `root`: (launcher pid, domain, path).
+fn launch_dirs(root: &Path) -> impl Iterator<Item = (u32, String, PathBuf)> {
+    std::fs::read_dir(root).into_iter().flatten().flatten().filter_map(|entry| {
+        let name = entry.file_name().to_str()?.strip_prefix("launch-")?.to_string();
+        let (pid, domain) = name.split_once('-')?;
+        Some((pid.parse().ok()?, domain.to_string(), entry.path()))
+    })
+}
+
+/// Removes the state directories in `root` whose launcher is gone (it was killed and could not clean
+/// up); returns how many.
 pub(super) fn remove_stale_state_dirs(root: &Path) -> usize {
-    let Ok(entries) = std::fs::read_dir(root) else { return 0 };
-    let mut removed = 0;
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let Some(pid) = name
-            .to_str()
-            .and_then(|n| n.strip_prefix("launch-"))
-            .and_then(|rest| rest.split('-').next())
-            .and_then(|p| p.parse::<u32>().ok())
-        else {
-            continue;
-        };
-        if pid != std::process::id() && !pid_alive(pid) && std::fs::remove_dir_all(entry.path()).is_ok() {
-            removed += 1;
-        }
-    }
-    removed
+    let stale = launch_dirs(root).filter(|(pid, ..)| *pid != std::process::id() && !pid_alive(*pid));
+    stale.filter(|(.., path)| std::fs::remove_dir_all(path).is_ok()).count()
 }
 
 /// What a running launch tells a `uavloc swap` about its run (`run.json` in its state directory), so a
@@ -142,21 +136,13 @@ pub struct RunSettings {
 
 /// The settings of the launch running in `domain` (its launcher alive), with the file they came from.
 pub fn find_run_settings(domain: &Domain) -> Option<(RunSettings, PathBuf)> {
-    let root = state_root().ok()?;
-    let suffix = format!("-{domain}");
-    for entry in std::fs::read_dir(&root).ok()?.flatten() {
-        let name = entry.file_name().to_string_lossy().to_string();
-        let Some(rest) = name.strip_prefix("launch-").and_then(|r| r.strip_suffix(&suffix)) else { continue };
-        let Ok(pid) = rest.parse::<u32>() else { continue };
-        let path = entry.path().join("run.json");
-        if pid_alive(pid)
-            && let Ok(text) = std::fs::read_to_string(&path)
-            && let Ok(settings) = serde_json::from_str(&text)
-        {
-            return Some((settings, path));
-        }
-    }
-    None
+    launch_dirs(&state_root().ok()?).filter(|(pid, d, _)| d == domain.as_str() && pid_alive(*pid)).find_map(
+        |(.., dir)| {
+            let path = dir.join("run.json");
+            let settings = serde_json::from_str(&std::fs::read_to_string(&path).ok()?).ok()?;
+            Some((settings, path))
+        },
+    )
 }
 
 /// The private directory of one launch (emitter-sim's snapshot file, and the monitor's log when `--log` is
@@ -207,5 +193,26 @@ impl StateDir {
 impl Drop for StateDir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn launch_dirs_are_named_by_pid_and_domain_and_nothing_else_is_one() {
+        let root = std::env::temp_dir().join(format!("uavloc-dirs-test-{}", std::process::id()));
+        for name in ["launch-12-lab-1", "launch-x-lab", "launch-13", "other-14-lab"] {
+            std::fs::create_dir_all(root.join(name)).unwrap();
+        }
+        let found: Vec<(u32, String)> = launch_dirs(&root).map(|(pid, domain, _)| (pid, domain)).collect();
+        assert_eq!(found, [(12, "lab-1".to_string())]);
+        // Pid 12 is not a launcher of this test (and if it runs, it is not removed): removed as stale only
+        // when it is gone.
+        let removed = remove_stale_state_dirs(&root);
+        assert_eq!(removed == 1, !root.join("launch-12-lab-1").exists());
+        assert_eq!(removed == 1, !pid_alive(12));
+        std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -455,18 +455,3 @@ impl Supervisor {
         }
     }
 }
-
-/// CPU use (% of one core) of each running child over `window`, from /proc (the children are idle: they
-/// wait for messages that do not come yet).
-pub(super) fn probe_idle_cpu(sup: &Supervisor, window: Duration) -> BTreeMap<String, f64> {
-    use crate::bench::sys::process_cpu_seconds;
-    let before: Vec<(String, u32, Option<f64>)> =
-        sup.procs.iter().map(|p| (p.role.to_string(), p.child.id(), process_cpu_seconds(p.child.id()).ok())).collect();
-    let start = Instant::now();
-    std::thread::sleep(window);
-    let elapsed = start.elapsed().as_secs_f64();
-    before
-        .into_iter()
-        .filter_map(|(role, pid, t0)| Some((role, 100.0 * (process_cpu_seconds(pid).ok()? - t0?) / elapsed)))
-        .collect()
-}

@@ -218,3 +218,38 @@ impl EmitterSimArgs {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `parse(to_flags(a)) == a`: the type that parses the process's flags writes them (what `uavloc launch`
+    /// and `uavloc swap` give a child), and loses nothing on the way.
+    #[test]
+    fn the_flags_round_trip() {
+        let link = runtime::LinkArgs { transport: protocol::TransportKind::Uds, wait: None, spin_us: Some(30) };
+        let e = EmitterSimArgs {
+            process: runtime::ProcessArgs {
+                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: false },
+                run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
+            },
+            command_timeout_s: 0.1 + 0.2,
+            retry_interval_ms: 77,
+            connect_timeout_s: 3.5,
+            min_subscribers: 2,
+            step_delay_ms: 4,
+            mode: Mode::Realtime,
+            time_scale: Some(1.0 / 3.0),
+            checkpoint: None,
+            linger: true,
+            monitor_window: 17,
+        };
+        let back = runtime::flags::from_flags::<_>(&runtime::flags::to_flags(&e).unwrap()).unwrap();
+        assert_eq!(e, back);
+        // A value that is not a finite number is an error, not a flag left out (the child's default).
+        let nan = EmitterSimArgs { time_scale: Some(f64::NAN), ..e.clone() };
+        assert!(runtime::flags::to_flags(&nan).unwrap_err().contains("finite"));
+        let inf = EmitterSimArgs { command_timeout_s: f64::INFINITY, ..e };
+        assert!(runtime::flags::to_flags(&inf).is_err());
+    }
+}

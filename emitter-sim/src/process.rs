@@ -151,13 +151,8 @@ impl EmitterNode<'_> {
         let seq = node.next_seq();
         truth.header.seq = seq;
         measurement.header.seq = seq;
-        if again {
-            self.truths.resend(&truth)?;
-            self.measurements.resend(&measurement)?;
-        } else {
-            self.truths.send(&truth)?;
-            self.measurements.send(&measurement)?;
-        }
+        self.truths.publish(&truth, again)?;
+        self.measurements.publish(&measurement, again)?;
         self.sent_count += 1;
         Ok(())
     }

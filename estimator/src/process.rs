@@ -173,11 +173,7 @@ impl EstimatorNode<'_> {
             .to_estimate(m, received_ns, seq, node.instance())
             .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;
         // A step estimated again goes out as a copy: no publish stamp, so nobody times it as the step's.
-        if again {
-            self.estimates.resend(&estimate)?;
-        } else {
-            self.estimates.send(&estimate)?;
-        }
+        self.estimates.publish(&estimate, again)?;
         node.summary().published += 1;
         Ok(())
     }

@@ -94,3 +94,32 @@ impl MonitorArgs {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `parse(to_flags(a)) == a`: the type that parses the process's flags writes them (what `uavloc launch`
+    /// and `uavloc swap` give a child), and loses nothing on the way.
+    #[test]
+    fn the_flags_round_trip() {
+        let link = runtime::LinkArgs { transport: protocol::TransportKind::Uds, wait: None, spin_us: Some(30) };
+        let m = MonitorArgs {
+            process: runtime::ProcessArgs {
+                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: true },
+                run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
+            },
+            source: runtime::Source::External,
+            mcap: Some("run.mcap".into()),
+            stamps: Some("s.csv".into()),
+            log: Some("l.jsonl".into()),
+            record: Some("r.json".into()),
+            // A value that begins with `-` (written `--out=-o`, not taken for a flag).
+            out: Some("-o".into()),
+            print_record: true,
+            resume: true,
+        };
+        let back = runtime::flags::from_flags::<_>(&runtime::flags::to_flags(&m).unwrap()).unwrap();
+        assert_eq!(m, back);
+    }
+}

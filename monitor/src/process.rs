@@ -26,9 +26,9 @@
 //! state after every step (from the step's estimate or its command's echo; the last 4 096 steps), writes
 //! it with the step in its log (`state`: the [`protocol::StateEcho`]'s bytes in hex, read back on
 //! `--resume`), and answers an estimator's request for one ([`ControlKind::State`]; logged as
-//! `state_request`) on `<domain>/state`, at once or as soon as it has it. A message it lacks (a newer
-//! step is [`STALL_STEPS`] ahead, or an estimator waits [`STATE_GRACE`] for the state after a step it
-//! has not recorded) it asks emitter-sim to replay (`replay_request`: step, and newest or state).
+//! `state_request`) on `<domain>/state`, at once or as soon as it has it. A message it lacks
+//! ([`runtime::recovery::Lost`]) it asks emitter-sim to replay (`replay_request`: step, and newest or
+//! state).
 //!
 //! With `--source external` there is no truth (an external front end publishes the measurements): steps
 //! complete without one and the truth-based fields stay absent ([`crate::assemble`]); no replay is asked
@@ -48,6 +48,7 @@ use protocol::{
     Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, Topic, TopicPublisher,
     TopicSubscriber, Truth, Waitable,
 };
+use runtime::recovery::{Lost, LostMessages, STALL_STEPS};
 use runtime::{Flow, Handler, IDLE_WAKEUP, Join, Node, ProcessError};
 use serde_json::json;
 
@@ -67,22 +68,10 @@ pub const ROLE: &str = "monitor";
 /// Exit code when SIGINT/SIGTERM stopped the monitor before the last step.
 pub use runtime::EXIT_INTERRUPTED;
 
-/// When the step the monitor waits for is incomplete while a message of this many steps later is in, one of
-/// its messages was lost: the monitor asks emitter-sim for a replay from it.
-pub const STALL_STEPS: u64 = 3;
-
 /// The monitor reports its progress ([`ControlKind::Progress`]: the first step it lacks) every this many
 /// recorded steps, at least every [`IDLE_WAKEUP`] while it waits, and when an emitter-sim (re)joins: a
 /// lock-step emitter-sim runs at most its `--monitor-window` steps ahead of it.
 pub const PROGRESS_EVERY: u64 = 16;
-
-/// How long the monitor waits for a replay it asked for (a message lost) before it asks again: longer than
-/// emitter-sim's retry interval (1 s by default), which a running replay gets per step.
-pub const REASK: std::time::Duration = std::time::Duration::from_secs(2);
-
-/// How long an estimator may wait for the state after a step this monitor has not recorded before the
-/// monitor takes the step's messages for lost and asks for a replay (they may be on their way).
-pub const STATE_GRACE: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// While a run streams, the monitor takes its messages every this long (plus the kernel's timer slack,
 /// ≤ 50 µs) instead of per message ([`Node::drain_every`]): it is off the control loop, which then has the
@@ -103,10 +92,8 @@ struct MonitorNode<'a> {
     commands: &'a TopicSubscriber<Command>,
     /// The answers to the estimator's state requests.
     state_answers: &'a TopicPublisher<EstimatorState>,
-    /// The step a replay was last asked from because a message was lost, and when.
-    replay_asked: Option<(u64, Instant)>,
-    /// The step after which an estimator waits for a state this monitor lacks, and since when.
-    state_waited: Option<(u64, Instant)>,
+    /// The replays asked for because a message was lost.
+    lost: LostMessages,
     progress_sent: Option<(u64, Instant)>,
     /// With an external source: the front end's presence.
     front_end: Option<FrontEndWatch>,
@@ -155,41 +142,17 @@ impl Handler for MonitorNode<'_> {
             node.announce(ControlKind::Progress, next, "")?;
             self.progress_sent = Some((next, Instant::now()));
         }
-        // An estimator waits for the state after a step not recorded here: the messages that carry it were
-        // lost, and no later step comes while it waits — once that has lasted STATE_GRACE (they may be on
-        // their way).
-        let state_lost = match session.lacks_wanted_state() {
-            None => {
-                self.state_waited = None;
-                None
-            }
-            Some((next, wanted)) => {
-                if self.state_waited.is_none_or(|(w, _)| w != wanted) {
-                    self.state_waited = Some((wanted, Instant::now()));
+        // A message of the step waited for was lost (a newer step is in, or an estimator waits for a state
+        // not recorded here): ask emitter-sim to replay from it, as a restarted monitor would.
+        let newer = session.lost_step(STALL_STEPS).map(|(_, newest)| newest);
+        let wanted = session.lacks_wanted_state().map(|(_, wanted)| wanted);
+        if let Some(lost) = self.lost.poll(Instant::now(), next, newer, wanted) {
+            let (event, why) = match lost {
+                Lost::NewerStep(newest) => (json!({"step": next, "newest": newest}), format!("step {newest} is in")),
+                Lost::StateWanted(w) => {
+                    (json!({"step": next, "state": w}), format!("an estimator waits for the state after step {w}"))
                 }
-                self.state_waited.filter(|(_, since)| since.elapsed() >= STATE_GRACE).map(|_| (next, wanted))
-            }
-        };
-        // A message of the step we wait for was lost (e.g. overwritten in a full buffer while this monitor
-        // was starved of CPU, or never sent while it was restarting) if newer steps are in and it is not, or
-        // if an estimator waits for its state: ask emitter-sim to replay from it, as a restarted monitor
-        // would — again every REASK while it does not come (a replay that found the estimator down is
-        // dropped).
-        let lost = match (session.lost_step(STALL_STEPS), state_lost) {
-            (Some((next, newest)), _) => {
-                Some((next, json!({"step": next, "newest": newest}), format!("step {newest} is in")))
-            }
-            (None, Some((next, wanted))) => Some((
-                next,
-                json!({"step": next, "state": wanted}),
-                format!("an estimator waits for the state after step {wanted}"),
-            )),
-            (None, None) => None,
-        };
-        if let Some((next, event, why)) = lost
-            && self.replay_asked.is_none_or(|(step, at)| step != next || at.elapsed() >= REASK)
-        {
-            self.replay_asked = Some((next, Instant::now()));
+            };
             session.summary.replays_requested += 1;
             session.log.write("replay_request", event);
             node.say(format_args!("a message of step {next} was lost ({why}); asking for a replay"));
@@ -288,8 +251,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         estimates: &estimates,
         commands: &commands,
         state_answers: &state_answers,
-        replay_asked: None,
-        state_waited: None,
+        lost: LostMessages::default(),
         progress_sent: None,
         front_end: external.then(FrontEndWatch::default),
     };

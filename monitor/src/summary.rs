@@ -35,7 +35,7 @@ pub struct MonitorSummary {
     /// buffer) or never sent (its sender died first), the step then recorded from a copy sent again (a
     /// replay: no publish stamp). 0 when nothing was lost.
     pub missing_messages: u64,
-    /// Replays this monitor asked for because a message was lost (see [`crate::process::STALL_STEPS`]).
+    /// Replays this monitor asked for because a message was lost (see [`runtime::recovery::Lost`]).
     pub replays_requested: u64,
     /// CPU time this process used, seconds.
     pub cpu_s: f64,

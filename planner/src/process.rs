@@ -103,11 +103,7 @@ impl Planner<'_> {
     /// without a publish stamp, so that nobody times it as the step's).
     fn answer(&mut self, node: &mut Node, mut command: Command, again: bool) -> Result<(), ProcessError> {
         command.header.seq = node.next_seq();
-        if again {
-            self.commands.resend(&command)?;
-        } else {
-            self.commands.send(&command)?;
-        }
+        self.commands.publish(&command, again)?;
         node.summary().published += 1;
         self.last_planned = self.last_planned.max(Some(command.header.step));
         Ok(())

@@ -50,6 +50,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 use protocol::{EchoedState, StateEcho};
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
@@ -163,6 +164,72 @@ impl StateStore {
                 self.states[&s]
             })
             .collect()
+    }
+}
+
+/// When the step a monitor waits for is incomplete while a message of this many steps later is in, one of
+/// its messages was lost: the monitor asks emitter-sim for a replay from it.
+pub const STALL_STEPS: u64 = 3;
+
+/// How long a monitor waits for a replay it asked for (a message lost) before it asks again: longer than
+/// emitter-sim's retry interval (1 s by default), which a running replay gets per step.
+pub const REASK: Duration = Duration::from_secs(2);
+
+/// How long an estimator may wait for the state after a step the monitor has not recorded before the
+/// monitor takes the step's messages for lost and asks for a replay (they may be on their way).
+pub const STATE_GRACE: Duration = Duration::from_secs(1);
+
+/// Why a monitor asks for a replay from the first step it lacks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lost {
+    /// A message of this step, [`STALL_STEPS`] or more later, is in while the step waited for is not: one
+    /// of its messages was lost (overwritten in a full buffer while the monitor was starved of CPU, or
+    /// never sent while it was restarting).
+    NewerStep(u64),
+    /// An estimator has waited [`STATE_GRACE`] for the state after this step, which the monitor has not
+    /// recorded either: the messages that carry it were lost, and no later step comes while it waits.
+    StateWanted(u64),
+}
+
+/// The monitor's requests for the replay of lost messages, a pure state machine over (time, what the
+/// monitor lacks): it asks once a loss is certain, and again every [`REASK`] while the replay does not
+/// come (a replay that found the estimator down is dropped).
+#[derive(Debug, Clone, Default)]
+pub struct LostMessages {
+    /// The step after which an estimator waits for a state the monitor lacks, and since when.
+    state_waited: Option<(u64, Instant)>,
+    /// The step a replay was last asked from, and when.
+    asked: Option<(u64, Instant)>,
+}
+
+impl LostMessages {
+    /// At `now`, with `next` the first step the monitor lacks, `newer` a message in of a step at least
+    /// [`STALL_STEPS`] later (if any) and `wanted` the step after which an estimator waits for a state the
+    /// monitor lacks (if any): whether to ask for a replay from `next` now, and why.
+    pub fn poll(&mut self, now: Instant, next: u64, newer: Option<u64>, wanted: Option<u64>) -> Option<Lost> {
+        let since = |at: Instant| now.saturating_duration_since(at);
+        let state = match wanted {
+            None => {
+                self.state_waited = None;
+                None
+            }
+            Some(w) => {
+                if self.state_waited.is_none_or(|(s, _)| s != w) {
+                    self.state_waited = Some((w, now));
+                }
+                self.state_waited.filter(|(_, at)| since(*at) >= STATE_GRACE).map(|_| w)
+            }
+        };
+        let why = match (newer, state) {
+            (Some(newest), _) => Lost::NewerStep(newest),
+            (None, Some(w)) => Lost::StateWanted(w),
+            (None, None) => return None,
+        };
+        if self.asked.is_some_and(|(step, at)| step == next && since(at) < REASK) {
+            return None;
+        }
+        self.asked = Some((next, now));
+        Some(why)
     }
 }
 
@@ -295,5 +362,33 @@ mod tests {
         }
         store.keep(echo(1_000_000, StateEcho::STATE));
         assert!(store.take_answers().is_empty(), "the oldest request was forgotten");
+    }
+
+    #[test]
+    fn a_lost_message_is_asked_for_once_per_reask_and_a_wanted_state_after_its_grace() {
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let mut lost = LostMessages::default();
+        // Nothing lacking: nothing asked.
+        assert_eq!(lost.poll(at(0), 5, None, None), None);
+        // A newer step is in: asked at once, not again within REASK, again after it.
+        assert_eq!(lost.poll(at(0), 5, Some(9), None), Some(Lost::NewerStep(9)));
+        assert_eq!(lost.poll(at(1_999), 5, Some(9), None), None);
+        assert_eq!(lost.poll(at(2_000), 5, Some(10), None), Some(Lost::NewerStep(10)));
+        // Another step lacking is asked for at once.
+        assert_eq!(lost.poll(at(2_001), 6, Some(10), None), Some(Lost::NewerStep(10)));
+        // A state wanted: only once it has been wanted for STATE_GRACE (its messages may be on their way)…
+        let mut lost = LostMessages::default();
+        assert_eq!(lost.poll(at(0), 7, None, Some(6)), None);
+        assert_eq!(lost.poll(at(999), 7, None, Some(6)), None);
+        assert_eq!(lost.poll(at(1_000), 7, None, Some(6)), Some(Lost::StateWanted(6)));
+        // … a wait that ended starts again from zero, as does one for another state.
+        assert_eq!(lost.poll(at(1_500), 7, None, None), None);
+        assert_eq!(lost.poll(at(1_600), 8, None, Some(7)), None);
+        assert_eq!(lost.poll(at(2_599), 8, None, Some(7)), None);
+        assert_eq!(lost.poll(at(2_600), 8, None, Some(7)), Some(Lost::StateWanted(7)));
+        // A newer step in is the first reason; the same step is not asked again within REASK either way.
+        assert_eq!(lost.poll(at(2_700), 8, Some(12), Some(7)), None);
+        assert_eq!(lost.poll(at(4_600), 8, Some(12), Some(7)), Some(Lost::NewerStep(12)));
     }
 }

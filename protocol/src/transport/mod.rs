@@ -550,6 +550,12 @@ impl<T: Message> TopicPublisher<T> {
         Ok(Sent { published_ns: 0, subscribers })
     }
 
+    /// [`send`](Self::send)s `msg`, or [`resend`](Self::resend)s it when it is a `copy` of a message sent
+    /// before.
+    pub fn publish(&self, msg: &T, copy: bool) -> Result<Sent, TransportError> {
+        if copy { self.resend(msg) } else { self.send(msg) }
+    }
+
     /// `msg` with this publisher's run in its header (unchanged when the publisher has none).
     fn of_this_run(&self, msg: &T) -> T {
         let mut msg = *msg;

@@ -108,11 +108,14 @@ fn a_copy_sent_again_carries_no_publish_stamp() {
     let first = sub.receive_all().unwrap()[0];
     assert!(first.header.stamps.published_ns > 0 && first.header.stamps.measurement_published_ns > 0);
     // The message as received, stamps and all, sent again: its publish stamps are cleared, nothing else.
-    assert_eq!(publisher.resend(&first).unwrap().published_ns, 0);
+    assert_eq!(publisher.publish(&first, true).unwrap().published_ns, 0);
     let copy = sub.receive_all().unwrap()[0];
     let mut expected = first;
     expected.header.stamps.mark_published(Measurement::KIND, 0);
     assert_eq!(copy, expected);
+    // Not a copy: stamped anew.
+    assert!(publisher.publish(&copy, false).unwrap().published_ns > first.header.stamps.published_ns);
+    assert!(sub.receive_all().unwrap()[0].header.stamps.published_ns > first.header.stamps.published_ns);
     assert_eq!((copy.header.stamps.published_ns, copy.header.stamps.measurement_published_ns), (0, 0));
 }
 

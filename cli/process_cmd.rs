@@ -1,5 +1,5 @@
-//! `uavloc process <role>`: one pipeline process in this binary (what `uavloc launch` spawns), and
-//! `uavloc process resources`.
+//! `uavloc process <role>`: one pipeline process in this binary (what `uavloc launch` and `uavloc swap`
+//! spawn: `uavloc` is a multi-call binary), and `uavloc process resources`.
 
 use std::process::ExitCode;
 
