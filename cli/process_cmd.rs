@@ -64,14 +64,10 @@ pub fn run_process(args: &ProcessArgs) -> ExitCode {
             let listed =
                 Domain::resolve(a.domain.as_deref()).map_err(|e| CliError::Input(e.to_string())).and_then(|domain| {
                     if a.remove_dead {
-                        let idle = resources::list(&domain).map_err(CliError::Failed)?.alive_nodes().next().is_none();
-                        if idle {
-                            let half = resources::remove_half_created_services(&domain).map_err(CliError::Failed)?;
-                            if !half.is_empty() {
-                                eprintln!("removed the half-created services {half:?}");
-                            }
+                        let half = resources::remove_leftovers(&domain).map_err(CliError::Failed)?;
+                        if !half.is_empty() {
+                            eprintln!("removed the half-created services {half:?}");
                         }
-                        resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
                     }
                     resources::list(&domain).map_err(CliError::Failed)
                 });

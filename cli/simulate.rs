@@ -78,19 +78,13 @@ pub struct SimulateReport {
 /// Runs `uavloc simulate`.
 pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     let sc = args.run.scenario()?;
-    if let Some(dir) = &args.out {
-        runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
-    }
-    runtime::output::check_distinct(
-        &[("--record", args.record.as_deref())],
-        &[("--out", args.out.as_deref(), &monitor::export::RUN_FILES)],
-    )
-    .map_err(CliError::Input)?;
+    let record = [("--record", args.record.as_deref())];
+    runtime::output::check_outputs(&record, ("--out", args.out.as_deref(), &monitor::export::RUN_FILES))
+        .map_err(CliError::Input)?;
     let mut recorder = match &args.record {
         Some(file) => {
-            let file = runtime::output::check_out_file("--record", file).map_err(CliError::Input)?;
             let metadata = monitor::recording::run_metadata(&sc, "simulate", "simulator");
-            Some(monitor::recording::Recorder::create(&file, metadata, false).map_err(CliError::Failed)?)
+            Some(monitor::recording::Recorder::create(file, metadata, false).map_err(CliError::Failed)?)
         }
         None => None,
     };

@@ -64,17 +64,9 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // emitter-sim's flags as it will get them, checked by emitter-sim's own rules.
     let emitter = children::emitter_args(args);
     emitter.check().and_then(|()| emitter.pacing(sc.dt, sc.steps)).map_err(CliError::Input)?;
-    if let Some(dir) = &args.out {
-        runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
-    }
     let files =
         [("--record", args.record.as_deref()), ("--log", args.log.as_deref()), ("--stamps", args.stamps.as_deref())];
-    for (flag, file) in files {
-        if let Some(file) = file {
-            runtime::output::check_out_file(flag, file).map_err(CliError::Input)?;
-        }
-    }
-    runtime::output::check_distinct(&files, &[("--out", args.out.as_deref(), &monitor::export::RUN_FILES)])
+    runtime::output::check_outputs(&files, ("--out", args.out.as_deref(), &monitor::export::RUN_FILES))
         .map_err(CliError::Input)?;
     if args.link.transport == protocol::TransportKind::Uds {
         protocol::transport::uds::check_socket_dir().map_err(CliError::Input)?;
@@ -91,11 +83,10 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     }
     // Nobody uses the domain: services a killed run left half-created would make every open fail (and the
     // dead nodes' clean-up, which opens them, too).
-    let half = resources::remove_half_created_services(&domain).map_err(CliError::Failed)?;
+    let half = resources::remove_leftovers(&domain).map_err(CliError::Failed)?;
     if !half.is_empty() {
         eprintln!("launch: removed the half-created services {half:?} of domain {domain} (left by a killed run)");
     }
-    resources::remove_dead_nodes(&domain).map_err(CliError::Failed)?;
 
     signals::catch_termination();
     // Checkpoints (and the monitor's log when --log is not given) live in a private directory of this
@@ -186,16 +177,10 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     for c in &children {
         *rejected_by.entry(c.role.clone()).or_insert(0) += c.rejected;
     }
-    let missed_commands = children
-        .iter()
-        .filter(|c| c.role == Role::EmitterSim.name())
-        .filter_map(|c| c.summary.as_ref().and_then(|s| s["missed_commands"].as_u64()))
-        .sum();
-    let stale_steps = run
-        .steps
-        .iter()
-        .filter(|s| s.active_constraints.iter().any(|a| a == monitor::assemble::ESTIMATE_STALE))
-        .count() as u64;
+    // Counted in the record: what was flown, once per step, however often emitter-sim was restarted.
+    let flagged = |name| run.steps.iter().filter(|s| s.active_constraints.iter().any(|a| a == name)).count() as u64;
+    let (missed_commands, stale_steps) =
+        (flagged(monitor::assemble::COMMAND_MISSED), flagged(monitor::assemble::ESTIMATE_STALE));
     Ok(LaunchReport {
         interrupted,
         run,

@@ -245,18 +245,29 @@ impl Supervisor {
     /// Waits until `role` printed `ready`. A short run may be over by then: emitter-sim and the monitor
     /// ending with exit code 0 is no failure (their `ready` lines still come, they precede the exit).
     pub(super) fn wait_ready(&mut self, role: Role) -> Result<(), CliError> {
-        let i = self.index(role);
+        self.until_ready(self.index(role), |sup, p| {
+            sup.check_exits(&[Role::EmitterSim, Role::Monitor])?;
+            if p.closed && !p.ready {
+                return Err(CliError::Failed(format!(
+                    "the {role} process ended ({}) before it got ready",
+                    p.describe_exit()
+                )));
+            }
+            Ok(false)
+        })
+    }
+
+    /// Handles events until process `i` printed `ready`, or `stop` (given the supervisor and the process)
+    /// says to stop waiting; fails after [`READY_TIMEOUT`].
+    fn until_ready(&mut self, i: usize, stop: impl Fn(&Self, &Proc) -> Result<bool, CliError>) -> Result<(), CliError> {
         let deadline = Instant::now() + READY_TIMEOUT;
         while !self.procs[i].ready {
             self.pump()?;
-            self.check_exits(&[Role::EmitterSim, Role::Monitor])?;
-            if self.procs[i].closed && !self.procs[i].ready {
-                return Err(CliError::Failed(format!(
-                    "the {role} process ended ({}) before it got ready",
-                    self.procs[i].describe_exit()
-                )));
+            if stop(self, &self.procs[i])? {
+                break;
             }
             if Instant::now() > deadline {
+                let role = self.procs[i].role;
                 return Err(CliError::Failed(format!("the {role} process did not get ready within {READY_TIMEOUT:?}")));
             }
         }
@@ -397,20 +408,10 @@ impl Supervisor {
             flags.push(flag.into());
         }
         self.spawn(role, flags)?;
-        let new = self.procs.len() - 1;
-        let deadline = Instant::now() + READY_TIMEOUT;
-        while !self.procs[new].ready && self.procs[new].exit.is_none() {
-            self.pump()?;
-            if self.procs.iter().any(Proc::needs_restart) {
-                break;
-            }
-            if Instant::now() > deadline {
-                return Err(CliError::Failed(format!(
-                    "the restarted {role} did not get ready within {READY_TIMEOUT:?}"
-                )));
-            }
-        }
-        Ok(())
+        // Not ready, but exited, or another process needs a restart: the next round sees to it.
+        self.until_ready(self.procs.len() - 1, |sup, p| {
+            Ok(p.exit.is_some() || sup.procs.iter().any(Proc::needs_restart))
+        })
     }
 
     /// Appends one event to the monitor's JSON-lines log (one `write`, like the monitor's own lines).

@@ -17,6 +17,7 @@ pub mod backpressure;
 pub mod checkpoint;
 pub mod process;
 pub mod schedule;
+pub mod summary;
 
 use model::Scenario;
 use model::ScenarioError;

@@ -48,9 +48,10 @@ use protocol::{
 use runtime::recovery::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 use runtime::{Ended, Flow, Handler, Join, Node, ProcessError, SupervisorLine};
 
-use crate::args::{EmitterSimArgs, Mode};
+use crate::args::EmitterSimArgs;
 use crate::checkpoint::{self, Start};
-use crate::schedule::{Action, Config, Counts, Other, Pacing, Schedule};
+use crate::schedule::{Action, Config, Other, Pacing, Schedule};
+use crate::summary::EmitterSummary;
 use crate::{Snapshot, World};
 
 /// The role name (node name suffix, `uavloc process emitter-sim`).
@@ -61,29 +62,6 @@ pub use runtime::EXIT_INTERRUPTED;
 
 /// How often the start-up wait re-checks whether the pipeline is connected.
 pub const CONNECT_POLL: Duration = Duration::from_millis(2);
-
-/// What emitter-sim did, printed as its `summary` line.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct EmitterSummary {
-    /// `"emitter-sim"`.
-    pub role: &'static str,
-    /// `"lockstep"` or `"realtime"`.
-    pub mode: &'static str,
-    /// What the schedule counted: steps, replays, retries, missed_commands, late_commands, ignored,
-    /// max_lag_us ([`Counts`]).
-    #[serde(flatten)]
-    pub counts: Counts,
-    /// Measurements published.
-    pub measurements: u64,
-    /// Valid commands received (any step).
-    pub accepted: u64,
-    /// Invalid commands ignored (failed validation, or refused by the world).
-    pub rejected: u64,
-    /// The step this instance started from (0, or a snapshot after a restart).
-    pub started_at: u64,
-    /// CPU time this process used, seconds.
-    pub cpu_s: f64,
-}
 
 /// Waits until the measurement topic has `min_subscribers` subscribers and the command topic a
 /// publisher, re-checking the topics' participant counts every [`CONNECT_POLL`].
@@ -369,22 +347,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         cpu_s: node_summary.cpu_s,
     };
     if !args.process.node.quiet {
-        eprintln!(
-            "emitter-sim: done: {} steps, {} measurements, rejected {}, {} ignored, {} replays ({} retries)",
-            summary.counts.steps,
-            summary.measurements,
-            summary.rejected,
-            summary.counts.ignored,
-            summary.counts.replays,
-            summary.counts.retries
-        );
-        if args.mode == Mode::Realtime {
-            eprintln!(
-                "emitter-sim: realtime: {} missed commands, {} late commands ignored, largest lag behind the \
-                 schedule {} µs",
-                summary.counts.missed_commands, summary.counts.late_commands, summary.counts.max_lag_us
-            );
-        }
+        eprint!("{}", summary.closing_lines());
     }
     Ok(summary)
 }

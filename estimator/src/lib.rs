@@ -25,6 +25,7 @@
 pub mod args;
 pub mod chain;
 pub mod process;
+pub mod summary;
 
 use nalgebra::{Matrix2, Vector2};
 use tdoa::fusion::{self, DEFAULT_GATE_PROBABILITY, Outcome, Posterior};

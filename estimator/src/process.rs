@@ -11,11 +11,10 @@
 //! - The estimate of step k goes on from the state after step k − 1, which the messages carry
 //!   ([`crate::chain`]): the estimator reads the command topic (without waking for it) for the states the
 //!   commands echo. A step whose predecessor's state it has not seen is held (`out_of_chain`) while it
-//!   asks for that state ([`ControlKind::State`], again every [`STATE_RETRY`] while unanswered); the
-//!   monitor answers on `<domain>/state` ([`protocol::EstimatorState`]). A step seen again is estimated
-//!   again (`resent`). With no monitor in the domain for [`NO_HOLDER_FALLBACK`] (a pipeline run without
-//!   one) it asks for a replay from step 0 instead, which brings every state again while emitter-sim keeps
-//!   step 0.
+//!   asks for that state ([`ControlKind::State`]; [`runtime::recovery::StateRequests`]: again every
+//!   500 ms while unanswered, a replay from step 0 instead when no monitor has been in the domain for 4 s);
+//!   the monitor answers on `<domain>/state` ([`protocol::EstimatorState`]). A step seen again is
+//!   estimated again (`resent`).
 //!   At start-up the estimator announces itself on the control topic
 //!   ([`ControlKind::Hello`]) and asks for a replay of the step in flight ([`ControlKind::IN_FLIGHT`]),
 //!   whose measurement its predecessor may have taken with it.
@@ -38,42 +37,23 @@
 
 use std::collections::HashMap;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use protocol::services;
 use protocol::{
     Command, ControlKind, Estimate, EstimateStatus as WireStatus, EstimatorState, Fix, Measurement, Topic,
     TopicPublisher, TopicSubscriber, Waitable,
 };
+use runtime::recovery::{Ask, StateRequests};
 use runtime::{Flow, Handler, Join, Node, ProcessError};
 
 use crate::EstimatorConfig;
 use crate::args::EstimatorArgs;
 use crate::chain::{Answer, StepEstimator};
+use crate::summary::EstimatorSummary;
 
 /// The role name (node name suffix, `uavloc process estimator`).
 pub const ROLE: &str = "estimator";
-
-/// What the estimator did, printed as its `summary` line.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct EstimatorSummary {
-    /// What every data process reports (role, instance, counts, hand-over, CPU).
-    #[serde(flatten)]
-    pub node: runtime::NodeSummary,
-    /// Estimates published as `failed` (Chan failed; the previous estimate stands).
-    pub failed: u64,
-    /// Measurements held because the state after the step before them was not known (see the module
-    /// docs); each is estimated once the state comes.
-    pub out_of_chain: u64,
-}
-
-/// How long an unanswered request for a state waits before it is asked again (the monitor may have been
-/// restarting).
-pub const STATE_RETRY: Duration = Duration::from_millis(500);
-
-/// How long a held step waits with no monitor in the domain before the estimator asks for a replay from
-/// step 0 instead (longer than a launcher's restart of the monitor: 1.6 s at most, and its start).
-pub const NO_HOLDER_FALLBACK: Duration = Duration::from_secs(4);
 
 /// The estimator's handler: its ports, its state and the bookkeeping of a swap.
 struct EstimatorNode<'a> {
@@ -95,12 +75,8 @@ struct EstimatorNode<'a> {
     state: StepEstimator,
     /// With --takeover: the step this estimator takes over from.
     from_step: Option<u64>,
-    /// The last state asked for, and when.
-    asked: Option<(u64, Instant)>,
-    /// Since when no monitor has been there to ask (no publisher on the state topic).
-    no_holder_since: Option<Instant>,
-    /// The held step for which, with no monitor to ask, a replay from step 0 was asked.
-    asked_from_start: Option<u64>,
+    /// The requests for the states it lacks.
+    asks: StateRequests,
     summary: EstimatorSummary,
 }
 
@@ -178,31 +154,21 @@ impl EstimatorNode<'_> {
         Ok(())
     }
 
-    /// Asks for the state the oldest held measurement waits for (again after [`STATE_RETRY`]).
+    /// Asks for the state the oldest held measurement waits for, as [`StateRequests`] says: from the
+    /// monitor (no publisher on the state topic: none there), or a replay from step 0 when none has been
+    /// there for a while (else emitter-sim stops the run with an error naming the steps).
     fn ask(&mut self, node: &mut Node) -> Result<(), ProcessError> {
-        let Some(step) = self.state.wanted() else {
-            self.asked = None;
-            return Ok(());
-        };
-        if self.asked.is_none_or(|(s, at)| s != step || at.elapsed() >= STATE_RETRY) {
-            let now = Instant::now();
-            let alone = self.states.publisher_count()? == 0;
-            self.no_holder_since = if alone { Some(self.no_holder_since.unwrap_or(now)) } else { None };
-            if self.no_holder_since.is_some_and(|t| now - t >= NO_HOLDER_FALLBACK)
-                && self.asked_from_start != Some(step)
-            {
-                // No monitor holds the states (a pipeline run without one; a restarting monitor is back
-                // well within the wait): the run from its start brings every state again — if
-                // emitter-sim still keeps step 0 (else it stops the run with an error naming the steps).
+        let states = self.states;
+        let alone = || Ok::<_, ProcessError>(states.publisher_count()? == 0);
+        match self.asks.poll(Instant::now(), self.state.wanted(), alone)? {
+            Some(Ask::State(step)) => node.announce(ControlKind::State, step, "")?,
+            Some(Ask::ReplayFromStart(step)) => {
                 node.warn(format_args!(
                     "no monitor to ask for the state after step {step}; asking for a replay from step 0"
                 ));
                 node.announce(ControlKind::Replay, 0, "no state")?;
-                self.asked_from_start = Some(step);
-            } else {
-                node.announce(ControlKind::State, step, "")?;
             }
-            self.asked = Some((step, now));
+            None => {}
         }
         Ok(())
     }
@@ -236,7 +202,7 @@ impl Handler for EstimatorNode<'_> {
     }
 
     fn deadline(&self) -> Option<Instant> {
-        self.asked.map(|(_, at)| at + STATE_RETRY)
+        self.asks.deadline()
     }
 
     fn last_answered(&self) -> Option<u64> {
@@ -273,9 +239,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         last_seq: None,
         state: StepEstimator::with_config(config),
         from_step: None,
-        asked: None,
-        no_holder_since: None,
-        asked_from_start: None,
+        asks: StateRequests::default(),
         summary: EstimatorSummary::default(),
     };
     let mut inputs: Vec<&dyn Waitable> = vec![&measurements, &states];
@@ -296,25 +260,4 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &EstimatorArgs) -> ExitCode {
     runtime::exit_with(ROLE, args.node.supervised, run(args))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_summary_keeps_its_flat_keys() {
-        // The launcher reads `rejected` and `handed_over_at` from every summary line, whatever the role.
-        let mut s = EstimatorSummary { node: runtime::NodeSummary::new(ROLE, 7), ..EstimatorSummary::default() };
-        s.node.rejected = 2;
-        s.node.handed_over_at = Some(9);
-        s.failed = 1;
-        let v = serde_json::to_value(&s).unwrap();
-        assert_eq!(v["role"], "estimator");
-        assert_eq!(
-            (v["rejected"].as_u64(), v["handed_over_at"].as_u64(), v["failed"].as_u64()),
-            (Some(2), Some(9), Some(1))
-        );
-        assert!(v.get("node").is_none());
-    }
 }

@@ -62,22 +62,16 @@ pub struct MonitorArgs {
 impl MonitorArgs {
     /// Checks the outputs written at the end before the run starts: a run is never recorded for nothing.
     pub fn check_outputs(&self) -> Result<(), ProcessError> {
-        if let Some(file) = &self.record {
-            runtime::output::check_out_file("--record", file).map_err(ProcessError::Input)?;
-        }
-        if let Some(dir) = &self.out {
-            runtime::output::check_out_dir("--out", dir).map_err(ProcessError::Input)?;
-        }
-        // No two outputs on one file (one would overwrite the other, or the log read back another's lines).
+        // No two outputs on one file either (one would overwrite the other, or the log read back another's
+        // lines).
         let files = [
             ("--log", self.log.as_deref()),
             ("--stamps", self.stamps.as_deref()),
             ("--mcap", self.mcap.as_deref()),
             ("--record", self.record.as_deref()),
         ];
-        runtime::output::check_distinct(&files, &[("--out", self.out.as_deref(), &crate::export::RUN_FILES)])
-            .map_err(ProcessError::Input)?;
-        Ok(())
+        runtime::output::check_outputs(&files, ("--out", self.out.as_deref(), &crate::export::RUN_FILES))
+            .map_err(ProcessError::Input)
     }
 
     /// Writes the run record to `--record` and the run's files into `--out`.

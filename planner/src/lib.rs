@@ -14,6 +14,7 @@
 //! - [`solver`], [`pso`], [`ga`], [`aco`], [`gradient`]: one solver trait, the paper's three solvers and
 //!   a deterministic gradient solver;
 //! - [`step`]: one planning step, [`plan_step`];
+//! - [`wire`]: a plan and a hold as the wire's commands;
 //! - [`process`]: the planner process (estimate in → `plan_step` → command out over iceoryx2).
 //!
 //! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
@@ -34,6 +35,8 @@ pub mod pso;
 pub mod solver;
 pub mod staleness;
 pub mod step;
+pub mod summary;
+pub mod wire;
 
 pub use aco::{Aco, AcoConfig};
 pub use constraints::{ActiveConstraint, ConstraintKind, ConstraintReport, Constraints};

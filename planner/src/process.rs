@@ -49,34 +49,21 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Vector2;
 use protocol::services;
-use protocol::{Command, ControlKind, Estimate, Measurement, PlanInfo, Topic, TopicPublisher, TopicSubscriber};
+use protocol::{Command, ControlKind, Estimate, Measurement, Topic, TopicPublisher, TopicSubscriber};
 use runtime::recovery::HISTORY_STEPS;
 use runtime::{Flow, Handler, Join, Node, ProcessError};
 
-use crate::active_mask;
 use crate::args::{PlannerArgs, check_scenario};
 use crate::scenario::Scenario;
 use crate::staleness::{self, Freshness, HoldTracker};
 use crate::step::{PlanRequest, plan_step};
+use crate::summary::PlannerSummary;
+use crate::wire;
 
 /// The role name (node name suffix, `uavloc process planner`).
 pub const ROLE: &str = "planner";
 
 use model::load_scenario;
-
-/// What the planner did, printed as its `summary` line.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct PlannerSummary {
-    /// What every data process reports (role, instance, counts, hand-over, CPU).
-    #[serde(flatten)]
-    pub node: runtime::NodeSummary,
-    /// Estimates that could not be planned (no usable estimate yet, or `plan_step` refused).
-    pub errors: u64,
-    /// Steps held: no fresh estimate within `--estimate-deadline-ms`, the current headings commanded.
-    pub held: u64,
-    /// Estimates of held steps (arrived after the deadline; answered with the hold, not planned).
-    pub late_estimates: u64,
-}
 
 /// The planner's handler: its ports, the scenario, and the bookkeeping of a swap and of the staleness
 /// deadline (no state of the run: see the module docs).
@@ -147,10 +134,10 @@ impl Planner<'_> {
         Ok(())
     }
 
-    /// The hold command of a step whose estimate missed the deadline ([`staleness::hold_command`]).
+    /// The hold command of a step whose estimate missed the deadline ([`wire::hold_command`]).
     fn hold(&self, step: u64, at: &[Vector2<f64>], headings: &[f64], instance: u64) -> Result<Command, ProcessError> {
         let names = (self.args.solver, self.args.objective);
-        staleness::hold_command(step, at, headings, &self.scenario, names, instance).map_err(ProcessError::Failed)
+        wire::hold_command(step, at, headings, &self.scenario, names, instance).map_err(ProcessError::Failed)
     }
 
     /// The command of one estimate; `None` when it cannot be planned (counted and logged).
@@ -198,22 +185,8 @@ impl Planner<'_> {
                 return Ok(None);
             }
         };
-        let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();
-        let info = PlanInfo {
-            headings: &plan.headings,
-            waypoints: &waypoints,
-            // The wire requires a finite value: an infinite criterion (a singular geometry) is sent as −1,
-            // which the monitor reads as "no value" like `simulate` does.
-            objective: if plan.objective_value.is_finite() { plan.objective_value } else { -1.0 },
-            solver: args.solver.name(),
-            objective_name: args.objective.name(),
-            plan_time_us: (plan.plan_time_ms * 1e3).round() as u64,
-            active_constraints: active_mask::encode(&plan.active_constraints),
-            violated_constraints: active_mask::encode_violated(&plan.active_constraints),
-        };
-        Command::from_estimate(est, received_ns, 0, node.instance(), &info)
-            .map(Some)
-            .map_err(|e| ProcessError::Failed(format!("step {step}: command: {e}")))
+        let names = (args.solver, args.objective);
+        wire::plan_command(est, received_ns, node.instance(), &plan, names).map(Some).map_err(ProcessError::Failed)
     }
 }
 

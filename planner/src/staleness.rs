@@ -7,10 +7,9 @@
 //! - [`HoldTracker::on_measurement`] starts the deadline of a step (only of the newest step: a replayed,
 //!   older measurement starts none; a step 0 that differs from the first one seen starts a new run);
 //! - [`HoldTracker::on_estimate`] says whether the step's estimate is fresh (its deadline is cancelled) or
-//!   late (the step was held already; the estimate still updates the planner's last usable one, but the
-//!   step is answered with the hold it got);
+//!   late (the step was held already and is answered with the hold it got);
 //! - [`HoldTracker::due`] hands out the steps whose deadline passed, which are held from then on;
-//! - [`hold_plan`] gives the headings and waypoints of a hold.
+//! - [`hold_plan`] gives the headings and waypoints of a hold ([`crate::wire::hold_command`]: as a command).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::{Duration, Instant};
@@ -18,9 +17,6 @@ use std::time::{Duration, Instant};
 use nalgebra::Vector2;
 
 use crate::kinematics::next_position;
-use crate::objective::ObjectiveKind;
-use crate::scenario::Scenario;
-use crate::solver::SolverKind;
 
 /// A step whose deadline passed: where the UAVs were and how they headed when it was measured.
 #[derive(Debug, Clone, PartialEq)]
@@ -168,34 +164,6 @@ pub fn hold_plan(positions: &[Vector2<f64>], headings: &[f64], speed: f64, dt: f
         })
         .collect();
     (headings.to_vec(), waypoints)
-}
-
-/// The hold command of `step`: the UAVs at `positions` fly straight on at `headings` ([`hold_plan`] over
-/// the scenario's speed and interval), flagged [`protocol::Command::FLAG_HOLD`], objective −1 (no value)
-/// and no plan time; named after the planner's `solver` and `objective`.
-pub fn hold_command(
-    step: u64,
-    positions: &[Vector2<f64>],
-    headings: &[f64],
-    scenario: &Scenario,
-    (solver, objective): (SolverKind, ObjectiveKind),
-    instance: u64,
-) -> Result<protocol::Command, String> {
-    let (headings, waypoints) = hold_plan(positions, headings, scenario.speed, scenario.dt);
-    let info = protocol::PlanInfo {
-        headings: &headings,
-        waypoints: &waypoints,
-        objective: -1.0,
-        solver: solver.name(),
-        objective_name: objective.name(),
-        plan_time_us: 0,
-        active_constraints: 0,
-        violated_constraints: 0,
-    };
-    let mut hold =
-        protocol::Command::new(step, 0, instance, &info).map_err(|e| format!("step {step}: hold command: {e}"))?;
-    hold.flags |= protocol::Command::FLAG_HOLD;
-    Ok(hold)
 }
 
 #[cfg(test)]

@@ -87,6 +87,16 @@ pub fn list(domain: &Domain) -> Result<DomainResources, String> {
     Ok(out)
 }
 
+/// Removes what dead processes left in `domain`: when no node of it is alive, the services a killed run
+/// left half-created ([`remove_half_created_services`]), then the dead nodes' resources
+/// ([`remove_dead_nodes`]). Returns the half-created services removed.
+pub fn remove_leftovers(domain: &Domain) -> Result<Vec<String>, String> {
+    let idle = list(domain)?.alive_nodes().next().is_none();
+    let half = if idle { remove_half_created_services(domain)? } else { Vec::new() };
+    remove_dead_nodes(domain)?;
+    Ok(half)
+}
+
 /// Removes the stale resources of every dead node of `domain` (processes that died without cleaning up,
 /// e.g. on SIGKILL), which also releases the services only they held. Returns how many were removed.
 pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {

@@ -32,6 +32,21 @@ pub fn check_out_file(flag: &str, file: &Path) -> Result<PathBuf, String> {
     Ok(abs)
 }
 
+/// Checks a run's outputs before it starts: the directory flag `dir` (`(flag, dir, the files it will
+/// hold)`, [`check_out_dir`]), each file flag given ([`check_out_file`]), and that no two are one file
+/// ([`check_distinct`]). `None`: the flag is not given.
+pub fn check_outputs(files: &[(&str, Option<&Path>)], dir: (&str, Option<&Path>, &[&str])) -> Result<(), String> {
+    if let (flag, Some(d), _) = dir {
+        check_out_dir(flag, d)?;
+    }
+    for (flag, file) in files {
+        if let Some(f) = file {
+            check_out_file(flag, f)?;
+        }
+    }
+    check_distinct(files, &[dir])
+}
+
 /// Checks that no two outputs of a run are one file: each `(flag, file)` given, and each file an `--out`
 /// directory given will hold (`(flag, dir, its file names)`); `None`: the flag is not given. Paths are
 /// compared as the system resolves them (relative or absolute, through symbolic links of their

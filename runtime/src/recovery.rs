@@ -233,6 +233,70 @@ impl LostMessages {
     }
 }
 
+/// How long an estimator's unanswered request for a state waits before it is asked again (the monitor may
+/// have been restarting).
+pub const STATE_RETRY: Duration = Duration::from_millis(500);
+
+/// How long a held step waits with no monitor in the domain before the estimator asks for a replay from
+/// step 0 instead (longer than a launcher's restart of the monitor: 1.6 s at most, and its start).
+pub const NO_HOLDER_FALLBACK: Duration = Duration::from_secs(4);
+
+/// What an estimator asks for when it holds a measurement whose predecessor's state it lacks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ask {
+    /// The state after this step ([`protocol::ControlKind::State`]), which the monitor answers.
+    State(u64),
+    /// No monitor has held the states for [`NO_HOLDER_FALLBACK`] (a pipeline run without one): a replay
+    /// from step 0, which brings every state again while emitter-sim keeps step 0 (asked once per state
+    /// wanted). The state after this step is wanted.
+    ReplayFromStart(u64),
+}
+
+/// An estimator's requests for the states it lacks, a pure state machine over (time, the state wanted,
+/// whether a monitor is there): asked at once, again every [`STATE_RETRY`] while unanswered.
+#[derive(Debug, Clone, Default)]
+pub struct StateRequests {
+    /// The last state asked for, and when.
+    asked: Option<(u64, Instant)>,
+    /// Since when no monitor has been there to ask.
+    no_holder_since: Option<Instant>,
+    /// The state for which, with no monitor to ask, a replay from step 0 was asked.
+    from_start: Option<u64>,
+}
+
+impl StateRequests {
+    /// At `now`, with `wanted` the step whose state the oldest held measurement waits for (if any): what
+    /// to ask for now. `alone` tells whether no monitor is there to answer; it is asked only when a request
+    /// is due.
+    pub fn poll<E>(
+        &mut self,
+        now: Instant,
+        wanted: Option<u64>,
+        alone: impl FnOnce() -> Result<bool, E>,
+    ) -> Result<Option<Ask>, E> {
+        let Some(step) = wanted else {
+            self.asked = None;
+            return Ok(None);
+        };
+        if self.asked.is_some_and(|(s, at)| s == step && now.saturating_duration_since(at) < STATE_RETRY) {
+            return Ok(None);
+        }
+        self.no_holder_since = if alone()? { Some(self.no_holder_since.unwrap_or(now)) } else { None };
+        self.asked = Some((step, now));
+        let no_holder = self.no_holder_since.is_some_and(|t| now.saturating_duration_since(t) >= NO_HOLDER_FALLBACK);
+        if no_holder && self.from_start != Some(step) {
+            self.from_start = Some(step);
+            return Ok(Some(Ask::ReplayFromStart(step)));
+        }
+        Ok(Some(Ask::State(step)))
+    }
+
+    /// When the request asked last is due again.
+    pub fn deadline(&self) -> Option<Instant> {
+        self.asked.map(|(_, at)| at + STATE_RETRY)
+    }
+}
+
 /// Adds `item` to the kept `list` (oldest first), keeping at most `keep`.
 pub fn push_kept<T>(list: &mut Vec<T>, item: T, keep: usize) {
     list.push(item);
@@ -390,5 +454,35 @@ mod tests {
         // A newer step in is the first reason; the same step is not asked again within REASK either way.
         assert_eq!(lost.poll(at(2_700), 8, Some(12), Some(7)), None);
         assert_eq!(lost.poll(at(4_600), 8, Some(12), Some(7)), Some(Lost::NewerStep(12)));
+    }
+
+    #[test]
+    fn a_state_is_asked_for_every_retry_and_a_replay_from_the_start_once_no_monitor_has_been_there() {
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let ok = |alone: bool| move || Ok::<bool, ()>(alone);
+        let mut asks = StateRequests::default();
+        assert_eq!(asks.poll(at(0), None, ok(false)), Ok(None));
+        assert_eq!(asks.deadline(), None);
+        // Asked at once, again after STATE_RETRY; `alone` is not even looked at in between.
+        assert_eq!(asks.poll(at(0), Some(4), ok(false)), Ok(Some(Ask::State(4))));
+        assert_eq!(asks.deadline(), Some(at(500)));
+        assert_eq!(asks.poll(at(499), Some(4), || Err(())), Ok(None));
+        assert_eq!(asks.poll(at(500), Some(4), ok(false)), Ok(Some(Ask::State(4))));
+        // Another state wanted: asked at once.
+        assert_eq!(asks.poll(at(501), Some(5), ok(false)), Ok(Some(Ask::State(5))));
+        // No monitor: the state is still asked for until none has been there for NO_HOLDER_FALLBACK…
+        assert_eq!(asks.poll(at(1_001), Some(5), ok(true)), Ok(Some(Ask::State(5))));
+        assert_eq!(asks.poll(at(4_501), Some(5), ok(true)), Ok(Some(Ask::State(5))));
+        assert_eq!(asks.poll(at(5_001), Some(5), ok(true)), Ok(Some(Ask::ReplayFromStart(5))));
+        // … and the replay from the start is asked once per state wanted.
+        assert_eq!(asks.poll(at(5_501), Some(5), ok(true)), Ok(Some(Ask::State(5))));
+        assert_eq!(asks.poll(at(6_001), Some(6), ok(true)), Ok(Some(Ask::ReplayFromStart(6))));
+        // A monitor back: the wait for one starts again from zero.
+        assert_eq!(asks.poll(at(6_501), Some(7), ok(false)), Ok(Some(Ask::State(7))));
+        assert_eq!(asks.poll(at(7_001), Some(8), ok(true)), Ok(Some(Ask::State(8))));
+        // Nothing wanted any more: nothing due.
+        assert_eq!(asks.poll(at(7_002), None, ok(true)), Ok(None));
+        assert_eq!(asks.deadline(), None);
     }
 }

@@ -1,0 +1,15 @@
+//! What the planner did: its `summary` line for the supervisor.
+
+/// What the planner did, printed as its `summary` line.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct PlannerSummary {
+    /// What every data process reports (role, instance, counts, hand-over, CPU).
+    #[serde(flatten)]
+    pub node: runtime::NodeSummary,
+    /// Estimates that could not be planned (no usable estimate yet, or `plan_step` refused).
+    pub errors: u64,
+    /// Steps held: no fresh estimate within `--estimate-deadline-ms`, the current headings commanded.
+    pub held: u64,
+    /// Estimates of held steps (arrived after the deadline; answered with the hold, not planned).
+    pub late_estimates: u64,
+}

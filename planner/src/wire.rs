@@ -1,0 +1,82 @@
+//! The planner's answers on the wire: a plan, and a hold, as [`Command`]s.
+
+use nalgebra::Vector2;
+use protocol::{Command, Estimate, PlanInfo};
+
+use crate::active_mask;
+use crate::objective::ObjectiveKind;
+use crate::scenario::Scenario;
+use crate::solver::SolverKind;
+use crate::step::PlanOutput;
+
+/// The command of `plan`, planned from `estimate` (received at `received_ns`; the command carries its
+/// stamps on and echoes its state) by the planner `instance` with `solver` and `objective`.
+pub fn plan_command(
+    estimate: &Estimate,
+    received_ns: u64,
+    instance: u64,
+    plan: &PlanOutput,
+    (solver, objective): (SolverKind, ObjectiveKind),
+) -> Result<Command, String> {
+    let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();
+    let info = PlanInfo {
+        headings: &plan.headings,
+        waypoints: &waypoints,
+        // The wire requires a finite value: an infinite criterion (a singular geometry) is sent as −1, which
+        // the monitor reads as "no value" like `simulate` does.
+        objective: if plan.objective_value.is_finite() { plan.objective_value } else { -1.0 },
+        solver: solver.name(),
+        objective_name: objective.name(),
+        plan_time_us: (plan.plan_time_ms * 1e3).round() as u64,
+        active_constraints: active_mask::encode(&plan.active_constraints),
+        violated_constraints: active_mask::encode_violated(&plan.active_constraints),
+    };
+    Command::from_estimate(estimate, received_ns, 0, instance, &info)
+        .map_err(|e| format!("step {}: command: {e}", estimate.header.step))
+}
+
+/// The hold command of `step`: the UAVs at `positions` fly straight on at `headings` ([`crate::staleness::hold_plan`] over
+/// the scenario's speed and interval), flagged [`Command::FLAG_HOLD`], objective −1 (no value)
+/// and no plan time; named after the planner's `solver` and `objective`.
+pub fn hold_command(
+    step: u64,
+    positions: &[Vector2<f64>],
+    headings: &[f64],
+    scenario: &Scenario,
+    (solver, objective): (SolverKind, ObjectiveKind),
+    instance: u64,
+) -> Result<Command, String> {
+    let (headings, waypoints) = crate::staleness::hold_plan(positions, headings, scenario.speed, scenario.dt);
+    let info = PlanInfo {
+        headings: &headings,
+        waypoints: &waypoints,
+        objective: -1.0,
+        solver: solver.name(),
+        objective_name: objective.name(),
+        plan_time_us: 0,
+        active_constraints: 0,
+        violated_constraints: 0,
+    };
+    let mut hold = Command::new(step, 0, instance, &info).map_err(|e| format!("step {step}: hold command: {e}"))?;
+    hold.flags |= Command::FLAG_HOLD;
+    Ok(hold)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_hold_flies_straight_on_flagged_with_no_value() {
+        let sc = Scenario::default();
+        let at = [Vector2::new(0.0, 0.0), Vector2::new(500.0, 0.0), Vector2::new(0.0, 500.0)];
+        let headings = [0.5, -1.0, 2.0];
+        let names = (SolverKind::Pso, ObjectiveKind::Analytical);
+        let hold = hold_command(7, &at, &headings, &sc, names, 3).unwrap();
+        assert!(hold.is_hold() && hold.flags == Command::FLAG_HOLD);
+        assert_eq!((hold.header.step, hold.planner_instance, hold.objective, hold.plan_time_us), (7, 3, -1.0, 0));
+        assert_eq!(hold.headings(), &headings);
+        // Not one heading per UAV: an error, not a command.
+        assert!(hold_command(7, &at, &headings[..1], &sc, names, 3).is_err());
+    }
+}
