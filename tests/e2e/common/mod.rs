@@ -110,8 +110,15 @@ pub fn processes_mentioning(needle: &str) -> Vec<(u32, String)> {
 /// The pid of the running `uavloc process <role>` of `domain` (exactly one expected).
 pub fn pid_of(domain: &str, role: &str) -> Option<u32> {
     let needle = format!("process {role} ");
-    let procs: Vec<_> =
-        processes_mentioning(domain).into_iter().filter(|(pid, c)| c.contains(&needle) && !is_zombie(*pid)).collect();
+    // The domain as a whole argument: `crash-1-estimator` is not `crash-1-estimator-planner`.
+    let of_domain = |c: &str| {
+        let args: Vec<&str> = c.split(' ').collect();
+        args.iter().any(|a| *a == format!("--domain={domain}")) || args.windows(2).any(|w| w == ["--domain", domain])
+    };
+    let procs: Vec<_> = processes_mentioning(domain)
+        .into_iter()
+        .filter(|(pid, c)| c.contains(&needle) && of_domain(c) && !is_zombie(*pid))
+        .collect();
     assert!(procs.len() <= 1, "more than one {role} of {domain}: {procs:?}");
     procs.first().map(|(pid, _)| *pid)
 }
