@@ -151,7 +151,7 @@ fn record_step(
     objective: planner::ObjectiveKind,
     solver: planner::SolverKind,
 ) {
-    use protocol::{Command, CommandOutcome, Measurement, PlanInfo, Truth};
+    use protocol::{Command, CommandOutcome, Measurement, Truth};
     let k = record.step;
     let now = protocol::now_ns();
     let previous = if k == 0 { CommandOutcome::None } else { CommandOutcome::Flown };
@@ -165,17 +165,8 @@ fn record_step(
         r.record(e, now);
     }
     if let Some(plan) = trace.plan {
-        let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();
-        let info = PlanInfo {
-            headings: &plan.headings,
-            waypoints: &waypoints,
-            objective: if plan.objective_value.is_finite() { plan.objective_value } else { -1.0 },
-            solver: solver.name(),
-            objective_name: objective.name(),
-            plan_time_us: (plan.plan_time_ms * 1e3).round() as u64,
-            active_constraints: model::active_mask::encode(&plan.active_constraints),
-            violated_constraints: model::active_mask::encode_violated(&plan.active_constraints),
-        };
+        let waypoints = planner::wire::waypoints(plan);
+        let info = planner::wire::plan_info(plan, &waypoints, (solver, objective));
         if let Ok(c) = Command::new(k, k, 0, &info) {
             // The planner echoes the estimator's state in every command planned from an estimate.
             r.record(&estimate.map_or(c, |e| c.with_state_of(&e)), now);

@@ -89,7 +89,6 @@ mod tests {
             velocity_prior_sigma: 7.5,
             interval_s: 1.0 / 3.0,
         };
-        let back = runtime::flags::from_flags::<_>(&runtime::flags::to_flags(&a).unwrap()).unwrap();
-        assert_eq!(a, back);
+        assert_eq!(runtime::flags::round_trip(&a).unwrap(), a);
     }
 }

@@ -18,10 +18,26 @@ pub fn plan_command(
     plan: &PlanOutput,
     (solver, objective): (SolverKind, ObjectiveKind),
 ) -> Result<Command, String> {
-    let waypoints: Vec<[f64; 2]> = plan.waypoints.iter().map(|w| [w.x, w.y]).collect();
-    let info = PlanInfo {
+    let waypoints = waypoints(plan);
+    let info = plan_info(plan, &waypoints, (solver, objective));
+    Command::from_estimate(estimate, received_ns, 0, instance, &info)
+        .map_err(|e| format!("step {}: command: {e}", estimate.header.step))
+}
+
+/// The waypoints of `plan` as the wire holds them, metres.
+pub fn waypoints(plan: &PlanOutput) -> Vec<[f64; 2]> {
+    plan.waypoints.iter().map(|w| [w.x, w.y]).collect()
+}
+
+/// What a command of `plan` says (its `waypoints`: [`waypoints`]), planned with `solver` and `objective`.
+pub fn plan_info<'a>(
+    plan: &'a PlanOutput,
+    waypoints: &'a [[f64; 2]],
+    (solver, objective): (SolverKind, ObjectiveKind),
+) -> PlanInfo<'a> {
+    PlanInfo {
         headings: &plan.headings,
-        waypoints: &waypoints,
+        waypoints,
         // The wire requires a finite value: an infinite criterion (a singular geometry) is sent as −1, which
         // the monitor reads as "no value" like `simulate` does.
         objective: if plan.objective_value.is_finite() { plan.objective_value } else { -1.0 },
@@ -30,9 +46,7 @@ pub fn plan_command(
         plan_time_us: (plan.plan_time_ms * 1e3).round() as u64,
         active_constraints: active_mask::encode(&plan.active_constraints),
         violated_constraints: active_mask::encode_violated(&plan.active_constraints),
-    };
-    Command::from_estimate(estimate, received_ns, 0, instance, &info)
-        .map_err(|e| format!("step {}: command: {e}", estimate.header.step))
+    }
 }
 
 /// The hold command of `step`: the UAVs at `positions` fly straight on at `headings` ([`crate::staleness::hold_plan`] over

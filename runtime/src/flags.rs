@@ -48,6 +48,12 @@ pub fn from_flags<T: clap::Args + clap::FromArgMatches>(flags: &[String]) -> Res
     T::from_arg_matches(&matches)
 }
 
+/// `args` written as flags ([`to_flags`]) and parsed back ([`from_flags`]): what a child given `args` runs
+/// with. Each process's round-trip test asserts that it equals `args` (nothing lost on the way).
+pub fn round_trip<T: Serialize + clap::Args + clap::FromArgMatches>(args: &T) -> Result<T, String> {
+    from_flags(&to_flags(args)?).map_err(|e| e.to_string())
+}
+
 fn scalar(v: &Value) -> Result<String, String> {
     match v {
         Value::String(s) => Ok(s.clone()),
