@@ -1,14 +1,14 @@
 //! The `monitor` process: subscribes to all four topics of a domain and its control topic, rebuilds the
-//! run record ([`Assembler`]), shows one status line per step, logs every event as JSON lines, and writes
+//! run record ([`crate::Assembler`]), shows one status line per step, logs every event as JSON lines, and writes
 //! the record (and CSVs and plots) when the last step is in.
 //!
 //! A handler on the node runtime ([`runtime::node`]: one `WaitSet` over the topics' listeners) that drains
 //! every subscriber on each wake-up — woken by a message, or, while a run streams, every [`DRAIN_EVERY`]
 //! ([`Node::drain_every`]: the monitor is off the control loop); every message is validated first
-//! ([`RejectionCounter`]), invalid ones are counted, logged and ignored.
+//! ([`protocol::RejectionCounter`]), invalid ones are counted, logged and ignored.
 //!
-//! The JSON-lines log (`--log`, its events in [`crate::runlog`]) and the status lines
-//! ([`crate::status`]) show the run as it goes.
+//! The JSON-lines log (`--log`, its events in [`crate::runlog`]) and the status lines (one per step on
+//! stderr unless `--quiet`) show the run as it goes.
 //!
 //! A step is recorded when the truth of the next one is in: only emitter-sim knows whether a command
 //! reached the world in time (see [`crate::assemble`]).
