@@ -47,6 +47,7 @@
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
+use model::load_scenario;
 use nalgebra::Vector2;
 use protocol::services;
 use protocol::{Command, ControlKind, Estimate, Measurement, Topic, TopicPublisher, TopicSubscriber};
@@ -62,8 +63,6 @@ use crate::wire;
 
 /// The role name (node name suffix, `uavloc process planner`).
 pub const ROLE: &str = "planner";
-
-use model::load_scenario;
 
 /// The planner's handler: its ports, the scenario, and the bookkeeping of a swap and of the staleness
 /// deadline (no state of the run: see the module docs).
