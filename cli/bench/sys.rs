@@ -206,13 +206,15 @@ mod tests {
 
     #[test]
     fn the_private_resident_memory_grows_with_a_heap_allocation() {
+        // The other tests of this binary run in threads beside this one and allocate and free too (once,
+        // in CI, the growth read was 58.5 MiB of 64): the block is large and the margins allow for them.
         let me = std::process::id();
         let before = anon_rss_bytes(me).unwrap();
-        let block = vec![1u8; 64 << 20];
+        let block = vec![1u8; 256 << 20];
         std::hint::black_box(&block);
         let during = anon_rss_bytes(me).unwrap();
-        assert!(during >= before + (60 << 20), "{before} -> {during}");
-        assert!(during <= rss_bytes(me).unwrap());
+        assert!(during >= before + (192 << 20), "{before} -> {during}");
+        assert!(during <= rss_bytes(me).unwrap() + (32 << 20));
         assert!(anon_rss_bytes(u32::MAX).is_err());
     }
 
