@@ -49,9 +49,10 @@ pub fn plan_info<'a>(
     }
 }
 
-/// The hold command of `step`: the UAVs at `positions` fly straight on at `headings` ([`crate::staleness::hold_plan`] over
-/// the scenario's speed and interval), flagged [`Command::FLAG_HOLD`], objective −1 (no value)
-/// and no plan time; named after the planner's `solver` and `objective`.
+/// The hold command of `step`: the UAVs at `positions` fly straight on at `headings`
+/// ([`crate::staleness::hold_plan`] over the scenario's speed and interval), flagged
+/// [`Command::FLAG_HOLD`], objective −1 (no value) and no plan time; named after the planner's `solver`
+/// and `objective`.
 pub fn hold_command(
     step: u64,
     positions: &[Vector2<f64>],
