@@ -17,7 +17,6 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use emitter_sim::args::Mode;
-use monitor::RunRecord;
 use protocol::resources;
 use protocol::services::{self, DOMAIN_ENV, Domain};
 
@@ -146,11 +145,8 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     cleaned?;
     let leftovers = resources::list(&domain).map_err(CliError::Failed)?;
 
-    // Taken, so that the text (≈ 0.6 KB per step) is freed once parsed.
     let record = sup.record.take().ok_or_else(|| CliError::Failed("the monitor sent no run record".into()))?;
-    let mut run: RunRecord =
-        serde_json::from_str(&record).map_err(|e| CliError::Failed(format!("the monitor's run record: {e}")))?;
-    drop(record);
+    let mut run = record.map_err(|e| CliError::Failed(format!("the monitor's run record: {e}")))?;
     // The scenario as loaded here, like `simulate` (the record's copy went through TOML-style degree
     // conversions on the way).
     run.scenario = sc;

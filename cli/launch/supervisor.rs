@@ -2,13 +2,14 @@
 //! lines, restarting the ones that crash (by their [`Role`]'s policy), stopping them all.
 
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader};
+use std::io::BufReader;
 use std::os::unix::process::CommandExt as _;
 use std::path::PathBuf;
 use std::process::{Child, Stdio};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant};
 
+use monitor::RunRecord;
 use protocol::resources;
 use protocol::services::Domain;
 use runtime::SupervisorLine;
@@ -40,7 +41,8 @@ fn restart_backoff(attempt: u32) -> Duration {
 }
 
 enum Event {
-    Line(usize, String),
+    /// A line or the run record of child `i`.
+    Output(usize, Box<runtime::Output<RunRecord>>),
     Closed(usize),
 }
 
@@ -90,7 +92,8 @@ pub(super) struct Supervisor {
     pub(super) procs: Vec<Proc>,
     tx: Sender<Event>,
     rx: Receiver<Event>,
-    pub(super) record: Option<String>,
+    /// The monitor's run record (parsed as it streamed in), or what was wrong with it.
+    pub(super) record: Option<Result<RunRecord, String>>,
     domain: Domain,
     /// The monitor's JSON-lines log, where restarts are written too.
     log: Option<PathBuf>,
@@ -158,8 +161,9 @@ impl Supervisor {
         let index = self.procs.len();
         let tx = self.tx.clone();
         std::thread::spawn(move || {
-            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                if tx.send(Event::Line(index, line)).is_err() {
+            let mut reader = BufReader::new(stdout);
+            while let Ok(Some(output)) = runtime::read_output(&mut reader) {
+                if tx.send(Event::Output(index, Box::new(output))).is_err() {
                     return;
                 }
             }
@@ -181,14 +185,14 @@ impl Supervisor {
 
     fn handle(&mut self, event: Event) {
         match event {
-            Event::Line(i, line) => {
+            Event::Output(i, output) => {
                 let p = &mut self.procs[i];
-                match SupervisorLine::parse_owned(line) {
-                    Some(SupervisorLine::Ready) => p.ready = true,
-                    Some(SupervisorLine::Finished) => p.finished = true,
-                    Some(SupervisorLine::Summary(v)) => p.summary = Some(v),
-                    Some(SupervisorLine::Record(json)) => self.record = Some(json),
-                    Some(SupervisorLine::TakeOver { .. }) | None => {}
+                match *output {
+                    runtime::Output::Line(Some(SupervisorLine::Ready)) => p.ready = true,
+                    runtime::Output::Line(Some(SupervisorLine::Finished)) => p.finished = true,
+                    runtime::Output::Line(Some(SupervisorLine::Summary(v))) => p.summary = Some(v),
+                    runtime::Output::Record(record) => self.record = Some(record),
+                    runtime::Output::Line(_) => {}
                 }
             }
             Event::Closed(i) => {

@@ -20,4 +20,4 @@ pub mod supervisor;
 pub use args::{DEFAULT_SPIN_US, LinkArgs, NodeArgs, ProcessArgs, RunArgs, Source};
 pub use exit::{EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError, cpu_seconds};
 pub use node::{Ended, Flow, Handler, IDLE_WAKEUP, Join, Node};
-pub use supervisor::{NodeSummary, SupervisorLine, exit_with, tell, tell_record};
+pub use supervisor::{NodeSummary, Output, SupervisorLine, exit_with, read_output, tell, tell_record};

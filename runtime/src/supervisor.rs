@@ -10,10 +10,11 @@
 //! | `record {json}` | the monitor's run record, at its end |
 //! | `summary {json}` | the process's summary, at its end |
 
-use std::io::Write as _;
+use std::io::{BufRead, Write as _};
 use std::process::ExitCode;
 
 use serde::Serialize;
+use serde::de::DeserializeOwned;
 use serde_json::Value;
 
 use crate::exit::{EXIT_INTERRUPTED, ProcessError};
@@ -68,7 +69,7 @@ pub enum SupervisorLine {
 }
 
 /// What starts a [`SupervisorLine::Record`] line (written by [`SupervisorLine::to_line`] and
-/// [`tell_record`], read by [`SupervisorLine::parse`] and [`SupervisorLine::parse_owned`]).
+/// [`tell_record`], read by [`SupervisorLine::parse`] and [`read_output`]).
 const RECORD_PREFIX: &str = "record ";
 
 impl SupervisorLine {
@@ -83,16 +84,6 @@ impl SupervisorLine {
             SupervisorLine::Record(json) => format!("{RECORD_PREFIX}{json}"),
             SupervisorLine::Summary(v) => format!("summary {v}"),
         }
-    }
-
-    /// [`parse`](Self::parse) of a line the caller owns: a [`SupervisorLine::Record`] keeps the line's
-    /// own text (a long run's record is tens of MB: not copied).
-    pub fn parse_owned(mut line: String) -> Option<Self> {
-        if line.starts_with(RECORD_PREFIX) {
-            line.drain(..RECORD_PREFIX.len());
-            return Some(SupervisorLine::Record(line));
-        }
-        Self::parse(&line)
     }
 
     /// Reads a line (`None`: not a supervisor line, e.g. other output).
@@ -113,6 +104,61 @@ impl SupervisorLine {
             return serde_json::from_str(json).ok().map(SupervisorLine::Summary);
         }
         None
+    }
+}
+
+/// One item of a supervised process's stdout, as [`read_output`] reads it.
+#[derive(Debug, PartialEq)]
+pub enum Output<R> {
+    /// A line that is not the run record: a [`SupervisorLine`], or other output (`None`).
+    Line(Option<SupervisorLine>),
+    /// The run record, deserialized as it streamed in — never held as text (a long run's record is
+    /// ≈ 1.6 KB per step) — or what was wrong with it.
+    Record(Result<R, String>),
+}
+
+/// Reads the next item of a supervised process's stdout (`None` at its end): a line, or the `record`
+/// line ([`tell_record`]) deserialized straight from the stream into an `R`.
+pub fn read_output<R: DeserializeOwned>(reader: &mut impl BufRead) -> std::io::Result<Option<Output<R>>> {
+    // The start of the line, a byte at a time, until it is known whether it is the record.
+    let mut head = Vec::new();
+    while head.len() < RECORD_PREFIX.len() && head.last() != Some(&b'\n') {
+        let mut byte = [0u8];
+        if reader.read(&mut byte)? == 0 {
+            break;
+        }
+        head.push(byte[0]);
+    }
+    if head.is_empty() {
+        return Ok(None);
+    }
+    if head == RECORD_PREFIX.as_bytes() {
+        let record = R::deserialize(&mut serde_json::Deserializer::from_reader(&mut *reader));
+        skip_line(reader)?;
+        return Ok(Some(Output::Record(record.map_err(|e| e.to_string()))));
+    }
+    if head.last() != Some(&b'\n') {
+        reader.read_until(b'\n', &mut head)?;
+    }
+    let line = String::from_utf8_lossy(&head);
+    Ok(Some(Output::Line(SupervisorLine::parse(line.trim_end_matches('\n').trim_end_matches('\r')))))
+}
+
+/// Consumes the rest of the current line (all of a record whose parse failed midway), holding none of it.
+fn skip_line(reader: &mut impl BufRead) -> std::io::Result<()> {
+    loop {
+        let buf = reader.fill_buf()?;
+        match buf.iter().position(|b| *b == b'\n') {
+            Some(i) => {
+                reader.consume(i + 1);
+                return Ok(());
+            }
+            None if buf.is_empty() => return Ok(()),
+            None => {
+                let n = buf.len();
+                reader.consume(n);
+            }
+        }
     }
 }
 
@@ -165,13 +211,6 @@ mod tests {
 
     #[test]
     fn lines_round_trip() {
-        // A record streamed by tell_record reads back as the record's JSON.
-        let mut streamed = b"record ".to_vec();
-        serde_json::to_writer(&mut streamed, &serde_json::json!({"steps": [1.0000000000000002, -0.0]})).unwrap();
-        assert_eq!(
-            SupervisorLine::parse_owned(String::from_utf8(streamed).unwrap()),
-            Some(SupervisorLine::Record("{\"steps\":[1.0000000000000002,-0.0]}".into()))
-        );
         for line in [
             SupervisorLine::Ready,
             SupervisorLine::TakeOver { from_step: 41 },
@@ -180,11 +219,38 @@ mod tests {
             SupervisorLine::Summary(serde_json::json!({"role": "planner", "published": 3})),
         ] {
             assert_eq!(SupervisorLine::parse(&line.to_line()), Some(line.clone()), "{}", line.to_line());
-            assert_eq!(SupervisorLine::parse_owned(line.to_line()), Some(line.clone()), "{}", line.to_line());
         }
         for other in ["", "readyish", "takeover {}", "summary not json", "estimator: hello"] {
-            assert_eq!(SupervisorLine::parse_owned(other.to_string()), None, "{other}");
             assert_eq!(SupervisorLine::parse(other), None, "{other}");
         }
+    }
+
+    #[test]
+    fn a_streamed_record_is_read_from_the_stream_between_the_other_lines() {
+        #[derive(Debug, PartialEq, serde::Deserialize)]
+        struct Rec {
+            steps: Vec<f64>,
+        }
+        // What a monitor prints: lines, the record (tell_record's bytes), lines; a record line that is not
+        // one; a line of other output without a newline at the end.
+        let mut out = b"ready\r\nsummary {\"role\":\"monitor\"}\nrec\nrecord ".to_vec();
+        serde_json::to_writer(&mut out, &serde_json::json!({"steps": [1.0000000000000002, -0.0]})).unwrap();
+        out.extend_from_slice(b"\nrecord {\"steps\": [1, \"x\"] and more\nfinished\nno newline");
+        let mut reader = std::io::BufReader::with_capacity(4, out.as_slice());
+        let mut items = Vec::new();
+        while let Some(item) = read_output::<Rec>(&mut reader).unwrap() {
+            items.push(item);
+        }
+        assert_eq!(items.len(), 7, "{items:?}");
+        assert_eq!(items[0], Output::Line(Some(SupervisorLine::Ready)));
+        assert_eq!(items[1], Output::Line(Some(SupervisorLine::Summary(serde_json::json!({"role": "monitor"})))));
+        assert_eq!(items[2], Output::Line(None));
+        // Floats exactly as written (the shortest round-trip text), −0 included.
+        let Output::Record(Ok(rec)) = &items[3] else { panic!("{:?}", items[3]) };
+        assert_eq!(rec.steps[0].to_bits(), 1.0000000000000002f64.to_bits());
+        assert_eq!(rec.steps[1].to_bits(), (-0.0f64).to_bits());
+        assert!(matches!(&items[4], Output::Record(Err(e)) if e.contains("line 1")), "{:?}", items[4]);
+        assert_eq!(items[5], Output::Line(Some(SupervisorLine::Finished)));
+        assert_eq!(items[6], Output::Line(None));
     }
 }
