@@ -272,7 +272,11 @@ impl Supervisor {
             }
             if Instant::now() > deadline {
                 let role = self.procs[i].role;
-                return Err(CliError::Failed(format!("the {role} process did not get ready within {READY_TIMEOUT:?}")));
+                // A restart's new instance: an earlier one of its role was replaced.
+                let restarted = if self.procs[..i].iter().any(|q| q.role == role) { "restarted " } else { "" };
+                return Err(CliError::Failed(format!(
+                    "the {restarted}{role} process did not get ready within {READY_TIMEOUT:?}"
+                )));
             }
         }
         Ok(())

@@ -1,8 +1,7 @@
 //! The monitor's JSON-lines run log (`--log`): writing it (one `write` per event line, appended) and
 //! reading a run back from it (a restarted monitor's steps, the record at the end).
 //!
-//! One object per line with `t_ns` (monotonic clock, the stamps'
-//! clock) and `event`:
+//! One object per line with `t_ns` (monotonic clock, the stamps' clock) and `event`:
 //! - `start` (domain, steps, seed, source, scenario: its [`model::Scenario::fingerprint`]) or `resume`
 //!   (domain, steps recorded in the log; a log whose `start` names another run is refused, exit 2);
 //!   `message` (kind, step, seq, age_us: publish → received here);

@@ -1,6 +1,6 @@
 //! What a supervised process tells its supervisor (`uavloc launch`, `uavloc swap`) on stdout: one typed
-//! line per event, written by the process with [`tell`] and read by the supervisor with
-//! [`SupervisorLine::parse`] — one definition for both sides.
+//! line per event, written by the process with [`tell`] (the record: [`tell_record`]) and read by the
+//! supervisor with [`read_output`] ([`SupervisorLine::parse`] for a line) — one definition for both sides.
 //!
 //! | line | when |
 //! |---|---|
@@ -62,14 +62,11 @@ pub enum SupervisorLine {
     },
     /// emitter-sim published the last step.
     Finished,
-    /// The monitor's run record (JSON text, kept verbatim: the launcher re-reads its floats exactly).
-    Record(String),
     /// The process's summary.
     Summary(Value),
 }
 
-/// What starts a [`SupervisorLine::Record`] line (written by [`SupervisorLine::to_line`] and
-/// [`tell_record`], read by [`SupervisorLine::parse`] and [`read_output`]).
+/// What starts the run record's line (written by [`tell_record`], read by [`read_output`]).
 const RECORD_PREFIX: &str = "record ";
 
 impl SupervisorLine {
@@ -81,12 +78,12 @@ impl SupervisorLine {
                 format!("takeover {}", serde_json::json!({"from_step": from_step}))
             }
             SupervisorLine::Finished => "finished".into(),
-            SupervisorLine::Record(json) => format!("{RECORD_PREFIX}{json}"),
             SupervisorLine::Summary(v) => format!("summary {v}"),
         }
     }
 
-    /// Reads a line (`None`: not a supervisor line, e.g. other output).
+    /// Reads a line (`None`: not a supervisor line, e.g. other output; the record's line is
+    /// [`read_output`]'s).
     pub fn parse(line: &str) -> Option<Self> {
         match line {
             "ready" => return Some(SupervisorLine::Ready),
@@ -96,9 +93,6 @@ impl SupervisorLine {
         if let Some(json) = line.strip_prefix("takeover ") {
             let v: Value = serde_json::from_str(json).ok()?;
             return Some(SupervisorLine::TakeOver { from_step: v["from_step"].as_u64()? });
-        }
-        if let Some(json) = line.strip_prefix(RECORD_PREFIX) {
-            return Some(SupervisorLine::Record(json.to_string()));
         }
         if let Some(json) = line.strip_prefix("summary ") {
             return serde_json::from_str(json).ok().map(SupervisorLine::Summary);
@@ -171,7 +165,7 @@ pub fn tell(supervised: bool, line: &SupervisorLine) {
     }
 }
 
-/// Writes the monitor's run record to stdout as one [`SupervisorLine::Record`] line (and flushes) when
+/// Writes the monitor's run record to stdout as one `record {json}` line ([`read_output`]) (and flushes) when
 /// `supervised`, serialised straight into stdout: a long run's record is not held a second time as text
 /// (≈ 0.6 KB per step).
 pub fn tell_record(supervised: bool, record: &impl Serialize) {
@@ -215,12 +209,11 @@ mod tests {
             SupervisorLine::Ready,
             SupervisorLine::TakeOver { from_step: 41 },
             SupervisorLine::Finished,
-            SupervisorLine::Record("{\"steps\":[1.0000000000000002]}".into()),
             SupervisorLine::Summary(serde_json::json!({"role": "planner", "published": 3})),
         ] {
             assert_eq!(SupervisorLine::parse(&line.to_line()), Some(line.clone()), "{}", line.to_line());
         }
-        for other in ["", "readyish", "takeover {}", "summary not json", "estimator: hello"] {
+        for other in ["", "readyish", "takeover {}", "summary not json", "estimator: hello", "record {}"] {
             assert_eq!(SupervisorLine::parse(other), None, "{other}");
         }
     }
