@@ -8,13 +8,17 @@
 //! - [`kinematics`]: fixed-speed circular-arc motion (eq. 54);
 //! - [`solver_config`]: the solvers' settings as the scenario carries them;
 //! - [`constraint`]: the four motion constraints by name and one active instance;
-//! - [`active_mask`]: the active constraints as the wire bitmask of a `protocol::Command`.
+//! - [`active_mask`]: the active constraints as the wire bitmask of a `protocol::Command`;
+//! - [`arc`]: the arc a UAV flies over one interval and certified minimum distances along it;
+//! - [`safety`]: the safety certificate of a plan (spacing and standoff along the arcs, a backup for ever).
 //!
 //! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
 
 pub mod active_mask;
+pub mod arc;
 pub mod constraint;
 pub mod kinematics;
+pub mod safety;
 pub mod scenario;
 pub mod solver_config;
 

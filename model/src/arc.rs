@@ -1,0 +1,298 @@
+//! The arc a UAV flies over one planning interval, and certified minimum distances along it.
+//!
+//! Over one interval of `Δt` seconds a UAV at `p` with heading `ψ`, commanded the heading `φ`, flies at
+//! constant speed an arc of length `L = v·Δt` and constant curvature, turning by `θ = wrap(φ − ψ)`
+//! (eq. 54, [`crate::kinematics`]). At the fraction `s ∈ [0, 1]` of the interval it is at
+//! `p(s) = p + chord(L·s, θ·s)·(cos(ψ + θs/2), sin(ψ + θs/2))` with heading `ψ + θs` — the waypoint of
+//! eq. 54 at `s = 1`.
+//!
+//! **Certified minima.** The distance between two UAVs flying their arcs at the same time, or between a
+//! UAV and an emitter moving at constant velocity, is a function `f(s)` whose slope is bounded by the
+//! relative speed: for two UAVs `|f'(s)| ≤ |v_i(s) − v_j(s)| = 2L·|sin((h_i(s) − h_j(s))/2)|` per unit
+//! of `s`, where the heading difference is linear in `s`, so its bound over a sub-interval is exact; for
+//! an emitter moving by `u·Δt` over the interval, `|f'| ≤ L + |u|·Δt`. On `[a, b]` with slope bound `K`,
+//! `min f ≥ (f(a) + f(b))/2 − K(b − a)/2` (Piyavskii's bound). [`lipschitz_min`] splits the interval
+//! (depth first, pruning by that bound) until the minimum is known to within [`MIN_TOLERANCE_M`] or is
+//! certified above a threshold: the result `[lower, upper]` always contains the true minimum, and no
+//! sample is trusted without its bound. Far-apart pairs are certified from the end points alone.
+//!
+//! Units: metres, seconds, radians.
+
+use nalgebra::Vector2;
+
+use crate::kinematics::{chord_length, turn_angle};
+
+/// Width of the bracket `[lower, upper]` that [`lipschitz_min`] narrows a minimum to, metres.
+pub const MIN_TOLERANCE_M: f64 = 0.25;
+
+/// Most halvings of the interval (2⁻³⁰ of a step is far below any tolerance in metres).
+const MAX_DEPTH: u32 = 30;
+
+/// One UAV's arc over one planning interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Arc {
+    /// Start position, metres.
+    pub start: Vector2<f64>,
+    /// Start heading ψ, radians.
+    pub heading: f64,
+    /// Signed turn θ = wrap(φ − ψ) ∈ (−π, π], radians (positive: counter-clockwise).
+    pub turn: f64,
+    /// Arc length `L = v·Δt`, metres.
+    pub length: f64,
+}
+
+impl Arc {
+    /// The arc from `start` with heading `psi` commanded the heading `phi`, `length` metres long.
+    pub fn new(start: Vector2<f64>, psi: f64, phi: f64, length: f64) -> Self {
+        Self { start, heading: psi, turn: turn_angle(psi, phi), length }
+    }
+
+    /// Position at the fraction `s ∈ [0, 1]` of the interval, metres (the chord form of eq. 54, exact
+    /// for a straight flight and free of cancellation for small turns).
+    #[inline]
+    pub fn at(&self, s: f64) -> Vector2<f64> {
+        let theta = self.turn * s;
+        let chord = chord_length(self.length * s, theta);
+        let dir = self.heading + 0.5 * theta;
+        let (sin, cos) = dir.sin_cos();
+        self.start + Vector2::new(cos, sin) * chord
+    }
+
+    /// Heading at the fraction `s`, radians (not wrapped).
+    #[inline]
+    pub fn heading_at(&self, s: f64) -> f64 {
+        self.heading + self.turn * s
+    }
+
+    /// The end point (the next waypoint), metres.
+    pub fn end(&self) -> Vector2<f64> {
+        self.at(1.0)
+    }
+}
+
+/// A bracket of a minimum: the true minimum lies in `[lower, upper]`, metres. When the search stopped
+/// because the minimum was certified above a threshold, `lower` is at least that threshold and `upper`
+/// the smallest distance sampled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MinBracket {
+    /// Certified lower bound, metres.
+    pub lower: f64,
+    /// The smallest value sampled (an upper bound), metres.
+    pub upper: f64,
+}
+
+/// The minimum over `s ∈ [0, 1]` of `f`, whose slope on `[a, b]` is at most `slope(a, b)`, bracketed to
+/// [`MIN_TOLERANCE_M`] — or only certified to be at least `threshold` (pass `f64::INFINITY` for the
+/// bracket itself). `f0`, `f1` are `f(0)`, `f(1)`.
+pub fn lipschitz_min(
+    f: &mut dyn FnMut(f64) -> f64,
+    slope: &dyn Fn(f64, f64) -> f64,
+    f0: f64,
+    f1: f64,
+    threshold: f64,
+) -> MinBracket {
+    struct Search<'a> {
+        f: &'a mut dyn FnMut(f64) -> f64,
+        slope: &'a dyn Fn(f64, f64) -> f64,
+        threshold: f64,
+        upper: f64,
+        lower: f64,
+    }
+    impl Search<'_> {
+        fn refine(&mut self, a: f64, b: f64, fa: f64, fb: f64, depth: u32) {
+            let bound = 0.5 * (fa + fb) - 0.5 * (self.slope)(a, b) * (b - a);
+            // Nothing below the threshold here, or nothing more than the tolerance below the best sample.
+            if bound >= self.threshold || bound >= self.upper - MIN_TOLERANCE_M || depth == MAX_DEPTH {
+                self.lower = self.lower.min(bound);
+                return;
+            }
+            let m = 0.5 * (a + b);
+            let fm = (self.f)(m);
+            self.upper = self.upper.min(fm);
+            self.refine(a, m, fa, fm, depth + 1);
+            self.refine(m, b, fm, fb, depth + 1);
+        }
+    }
+    let mut search = Search { f, slope, threshold, upper: f0.min(f1), lower: f64::INFINITY };
+    search.refine(0.0, 1.0, f0, f1, 0);
+    MinBracket { lower: search.lower.min(search.upper).max(0.0), upper: search.upper }
+}
+
+/// Largest `|sin(x)|` for `x` between `x0` and `x1`.
+fn max_abs_sin(x0: f64, x1: f64) -> f64 {
+    let (lo, hi) = if x0 <= x1 { (x0, x1) } else { (x1, x0) };
+    // An odd multiple of π/2 inside [lo, hi] reaches 1.
+    let k = ((lo - std::f64::consts::FRAC_PI_2) / std::f64::consts::PI).ceil();
+    if std::f64::consts::FRAC_PI_2 + k * std::f64::consts::PI <= hi { 1.0 } else { lo.sin().abs().max(hi.sin().abs()) }
+}
+
+/// The minimum distance between two UAVs flying `a` and `b` over the same interval (metres), bracketed,
+/// or certified to be at least `threshold` (see the module docs).
+pub fn pair_min_distance(a: &Arc, b: &Arc, threshold: f64) -> MinBracket {
+    let f0 = (a.start - b.start).norm();
+    let f1 = (a.end() - b.end()).norm();
+    pair_min_distance_from(a, b, f0, f1, threshold)
+}
+
+/// [`pair_min_distance`] with the end-point distances `f0 = |a(0) − b(0)|`, `f1 = |a(1) − b(1)|` given.
+pub fn pair_min_distance_from(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64) -> MinBracket {
+    let length = a.length.max(b.length);
+    // The relative speed: 2L|sin(Δh/2)| with Δh linear in s (equal speeds, as the planner's UAVs fly).
+    let d0 = a.heading - b.heading;
+    let dd = a.turn - b.turn;
+    let equal = a.length == b.length;
+    let slope = move |s0: f64, s1: f64| {
+        if equal { 2.0 * length * max_abs_sin(0.5 * (d0 + dd * s0), 0.5 * (d0 + dd * s1)) } else { a.length + b.length }
+    };
+    lipschitz_min(&mut |s| (a.at(s) - b.at(s)).norm(), &slope, f0, f1, threshold)
+}
+
+/// The minimum distance (metres) from the arc to a point moving from `from` at `velocity` (m/s) over
+/// the interval of `dt` seconds, bracketed, or certified to be at least `threshold`.
+pub fn moving_point_min_distance(
+    arc: &Arc,
+    from: Vector2<f64>,
+    velocity: Vector2<f64>,
+    dt: f64,
+    threshold: f64,
+) -> MinBracket {
+    let drift = velocity * dt;
+    let point = |s: f64| from + drift * s;
+    let f0 = (arc.start - from).norm();
+    let f1 = (arc.end() - point(1.0)).norm();
+    let k = arc.length + drift.norm();
+    lipschitz_min(&mut |s| (arc.at(s) - point(s)).norm(), &|_, _| k, f0, f1, threshold)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::next_position;
+    use std::f64::consts::PI;
+
+    /// The minimum of `f` over 200 001 samples of [0, 1].
+    fn sampled(f: impl Fn(f64) -> f64) -> f64 {
+        (0..=200_000).map(|k| f(k as f64 / 200_000.0)).fold(f64::INFINITY, f64::min)
+    }
+
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    #[test]
+    fn the_arc_ends_at_the_waypoint_of_eq_54_with_the_commanded_heading() {
+        let mut r = Lcg(3);
+        for _ in 0..1000 {
+            let p = Vector2::new(r.next() * 1e4, r.next() * 1e4);
+            let (psi, phi) = ((r.next() - 0.5) * 2.0 * PI, (r.next() - 0.5) * 2.0 * PI);
+            let arc = Arc::new(p, psi, phi, 500.0);
+            assert!((arc.end() - next_position(p, psi, phi, 50.0, 10.0)).norm() < 1e-9);
+            assert!((crate::wrap_angle(arc.heading_at(1.0) - phi)).abs() < 1e-12);
+            // The arc length: the sum of 10 000 chords is L (to the chords' sagitta).
+            let len: f64 = (0..10_000).map(|k| (arc.at((k + 1) as f64 / 1e4) - arc.at(k as f64 / 1e4)).norm()).sum();
+            assert!((len - 500.0).abs() < 1e-3, "{len}");
+        }
+    }
+
+    #[test]
+    fn pair_minima_bracket_a_fine_sampling() {
+        let mut r = Lcg(11);
+        for case in 0..400 {
+            let length = 200.0 + 800.0 * r.next();
+            let a0 = Vector2::new(0.0, 0.0);
+            // The second UAV within a few steps' reach, so that arcs cross in many cases.
+            let b0 = Vector2::new((r.next() - 0.5) * 3.0 * length, (r.next() - 0.5) * 3.0 * length);
+            let psi_a = (r.next() - 0.5) * 2.0 * PI;
+            let psi_b = (r.next() - 0.5) * 2.0 * PI;
+            let a = Arc::new(a0, psi_a, psi_a + (r.next() - 0.5) * 2.0, length);
+            let b = Arc::new(b0, psi_b, psi_b + (r.next() - 0.5) * 2.0, length);
+            let fine = sampled(|s| (a.at(s) - b.at(s)).norm());
+            let m = pair_min_distance(&a, &b, f64::INFINITY);
+            assert!(m.lower <= fine + 1e-9 && fine <= m.upper + 1e-9, "case {case}: {m:?} vs {fine}");
+            assert!(m.upper - m.lower <= MIN_TOLERANCE_M + 1e-9, "case {case}: {m:?}");
+            // With a threshold: certified above it exactly when the minimum is.
+            let t = fine + if case % 2 == 0 { 2.0 } else { -2.0 };
+            let c = pair_min_distance(&a, &b, t);
+            assert_eq!(c.lower >= t, fine >= t, "case {case}: {c:?} vs {fine} at {t}");
+        }
+    }
+
+    #[test]
+    fn head_on_uavs_meet_between_the_waypoints() {
+        // Two UAVs 1000 m apart flying straight at each other for 500 m each: they meet at s = 1 exactly;
+        // offset by 100 m sideways, the closest approach is 100 m at the end. Crossing paths: 0 mid-step
+        // though both ends are far apart.
+        let a = Arc::new(Vector2::new(0.0, 0.0), 0.0, 0.0, 500.0);
+        let b = Arc::new(Vector2::new(1000.0, 100.0), PI, PI, 500.0);
+        let m = pair_min_distance(&a, &b, f64::INFINITY);
+        assert!((m.upper - 100.0).abs() < 1e-9 && m.lower > 100.0 - MIN_TOLERANCE_M, "{m:?}");
+        let a = Arc::new(Vector2::new(0.0, 0.0), 0.0, 0.0, 500.0);
+        let b = Arc::new(Vector2::new(250.0, -250.0), PI / 2.0, PI / 2.0, 500.0);
+        let m = pair_min_distance(&a, &b, f64::INFINITY);
+        assert!((a.start - b.start).norm() > 350.0 && (a.end() - b.end()).norm() > 350.0);
+        assert!(m.lower < 1.0, "{m:?}");
+    }
+
+    #[test]
+    fn parallel_uavs_are_certified_from_their_end_points() {
+        let a = Arc::new(Vector2::new(0.0, 0.0), 0.3, 0.3, 500.0);
+        let b = Arc::new(Vector2::new(0.0, 700.0), 0.3, 0.3, 500.0);
+        let mut calls = 0;
+        let slope = |_: f64, _: f64| 0.0;
+        let m = lipschitz_min(&mut |s| {
+            calls += 1;
+            (a.at(s) - b.at(s)).norm()
+        }, &slope, 700.0, 700.0, 500.0);
+        assert_eq!(calls, 0);
+        assert!((m.lower - 700.0).abs() < 1e-9);
+        assert!(pair_min_distance(&a, &b, 500.0).lower >= 699.999);
+    }
+
+    #[test]
+    fn a_moving_point_is_bracketed_and_a_static_one_matches_the_circle() {
+        let mut r = Lcg(5);
+        for case in 0..300 {
+            let psi = (r.next() - 0.5) * 2.0 * PI;
+            let arc = Arc::new(Vector2::new(0.0, 0.0), psi, psi + (r.next() - 0.5) * 2.5, 600.0);
+            let from = Vector2::new((r.next() - 0.5) * 2000.0, (r.next() - 0.5) * 2000.0);
+            let vel = Vector2::new((r.next() - 0.5) * 40.0, (r.next() - 0.5) * 40.0);
+            let fine = sampled(|s| (arc.at(s) - (from + vel * 10.0 * s)).norm());
+            let m = moving_point_min_distance(&arc, from, vel, 10.0, f64::INFINITY);
+            assert!(m.lower <= fine + 1e-9 && fine <= m.upper + 1e-9, "case {case}: {m:?} vs {fine}");
+            assert!(m.upper - m.lower <= MIN_TOLERANCE_M + 1e-9);
+            // Static: the closed form of the distance from a point to a circular arc.
+            if arc.turn.abs() > 1e-3 {
+                let radius = arc.length / arc.turn; // signed
+                let centre = arc.start + Vector2::new(-psi.sin(), psi.cos()) * radius;
+                let to = from - centre;
+                let beta = to.y.atan2(to.x);
+                // Angle of the point on the circle at s: heading − sign(θ)·π/2.
+                let start = psi - radius.signum() * PI / 2.0;
+                let off = crate::wrap_angle(beta - start) * arc.turn.signum();
+                let off = if off < 0.0 { off + 2.0 * PI } else { off };
+                let exact = if off <= arc.turn.abs() {
+                    (to.norm() - radius.abs()).abs()
+                } else {
+                    (arc.start - from).norm().min((arc.end() - from).norm())
+                };
+                let s = moving_point_min_distance(&arc, from, Vector2::zeros(), 10.0, f64::INFINITY);
+                assert!(s.lower <= exact + 1e-6 && exact <= s.upper + 1e-6, "case {case}: {s:?} vs {exact}");
+            }
+        }
+    }
+
+    #[test]
+    fn max_abs_sin_is_the_maximum_over_the_interval() {
+        let mut r = Lcg(9);
+        for _ in 0..2000 {
+            let (x0, x1) = ((r.next() - 0.5) * 12.0, (r.next() - 0.5) * 12.0);
+            let fine = (0..=10_000).map(|k| (x0 + (x1 - x0) * k as f64 / 1e4).sin().abs()).fold(0.0, f64::max);
+            let m = max_abs_sin(x0, x1);
+            assert!(m >= fine - 1e-12 && m <= fine + 1e-6, "{x0} {x1}: {m} vs {fine}");
+        }
+    }
+}

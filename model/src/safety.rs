@@ -1,0 +1,523 @@
+//! The safety certificate of one planning step: spacing and standoff along the flown arcs, and a
+//! backup manoeuvre from where the step ends that keeps both for ever.
+//!
+//! A plan (one commanded heading per UAV) is **certified** when, with `L_min`, `D_min`, `R_min` of the
+//! scenario (eqs. 55–57, kept here in continuous time instead of at the waypoints):
+//!
+//! 1. **Turn radius**: every arc turns by at most `θ_max = L/R_min` (eq. 55).
+//! 2. **Spacing along the arcs**: every pair of UAVs, flying their arcs at the same time, stays at least
+//!    `D_min` apart over the whole interval ([`crate::arc::pair_min_distance`], a certified bound).
+//! 3. **Standoff along the arcs**: every UAV stays at least `B(Δt) = L_min + k·σ̄(Δt)` from the emitter
+//!    as predicted over the interval ([`EmitterPrediction`]: ẑ moving at the estimated velocity; for a
+//!    static model ẑ), with `k = Φ⁻¹(c)` of `standoff_confidence` and `σ̄(τ)` a bound on the standard
+//!    deviation of the predicted position along every direction. For every instant and every direction
+//!    `u`, `|w − z| ≥ uᵀ(w − z)` (Cauchy–Schwarz) gives `P(|w − z| < L_min) ≤ Φ((L_min − |w − ẑ|)/σ_u)`
+//!    — the chance bound of `standoff_confidence`, now along the path.
+//! 4. **A safe continuation for ever** (recursive feasibility): the *backup* from the step's end is for
+//!    every UAV to turn right at the backup rate `θ_b = min(L/R_min, 0.9π)` per step, i.e. to circle
+//!    clockwise on the circle of radius `R_b = L/θ_b ≥ R_min` tangent to its end heading (centre
+//!    `c_i = w_i + R_b·(sin φ_i, −cos φ_i)`). All UAVs circle at the same angular rate `v/R_b`, so the
+//!    difference of two positions is `c_i − c_j` plus a vector of constant length
+//!    `b_ij = 2R_b·|sin((φ_i − φ_j)/2)|` turning once per period: the pair's distance for all future time
+//!    has the closed-form minimum `| |c_i − c_j| − b_ij |`, required `≥ D_min + δ`. The standoff on the
+//!    circle is `| |ẑ(τ) − c_i| − R_b |`, required `≥ B(τ) + δ`: for a static emitter for all τ (a
+//!    constant); for a moving one over the horizon `τ ∈ [Δt, Δt + H]` (`safety_horizon_s`), with the
+//!    bound `σ̄(Δt + H)` — for a moving emitter whose velocity is uncertain no orbit is safe for ever, so
+//!    the certificate there is for the horizon `H`, renewed every step.
+//!
+//! **Why the certificate carries over (static emitter).** If step t's plan is certified, the step
+//! after it has at least one certified plan: the backup's first step itself (every UAV turns right by
+//! `θ_b`). Its arcs lie on the backup circles, flown in step, so the pair distances along them are at
+//! least the backup's minimum `D_min + δ`, and the distances to ẑ at least `B + δ`; its turn is
+//! `θ_b ≤ θ_max`; and its own backup is the same circles. The margin `δ = MIN_TOLERANCE_M` is what the
+//! certified bound along the arcs may fall short of the true minimum, so the check of that step passes.
+//! The planner always evaluates this candidate, so a certified plan exists at every step after a
+//! certified one — as long as the estimate ẑ and its covariance do not move so much that the standing
+//! backup loses its margin (then the step says so, and the UAVs fly the plan with the largest minimum
+//! margin), and for a moving emitter within the horizon.
+//!
+//! Units: metres, seconds, radians.
+
+use nalgebra::{Matrix2, Vector2};
+use serde::{Deserialize, Serialize};
+
+use crate::arc::{Arc, MIN_TOLERANCE_M, moving_point_min_distance, pair_min_distance_from};
+use crate::kinematics::max_turn;
+
+/// Most the backup turns per step, radians: below π so that the commanded heading `ψ − θ_b` cannot wrap
+/// into a left turn.
+pub const BACKUP_MAX_TURN: f64 = 0.9 * std::f64::consts::PI;
+
+/// How the planner keeps spacing and standoff (`safety` in the scenario).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SafetyMode {
+    /// Every plan certified along the arcs with a backup for ever (this module); the default.
+    #[default]
+    Certified,
+    /// The paper's constraints at the next waypoints only (eqs. 55–59), traded in one penalised
+    /// fitness; what `uavloc paper` runs.
+    Waypoints,
+}
+
+impl SafetyMode {
+    /// The TOML / CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Certified => "certified",
+            Self::Waypoints => "waypoints",
+        }
+    }
+}
+
+/// The emitter as the planner predicts it over the interval and beyond: ẑ at the plan's start moving
+/// at the estimated velocity, with a bound on the standard deviation of the predicted position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmitterPrediction {
+    /// ẑ at the plan's start, metres.
+    pub position: Vector2<f64>,
+    /// Estimated velocity, m/s (0 for a static model).
+    pub velocity: Vector2<f64>,
+    /// `sqrt(λ_max(P))` of the position covariance P, metres.
+    pub sigma_position: f64,
+    /// `sqrt(λ_max(V))` of the velocity covariance V, m/s (0 for a static model).
+    pub sigma_velocity: f64,
+    /// White-acceleration process noise q, m/s² (0 for a static model).
+    pub accel_noise: f64,
+}
+
+/// `sqrt(λ_max)` of a symmetric 2×2 matrix (0 for a non-positive one; NaN stays NaN).
+pub fn sqrt_lambda_max(m: &Matrix2<f64>) -> f64 {
+    let (a, b, d) = (m[(0, 0)], 0.5 * (m[(0, 1)] + m[(1, 0)]), m[(1, 1)]);
+    let mean = 0.5 * (a + d);
+    let lambda = mean + (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    if lambda.is_nan() { f64::NAN } else { lambda.max(0.0).sqrt() }
+}
+
+impl EmitterPrediction {
+    /// A static emitter at `position` with covariance `cov` (m²).
+    pub fn fixed(position: Vector2<f64>, cov: &Matrix2<f64>) -> Self {
+        Self {
+            position,
+            velocity: Vector2::zeros(),
+            sigma_position: sqrt_lambda_max(cov),
+            sigma_velocity: 0.0,
+            accel_noise: 0.0,
+        }
+    }
+
+    /// A constant-velocity emitter: position `position` (cov `cov`), velocity `velocity` (cov
+    /// `velocity_cov`, m²/s²), white-acceleration noise `accel_noise` (m/s²).
+    pub fn moving(
+        position: Vector2<f64>,
+        cov: &Matrix2<f64>,
+        velocity: Vector2<f64>,
+        velocity_cov: &Matrix2<f64>,
+        accel_noise: f64,
+    ) -> Self {
+        Self {
+            position,
+            velocity,
+            sigma_position: sqrt_lambda_max(cov),
+            sigma_velocity: sqrt_lambda_max(velocity_cov),
+            accel_noise: accel_noise.max(0.0),
+        }
+    }
+
+    /// Whether the prediction moves or grows with time.
+    pub fn is_static(&self) -> bool {
+        self.velocity == Vector2::zeros() && self.sigma_velocity == 0.0 && self.accel_noise == 0.0
+    }
+
+    /// ẑ(τ) = ẑ + v̂·τ, metres, τ seconds after the plan's start.
+    pub fn at(&self, tau: f64) -> Vector2<f64> {
+        self.position + self.velocity * tau
+    }
+
+    /// A bound on the standard deviation of the predicted position along any direction at τ ≥ 0:
+    /// the error is `e_p + τ·e_v + w(τ)` (position, velocity, integrated white acceleration with
+    /// variance `q²τ³/3` per axis), and the standard deviation of a sum is at most the sum of theirs:
+    /// `σ̄(τ) = σ_p + τ·σ_v + q·sqrt(τ³/3)`, metres — increasing in τ, whatever the cross-covariance.
+    pub fn sigma_bound(&self, tau: f64) -> f64 {
+        let tau = tau.max(0.0);
+        self.sigma_position + tau * self.sigma_velocity + self.accel_noise * (tau * tau * tau / 3.0).sqrt()
+    }
+}
+
+/// The limits a plan is certified against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SafetyLimits {
+    /// Arc length per step `L = v·Δt`, metres.
+    pub arc_len: f64,
+    /// Planning interval Δt, seconds.
+    pub dt: f64,
+    /// `R_min`, metres (0: off).
+    pub r_min: f64,
+    /// `D_min`, metres (0: off).
+    pub d_min: f64,
+    /// `L_min`, metres (0: off).
+    pub l_min: f64,
+    /// `k = Φ⁻¹(c)` of the standoff chance bound (0: at ẑ).
+    pub standoff_k: f64,
+    /// Horizon H of the backup's standoff for a moving emitter, seconds.
+    pub horizon_s: f64,
+}
+
+impl SafetyLimits {
+    /// The backup's turn per step `θ_b = min(L/R_min, 0.9π)`, radians.
+    pub fn backup_turn(&self) -> f64 {
+        max_turn(self.arc_len, self.r_min).min(BACKUP_MAX_TURN)
+    }
+
+    /// The backup circle's radius `R_b = L/θ_b ≥ R_min`, metres.
+    pub fn backup_radius(&self) -> f64 {
+        self.arc_len / self.backup_turn()
+    }
+
+    /// The backup's commanded headings from `headings`: every UAV turns right by `θ_b`.
+    pub fn backup_headings(&self, headings: &[f64]) -> Vec<f64> {
+        let turn = self.backup_turn();
+        headings.iter().map(|h| h - turn).collect()
+    }
+}
+
+/// Which limit a margin belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SafetyLimit {
+    /// A turn tighter than `R_min`.
+    TurnRadius,
+    /// Two UAVs closer than `D_min` along their arcs.
+    Spacing,
+    /// A UAV closer than the standoff bound along its arc.
+    Standoff,
+    /// Two UAVs' backup circles come closer than `D_min`.
+    BackupSpacing,
+    /// A UAV's backup circle comes closer than the standoff bound.
+    BackupStandoff,
+}
+
+/// The tightest limit of a plan: which, and for which UAVs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Tightest {
+    /// The limit.
+    pub limit: SafetyLimit,
+    /// The UAV.
+    pub uav: usize,
+    /// The other UAV of a pair.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub other: Option<usize>,
+    /// Normalised deficit (bound − value)/bound; ≤ 0 when the limit holds.
+    pub deficit: f64,
+}
+
+/// The certificate of one plan.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SafetyReport {
+    /// Every limit holds (see the module docs).
+    pub certified: bool,
+    /// Smallest distance between two UAVs along the arcs (certified lower bound), metres; `null` with
+    /// spacing off. In threshold mode only known to be at least `D_min` when it holds.
+    pub min_pair_m: Option<f64>,
+    /// Smallest `distance to ẑ(τ) − (L_min + k·σ̄)` along the arcs, metres (≥ 0 when it holds); `null`
+    /// with the standoff off.
+    pub standoff_margin_m: Option<f64>,
+    /// Smallest pair distance on the backup circles for ever, metres.
+    pub backup_pair_m: Option<f64>,
+    /// Smallest standoff margin on the backup circles (for ever, or over the horizon), metres.
+    pub backup_standoff_margin_m: Option<f64>,
+    /// The limit closest to (or furthest beyond) its bound.
+    pub tightest: Option<Tightest>,
+}
+
+impl SafetyReport {
+    /// The largest normalised deficit, 0 when certified: the merit the planner lowers first (the plan
+    /// with the largest minimum margin, relative to each bound, wins among uncertified plans).
+    pub fn deficit(&self) -> f64 {
+        self.tightest.map_or(0.0, |t| t.deficit.max(0.0))
+    }
+}
+
+/// Certifies the plan `phi` of UAVs at `positions` with headings `psi` against `limits` and the
+/// predicted emitter. With `exact` the minima are bracketed to [`MIN_TOLERANCE_M`] (for reports);
+/// without, a pair or standoff is only checked against its bound (the planner's fast path).
+pub fn certify(
+    positions: &[Vector2<f64>],
+    psi: &[f64],
+    phi: &[f64],
+    emitter: &EmitterPrediction,
+    limits: &SafetyLimits,
+    exact: bool,
+) -> SafetyReport {
+    let n = positions.len().min(psi.len()).min(phi.len());
+    let mut arcs = [Arc::new(Vector2::zeros(), 0.0, 0.0, 0.0); tdoa::MAX_UAVS];
+    let mut ends = [Vector2::zeros(); tdoa::MAX_UAVS];
+    let n = n.min(tdoa::MAX_UAVS);
+    for i in 0..n {
+        arcs[i] = Arc::new(positions[i], psi[i], phi[i], limits.arc_len);
+        ends[i] = arcs[i].end();
+    }
+    let mut tightest: Option<Tightest> = None;
+    let mut note = |limit, uav, other, deficit: f64| {
+        let deficit = if deficit.is_nan() { f64::INFINITY } else { deficit };
+        if tightest.is_none_or(|t| deficit > t.deficit) {
+            tightest = Some(Tightest { limit, uav, other, deficit });
+        }
+    };
+    let delta = MIN_TOLERANCE_M;
+    // 1. Turn radius.
+    let theta_max = max_turn(limits.arc_len, limits.r_min);
+    if limits.r_min > 0.0 {
+        for (i, arc) in arcs[..n].iter().enumerate() {
+            note(SafetyLimit::TurnRadius, i, None, (arc.turn.abs() - theta_max) / theta_max);
+        }
+    }
+    // 2. Spacing along the arcs.
+    let mut min_pair = None::<f64>;
+    if limits.d_min > 0.0 {
+        let d = limits.d_min;
+        let threshold = if exact { f64::INFINITY } else { d };
+        for i in 0..n {
+            for j in i + 1..n {
+                let f0 = (positions[i] - positions[j]).norm();
+                let f1 = (ends[i] - ends[j]).norm();
+                let m = pair_min_distance_from(&arcs[i], &arcs[j], f0, f1, threshold).lower;
+                min_pair = Some(min_pair.map_or(m, |p| p.min(m)));
+                note(SafetyLimit::Spacing, i, Some(j), (d - m) / d);
+            }
+        }
+    }
+    // 3. Standoff along the arcs, from the emitter as predicted over the interval.
+    let mut standoff = None::<f64>;
+    let b_step = limits.l_min + limits.standoff_k * emitter.sigma_bound(limits.dt);
+    if limits.l_min > 0.0 {
+        let threshold = if exact { f64::INFINITY } else { b_step };
+        for (i, arc) in arcs[..n].iter().enumerate() {
+            let m = moving_point_min_distance(arc, emitter.position, emitter.velocity, limits.dt, threshold).lower;
+            let margin = m - b_step;
+            standoff = Some(standoff.map_or(margin, |s| s.min(margin)));
+            note(SafetyLimit::Standoff, i, None, -margin / b_step);
+        }
+    }
+    // 4. The backup circles from the end state.
+    let radius = limits.backup_radius();
+    let mut centres = [Vector2::zeros(); tdoa::MAX_UAVS];
+    let mut half = [(0.0, 0.0); tdoa::MAX_UAVS];
+    for i in 0..n {
+        let (s, c) = phi[i].sin_cos();
+        centres[i] = ends[i] + Vector2::new(s, -c) * radius;
+        half[i] = (0.5 * phi[i]).sin_cos();
+    }
+    let mut backup_pair = None::<f64>;
+    if limits.d_min > 0.0 {
+        let need = limits.d_min + delta;
+        for i in 0..n {
+            for j in i + 1..n {
+                // sin((φ_i − φ_j)/2) from the half-angle sines and cosines.
+                let sin_half = half[i].0 * half[j].1 - half[i].1 * half[j].0;
+                let b = 2.0 * radius * sin_half.abs();
+                let m = ((centres[i] - centres[j]).norm() - b).abs();
+                backup_pair = Some(backup_pair.map_or(m, |p| p.min(m)));
+                note(SafetyLimit::BackupSpacing, i, Some(j), (need - m) / need);
+            }
+        }
+    }
+    let mut backup_standoff = None::<f64>;
+    if limits.l_min > 0.0 {
+        let (t0, t1) = if emitter.is_static() { (limits.dt, limits.dt) } else { (limits.dt, limits.dt + limits.horizon_s) };
+        let need = limits.l_min + limits.standoff_k * emitter.sigma_bound(t1);
+        let (q0, q1) = (emitter.at(t0), emitter.at(t1));
+        for (i, c) in centres[..n].iter().enumerate() {
+            let (dmin, dmax) = segment_distance_range(*c, q0, q1);
+            let to_circle = if (dmin..=dmax).contains(&radius) {
+                0.0
+            } else {
+                (dmin - radius).abs().min((dmax - radius).abs())
+            };
+            let margin = to_circle - need;
+            backup_standoff = Some(backup_standoff.map_or(margin, |s| s.min(margin)));
+            note(SafetyLimit::BackupStandoff, i, None, (need + delta - to_circle) / (need + delta));
+        }
+    }
+    let certified = tightest.is_none_or(|t| t.deficit <= 0.0);
+    SafetyReport {
+        certified,
+        min_pair_m: min_pair,
+        standoff_margin_m: standoff,
+        backup_pair_m: backup_pair,
+        backup_standoff_margin_m: backup_standoff,
+        tightest,
+    }
+}
+
+/// The smallest and largest distance from `c` to the segment `[q0, q1]`, metres.
+fn segment_distance_range(c: Vector2<f64>, q0: Vector2<f64>, q1: Vector2<f64>) -> (f64, f64) {
+    let d = q1 - q0;
+    let len2 = d.norm_squared();
+    let t = if len2 > 0.0 { ((c - q0).dot(&d) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let dmin = (q0 + d * t - c).norm();
+    let dmax = (q0 - c).norm().max((q1 - c).norm());
+    (dmin, dmax)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn limits() -> SafetyLimits {
+        SafetyLimits {
+            arc_len: 500.0,
+            dt: 10.0,
+            r_min: 1000.0,
+            d_min: 500.0,
+            l_min: 3000.0,
+            standoff_k: 2.326,
+            horizon_s: 300.0,
+        }
+    }
+
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// Flies the backup (right turns of θ_b) for `steps` steps from `(p, ψ)`, sampled 50 times per
+    /// step: the smallest pair distance and distance to ẑ(τ) seen, τ from the backup's start.
+    fn fly_backup(
+        p: &[Vector2<f64>],
+        psi: &[f64],
+        lim: &SafetyLimits,
+        e: &EmitterPrediction,
+        steps: usize,
+    ) -> (f64, f64) {
+        let (mut p, mut psi) = (p.to_vec(), psi.to_vec());
+        let (mut pair, mut standoff) = (f64::INFINITY, f64::INFINITY);
+        for k in 0..steps {
+            let phi = lim.backup_headings(&psi);
+            let arcs: Vec<Arc> = (0..p.len()).map(|i| Arc::new(p[i], psi[i], phi[i], lim.arc_len)).collect();
+            for s in 0..=50 {
+                let s = s as f64 / 50.0;
+                let tau = lim.dt * (1.0 + k as f64 + s);
+                for i in 0..p.len() {
+                    standoff = standoff.min((arcs[i].at(s) - e.at(tau)).norm());
+                    for j in i + 1..p.len() {
+                        pair = pair.min((arcs[i].at(s) - arcs[j].at(s)).norm());
+                    }
+                }
+            }
+            p = arcs.iter().map(Arc::end).collect();
+            psi = phi;
+        }
+        (pair, standoff)
+    }
+
+    #[test]
+    fn the_backup_minima_are_those_of_flying_it() {
+        // The closed forms against flying the backup for 40 steps (longer than a circle: 2πR_b/L ≈ 12.6).
+        let mut r = Lcg(17);
+        let lim = limits();
+        for case in 0..200 {
+            let n = 2 + (case % 4);
+            let p: Vec<_> = (0..n).map(|_| Vector2::new(r.next() * 6000.0, r.next() * 6000.0)).collect();
+            let psi: Vec<_> = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+            let e = EmitterPrediction::fixed(Vector2::new(3000.0, 3000.0), &Matrix2::zeros());
+            // A plan that goes straight on: its end state is (arc end, ψ).
+            let rep = certify(&p, &psi, &psi, &e, &lim, true);
+            let ends: Vec<_> = (0..n).map(|i| Arc::new(p[i], psi[i], psi[i], lim.arc_len).end()).collect();
+            let (pair, standoff) = fly_backup(&ends, &psi, &lim, &e, 40);
+            let bp = rep.backup_pair_m.unwrap();
+            assert!(bp <= pair + 1e-6 && pair <= bp + 2.0, "case {case}: closed form {bp} vs flown {pair}");
+            let bs = rep.backup_standoff_margin_m.unwrap() + lim.l_min;
+            assert!(bs <= standoff + 1e-6 && standoff <= bs + 2.0, "case {case}: {bs} vs {standoff}");
+        }
+    }
+
+    #[test]
+    fn a_moving_emitter_is_kept_over_the_horizon() {
+        let mut r = Lcg(23);
+        let lim = SafetyLimits { standoff_k: 0.0, ..limits() };
+        let steps = (lim.horizon_s / lim.dt) as usize;
+        for case in 0..100 {
+            let p = vec![Vector2::new(r.next() * 8000.0, r.next() * 8000.0)];
+            let psi = vec![(r.next() - 0.5) * 2.0 * PI];
+            let v = Vector2::new((r.next() - 0.5) * 20.0, (r.next() - 0.5) * 20.0);
+            let e = EmitterPrediction::moving(Vector2::new(4000.0, 4000.0), &Matrix2::zeros(), v, &Matrix2::zeros(), 0.0);
+            let rep = certify(&p, &psi, &psi, &e, &lim, true);
+            let end = Arc::new(p[0], psi[0], psi[0], lim.arc_len).end();
+            let (_, standoff) = fly_backup(&[end], &psi, &lim, &e, steps);
+            let bs = rep.backup_standoff_margin_m.unwrap() + lim.l_min;
+            assert!(bs <= standoff + 1e-6, "case {case}: bound {bs} above the flown {standoff}");
+        }
+    }
+
+    #[test]
+    fn sigma_bound_covers_the_predicted_covariance() {
+        // A random joint covariance of position and velocity [[P, C], [Cᵀ, V]] and q:
+        // sqrt(λ_max(P(τ))) ≤ σ̄(τ), with P(τ) = P + τ(C + Cᵀ) + τ²V + q²τ³/3·I.
+        let mut r = Lcg(31);
+        for _ in 0..500 {
+            let a = nalgebra::Matrix4::from_fn(|_, _| (r.next() - 0.5) * 100.0);
+            let joint = a * a.transpose();
+            let p = joint.fixed_view::<2, 2>(0, 0).into_owned();
+            let c = joint.fixed_view::<2, 2>(0, 2).into_owned();
+            let v = joint.fixed_view::<2, 2>(2, 2).into_owned();
+            let q = r.next();
+            let e = EmitterPrediction::moving(Vector2::zeros(), &p, Vector2::zeros(), &v, q);
+            for tau in [0.0, 0.01, 1.0, 10.0, 100.0, 1000.0] {
+                let pt = p + (c + c.transpose()) * tau + v * tau * tau + Matrix2::identity() * q * q * tau.powi(3) / 3.0;
+                assert!(sqrt_lambda_max(&pt) <= e.sigma_bound(tau) * (1.0 + 1e-12) + 1e-9, "τ {tau}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_backups_first_step_is_certified_after_a_certified_plan() {
+        // The invariant of the module docs, over random states: whenever a plan is certified, the
+        // backup's first step from its end state is certified too.
+        let mut r = Lcg(41);
+        let lim = limits();
+        let mut certified = 0;
+        for _ in 0..3000 {
+            let n = 3 + (r.next() * 6.0) as usize;
+            let e = EmitterPrediction::fixed(Vector2::zeros(), &Matrix2::new(4e4, 1e4, 1e4, 9e4));
+            let p: Vec<_> = (0..n)
+                .map(|_| {
+                    let a = r.next() * 2.0 * PI;
+                    Vector2::new(a.cos(), a.sin()) * (3500.0 + r.next() * 3000.0)
+                })
+                .collect();
+            let psi: Vec<_> = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+            let phi: Vec<_> = psi.iter().map(|h| h + (r.next() - 0.5) * 0.9).collect();
+            let rep = certify(&p, &psi, &phi, &e, &lim, false);
+            if !rep.certified {
+                continue;
+            }
+            certified += 1;
+            let ends: Vec<_> = (0..n).map(|i| Arc::new(p[i], psi[i], phi[i], lim.arc_len).end()).collect();
+            let next = lim.backup_headings(&phi);
+            let again = certify(&ends, &phi, &next, &e, &lim, false);
+            assert!(again.certified, "{again:?}");
+        }
+        assert!(certified > 100, "only {certified} certified states");
+    }
+
+    #[test]
+    fn head_on_pairs_and_a_uav_over_the_emitter_are_not_certified() {
+        let lim = limits();
+        let e = EmitterPrediction::fixed(Vector2::new(0.0, 20_000.0), &Matrix2::zeros());
+        let p = [Vector2::new(0.0, 0.0), Vector2::new(800.0, 0.0)];
+        let rep = certify(&p, &[0.0, PI], &[0.0, PI], &e, &lim, true);
+        assert!(!rep.certified);
+        let t = rep.tightest.unwrap();
+        assert_eq!((t.limit, t.uav, t.other), (SafetyLimit::Spacing, 0, Some(1)));
+        assert!(rep.min_pair_m.unwrap() < MIN_TOLERANCE_M, "{rep:?}");
+        let e = EmitterPrediction::fixed(Vector2::new(250.0, 0.0), &Matrix2::zeros());
+        let rep = certify(&p[..1], &[0.0], &[0.0], &e, &lim, true);
+        assert_eq!(rep.tightest.unwrap().limit, SafetyLimit::Standoff);
+        assert!((rep.standoff_margin_m.unwrap() + lim.l_min).abs() < MIN_TOLERANCE_M);
+    }
+}
