@@ -307,6 +307,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
                     solver,
                     run_seed: sc.seed,
                     step,
+                    motion: planner::wire::motion_of(&replayed),
                 })
                 .ok()
                 .map(|p| p.headings)

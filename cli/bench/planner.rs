@@ -254,6 +254,7 @@ impl PlanInput {
             solver,
             run_seed: self.run_seed,
             step: self.step,
+            motion: None,
         }
     }
 }

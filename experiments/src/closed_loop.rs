@@ -110,6 +110,7 @@ pub fn run_closed_loop(
                 solver,
                 run_seed: scenario.seed,
                 step: k,
+                motion: velocity.map(|(velocity, velocity_cov)| planner::EmitterMotion { velocity, velocity_cov }),
             })
             .map_err(|e| failed(format!("step {k}: plan"), &e))?;
             world.apply(&plan.headings).map_err(|e| failed(format!("step {k}: move"), &e))?;
@@ -177,6 +178,7 @@ mod tests {
                     solver: SolverKind::Pso,
                     run_seed: sc.seed,
                     step: k,
+                    motion: None,
                 })
                 .unwrap();
                 assert!(out.fitness.is_feasible(), "{objective} step {k}: {:?}", out.active_constraints);

@@ -239,8 +239,9 @@ impl SafetyReport {
 }
 
 /// Certifies the plan `phi` of UAVs at `positions` with headings `psi` against `limits` and the
-/// predicted emitter. With `exact` the minima are bracketed to [`MIN_TOLERANCE_M`] (for reports);
-/// without, a pair or standoff is only checked against its bound (the planner's fast path).
+/// predicted emitter. Whether it is certified never depends on `exact`: with `exact` the reported minima
+/// are also bracketed to [`MIN_TOLERANCE_M`] (for reports); without, a pair's or a standoff's reported
+/// minimum is only known to be at least its bound when it holds (the planner's fast path).
 pub fn certify(
     positions: &[Vector2<f64>],
     psi: &[f64],
@@ -276,14 +277,14 @@ pub fn certify(
     let mut min_pair = None::<f64>;
     if limits.d_min > 0.0 {
         let d = limits.d_min;
-        let threshold = if exact { f64::INFINITY } else { d };
         for i in 0..n {
             for j in i + 1..n {
                 let f0 = (positions[i] - positions[j]).norm();
                 let f1 = (ends[i] - ends[j]).norm();
-                let m = pair_min_distance_from(&arcs[i], &arcs[j], f0, f1, threshold).lower;
-                min_pair = Some(min_pair.map_or(m, |p| p.min(m)));
+                let m = pair_min_distance_from(&arcs[i], &arcs[j], f0, f1, d).lower;
                 note(SafetyLimit::Spacing, i, Some(j), (d - m) / d);
+                let m = if exact { pair_min_distance_from(&arcs[i], &arcs[j], f0, f1, f64::INFINITY).lower } else { m };
+                min_pair = Some(min_pair.map_or(m, |p| p.min(m)));
             }
         }
     }
@@ -291,12 +292,13 @@ pub fn certify(
     let mut standoff = None::<f64>;
     let b_step = limits.l_min + limits.standoff_k * emitter.sigma_bound(limits.dt);
     if limits.l_min > 0.0 {
-        let threshold = if exact { f64::INFINITY } else { b_step };
+        let (z, v, dt) = (emitter.position, emitter.velocity, limits.dt);
         for (i, arc) in arcs[..n].iter().enumerate() {
-            let m = moving_point_min_distance(arc, emitter.position, emitter.velocity, limits.dt, threshold).lower;
+            let m = moving_point_min_distance(arc, z, v, dt, b_step).lower;
+            note(SafetyLimit::Standoff, i, None, (b_step - m) / b_step);
+            let m = if exact { moving_point_min_distance(arc, z, v, dt, f64::INFINITY).lower } else { m };
             let margin = m - b_step;
             standoff = Some(standoff.map_or(margin, |s| s.min(margin)));
-            note(SafetyLimit::Standoff, i, None, -margin / b_step);
         }
     }
     // 4. The backup circles from the end state.

@@ -23,6 +23,7 @@ use tdoa::{DEFAULT_KAPPA, Dynamics, EmitterModel, MAX_EXTENT_M, MAX_UAVS, NoiseM
 use thiserror::Error;
 
 use crate::kinematics::bearing;
+use crate::safety::SafetyMode;
 use crate::solver_config::{AcoConfig, EarlyStop, GaConfig, GradientConfig, PsoConfig};
 
 /// Smallest covariance (m², times the identity) handed to the planner in controlled mode: at scale
@@ -181,6 +182,14 @@ pub struct Scenario {
     /// [0, 1) — our choice 0.99; 0 is the paper's constraint `|w − ẑ| ≥ L_min` (see
     /// `planner::constraints`).
     pub standoff_confidence: f64,
+    /// How spacing and standoff are kept: `certified` (every plan certified along the flown arcs, with
+    /// a backup manoeuvre for ever; see `model::safety`) or `waypoints` (the paper's constraints at the
+    /// next waypoints only, traded in one fitness). Our choice: `certified`; `uavloc paper` runs
+    /// `waypoints`.
+    pub safety: SafetyMode,
+    /// Horizon of the backup's standoff from a *moving* emitter, seconds (a static emitter is kept for
+    /// ever). Our choice: 300 s.
+    pub safety_horizon_s: f64,
     /// Early stopping shared by the solvers (`[early_stop]`).
     pub early_stop: EarlyStop,
     /// PSO settings (`[pso]`).
@@ -222,6 +231,8 @@ impl Default for Scenario {
             velocity_prior_sigma: 20.0,
             emitter_velocity: [0.0, 0.0],
             standoff_confidence: 0.99,
+            safety: SafetyMode::Certified,
+            safety_horizon_s: 300.0,
             early_stop: EarlyStop::default(),
             pso: PsoConfig::default(),
             ga: GaConfig::default(),
@@ -235,7 +246,48 @@ impl Scenario {
     /// The paper's method on the nominal case: [`Scenario::default`] with the per-step Chan estimator
     /// (`snapshot`) and the approach constraint at ẑ (`standoff_confidence = 0`). `uavloc paper` runs it.
     pub fn paper() -> Self {
-        Self { estimator: EstimatorKind::Snapshot, standoff_confidence: 0.0, ..Self::default() }
+        Self {
+            estimator: EstimatorKind::Snapshot,
+            standoff_confidence: 0.0,
+            safety: SafetyMode::Waypoints,
+            ..Self::default()
+        }
+    }
+
+    /// A certified run starts safe: no two UAVs closer than `D_min` and no UAV within `L_min` of the
+    /// emitter at step 0 (a start that is safe but admits no certified plan — two UAVs converging inside
+    /// their turn radii — runs, flagged uncertified from step 0).
+    fn check_safe_start(&self) -> Result<(), ScenarioError> {
+        let n = self.uavs.len();
+        for a in 0..n {
+            for b in a + 1..n {
+                let d = dist(self.uavs[a], self.uavs[b]);
+                if self.d_min > 0.0 && d < self.d_min {
+                    return Err(invalid(
+                        "uavs",
+                        format!(
+                            "UAV {a} and UAV {b} start {d:.1} m apart, closer than d_min = {} m: an unsafe start \
+                             (safety = \"certified\"; \"waypoints\" runs it)",
+                            self.d_min
+                        ),
+                    ));
+                }
+            }
+        }
+        for (i, p) in self.uavs.iter().enumerate() {
+            let d = dist(*p, self.emitter);
+            if self.l_min > 0.0 && d < self.l_min {
+                return Err(invalid(
+                    "uavs",
+                    format!(
+                        "UAV {i} starts {d:.1} m from the emitter, inside l_min = {} m: an unsafe start \
+                         (safety = \"certified\"; \"waypoints\" runs it)",
+                        self.l_min
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The fused estimator's motion model (validated parameters).
@@ -369,6 +421,10 @@ impl Scenario {
             norm(self.emitter_velocity) * self.dt,
         )?;
         finite("standoff_confidence", self.standoff_confidence)?;
+        positive("safety_horizon_s", self.safety_horizon_s)?;
+        if self.safety == SafetyMode::Certified {
+            self.check_safe_start()?;
+        }
         if !(0.0..1.0).contains(&self.standoff_confidence) {
             return Err(invalid(
                 "standoff_confidence",

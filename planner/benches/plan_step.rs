@@ -38,6 +38,7 @@ fn steps(c: &mut Criterion) {
                 solver,
                 run_seed: 1,
                 step: 0,
+                motion: None,
             };
             group.bench_function(BenchmarkId::new(format!("{solver:?}").to_lowercase(), objective.name()), |b| {
                 b.iter(|| black_box(plan_step(black_box(&req)).unwrap()))

@@ -13,6 +13,7 @@
 //! - [`formation`]: the traditional fixed-formation baseline;
 //! - [`solver`], [`pso`], [`ga`], [`aco`], [`gradient`]: one solver trait, the paper's three solvers and
 //!   a deterministic gradient solver;
+//! - [`shield`]: the safety certificate as the planner's first ranking (`safety = "certified"`);
 //! - [`step`]: one planning step, [`plan_step`];
 //! - [`wire`]: a plan and a hold as the wire's commands;
 //! - [`process`]: the planner process (estimate in → `plan_step` → command out over iceoryx2).
@@ -32,6 +33,7 @@ pub mod heading_interval;
 pub mod objective;
 pub mod process;
 pub mod pso;
+pub mod shield;
 pub mod solver;
 pub mod staleness;
 pub mod step;
@@ -49,4 +51,5 @@ pub use objective::{CrlbObjective, ObjectiveKind, PlanObjective};
 pub use pso::{Pso, PsoConfig};
 pub use scenario::{PlannerTarget, RangeSigma, Scenario, ScenarioError, TargetMode};
 pub use solver::{EarlyStop, SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult, StopRule};
+pub use shield::EmitterMotion;
 pub use step::{PlanError, PlanOutput, PlanRequest, plan_step};

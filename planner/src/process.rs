@@ -176,6 +176,7 @@ impl Planner<'_> {
             solver: args.solver,
             run_seed: self.scenario.seed,
             step,
+            motion: wire::motion_of(est),
         }) {
             Ok(plan) => plan,
             Err(e) => {

@@ -50,6 +50,8 @@ use crate::heading_interval::{HeadingInterval, Uav, heading_interval};
 use crate::kinematics::{next_position, turn_angle, wrap_angle};
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError};
+use crate::shield::{EmitterMotion, Shield, prediction, safety_limits};
+use model::safety::{SafetyMode, SafetyReport};
 use crate::solver::{SearchSpace, SearchSpaceError, Solver as _, SolverKind};
 
 /// Why a planning step could not run.
@@ -106,6 +108,9 @@ pub struct PlanRequest<'a> {
     pub run_seed: u64,
     /// The step index (0-based).
     pub step: u64,
+    /// The emitter's estimated motion (a constant-velocity model), or `None` for a static emitter: the
+    /// safety certificate keeps the standoff from the emitter as predicted along the arcs.
+    pub motion: Option<EmitterMotion>,
 }
 
 /// The plan of one step.
@@ -131,6 +136,8 @@ pub struct PlanOutput {
     /// Kish's effective sample size of the `mc` criterion's weighted points this step (`None` for the
     /// other criteria); see [`crate::objective::CrlbObjective::effective_samples`].
     pub criterion_ess: Option<f64>,
+    /// The plan's safety certificate with its minima (`safety = "certified"`; `None` for `waypoints`).
+    pub safety: Option<SafetyReport>,
 }
 
 fn check_finite(what: impl Fn() -> String, value: f64) -> Result<(), PlanError> {
@@ -219,6 +226,11 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         check_finite(|| format!("y of UAV {i}"), p.y)?;
         check_finite(|| format!("heading of UAV {i}"), req.headings[i])?;
     }
+    if let Some(m) = &req.motion {
+        for (k, v) in m.velocity.iter().chain(m.velocity_cov.iter()).enumerate() {
+            check_finite(|| if k < 2 { "the emitter's velocity".into() } else { "its covariance".into() }, *v)?;
+        }
+    }
     let (pos, psi, z) = (req.positions, req.headings, req.estimate);
     let constraints = Constraints::from_scenario(sc).with_covariance(req.covariance).for_step(pos, req.estimate);
     let r_avg = pos.iter().map(|p| (p - z).norm()).sum::<f64>() / n as f64;
@@ -232,6 +244,56 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         req.run_seed,
         req.step,
     )?;
+
+    if sc.safety == SafetyMode::Certified {
+        let shield = Shield {
+            positions: pos,
+            headings: psi,
+            limits: safety_limits(sc),
+            emitter: prediction(sc, z, &req.covariance, req.motion),
+            constraints: &constraints,
+            estimate: z,
+        };
+        let mut safe = |phi: &[f64]| {
+            shield.fitness(phi, || {
+                let next = waypoints_of(pos, psi, phi, sc);
+                objective.evaluate(&next[..n])
+            })
+        };
+        let (mut chosen, iterations, mut evaluations) = if !req.objective.is_optimised() {
+            (formation_headings(pos, psi, z, &constraints), 0, 0)
+        } else if req.solver == SolverKind::Gradient {
+            gradient_search(&constraints, pos, psi, z, sc, &mut safe)?
+        } else {
+            cone_then_reach(req, &constraints, &mut safe)?
+        };
+        // The backup step: certified whenever the previous plan was (see `crate::shield`).
+        let backup = shield.backup();
+        let (fit_chosen, fit_backup) = (safe(&chosen), safe(&backup));
+        evaluations += 2;
+        let fitness = if fit_backup < fit_chosen {
+            chosen = backup;
+            fit_backup
+        } else {
+            fit_chosen
+        };
+        let next = waypoints_of(pos, psi, &chosen, sc);
+        let waypoints = next[..n].to_vec();
+        let report = constraints.check(pos, psi, z, &chosen, &waypoints);
+        let objective_value = objective.evaluate(&waypoints);
+        return Ok(PlanOutput {
+            headings: chosen.iter().map(|h| wrap_angle(*h)).collect(),
+            waypoints,
+            objective_value,
+            fitness: Fitness::tiered(fitness.tiers(), objective_value),
+            active_constraints: report.active,
+            iterations,
+            evaluations,
+            plan_time_ms: start.elapsed().as_secs_f64() * 1e3,
+            criterion_ess: objective.effective_samples(),
+            safety: Some(shield.report(&chosen)),
+        });
+    }
 
     let mut standoff_ran = false;
     let (chosen, iterations, evaluations) = if req.objective.is_optimised() && req.solver == SolverKind::Gradient {
@@ -308,7 +370,47 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         evaluations,
         plan_time_ms: start.elapsed().as_secs_f64() * 1e3,
         criterion_ess: objective.effective_samples(),
+        safety: None,
     })
+}
+
+/// The certified search of PSO, GA and ACO: the heading cones first (the paper's search space); when
+/// their best plan is not certified, every reachable heading `ψ_i ± L/R_min` (seeded by
+/// `derive_seed(run_seed, step, StandoffSolver)`, started from the cone search's best moved into
+/// reach). Returns the better plan, iterations and evaluations.
+fn cone_then_reach(
+    req: &PlanRequest<'_>,
+    constraints: &Constraints,
+    safe: &mut dyn FnMut(&[f64]) -> Fitness,
+) -> Result<(Vec<f64>, usize, usize), PlanError> {
+    let (pos, psi, z, sc) = (req.positions, req.headings, req.estimate, req.scenario);
+    let n = pos.len();
+    let mut lo = Vec::with_capacity(n);
+    let mut hi = Vec::with_capacity(n);
+    let mut start_point = Vec::with_capacity(n);
+    for i in 0..n {
+        let (l, h) = constraints.cone(pos[i], z);
+        let alpha = 0.5 * (l + h);
+        lo.push(l);
+        hi.push(h);
+        start_point.push(alpha + turn_angle(alpha, psi[i]));
+    }
+    let solver = req.solver.build(sc);
+    let cone = solver.minimize(safe, &SearchSpace::new(lo, hi, start_point)?, derive_seed(req.run_seed, req.step, Purpose::Solver));
+    if cone.fitness.tiers()[0] == 0.0 {
+        return Ok((cone.best, cone.iterations, cone.evaluations));
+    }
+    let theta = constraints.max_turn();
+    let start_point = psi.iter().zip(&cone.best).map(|(p, b)| p + turn_angle(*p, *b).clamp(-theta, theta)).collect();
+    let space = SearchSpace::new(
+        psi.iter().map(|p| p - theta).collect(),
+        psi.iter().map(|p| p + theta).collect(),
+        start_point,
+    )?;
+    let reach = solver.minimize(safe, &space, derive_seed(req.run_seed, req.step, Purpose::StandoffSolver));
+    let (iterations, evaluations) = (cone.iterations + reach.iterations, cone.evaluations + reach.evaluations);
+    let best = if reach.fitness < cone.fitness { reach.best } else { cone.best };
+    Ok((best, iterations, evaluations))
 }
 
 #[cfg(test)]
@@ -347,6 +449,7 @@ mod tests {
                 solver,
                 run_seed: 42,
                 step: 3,
+                motion: None,
             }
         }
 

@@ -24,6 +24,15 @@ pub fn plan_command(
         .map_err(|e| format!("step {}: command: {e}", estimate.header.step))
 }
 
+/// The emitter's estimated motion an estimate carries (a fused constant-velocity estimate), as
+/// `uavloc simulate` takes it from the estimator's posterior; `None` otherwise.
+pub fn motion_of(est: &Estimate) -> Option<crate::shield::EmitterMotion> {
+    (est.estimator == 1 && est.model == 1).then(|| crate::shield::EmitterMotion {
+        velocity: Vector2::new(est.velocity[0], est.velocity[1]),
+        velocity_cov: tdoa::estimate_from_arrays(&[0.0; 2], &est.velocity_cov).1,
+    })
+}
+
 /// The waypoints of `plan` as the wire holds them, metres.
 pub fn waypoints(plan: &PlanOutput) -> Vec<[f64; 2]> {
     plan.waypoints.iter().map(|w| [w.x, w.y]).collect()

@@ -65,6 +65,7 @@ fn allocations_of(sc: &Scenario) -> Vec<(usize, usize)> {
             solver: SolverKind::Pso,
             run_seed: 42,
             step: 3,
+            motion: None,
         };
         plan_step(&req).unwrap(); // warm-up (thread-locals, lazy statics)
         let before = ALLOCATIONS.load(Ordering::Relaxed);

@@ -41,6 +41,7 @@ pub fn plan(sc: &Scenario, k: usize, objective: ObjectiveKind, solver: SolverKin
         solver,
         run_seed: 7,
         step: k as u64,
+        motion: None,
     })
     .unwrap()
 }

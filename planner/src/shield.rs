@@ -1,0 +1,117 @@
+//! The planner's safety shield (`safety = "certified"`): every candidate plan ranked first by its
+//! safety certificate ([`model::safety`]), then by the heading cone, then by the criterion.
+//!
+//! The certificate is a hard constraint, never traded: the lexicographic [`Fitness`] puts the largest
+//! normalised safety deficit of a plan (0 when certified) in its first tier, so every certified plan
+//! ranks above every uncertified one whatever its criterion, and among uncertified plans the one with
+//! the largest minimum margin (relative to each bound) wins. The heading cone (eq. 58) is the second
+//! tier — a preference of the paper's method that a certified plan may have to give up (on the
+//! standoff ring every heading in the cone leads inwards) — and the criterion decides among the rest.
+//! For an uncertified plan the criterion is not evaluated (its rank is settled by the first tier).
+//!
+//! Every solver's result is compared with the **backup step** (every UAV turns right by `θ_b`, the first
+//! step of the backup orbits of `model::safety`), which is certified whenever the previous step's plan
+//! was and the estimate has not moved its margins away: so a certified plan is found at every step
+//! after a certified one, whatever the solver (see `model::safety` for the argument).
+//!
+//! Units: metres, seconds, radians.
+
+use nalgebra::{Matrix2, Vector2};
+use model::safety::{EmitterPrediction, SafetyLimits, SafetyReport, certify};
+
+use crate::constraints::{Constraints, FEASIBILITY_EPS};
+use crate::fitness::Fitness;
+use crate::kinematics::wrap_angle;
+use crate::scenario::Scenario;
+
+/// The estimated motion of a constant-velocity emitter, as the fused estimator gives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmitterMotion {
+    /// Velocity estimate, m/s.
+    pub velocity: Vector2<f64>,
+    /// Its covariance, m²/s².
+    pub velocity_cov: Matrix2<f64>,
+}
+
+/// The limits of `scenario` as the certificate takes them.
+pub fn safety_limits(scenario: &Scenario) -> SafetyLimits {
+    SafetyLimits {
+        arc_len: scenario.speed * scenario.dt,
+        dt: scenario.dt,
+        r_min: scenario.r_min,
+        d_min: scenario.d_min,
+        l_min: scenario.l_min,
+        standoff_k: crate::constraints::standoff_k(scenario.standoff_confidence),
+        horizon_s: scenario.safety_horizon_s,
+    }
+}
+
+/// The emitter as predicted from ẑ (`estimate`, covariance `cov`) and, for a moving emitter, its
+/// estimated motion (white-acceleration noise of `scenario`).
+pub fn prediction(
+    scenario: &Scenario,
+    estimate: Vector2<f64>,
+    cov: &Matrix2<f64>,
+    motion: Option<EmitterMotion>,
+) -> EmitterPrediction {
+    match motion {
+        Some(m) => EmitterPrediction::moving(estimate, cov, m.velocity, &m.velocity_cov, scenario.process_noise_accel),
+        None => EmitterPrediction::fixed(estimate, cov),
+    }
+}
+
+/// One planning step's shield: the UAVs' state, the limits and the predicted emitter.
+#[derive(Debug, Clone, Copy)]
+pub struct Shield<'a> {
+    /// Current positions, metres.
+    pub positions: &'a [Vector2<f64>],
+    /// Current headings, radians.
+    pub headings: &'a [f64],
+    /// The limits.
+    pub limits: SafetyLimits,
+    /// The predicted emitter.
+    pub emitter: EmitterPrediction,
+    /// The heading-cone half-width Δα and the bearings to ẑ come from here.
+    pub constraints: &'a Constraints,
+    /// ẑ, metres.
+    pub estimate: Vector2<f64>,
+}
+
+impl Shield<'_> {
+    /// The certificate of the plan `phi` (fast: minima only checked against their bounds).
+    pub fn check(&self, phi: &[f64]) -> SafetyReport {
+        certify(self.positions, self.headings, phi, &self.emitter, &self.limits, false)
+    }
+
+    /// The certificate of the plan `phi` with its minima bracketed (for the step's report).
+    pub fn report(&self, phi: &[f64]) -> SafetyReport {
+        certify(self.positions, self.headings, phi, &self.emitter, &self.limits, true)
+    }
+
+    /// The summed normalised excess of the headings `phi` over their cones (eq. 58), 0 inside.
+    pub fn cone_excess(&self, phi: &[f64]) -> f64 {
+        let da = self.constraints.delta_alpha;
+        (0..phi.len())
+            .map(|i| {
+                let (lo, hi) = self.constraints.cone(self.positions[i], self.estimate);
+                let off = wrap_angle(phi[i] - 0.5 * (lo + hi)).abs();
+                let v = (off - da) / da;
+                if v > FEASIBILITY_EPS { v } else { 0.0 }
+            })
+            .sum()
+    }
+
+    /// The shield's fitness of `phi`: [safety deficit, cone excess, 0], then `objective()` — evaluated
+    /// only for a certified plan.
+    pub fn fitness(&self, phi: &[f64], objective: impl FnOnce() -> f64) -> Fitness {
+        let deficit = self.check(phi).deficit();
+        let cone = self.cone_excess(phi);
+        let value = if deficit > 0.0 { f64::INFINITY } else { objective() };
+        Fitness::tiered([deficit, cone, 0.0], value)
+    }
+
+    /// The backup step from the current state: every UAV turns right by `θ_b`.
+    pub fn backup(&self) -> Vec<f64> {
+        self.limits.backup_headings(self.headings)
+    }
+}
