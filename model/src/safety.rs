@@ -216,6 +216,8 @@ pub struct Tightest {
 pub struct SafetyReport {
     /// Every limit holds (see the module docs).
     pub certified: bool,
+    /// The normalised deficits of every limit that does not hold, summed (0 when certified).
+    pub total_deficit: f64,
     /// Smallest distance between two UAVs along the arcs (certified lower bound), metres; `null` with
     /// spacing off. In threshold mode only known to be at least `D_min` when it holds.
     pub min_pair_m: Option<f64>,
@@ -259,8 +261,12 @@ pub fn certify(
         ends[i] = arcs[i].end();
     }
     let mut tightest: Option<Tightest> = None;
+    let mut total = 0.0;
     let mut note = |limit, uav, other, deficit: f64| {
         let deficit = if deficit.is_nan() { f64::INFINITY } else { deficit };
+        if deficit > 0.0 {
+            total += deficit;
+        }
         if tightest.is_none_or(|t| deficit > t.deficit) {
             tightest = Some(Tightest { limit, uav, other, deficit });
         }
@@ -344,6 +350,7 @@ pub fn certify(
     let certified = tightest.is_none_or(|t| t.deficit <= 0.0);
     SafetyReport {
         certified,
+        total_deficit: total,
         min_pair_m: min_pair,
         standoff_margin_m: standoff,
         backup_pair_m: backup_pair,

@@ -51,5 +51,6 @@ pub use objective::{CrlbObjective, ObjectiveKind, PlanObjective};
 pub use pso::{Pso, PsoConfig};
 pub use scenario::{PlannerTarget, RangeSigma, Scenario, ScenarioError, TargetMode};
 pub use solver::{EarlyStop, SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult, StopRule};
+pub use model::safety::{SafetyMode, SafetyReport};
 pub use shield::EmitterMotion;
 pub use step::{PlanError, PlanOutput, PlanRequest, plan_step};

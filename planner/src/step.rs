@@ -47,7 +47,7 @@ use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
 use crate::gradient::Gradient;
 use crate::heading_interval::{HeadingInterval, Uav, heading_interval};
-use crate::kinematics::{next_position, turn_angle, wrap_angle};
+use crate::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError};
 use crate::shield::{EmitterMotion, Shield, prediction, safety_limits};
@@ -204,7 +204,12 @@ fn gradient_search(
         psi.iter().map(|p| p + theta).collect(),
         first.best.clone(),
     )?;
-    let second = solver.minimize_from(tiered, &reach, &[first.best.clone(), psi.to_vec()]);
+    // Also the cone centres moved into reach, and the backup step (every UAV turning right as far as the
+    // backup does), which the shield's certificate always holds when the previous plan was certified.
+    let centre: Vec<f64> =
+        (0..n).map(|i| psi[i] + turn_angle(psi[i], bearing(pos[i], z)).clamp(-theta, theta)).collect();
+    let backup: Vec<f64> = psi.iter().map(|p| p - theta.min(model::safety::BACKUP_MAX_TURN)).collect();
+    let second = solver.minimize_from(tiered, &reach, &[first.best.clone(), psi.to_vec(), centre, backup]);
     let (iterations, evaluations) = (first.iterations + second.iterations, first.evaluations + second.evaluations);
     let best = if second.fitness < first.fitness { second.best } else { first.best };
     Ok((best, iterations, evaluations))
@@ -260,8 +265,11 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
                 objective.evaluate(&next[..n])
             })
         };
-        let (mut chosen, iterations, mut evaluations) = if !req.objective.is_optimised() {
-            (formation_headings(pos, psi, z, &constraints), 0, 0)
+        let (mut chosen, iterations, evaluations) = if !req.objective.is_optimised() {
+            // The formation's headings, each moved into reach (the turn radius is never traded).
+            let theta = constraints.max_turn();
+            let formation = formation_headings(pos, psi, z, &constraints);
+            (psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect(), 0, 0)
         } else if req.solver == SolverKind::Gradient {
             gradient_search(&constraints, pos, psi, z, sc, &mut safe)?
         } else {
@@ -270,7 +278,6 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         // The backup step: certified whenever the previous plan was (see `crate::shield`).
         let backup = shield.backup();
         let (fit_chosen, fit_backup) = (safe(&chosen), safe(&backup));
-        evaluations += 2;
         let fitness = if fit_backup < fit_chosen {
             chosen = backup;
             fit_backup
@@ -374,7 +381,8 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
     })
 }
 
-/// The certified search of PSO, GA and ACO: the heading cones first (the paper's search space); when
+/// The certified search of PSO, GA and ACO: the heading cones within reach first (the paper's search
+/// space, where the turn radius holds); when
 /// their best plan is not certified, every reachable heading `ψ_i ± L/R_min` (seeded by
 /// `derive_seed(run_seed, step, StandoffSolver)`, started from the cone search's best moved into
 /// reach). Returns the better plan, iterations and evaluations.
@@ -385,22 +393,26 @@ fn cone_then_reach(
 ) -> Result<(Vec<f64>, usize, usize), PlanError> {
     let (pos, psi, z, sc) = (req.positions, req.headings, req.estimate, req.scenario);
     let n = pos.len();
+    let theta = constraints.max_turn();
     let mut lo = Vec::with_capacity(n);
     let mut hi = Vec::with_capacity(n);
     let mut start_point = Vec::with_capacity(n);
     for i in 0..n {
+        // The cone within reach (the turn radius is never traded), or the reachable heading nearest it.
         let (l, h) = constraints.cone(pos[i], z);
         let alpha = 0.5 * (l + h);
+        let here = alpha + turn_angle(alpha, psi[i]);
+        let (l, h) = (l.max(here - theta), h.min(here + theta));
+        let (l, h) = if l <= h { (l, h) } else if here - theta > h { (here - theta, here - theta) } else { (here + theta, here + theta) };
         lo.push(l);
         hi.push(h);
-        start_point.push(alpha + turn_angle(alpha, psi[i]));
+        start_point.push(here);
     }
     let solver = req.solver.build(sc);
     let cone = solver.minimize(safe, &SearchSpace::new(lo, hi, start_point)?, derive_seed(req.run_seed, req.step, Purpose::Solver));
     if cone.fitness.tiers()[0] == 0.0 {
         return Ok((cone.best, cone.iterations, cone.evaluations));
     }
-    let theta = constraints.max_turn();
     let start_point = psi.iter().zip(&cone.best).map(|(p, b)| p + turn_angle(*p, *b).clamp(-theta, theta)).collect();
     let space = SearchSpace::new(
         psi.iter().map(|p| p - theta).collect(),
