@@ -30,6 +30,8 @@ SUBSCRIBER_BUFFER = 64
 HISTORY = 0
 
 COMMAND_FLAG_HOLD = 1
+COMMAND_FLAG_CERTIFIED = 2  # the plan carries a safety certificate
+COMMAND_FLAG_UNCERTIFIED = 4  # no certified plan existed: the one with the largest minimum margin
 
 
 class Stamps(ctypes.Structure):

@@ -97,6 +97,7 @@ pub fn run_closed_loop(
             active_constraints: Vec::new(),
             planner: None,
             criterion_ess: None,
+            safety: None,
         };
         let measured_headings = world.headings().to_vec();
         let plan = if k < scenario.steps as u64 {
@@ -120,6 +121,7 @@ pub fn run_closed_loop(
             // The wire form, as the pipeline's monitor records it (no violation magnitudes).
             record.active_constraints = planner::active_mask::labels(&plan.active_constraints, plan.headings.len());
             record.criterion_ess = plan.criterion_ess;
+            record.safety = plan.safety.map(|r| monitor::StepSafety { certified: Some(r.certified), ..Default::default() });
             Some(plan)
         } else {
             None
@@ -144,6 +146,10 @@ pub fn run_closed_loop(
         estimator: scenario.estimator.name().to_string(),
         rejected_snapshots: 0,
         true_standoff_violations: None,
+        true_spacing_violations: 0,
+        uncertified_steps: 0,
+        min_pair_m: None,
+        min_true_distance_m: None,
         steps,
     };
     monitor::annotate(&mut run);

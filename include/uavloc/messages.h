@@ -101,6 +101,8 @@ typedef struct uavloc_estimate {
 
 /* uavloc_command.flags */
 #define UAVLOC_COMMAND_FLAG_HOLD 1u
+#define UAVLOC_COMMAND_FLAG_CERTIFIED 2u   /* the plan carries a safety certificate */
+#define UAVLOC_COMMAND_FLAG_UNCERTIFIED 4u /* no certified plan existed: the largest minimum margin */
 
 /* uavloc_state_echo.kind */
 #define UAVLOC_STATE_NONE 0u   /* a hold: planned from no estimate */

@@ -48,7 +48,7 @@ use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Mea
 use tdoa::{NoiseModel, Sensors};
 
 use crate::metrics::{crlb_at, step_metrics};
-use crate::record::{PlannerRef, RunRecord, StepRecord};
+use crate::record::{PlannerRef, RunRecord, StepRecord, StepSafety};
 
 /// The `active_constraints` entry of a step whose command was missed (see the module docs).
 pub const COMMAND_MISSED: &str = "command_missed";
@@ -363,6 +363,7 @@ impl Assembler {
             active_constraints: if missed { vec![COMMAND_MISSED.to_string()] } else { Vec::new() },
             planner: None,
             criterion_ess: None,
+            safety: None,
         };
         let mut planner = None;
         let chain = c.map_or(e.header.stamps, |c| c.header.stamps);
@@ -376,6 +377,8 @@ impl Assembler {
                     record.plan_ms = Some(c.plan_time_us as f64 / 1e3);
                     record.active_constraints =
                         active_mask::decode(c.active_constraints, c.violated_constraints, c.len());
+                    record.safety =
+                        c.certified().map(|certified| StepSafety { certified: Some(certified), ..StepSafety::default() });
                 }
                 let info = PlannerInfo {
                     instance: c.planner_instance,
@@ -423,6 +426,10 @@ impl Assembler {
             estimator: self.estimator.unwrap_or(self.scenario.estimator.name()).to_string(),
             rejected_snapshots: 0,
             true_standoff_violations: None,
+            true_spacing_violations: 0,
+            uncertified_steps: 0,
+            min_pair_m: None,
+            min_true_distance_m: None,
             steps: self.steps.clone(),
         }
     }

@@ -8,6 +8,7 @@
 //! [`latency`]: its log, stamp file and latency statistics), [`front_end`] tells whether an external
 //! front end is still there, and [`recording`] writes the run as MCAP.
 
+pub mod along_arcs;
 pub mod args;
 pub mod assemble;
 mod canvas;
@@ -33,4 +34,4 @@ pub use chart::{BarGroup, Series, plot_bars, plot_curves};
 pub use export::{ExportError, write_run, write_steps_csv, write_trajectory_csv};
 pub use metrics::{RunningBound, StepMetrics, annotate, crlb_at, step_metrics};
 pub use plot::{Metric, PlotError, PlotFormat, plot_comparison, plot_metrics, plot_trajectories};
-pub use record::{RunRecord, StepRecord};
+pub use record::{RunRecord, StepRecord, StepSafety};

@@ -79,15 +79,14 @@ impl RunningBound {
 /// each snapshot's information at that step's estimate); and what needs the truth: per step
 /// `estimate_error_m`, `nees`, `pcrlb_m`
 /// (the posterior CRLB from every snapshot so far, under the scenario's emitter model) and
-/// `min_true_distance_m`; for the run `rejected_snapshots` and `true_standoff_violations` (UAV, step
-/// pairs closer than `L_min` to the true emitter). Steps without a `truth` get `None`. The same pure
+/// `min_true_distance_m`; for the run `rejected_snapshots`; and the safety along the arcs flown
+/// ([`crate::along_arcs`]: per interval the margins, for the run `true_spacing_violations`,
+/// `true_standoff_violations`, `uncertified_steps`). Steps without a `truth` get `None`. The same pure
 /// function for `simulate` and the pipeline's monitor, so their records agree.
 pub fn annotate(run: &mut crate::RunRecord) {
     let sc = &run.scenario;
     let mut at_truth = RunningBound::new(sc);
     let mut along_estimates = RunningBound::new(sc);
-    let mut violations = 0u64;
-    let mut any_truth = false;
     run.rejected_snapshots = run.steps.iter().filter(|s| s.estimate_status == "rejected").count() as u64;
     for s in &mut run.steps {
         let est = Vector2::new(s.estimate[0], s.estimate[1]);
@@ -100,7 +99,6 @@ pub fn annotate(run: &mut crate::RunRecord) {
             s.min_true_distance_m = None;
             continue;
         };
-        any_truth = true;
         let z = Vector2::new(truth[0], truth[1]);
         let cov = nalgebra::Matrix2::new(
             s.estimate_cov[0][0],
@@ -113,11 +111,9 @@ pub fn annotate(run: &mut crate::RunRecord) {
         s.pcrlb_m = at_truth.add(s.step, &s.uavs, &z);
         let min = s.uavs.iter().map(|w| (w[0] - z.x).hypot(w[1] - z.y)).fold(f64::INFINITY, f64::min);
         s.min_true_distance_m = min.is_finite().then_some(min);
-        if sc.l_min > 0.0 {
-            violations += s.uavs.iter().filter(|w| (w[0] - z.x).hypot(w[1] - z.y) < sc.l_min).count() as u64;
-        }
     }
-    run.true_standoff_violations = any_truth.then_some(violations);
+    // The violations of D_min and L_min, counted along the arcs flown.
+    crate::along_arcs::annotate_along_arcs(run);
 }
 
 #[cfg(test)]
@@ -146,6 +142,10 @@ mod tests {
             estimator: "fused".into(),
             rejected_snapshots: 0,
             true_standoff_violations: None,
+            true_spacing_violations: 0,
+            uncertified_steps: 0,
+            min_pair_m: None,
+            min_true_distance_m: None,
             steps,
         }
     }

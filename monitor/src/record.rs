@@ -83,6 +83,29 @@ pub struct StepRecord {
     /// `simulate` only; absent otherwise).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub criterion_ess: Option<f64>,
+    /// The safety of the interval from this step to the next: the planner's certificate and the margins
+    /// along the arcs the UAVs flew ([`crate::annotate`]; absent on the last step).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub safety: Option<StepSafety>,
+}
+
+/// The safety of one interval (from a step to the next), along the arcs the UAVs flew.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct StepSafety {
+    /// The planner's word: `true` certified, `false` no certified plan existed (the UAVs flew the plan
+    /// with the largest minimum margin), `null` not certified by design (`safety = "waypoints"`, a hold,
+    /// a missed command).
+    pub certified: Option<bool>,
+    /// The smallest distance between two UAVs along the arcs, metres (certified lower bound, within
+    /// 0.25 m of the true minimum).
+    pub min_pair_m: Option<f64>,
+    /// The smallest standoff margin along the arcs to the estimate as predicted over the interval:
+    /// `distance − (L_min + k·σ̄)` with the chance bound of `standoff_confidence`, metres (`null` with
+    /// `l_min = 0`).
+    pub standoff_margin_m: Option<f64>,
+    /// The smallest distance of a UAV to the TRUE emitter along the arcs, metres (`null` without a
+    /// truth).
+    pub min_true_distance_m: Option<f64>,
 }
 
 /// A present `f64` that serde_json wrote as `null` because it was not finite (only `+∞` is possible
@@ -123,9 +146,23 @@ pub struct RunRecord {
     /// `estimate_status` `rejected`).
     #[serde(default)]
     pub rejected_snapshots: u64,
-    /// (UAV, step) pairs closer than `L_min` to the TRUE emitter (`null` without a truth).
+    /// (UAV, interval) pairs that came closer than `L_min` to the TRUE emitter anywhere along the arcs
+    /// flown (`null` without a truth).
     #[serde(default)]
     pub true_standoff_violations: Option<u64>,
+    /// (pair, interval) counts of two UAVs closer than `D_min` anywhere along the arcs flown.
+    #[serde(default)]
+    pub true_spacing_violations: u64,
+    /// Planned steps whose command said that no certified plan existed.
+    #[serde(default)]
+    pub uncertified_steps: u64,
+    /// The smallest distance between two UAVs along the arcs over the run, metres.
+    #[serde(default)]
+    pub min_pair_m: Option<f64>,
+    /// The smallest distance of a UAV to the TRUE emitter along the arcs over the run, metres (`null`
+    /// without a truth).
+    #[serde(default)]
+    pub min_true_distance_m: Option<f64>,
     /// Step 0 (initial geometry) to the final step.
     pub steps: Vec<StepRecord>,
 }
@@ -166,6 +203,7 @@ pub(crate) mod tests {
             active_constraints: vec![],
             planner: None,
             criterion_ess: None,
+            safety: None,
         }
     }
 

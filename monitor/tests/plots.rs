@@ -76,6 +76,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
                 },
                 planner: None,
                 criterion_ess: None,
+                safety: None,
             };
             for (p, h) in uavs.iter_mut().zip(&headings) {
                 p[0] += 500.0 * h.cos();
@@ -93,6 +94,10 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
         estimator: "snapshot".into(),
         rejected_snapshots: 0,
         true_standoff_violations: None,
+        true_spacing_violations: 0,
+        uncertified_steps: 0,
+        min_pair_m: None,
+        min_true_distance_m: None,
         steps,
     }
 }

@@ -20,8 +20,19 @@ pub fn plan_command(
 ) -> Result<Command, String> {
     let waypoints = waypoints(plan);
     let info = plan_info(plan, &waypoints, (solver, objective));
-    Command::from_estimate(estimate, received_ns, 0, instance, &info)
-        .map_err(|e| format!("step {}: command: {e}", estimate.header.step))
+    let mut command = Command::from_estimate(estimate, received_ns, 0, instance, &info)
+        .map_err(|e| format!("step {}: command: {e}", estimate.header.step))?;
+    command.flags |= safety_flags(plan);
+    Ok(command)
+}
+
+/// The [`Command::flags`] bits of `plan`'s safety certificate.
+pub fn safety_flags(plan: &PlanOutput) -> u32 {
+    match plan.safety.map(|s| s.certified) {
+        Some(true) => Command::FLAG_CERTIFIED,
+        Some(false) => Command::FLAG_UNCERTIFIED,
+        None => 0,
+    }
 }
 
 /// The emitter's estimated motion an estimate carries (a fused constant-velocity estimate), as

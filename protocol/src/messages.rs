@@ -848,7 +848,8 @@ pub struct Command {
     pub violated_constraints: u64,
     /// Number of UAVs N (3..=8).
     pub count: u32,
-    /// What kind of command this is: 0 a plan; [`Command::FLAG_HOLD`] a hold (see there). Unknown bits are
+    /// What kind of command this is: 0 a plan; [`Command::FLAG_HOLD`] a hold (see there); a plan's safety
+    /// certificate in [`Command::FLAG_CERTIFIED`] / [`Command::FLAG_UNCERTIFIED`]. Unknown bits are
     /// ignored.
     pub flags: u32,
     /// Criterion value at the waypoints.
@@ -978,6 +979,28 @@ impl Command {
     /// within its deadline (`planner --estimate-deadline-ms`), so it commands the UAVs' current headings
     /// (they fly straight on); `objective` is then −1 (no value) and `plan_time_us` 0.
     pub const FLAG_HOLD: u32 = 1;
+
+    /// [`Command::flags`] bit: the plan carries a safety certificate (the planner's `safety =
+    /// "certified"`: spacing and standoff hold along the arcs, with a backup manoeuvre for ever).
+    pub const FLAG_CERTIFIED: u32 = 2;
+
+    /// [`Command::flags`] bit: the planner certifies its plans but found no certified plan this step (an
+    /// unsafe start, or the estimate moved the standing backup's margins away): the plan is the one with
+    /// the largest minimum margin. Neither bit: a hold, or a planner that keeps the constraints at the
+    /// waypoints only (`safety = "waypoints"`).
+    pub const FLAG_UNCERTIFIED: u32 = 4;
+
+    /// The safety certificate's word on this command: `Some(true)` certified, `Some(false)` no certified
+    /// plan existed, `None` not certified by design (a hold, or `safety = "waypoints"`).
+    pub fn certified(&self) -> Option<bool> {
+        if self.flags & Self::FLAG_CERTIFIED != 0 {
+            Some(true)
+        } else if self.flags & Self::FLAG_UNCERTIFIED != 0 {
+            Some(false)
+        } else {
+            None
+        }
+    }
 
     /// This command with the estimator state `estimate` carries echoed ([`StateEcho::of`]).
     pub fn with_state_of(mut self, estimate: &Estimate) -> Self {
