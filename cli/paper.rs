@@ -34,7 +34,12 @@ Experiments:
                constraint (standoff_confidence 0.99 vs 0) and the posterior criteria, 24 and 60 steps:
                terminal RMSE vs PCRLB, steps until < 100 m, closest approach to the TRUE emitter, true
                L_min violations, paired differences (not part of `all`)
-  all          everything above but fusion, sharing runs
+  safety       beyond the paper: the certified planner (safety = \"certified\") against the waypoint
+               planner on M random scenarios (3–8 UAVs, L_min 1–8 km, D_min 200–1000 m, R_min
+               500–2000 m, 30–80 m/s, every other emitter moving), 120 steps each: pair approaches
+               below D_min and UAV-steps inside L_min of the TRUE emitter along the arcs flown, steps
+               without a certified plan (listed), terminal error and error/PCRLB (not part of `all`)
+  all          everything above but fusion and safety, sharing runs
 
 Defaults are the paper's: M = 200 outer runs, R = 30 inner TDOA-noise resamples per RMSE point, K = 200
 MC target samples, PSO 40 × 15, the nominal scenario of Table 1 (scenarios/nominal.toml). Settings the
@@ -51,6 +56,7 @@ Examples:
   uavloc paper table2
   uavloc paper all --quick
   uavloc paper table6 --runs 50 --json
+  uavloc paper safety --runs 200 --out results/safety/
   uavloc paper all --out results/      # Markdown + CSV per table, SVG + PNG per figure
 
 JSON (--json): {\"experiment\", \"title\", \"settings\", \"rows\", \"conclusions\"}; for `all`,
@@ -63,7 +69,7 @@ Timing: `all` with the defaults takes a few minutes on 2 cores; --quick (M = 20)
 #[derive(Args, Debug, Clone, PartialEq)]
 pub struct PaperArgs {
     /// Which experiment: table2 | table4 | table5 | table6 | table7 | table8 | table9 | table10 |
-    /// optimizers | sensitivity | fusion | all.
+    /// optimizers | sensitivity | fusion | safety | all.
     pub experiment: ExperimentKind,
     /// Outer Monte Carlo runs M (default 200, the paper's; 20 with --quick).
     #[arg(long, value_name = "M")]

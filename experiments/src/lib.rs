@@ -21,6 +21,7 @@ pub mod fusion;
 pub mod grid;
 pub mod optimizers;
 pub mod paper;
+pub mod safety;
 pub mod sensitivity;
 pub mod stats;
 pub mod table10;
@@ -134,6 +135,7 @@ pub enum ExperimentKind {
     Optimizers,
     Sensitivity,
     Fusion,
+    Safety,
     All,
 }
 
@@ -166,6 +168,7 @@ impl ExperimentKind {
             ExperimentKind::Optimizers => "optimizers",
             ExperimentKind::Sensitivity => "sensitivity",
             ExperimentKind::Fusion => "fusion",
+            ExperimentKind::Safety => "safety",
             ExperimentKind::All => "all",
         }
     }
@@ -184,6 +187,7 @@ impl ExperimentKind {
             ExperimentKind::Optimizers => optimizers::run(engine),
             ExperimentKind::Sensitivity => sensitivity::run(engine),
             ExperimentKind::Fusion => fusion::run(engine),
+            ExperimentKind::Safety => safety::run(engine),
             ExperimentKind::All => Err(ExperimentError::Input("`all` is not a single experiment".into())),
         }
     }
@@ -218,10 +222,10 @@ impl fmt::Display for ExperimentKind {
 impl FromStr for ExperimentKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::EACH.into_iter().chain([Self::Fusion, Self::All]).find(|k| k.name() == s).ok_or_else(|| {
+        Self::EACH.into_iter().chain([Self::Fusion, Self::Safety, Self::All]).find(|k| k.name() == s).ok_or_else(|| {
             format!(
                 "unknown experiment '{s}' (expected one of: table2, table4, table5, table6, table7, table8, table9, \
-                 table10, optimizers, sensitivity, fusion, all)"
+                 table10, optimizers, sensitivity, fusion, safety, all)"
             )
         })
     }

@@ -20,9 +20,11 @@
 //!    difference of two positions is `c_i − c_j` plus a vector of constant length
 //!    `b_ij = 2R_b·|sin((φ_i − φ_j)/2)|` turning once per period: the pair's distance for all future time
 //!    has the closed-form minimum `| |c_i − c_j| − b_ij |`, required `≥ D_min + δ`. The standoff on the
-//!    circle is `| |ẑ(τ) − c_i| − R_b |`, required `≥ B(τ) + δ`: for a static emitter for all τ (a
-//!    constant); for a moving one over the horizon `τ ∈ [Δt, Δt + H]` (`safety_horizon_s`), with the
-//!    bound `σ̄(Δt + H)` — for a moving emitter whose velocity is uncertain no orbit is safe for ever, so
+//!    circle is `| |ẑ(τ) − c_i| − R_b |`, required `≥ B(τ) + k·σ_p + δ`: for a static emitter for all
+//!    τ (a constant); for a moving one over the horizon `τ ∈ [Δt, Δt + H]` (`safety_horizon_s`), with
+//!    the bound `σ̄(Δt + H)`. The extra `k·σ_p` is room for the next estimate: an update moves ẑ by at
+//!    most `k·σ_p` along any direction with probability `c` (its covariance `M_k − M_{k+1}` is below
+//!    `M_k`), so the backup still holds from where the next step's estimate puts the emitter — for a moving emitter whose velocity is uncertain no orbit is safe for ever, so
 //!    the certificate there is for the horizon `H`, renewed every step.
 //!
 //! **Why the certificate carries over (static emitter).** If step t's plan is certified, the step
@@ -47,6 +49,9 @@ use crate::kinematics::max_turn;
 /// Most the backup turns per step, radians: below π so that the commanded heading `ψ − θ_b` cannot wrap
 /// into a left turn.
 pub const BACKUP_MAX_TURN: f64 = 0.9 * std::f64::consts::PI;
+
+/// Relative turn beyond `θ_max` that is rounding (a heading clamped onto the bound), not a violation.
+pub const TURN_ROUNDING: f64 = 1e-9;
 
 /// How the planner keeps spacing and standoff (`safety` in the scenario).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -218,6 +223,9 @@ pub struct SafetyReport {
     pub certified: bool,
     /// The normalised deficits of every limit that does not hold, summed (0 when certified).
     pub total_deficit: f64,
+    /// The largest normalised deficit of the step's own limits — turn radius, spacing and standoff
+    /// along the arcs — (0 when they hold): what the step itself flies, ranked before the backup.
+    pub step_deficit: f64,
     /// Smallest distance between two UAVs along the arcs (certified lower bound), metres; `null` with
     /// spacing off. In threshold mode only known to be at least `D_min` when it holds.
     pub min_pair_m: Option<f64>,
@@ -233,8 +241,8 @@ pub struct SafetyReport {
 }
 
 impl SafetyReport {
-    /// The largest normalised deficit, 0 when certified: the merit the planner lowers first (the plan
-    /// with the largest minimum margin, relative to each bound, wins among uncertified plans).
+    /// The largest normalised deficit, 0 when certified (the plan with the largest minimum margin,
+    /// relative to each bound, wins among uncertified plans).
     pub fn deficit(&self) -> f64 {
         self.tightest.map_or(0.0, |t| t.deficit.max(0.0))
     }
@@ -261,11 +269,14 @@ pub fn certify(
         ends[i] = arcs[i].end();
     }
     let mut tightest: Option<Tightest> = None;
-    let mut total = 0.0;
+    let (mut total, mut step) = (0.0, 0.0f64);
     let mut note = |limit, uav, other, deficit: f64| {
         let deficit = if deficit.is_nan() { f64::INFINITY } else { deficit };
         if deficit > 0.0 {
             total += deficit;
+            if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::Standoff) {
+                step = step.max(deficit);
+            }
         }
         if tightest.is_none_or(|t| deficit > t.deficit) {
             tightest = Some(Tightest { limit, uav, other, deficit });
@@ -276,7 +287,8 @@ pub fn certify(
     let theta_max = max_turn(limits.arc_len, limits.r_min);
     if limits.r_min > 0.0 {
         for (i, arc) in arcs[..n].iter().enumerate() {
-            note(SafetyLimit::TurnRadius, i, None, (arc.turn.abs() - theta_max) / theta_max);
+            // A turn clamped exactly onto θ_max may come back one ulp beyond it: rounding, not a violation.
+            note(SafetyLimit::TurnRadius, i, None, (arc.turn.abs() - theta_max) / theta_max - TURN_ROUNDING);
         }
     }
     // 2. Spacing along the arcs.
@@ -333,7 +345,10 @@ pub fn certify(
     let mut backup_standoff = None::<f64>;
     if limits.l_min > 0.0 {
         let (t0, t1) = if emitter.is_static() { (limits.dt, limits.dt) } else { (limits.dt, limits.dt + limits.horizon_s) };
-        let need = limits.l_min + limits.standoff_k * emitter.sigma_bound(t1);
+        // The next estimate moves ẑ by at most k·σ_p along any direction with probability c (the update's
+        // covariance M_k − M_{k+1} is below M_k): the backup keeps that much more, so that it still
+        // holds from the next step's estimate.
+        let need = limits.l_min + limits.standoff_k * (emitter.sigma_bound(t1) + emitter.sigma_position);
         let (q0, q1) = (emitter.at(t0), emitter.at(t1));
         for (i, c) in centres[..n].iter().enumerate() {
             let (dmin, dmax) = segment_distance_range(*c, q0, q1);
@@ -351,6 +366,7 @@ pub fn certify(
     SafetyReport {
         certified,
         total_deficit: total,
+        step_deficit: step,
         min_pair_m: min_pair,
         standoff_margin_m: standoff,
         backup_pair_m: backup_pair,

@@ -188,7 +188,7 @@ pub struct Scenario {
     /// `waypoints`.
     pub safety: SafetyMode,
     /// Horizon of the backup's standoff from a *moving* emitter, seconds (a static emitter is kept for
-    /// ever). Our choice: 300 s.
+    /// ever). Our choice: 120 s.
     pub safety_horizon_s: f64,
     /// Early stopping shared by the solvers (`[early_stop]`).
     pub early_stop: EarlyStop,
@@ -232,7 +232,7 @@ impl Default for Scenario {
             emitter_velocity: [0.0, 0.0],
             standoff_confidence: 0.99,
             safety: SafetyMode::Certified,
-            safety_horizon_s: 300.0,
+            safety_horizon_s: 120.0,
             early_stop: EarlyStop::default(),
             pso: PsoConfig::default(),
             ga: GaConfig::default(),

@@ -2,11 +2,13 @@
 //! safety certificate ([`model::safety`]), then by the heading cone, then by the criterion.
 //!
 //! The certificate is a hard constraint, never traded: the lexicographic [`Fitness`] puts the largest
-//! normalised safety deficit of a plan (0 when certified) in its first tier, so every certified plan
-//! ranks above every uncertified one whatever its criterion, and among uncertified plans the one with
-//! the largest minimum margin (relative to each bound) wins; the second tier, the deficits summed, ranks
-//! the plans whose worst limit cannot be helped (a UAV already deep inside the ring) by the others. The
-//! heading cone (eq. 58) is the third tier — a preference of the paper's method that a certified plan may have to give up (on the
+//! normalised deficit of the step's own limits (turn radius, spacing and standoff along the arcs; 0 when
+//! they hold) in its first tier and the largest of all (the backup's included; 0 when certified) in its
+//! second, so every certified plan ranks above every uncertified one whatever its criterion, no plan
+//! buys a backup margin with a collision this step, and among uncertified plans the one with the
+//! largest minimum margin (relative to each bound) wins; the third tier, the deficits summed, ranks the
+//! plans whose worst limit cannot be helped (a UAV already deep inside the ring) by the others. The
+//! heading cone (eq. 58) is the fourth tier — a preference of the paper's method that a certified plan may have to give up (on the
 //! standoff ring every heading in the cone leads inwards) — and the criterion decides among the rest.
 //! For an uncertified plan the criterion is not evaluated (its rank is settled by the first tier).
 //!
@@ -102,13 +104,13 @@ impl Shield<'_> {
             .sum()
     }
 
-    /// The shield's fitness of `phi`: [largest safety deficit, summed safety deficits, cone excess],
-    /// then `objective()` — evaluated only for a certified plan.
+    /// The shield's fitness of `phi`: [largest deficit of the step's own limits, largest deficit of all,
+    /// summed deficits, cone excess], then `objective()` — evaluated only for a certified plan.
     pub fn fitness(&self, phi: &[f64], objective: impl FnOnce() -> f64) -> Fitness {
         let report = self.check(phi);
         let cone = self.cone_excess(phi);
         let value = if report.certified { objective() } else { f64::INFINITY };
-        Fitness::tiered([report.deficit(), report.total_deficit, cone], value)
+        Fitness::tiered([report.step_deficit, report.deficit(), report.total_deficit, cone], value)
     }
 
     /// The backup step from the current state: every UAV turns right by `θ_b`.

@@ -165,6 +165,7 @@ fn standoff_tiers(by_kind: [f64; 4]) -> [f64; TIERS] {
         v(ConstraintKind::TurnRadius) + v(ConstraintKind::Spacing),
         v(ConstraintKind::Approach),
         v(ConstraintKind::HeadingCone),
+        0.0,
     ]
 }
 
@@ -180,6 +181,7 @@ fn gradient_search(
     z: Vector2<f64>,
     sc: &Scenario,
     tiered: &mut dyn FnMut(&[f64]) -> Fitness,
+    hard_tiers: usize,
 ) -> Result<(Vec<f64>, usize, usize), PlanError> {
     let n = pos.len();
     let solver = Gradient { config: sc.gradient };
@@ -194,7 +196,7 @@ fn gradient_search(
     let moved: Vec<f64> = (0..n).map(|i| psi[i].clamp(lo[i], hi[i])).collect();
     // The solver's own starts: the current headings moved into the boxes, their centre, their corners.
     let first = solver.minimize(tiered, &SearchSpace::new(lo, hi, moved)?, 0);
-    if first.fitness.tiers()[0] == 0.0 {
+    if first.fitness.tiers()[..hard_tiers].iter().all(|t| *t == 0.0) {
         return Ok((first.best, first.iterations, first.evaluations));
     }
     // The spacing is violated: every reachable heading, from that plan and from straight on.
@@ -271,7 +273,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             let formation = formation_headings(pos, psi, z, &constraints);
             (psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect(), 0, 0)
         } else if req.solver == SolverKind::Gradient {
-            gradient_search(&constraints, pos, psi, z, sc, &mut safe)?
+            gradient_search(&constraints, pos, psi, z, sc, &mut safe, 2)?
         } else {
             cone_then_reach(req, &constraints, &mut safe)?
         };
@@ -310,7 +312,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             let by_kind = constraints.violations_by_kind(pos, psi, z, phi, &next[..n]);
             Fitness::tiered(standoff_tiers(by_kind), objective.evaluate(&next[..n]))
         };
-        gradient_search(&constraints, pos, psi, z, sc, &mut tiered)?
+        gradient_search(&constraints, pos, psi, z, sc, &mut tiered, 1)?
     } else if req.objective.is_optimised() {
         let mut lo = Vec::with_capacity(n);
         let mut hi = Vec::with_capacity(n);
@@ -410,7 +412,7 @@ fn cone_then_reach(
     }
     let solver = req.solver.build(sc);
     let cone = solver.minimize(safe, &SearchSpace::new(lo, hi, start_point)?, derive_seed(req.run_seed, req.step, Purpose::Solver));
-    if cone.fitness.tiers()[0] == 0.0 {
+    if cone.fitness.tiers()[..2].iter().all(|t| *t == 0.0) {
         return Ok((cone.best, cone.iterations, cone.evaluations));
     }
     let start_point = psi.iter().zip(&cone.best).map(|(p, b)| p + turn_angle(*p, *b).clamp(-theta, theta)).collect();

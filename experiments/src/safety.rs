@@ -1,0 +1,308 @@
+//! `uavloc paper safety` (beyond the paper): the certified planner against the waypoint planner on
+//! random but fair scenarios the paper never flew.
+//!
+//! The family: 3–8 UAVs; `L_min` 1–8 km; `D_min` 200–1000 m; `R_min` 500–2000 m; 30–80 m/s (Δt 10 s);
+//! Δα 15–45°; a range σ of 10–50 m per UAV; a line abreast 15 km + (3–6)·`L_min` from the emitter with
+//! gaps of `max(3 D_min, 2.2 R_min)` to 1.3 times that (staggered along the line of sight by up to
+//! ±0.15 gap), every UAV heading at the emitter ± 10°; the
+//! emitter static, or (every other scenario) moving at up to 0.2 v in a random direction with the
+//! fused constant-velocity model; 120 steps; the analytical criterion with the gradient solver (the
+//! default of `launch` and `simulate`). Scenario m is drawn from `derive_seed(seed, m, OuterRun)`;
+//! both planners fly the same scenario with the same seed.
+//!
+//! Per planner: runs with two UAVs closer than `D_min` anywhere along the arcs, the intervals where it
+//! happened, the smallest pair distance relative to `D_min`; the share of UAV-intervals inside `L_min`
+//! of the TRUE emitter along the arcs and the deepest intrusion relative to `L_min`; the steps without a
+//! certified plan (each listed with its tightest limit); the median terminal error, its median ratio to
+//! the PCRLB, and the median planning time.
+
+use monitor::RunRecord;
+use planner::{ObjectiveKind, SafetyMode, Scenario, SolverKind};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde_json::{Value, json};
+use tdoa::fusion::EstimatorKind;
+use tdoa::rng::{Purpose, derive_seed};
+
+use crate::batch::Engine;
+use crate::closed_loop::run_closed_loop;
+use crate::figures::{Figure, line_series};
+use crate::grid::{Grid, cell};
+use crate::stats::median;
+use crate::{ExperimentError, ExperimentReport, settings_json};
+
+/// Steps of every run.
+pub const STEPS: usize = 120;
+
+/// Scenario `m` of the family (see the module docs), drawn from `seed`.
+pub fn scenario(seed: u64, m: usize) -> Scenario {
+    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, m as u64, Purpose::OuterRun));
+    let n = rng.random_range(3..=8usize);
+    let l_min = rng.random_range(1000.0..8000.0);
+    let d_min = rng.random_range(200.0..1000.0);
+    let r_min = rng.random_range(500.0..2000.0);
+    let speed = rng.random_range(30.0..80.0);
+    let delta_alpha: f64 = rng.random_range(15.0f64..45.0).to_radians();
+    let sigma: Vec<f64> = (0..n).map(|_| rng.random_range(10.0..50.0)).collect();
+    let range = 15_000.0 + rng.random_range(3.0..6.0) * l_min;
+    let gap = f64::max(3.0 * d_min, 2.2 * r_min) * rng.random_range(1.0..1.3);
+    // The line abreast: its centre at `range` from the emitter (at the origin) on a random bearing.
+    let bearing: f64 = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+    let (u, across) = (nalgebra::Vector2::new(bearing.cos(), bearing.sin()), nalgebra::Vector2::new(-bearing.sin(), bearing.cos()));
+    let uavs: Vec<[f64; 2]> = (0..n)
+        .map(|i| {
+            // Staggered along the line of sight by up to ±0.15 gap: a flown line abreast is never exactly
+            // collinear (and three collinear UAVs cannot fix an emitter at step 0).
+            let stagger = gap * rng.random_range(-0.15..0.15);
+            let p = u * (range + stagger) + across * gap * (i as f64 - 0.5 * (n - 1) as f64);
+            [p.x, p.y]
+        })
+        .collect();
+    let headings: Vec<f64> = uavs
+        .iter()
+        .map(|p| (-p[1]).atan2(-p[0]).to_degrees() + rng.random_range(-10.0..10.0))
+        .collect();
+    let moving = m % 2 == 1;
+    let (emitter_velocity, emitter_model) = if moving {
+        let (s, dir) = (rng.random_range(0.0..0.2) * speed, rng.random_range(-std::f64::consts::PI..std::f64::consts::PI));
+        ([s * f64::cos(dir), s * f64::sin(dir)], tdoa::EmitterModel::ConstantVelocity)
+    } else {
+        ([0.0, 0.0], tdoa::EmitterModel::Static)
+    };
+    Scenario {
+        uavs,
+        headings: Some(headings),
+        emitter: [0.0, 0.0],
+        speed,
+        dt: 10.0,
+        sigma: planner::RangeSigma::PerUav(sigma),
+        steps: STEPS,
+        delta_alpha,
+        l_min,
+        d_min,
+        r_min,
+        estimator: EstimatorKind::Fused,
+        emitter_model,
+        emitter_velocity,
+        rmse_resamples: 1,
+        seed: derive_seed(seed, m as u64, Purpose::OuterRun),
+        ..Scenario::default()
+    }
+}
+
+/// What one run of one planner showed.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The run's record.
+    pub run: RunRecord,
+    /// The steps without a certified plan, with the tightest limit's name.
+    pub uncertified: Vec<(u64, String)>,
+}
+
+/// Flies scenario `sc` with the planner `mode`.
+pub fn fly(sc: &Scenario, mode: SafetyMode) -> Result<Outcome, String> {
+    let sc = Scenario { safety: mode, ..sc.clone() };
+    let mut uncertified = Vec::new();
+    let run = run_closed_loop(&sc, ObjectiveKind::Analytical, SolverKind::Gradient, |rec, trace| {
+        if let Some(s) = trace.plan.and_then(|p| p.safety)
+            && !s.certified
+        {
+            let why = s.tightest.map_or("?".to_string(), |t| {
+                let other = t.other.map_or(String::new(), |o| format!("–{o}"));
+                format!("{:?} UAV {}{other}", t.limit, t.uav)
+            });
+            uncertified.push((rec.step, why));
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    Ok(Outcome { run, uncertified })
+}
+
+/// The per-planner summary of a set of outcomes (`scenarios` gives each run's limits).
+fn summary(outcomes: &[Outcome]) -> Value {
+    let runs = outcomes.len();
+    let pair_runs = outcomes.iter().filter(|o| o.run.true_spacing_violations > 0).count();
+    let pair_intervals: u64 = outcomes.iter().map(|o| o.run.true_spacing_violations).sum();
+    let min_pair_ratio = outcomes
+        .iter()
+        .filter_map(|o| o.run.min_pair_m.map(|p| p / o.run.scenario.d_min))
+        .fold(f64::INFINITY, f64::min);
+    let uav_steps: u64 = outcomes.iter().map(|o| (o.run.scenario.uavs.len() * o.run.scenario.steps) as u64).sum();
+    let inside: u64 = outcomes.iter().map(|o| o.run.true_standoff_violations.unwrap_or(0)).sum();
+    let deepest = outcomes
+        .iter()
+        .filter_map(|o| o.run.min_true_distance_m.map(|d| ((o.run.scenario.l_min - d) / o.run.scenario.l_min).max(0.0)))
+        .fold(0.0, f64::max);
+    let uncertified: usize = outcomes.iter().map(|o| o.uncertified.len()).sum();
+    let uncertified_runs = outcomes.iter().filter(|o| !o.uncertified.is_empty()).count();
+    let terminal: Vec<f64> =
+        outcomes.iter().filter_map(|o| o.run.steps.last().and_then(|s| s.estimate_error_m)).collect();
+    let ratio: Vec<f64> = outcomes
+        .iter()
+        .filter_map(|o| o.run.steps.last().and_then(|s| Some(s.estimate_error_m? / s.pcrlb_m?)))
+        .collect();
+    let plan_ms: Vec<f64> = outcomes.iter().flat_map(|o| o.run.steps.iter().filter_map(|s| s.plan_ms)).collect();
+    json!({
+        "runs": runs,
+        "runs_with_pair_below_d_min": pair_runs,
+        "pair_intervals_below_d_min": pair_intervals,
+        "min_pair_over_d_min": min_pair_ratio,
+        "uav_steps": uav_steps,
+        "uav_steps_inside_l_min": inside,
+        "uav_steps_inside_l_min_fraction": inside as f64 / uav_steps.max(1) as f64,
+        "deepest_inside_l_min_fraction": deepest,
+        "uncertified_steps": uncertified,
+        "runs_with_uncertified_steps": uncertified_runs,
+        "terminal_error_m_median": median(&terminal),
+        "terminal_error_over_pcrlb_median": median(&ratio),
+        "plan_ms_median": median(&plan_ms),
+    })
+}
+
+/// The study (see the module docs): `settings.runs` scenarios.
+pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
+    let s = engine.settings();
+    let m = s.runs;
+    let bar = engine.bar((2 * m) as u64, "safety: scenarios × planners");
+    let results: Result<Vec<(Outcome, Outcome)>, ExperimentError> = (0..m)
+        .into_par_iter()
+        .map(|k| {
+            let sc = scenario(s.seed, k);
+            let err = |mode: &str, e: String| ExperimentError::Run { config: format!("safety {mode}"), run: k, message: e };
+            let today = fly(&sc, SafetyMode::Waypoints).map_err(|e| err("waypoints", e))?;
+            bar.inc(1);
+            let safe = fly(&sc, SafetyMode::Certified).map_err(|e| err("certified", e))?;
+            bar.inc(1);
+            Ok((today, safe))
+        })
+        .collect();
+    bar.finish_and_clear();
+    let results = results?;
+    let (today, safe): (Vec<Outcome>, Vec<Outcome>) = results.into_iter().unzip();
+    let (a, b) = (summary(&today), summary(&safe));
+    let mut grid = Grid::new(
+        "safety",
+        &format!("{m} random scenarios, {STEPS} steps, analytical + gradient; distances along the arcs flown"),
+        &[
+            "planner",
+            "runs pair < D_min",
+            "intervals pair < D_min",
+            "min pair / D_min",
+            "UAV-steps in L_min %",
+            "deepest in L_min %",
+            "uncertified steps",
+            "terminal error m (median)",
+            "error / PCRLB (median)",
+            "plan ms (median)",
+        ],
+    );
+    for (label, v) in [("waypoints (paper)", &a), ("certified", &b)] {
+        grid.push(vec![
+            label.to_string(),
+            format!("{}/{m}", v["runs_with_pair_below_d_min"]),
+            v["pair_intervals_below_d_min"].to_string(),
+            cell(v["min_pair_over_d_min"].as_f64(), 3),
+            cell(v["uav_steps_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 2),
+            cell(v["deepest_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 1),
+            format!("{} ({} runs)", v["uncertified_steps"], v["runs_with_uncertified_steps"]),
+            cell(v["terminal_error_m_median"].as_f64(), 1),
+            cell(v["terminal_error_over_pcrlb_median"].as_f64(), 3),
+            cell(v["plan_ms_median"].as_f64(), 3),
+        ]);
+    }
+    let listed: Vec<Value> = safe
+        .iter()
+        .enumerate()
+        .flat_map(|(k, o)| o.uncertified.iter().map(move |(step, why)| json!({"scenario": k, "step": step, "tightest": why})))
+        .collect();
+    let cost = b["terminal_error_m_median"].as_f64().zip(a["terminal_error_m_median"].as_f64()).map(|(x, y)| x / y);
+    let conclusions = vec![
+        format!(
+            "Waypoints: {} of {m} runs bring two UAVs closer than D_min along the arcs (closest {} × D_min); {} % of UAV-steps inside L_min of the true emitter, the deepest {} % of L_min.",
+            a["runs_with_pair_below_d_min"],
+            cell(a["min_pair_over_d_min"].as_f64(), 3),
+            cell(a["uav_steps_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 2),
+            cell(a["deepest_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 1),
+        ),
+        format!(
+            "Certified: {} of {m} runs with a pair below D_min (closest {} × D_min); {} % of UAV-steps inside L_min, the deepest {} %; {} steps without a certified plan in {} runs.",
+            b["runs_with_pair_below_d_min"],
+            cell(b["min_pair_over_d_min"].as_f64(), 3),
+            cell(b["uav_steps_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 2),
+            cell(b["deepest_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 1),
+            b["uncertified_steps"],
+            b["runs_with_uncertified_steps"],
+        ),
+        format!(
+            "What safety costs: median terminal error {} m certified vs {} m waypoints (ratio {}); error / PCRLB {} vs {}.",
+            cell(b["terminal_error_m_median"].as_f64(), 1),
+            cell(a["terminal_error_m_median"].as_f64(), 1),
+            cell(cost, 3),
+            cell(b["terminal_error_over_pcrlb_median"].as_f64(), 3),
+            cell(a["terminal_error_over_pcrlb_median"].as_f64(), 3),
+        ),
+    ];
+    // The per-run smallest pair distance / D_min, sorted: the two planners' distributions.
+    let sorted = |o: &[Outcome]| {
+        let mut v: Vec<f64> = o.iter().filter_map(|o| o.run.min_pair_m.map(|p| p / o.run.scenario.d_min)).collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let x: Vec<f64> = (0..m).map(|k| (k as f64 + 0.5) / m as f64).collect();
+    let mut figures = vec![Figure::Curves {
+        name: "min-pair".into(),
+        title: "Smallest pair distance along the arcs / D_min, per run (sorted)".into(),
+        x_label: "fraction of runs".into(),
+        y_label: "min pair / D_min".into(),
+        series: vec![line_series("waypoints", x.clone(), sorted(&today)), line_series("certified", x, sorted(&safe))],
+        log_y: true,
+    }];
+    // One moving-emitter run of each planner, drawn.
+    if let (Some(t), Some(c)) = (today.get(1), safe.get(1)) {
+        figures.push(Figure::Trajectories { name: "trajectory-waypoints".into(), run: Box::new(t.run.clone()) });
+        figures.push(Figure::Trajectories { name: "trajectory-certified".into(), run: Box::new(c.run.clone()) });
+    }
+    let base = scenario(s.seed, 0);
+    Ok(ExperimentReport {
+        experiment: "safety".into(),
+        title: "the certified planner against the waypoint planner on random scenarios (beyond the paper)".into(),
+        settings: settings_json(
+            engine,
+            &base,
+            &[
+                ("scenarios", json!(m)),
+                ("steps", json!(STEPS)),
+                ("family", json!("3–8 UAVs, L_min 1–8 km, D_min 200–1000 m, R_min 500–2000 m, 30–80 m/s, Δα 15–45°, σ 10–50 m per UAV, every other emitter moving at up to 0.2 v (constant-velocity model)")),
+                ("planner", json!("analytical + gradient")),
+            ],
+        ),
+        rows: vec![
+            json!({"planner": "waypoints", "summary": a}),
+            json!({"planner": "certified", "summary": b, "uncertified_steps_listed": listed}),
+        ],
+        conclusions,
+        tables: vec![grid],
+        figures,
+        files: Vec::new(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_family_is_fair_and_reproducible() {
+        for m in 0..40 {
+            let sc = scenario(1, m);
+            sc.validate().unwrap_or_else(|e| panic!("scenario {m}: {e}"));
+            assert_eq!(sc, scenario(1, m));
+            assert!((3..=8).contains(&sc.uavs.len()));
+            assert_eq!(sc.emitter_velocity != [0.0, 0.0], m % 2 == 1);
+            let v = sc.emitter_velocity[0].hypot(sc.emitter_velocity[1]);
+            assert!(v <= 0.2 * sc.speed);
+        }
+        assert_ne!(scenario(1, 0), scenario(2, 0));
+    }
+}
