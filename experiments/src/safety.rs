@@ -292,6 +292,58 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
 mod tests {
     use super::*;
 
+    fn ring(n: usize, radius: f64, senses: &[f64]) -> Scenario {
+        let uavs: Vec<[f64; 2]> = (0..n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / n as f64 + 0.35 * (i % 2) as f64;
+                [radius * a.cos(), radius * a.sin()]
+            })
+            .collect();
+        // Tangential: counter-clockwise (+1) or clockwise (−1) around the emitter.
+        let headings = uavs
+            .iter()
+            .zip(senses.iter().cycle())
+            .map(|(p, s)| (p[1].atan2(p[0]) + s * std::f64::consts::FRAC_PI_2).to_degrees())
+            .collect();
+        Scenario { uavs, headings: Some(headings), emitter: [0.0, 0.0], l_min: 2000.0, steps: 40, ..Scenario::default() }
+    }
+
+    /// Hard cases of the certified planner: pairs meeting head-on on the standoff ring, eight UAVs on
+    /// a small ring, an emitter moving at the swarm. Along the arcs flown: no pair below D_min, no UAV
+    /// inside L_min of the true emitter; the waypoint planner breaks at least one of them on the same
+    /// scenarios.
+    #[test]
+    fn hard_cases_stay_safe_along_the_arcs() {
+        let cases = [
+            ("head-on pairs on the ring", ring(4, 3000.0, &[1.0, -1.0])),
+            ("eight UAVs on a small ring", ring(8, 3200.0, &[1.0])),
+            (
+                "an emitter moving at the swarm",
+                Scenario {
+                    emitter_velocity: [-8.0, -8.0],
+                    emitter_model: tdoa::EmitterModel::ConstantVelocity,
+                    steps: 60,
+                    ..Scenario::default()
+                },
+            ),
+        ];
+        let mut waypoint_violations = 0;
+        for (label, sc) in &cases {
+            sc.validate().unwrap_or_else(|e| panic!("{label}: {e}"));
+            let safe = fly(sc, SafetyMode::Certified).unwrap();
+            let r = &safe.run;
+            assert_eq!(r.true_spacing_violations, 0, "{label}: min pair {:?}", r.min_pair_m);
+            assert_eq!(r.true_standoff_violations, Some(0), "{label}: closest {:?}", r.min_true_distance_m);
+            assert!(r.min_pair_m.unwrap() >= sc.d_min && r.min_true_distance_m.unwrap() >= sc.l_min, "{label}");
+            // Every step carries the certificate's word, and the record counts what the planner said.
+            assert_eq!(r.uncertified_steps as usize, safe.uncertified.len(), "{label}");
+            assert!(r.steps[..r.steps.len() - 1].iter().all(|s| s.safety.is_some_and(|x| x.certified.is_some())));
+            let today = fly(sc, SafetyMode::Waypoints).unwrap().run;
+            waypoint_violations += today.true_spacing_violations + today.true_standoff_violations.unwrap_or(0);
+        }
+        assert!(waypoint_violations > 0, "the waypoint planner kept every case safe: the cases are not hard");
+    }
+
     #[test]
     fn the_family_is_fair_and_reproducible() {
         for m in 0..40 {

@@ -146,7 +146,7 @@ mod tests {
         assert!(Fitness::tiered([0.0; TIERS], 1e9) < Fitness::tiered([0.0, 0.0, 1e-12, 0.0], 1.0));
         assert_eq!(Fitness::tiered([0.3, 0.0, 0.0, 0.0], 2.0), Fitness::new(0.3, 2.0));
         let f = Fitness::tiered([0.5, 0.25, f64::NAN, 0.0], 1.0);
-        assert_eq!((f.violation(), f.tiers()), (f64::INFINITY, [0.5, 0.25, f64::INFINITY]));
+        assert_eq!((f.violation(), f.tiers()), (f64::INFINITY, [0.5, 0.25, f64::INFINITY, 0.0]));
         assert!(!f.is_feasible() && Fitness::tiered([0.0, -1.0, 0.0, 0.0], 1.0).is_feasible());
     }
 

@@ -107,17 +107,20 @@ pub fn processes_mentioning(needle: &str) -> Vec<(u32, String)> {
     found
 }
 
+/// Whether the command line `c` runs on `domain` as a whole argument: `crash-1-estimator` is not
+/// `crash-1-estimator-planner` (two crash tests run at once).
+fn of_domain(c: &str, domain: &str) -> bool {
+    let args: Vec<&str> = c.split(' ').collect();
+    args.iter().any(|a| *a == format!("--domain={domain}")) || args.windows(2).any(|w| w == ["--domain", domain])
+}
+
 /// The pid of the running `uavloc process <role>` of `domain` (exactly one expected).
 pub fn pid_of(domain: &str, role: &str) -> Option<u32> {
     let needle = format!("process {role} ");
     // The domain as a whole argument: `crash-1-estimator` is not `crash-1-estimator-planner`.
-    let of_domain = |c: &str| {
-        let args: Vec<&str> = c.split(' ').collect();
-        args.iter().any(|a| *a == format!("--domain={domain}")) || args.windows(2).any(|w| w == ["--domain", domain])
-    };
     let procs: Vec<_> = processes_mentioning(domain)
         .into_iter()
-        .filter(|(pid, c)| c.contains(&needle) && of_domain(c) && !is_zombie(*pid))
+        .filter(|(pid, c)| c.contains(&needle) && of_domain(c, domain) && !is_zombie(*pid))
         .collect();
     assert!(procs.len() <= 1, "more than one {role} of {domain}: {procs:?}");
     procs.first().map(|(pid, _)| *pid)
@@ -168,10 +171,13 @@ pub fn files_mentioning(dir: &Path, needle: &str, out: &mut Vec<String>) {
 /// nothing of it.
 pub fn assert_nothing_left(domain: &str) {
     let deadline = Instant::now() + Duration::from_secs(3);
-    let mut procs = processes_mentioning(domain);
+    let of_it = || -> Vec<(u32, String)> {
+        processes_mentioning(domain).into_iter().filter(|(_, c)| of_domain(c, domain)).collect()
+    };
+    let mut procs = of_it();
     while !procs.is_empty() && Instant::now() < deadline {
         std::thread::sleep(Duration::from_millis(20));
-        procs = processes_mentioning(domain);
+        procs = of_it();
     }
     assert!(procs.is_empty(), "processes of {domain} are still running: {procs:#?}");
 
