@@ -121,7 +121,8 @@ pub fn run_closed_loop(
             // The wire form, as the pipeline's monitor records it (no violation magnitudes).
             record.active_constraints = planner::active_mask::labels(&plan.active_constraints, plan.headings.len());
             record.criterion_ess = plan.criterion_ess;
-            record.safety = plan.safety.map(|r| monitor::StepSafety { certified: Some(r.certified), ..Default::default() });
+            record.safety =
+                plan.safety.map(|r| monitor::StepSafety { certified: Some(r.certified), ..Default::default() });
             Some(plan)
         } else {
             None

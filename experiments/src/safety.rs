@@ -49,7 +49,8 @@ pub fn scenario(seed: u64, m: usize) -> Scenario {
     let gap = f64::max(3.0 * d_min, 2.2 * r_min) * rng.random_range(1.0..1.3);
     // The line abreast: its centre at `range` from the emitter (at the origin) on a random bearing.
     let bearing: f64 = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
-    let (u, across) = (nalgebra::Vector2::new(bearing.cos(), bearing.sin()), nalgebra::Vector2::new(-bearing.sin(), bearing.cos()));
+    let (u, across) =
+        (nalgebra::Vector2::new(bearing.cos(), bearing.sin()), nalgebra::Vector2::new(-bearing.sin(), bearing.cos()));
     let uavs: Vec<[f64; 2]> = (0..n)
         .map(|i| {
             // Staggered along the line of sight by up to ±0.15 gap: a flown line abreast is never exactly
@@ -59,13 +60,12 @@ pub fn scenario(seed: u64, m: usize) -> Scenario {
             [p.x, p.y]
         })
         .collect();
-    let headings: Vec<f64> = uavs
-        .iter()
-        .map(|p| (-p[1]).atan2(-p[0]).to_degrees() + rng.random_range(-10.0..10.0))
-        .collect();
+    let headings: Vec<f64> =
+        uavs.iter().map(|p| (-p[1]).atan2(-p[0]).to_degrees() + rng.random_range(-10.0..10.0)).collect();
     let moving = m % 2 == 1;
     let (emitter_velocity, emitter_model) = if moving {
-        let (s, dir) = (rng.random_range(0.0..0.2) * speed, rng.random_range(-std::f64::consts::PI..std::f64::consts::PI));
+        let (s, dir) =
+            (rng.random_range(0.0..0.2) * speed, rng.random_range(-std::f64::consts::PI..std::f64::consts::PI));
         ([s * f64::cos(dir), s * f64::sin(dir)], tdoa::EmitterModel::ConstantVelocity)
     } else {
         ([0.0, 0.0], tdoa::EmitterModel::Static)
@@ -169,7 +169,8 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
         .into_par_iter()
         .map(|k| {
             let sc = scenario(s.seed, k);
-            let err = |mode: &str, e: String| ExperimentError::Run { config: format!("safety {mode}"), run: k, message: e };
+            let err =
+                |mode: &str, e: String| ExperimentError::Run { config: format!("safety {mode}"), run: k, message: e };
             let today = fly(&sc, SafetyMode::Waypoints).map_err(|e| err("waypoints", e))?;
             bar.inc(1);
             let safe = fly(&sc, SafetyMode::Certified).map_err(|e| err("certified", e))?;
@@ -214,7 +215,9 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
     let listed: Vec<Value> = safe
         .iter()
         .enumerate()
-        .flat_map(|(k, o)| o.uncertified.iter().map(move |(step, why)| json!({"scenario": k, "step": step, "tightest": why})))
+        .flat_map(|(k, o)| {
+            o.uncertified.iter().map(move |(step, why)| json!({"scenario": k, "step": step, "tightest": why}))
+        })
         .collect();
     let cost = b["terminal_error_m_median"].as_f64().zip(a["terminal_error_m_median"].as_f64()).map(|(x, y)| x / y);
     let conclusions = vec![
@@ -273,7 +276,12 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             &[
                 ("scenarios", json!(m)),
                 ("steps", json!(STEPS)),
-                ("family", json!("3–8 UAVs, L_min 1–8 km, D_min 200–1000 m, R_min 500–2000 m, 30–80 m/s, Δα 15–45°, σ 10–50 m per UAV, every other emitter moving at up to 0.2 v (constant-velocity model)")),
+                (
+                    "family",
+                    json!(
+                        "3–8 UAVs, L_min 1–8 km, D_min 200–1000 m, R_min 500–2000 m, 30–80 m/s, Δα 15–45°, σ 10–50 m per UAV, every other emitter moving at up to 0.2 v (constant-velocity model)"
+                    ),
+                ),
                 ("planner", json!("analytical + gradient")),
             ],
         ),
@@ -305,7 +313,14 @@ mod tests {
             .zip(senses.iter().cycle())
             .map(|(p, s)| (p[1].atan2(p[0]) + s * std::f64::consts::FRAC_PI_2).to_degrees())
             .collect();
-        Scenario { uavs, headings: Some(headings), emitter: [0.0, 0.0], l_min: 2000.0, steps: 40, ..Scenario::default() }
+        Scenario {
+            uavs,
+            headings: Some(headings),
+            emitter: [0.0, 0.0],
+            l_min: 2000.0,
+            steps: 40,
+            ..Scenario::default()
+        }
     }
 
     /// Hard cases of the certified planner: pairs meeting head-on on the standoff ring, eight UAVs on

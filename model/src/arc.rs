@@ -243,10 +243,16 @@ mod tests {
         let b = Arc::new(Vector2::new(0.0, 700.0), 0.3, 0.3, 500.0);
         let mut calls = 0;
         let slope = |_: f64, _: f64| 0.0;
-        let m = lipschitz_min(&mut |s| {
-            calls += 1;
-            (a.at(s) - b.at(s)).norm()
-        }, &slope, 700.0, 700.0, 500.0);
+        let m = lipschitz_min(
+            &mut |s| {
+                calls += 1;
+                (a.at(s) - b.at(s)).norm()
+            },
+            &slope,
+            700.0,
+            700.0,
+            500.0,
+        );
         assert_eq!(calls, 0);
         assert!((m.lower - 700.0).abs() < 1e-9);
         assert!(pair_min_distance(&a, &b, 500.0).lower >= 699.999);

@@ -344,7 +344,8 @@ pub fn certify(
     }
     let mut backup_standoff = None::<f64>;
     if limits.l_min > 0.0 {
-        let (t0, t1) = if emitter.is_static() { (limits.dt, limits.dt) } else { (limits.dt, limits.dt + limits.horizon_s) };
+        let (t0, t1) =
+            if emitter.is_static() { (limits.dt, limits.dt) } else { (limits.dt, limits.dt + limits.horizon_s) };
         // The next estimate moves ẑ by at most k·σ_p along any direction with probability c (the update's
         // covariance M_k − M_{k+1} is below M_k): the backup keeps that much more, so that it still
         // holds from the next step's estimate.
@@ -352,11 +353,8 @@ pub fn certify(
         let (q0, q1) = (emitter.at(t0), emitter.at(t1));
         for (i, c) in centres[..n].iter().enumerate() {
             let (dmin, dmax) = segment_distance_range(*c, q0, q1);
-            let to_circle = if (dmin..=dmax).contains(&radius) {
-                0.0
-            } else {
-                (dmin - radius).abs().min((dmax - radius).abs())
-            };
+            let to_circle =
+                if (dmin..=dmax).contains(&radius) { 0.0 } else { (dmin - radius).abs().min((dmax - radius).abs()) };
             let margin = to_circle - need;
             backup_standoff = Some(backup_standoff.map_or(margin, |s| s.min(margin)));
             note(SafetyLimit::BackupStandoff, i, None, (need + delta - to_circle) / (need + delta));
@@ -470,7 +468,8 @@ mod tests {
             let p = vec![Vector2::new(r.next() * 8000.0, r.next() * 8000.0)];
             let psi = vec![(r.next() - 0.5) * 2.0 * PI];
             let v = Vector2::new((r.next() - 0.5) * 20.0, (r.next() - 0.5) * 20.0);
-            let e = EmitterPrediction::moving(Vector2::new(4000.0, 4000.0), &Matrix2::zeros(), v, &Matrix2::zeros(), 0.0);
+            let e =
+                EmitterPrediction::moving(Vector2::new(4000.0, 4000.0), &Matrix2::zeros(), v, &Matrix2::zeros(), 0.0);
             let rep = certify(&p, &psi, &psi, &e, &lim, true);
             let end = Arc::new(p[0], psi[0], psi[0], lim.arc_len).end();
             let (_, standoff) = fly_backup(&[end], &psi, &lim, &e, steps);
@@ -493,7 +492,8 @@ mod tests {
             let q = r.next();
             let e = EmitterPrediction::moving(Vector2::zeros(), &p, Vector2::zeros(), &v, q);
             for tau in [0.0, 0.01, 1.0, 10.0, 100.0, 1000.0] {
-                let pt = p + (c + c.transpose()) * tau + v * tau * tau + Matrix2::identity() * q * q * tau.powi(3) / 3.0;
+                let pt =
+                    p + (c + c.transpose()) * tau + v * tau * tau + Matrix2::identity() * q * q * tau.powi(3) / 3.0;
                 assert!(sqrt_lambda_max(&pt) <= e.sigma_bound(tau) * (1.0 + 1e-12) + 1e-9, "τ {tau}");
             }
         }

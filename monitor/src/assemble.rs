@@ -377,8 +377,9 @@ impl Assembler {
                     record.plan_ms = Some(c.plan_time_us as f64 / 1e3);
                     record.active_constraints =
                         active_mask::decode(c.active_constraints, c.violated_constraints, c.len());
-                    record.safety =
-                        c.certified().map(|certified| StepSafety { certified: Some(certified), ..StepSafety::default() });
+                    record.safety = c
+                        .certified()
+                        .map(|certified| StepSafety { certified: Some(certified), ..StepSafety::default() });
                 }
                 let info = PlannerInfo {
                     instance: c.planner_instance,

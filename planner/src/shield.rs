@@ -19,8 +19,8 @@
 //!
 //! Units: metres, seconds, radians.
 
-use nalgebra::{Matrix2, Vector2};
 use model::safety::{EmitterPrediction, SafetyLimits, SafetyReport, certify};
+use nalgebra::{Matrix2, Vector2};
 
 use crate::constraints::{Constraints, FEASIBILITY_EPS};
 use crate::fitness::Fitness;

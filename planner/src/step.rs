@@ -51,8 +51,8 @@ use crate::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError};
 use crate::shield::{EmitterMotion, Shield, prediction, safety_limits};
-use model::safety::{SafetyMode, SafetyReport};
 use crate::solver::{SearchSpace, SearchSpaceError, Solver as _, SolverKind};
+use model::safety::{SafetyMode, SafetyReport};
 
 /// Why a planning step could not run.
 #[derive(Debug, Error)]
@@ -405,13 +405,23 @@ fn cone_then_reach(
         let alpha = 0.5 * (l + h);
         let here = alpha + turn_angle(alpha, psi[i]);
         let (l, h) = (l.max(here - theta), h.min(here + theta));
-        let (l, h) = if l <= h { (l, h) } else if here - theta > h { (here - theta, here - theta) } else { (here + theta, here + theta) };
+        let (l, h) = if l <= h {
+            (l, h)
+        } else if here - theta > h {
+            (here - theta, here - theta)
+        } else {
+            (here + theta, here + theta)
+        };
         lo.push(l);
         hi.push(h);
         start_point.push(here);
     }
     let solver = req.solver.build(sc);
-    let cone = solver.minimize(safe, &SearchSpace::new(lo, hi, start_point)?, derive_seed(req.run_seed, req.step, Purpose::Solver));
+    let cone = solver.minimize(
+        safe,
+        &SearchSpace::new(lo, hi, start_point)?,
+        derive_seed(req.run_seed, req.step, Purpose::Solver),
+    );
     if cone.fitness.tiers()[..2].iter().all(|t| *t == 0.0) {
         return Ok((cone.best, cone.iterations, cone.evaluations));
     }

@@ -181,9 +181,11 @@ pub fn assert_nothing_left(domain: &str) {
     }
     assert!(procs.is_empty(), "processes of {domain} are still running: {procs:#?}");
 
+    // The domain's service names start `<domain>/` (not another domain that begins with this one).
+    let needle = format!("{domain}/");
     let mut files = Vec::new();
-    files_mentioning(&std::env::temp_dir().join("iceoryx2"), domain, &mut files);
-    files_mentioning(Path::new("/dev/shm"), domain, &mut files);
+    files_mentioning(&std::env::temp_dir().join("iceoryx2"), &needle, &mut files);
+    files_mentioning(Path::new("/dev/shm"), &needle, &mut files);
     assert!(files.is_empty(), "iceoryx2 files of {domain} are left: {files:#?}");
 
     let listed = json_of(&["process", "resources", "--domain", domain]);
