@@ -506,7 +506,7 @@ mod tests {
         let mut r = Lcg(41);
         let lim = limits();
         let mut certified = 0;
-        for _ in 0..3000 {
+        for _ in 0..12_000 {
             let n = 3 + (r.next() * 6.0) as usize;
             let e = EmitterPrediction::fixed(Vector2::zeros(), &Matrix2::new(4e4, 1e4, 1e4, 9e4));
             let p: Vec<_> = (0..n)
