@@ -29,7 +29,7 @@ fn m2(m: [[f64; 2]; 2]) -> Matrix2<f64> {
     Matrix2::new(m[0][0], m[0][1], m[1][0], m[1][1])
 }
 
-/// Fills every interval's [`StepSafety`] margins and the run's totals (see the module docs).
+/// Fills every interval's [`StepSafety`](crate::StepSafety) margins and the run's totals (see the module docs).
 pub fn annotate_along_arcs(run: &mut RunRecord) {
     let sc = run.scenario.clone();
     let length = sc.speed * sc.dt;

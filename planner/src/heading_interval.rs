@@ -71,7 +71,7 @@ impl Uav {
 
 /// The interval of allowed headings (`v(φ) = 0`) around one of the samples: the sample run `[a, b]` of
 /// allowed samples, each end moved out by bisection towards its disallowed neighbour.
-fn refine(v: &impl Fn(f64) -> f64, mut inside: f64, mut outside: f64) -> f64 {
+fn refine(v: &dyn Fn(f64) -> f64, mut inside: f64, mut outside: f64) -> f64 {
     for _ in 0..BISECTIONS {
         let mid = 0.5 * (inside + outside);
         if mid == inside || mid == outside {
@@ -93,11 +93,22 @@ fn cone_distance(phi: f64, alpha: f64, delta_alpha: f64) -> f64 {
 
 /// The heading box of one UAV (see the module docs).
 pub fn heading_interval(c: &Constraints, uav: &Uav, estimate: Vector2<f64>) -> HeadingInterval {
+    heading_interval_of(c, uav, estimate, &|phi| uav.violation(c, estimate, phi))
+}
+
+/// The heading box of one UAV for any per-UAV violation `v(φ)` (0 where the UAV's own limits hold):
+/// the approach distance ([`heading_interval`]) or the UAV's own part of the safety certificate
+/// ([`crate::shield`]).
+pub fn heading_interval_of(
+    c: &Constraints,
+    uav: &Uav,
+    estimate: Vector2<f64>,
+    v: &dyn Fn(f64) -> f64,
+) -> HeadingInterval {
     let psi = uav.heading;
     let theta = c.max_turn();
     let (lo, hi) = (psi - theta, psi + theta);
     let alpha = bearing(uav.position, estimate);
-    let v = |phi: f64| uav.violation(c, estimate, phi);
 
     // The allowed runs of the samples, their ends refined.
     let step = (hi - lo) / SAMPLES as f64;
@@ -114,8 +125,8 @@ pub fn heading_interval(c: &Constraints, uav: &Uav, estimate: Vector2<f64>) -> H
         while k < SAMPLES && samples[k + 1].1 == 0.0 {
             k += 1;
         }
-        let a = if start == 0 { lo } else { refine(&v, samples[start].0, samples[start - 1].0) };
-        let b = if k == SAMPLES { hi } else { refine(&v, samples[k].0, samples[k + 1].0) };
+        let a = if start == 0 { lo } else { refine(v, samples[start].0, samples[start - 1].0) };
+        let b = if k == SAMPLES { hi } else { refine(v, samples[k].0, samples[k + 1].0) };
         allowed.push((a, b));
         k += 1;
     }

@@ -113,6 +113,17 @@ impl Shield<'_> {
         Fitness::tiered([report.step_deficit, report.deficit(), report.total_deficit, cone], value)
     }
 
+    /// The largest deficit of UAV `i`'s own limits (standoff along its arc, its backup's standoff; the
+    /// turn radius holds in reach) if it flies the heading `phi` — 0 when they hold: the gradient
+    /// planner's per-UAV box ([`crate::heading_interval::heading_interval_of`]).
+    ///
+    /// In the order of the shield's tiers: a heading whose own step breaks a limit scores `1 + ` that
+    /// deficit, above every heading whose step holds (their backup's deficit is at most 1).
+    pub fn own_deficit(&self, i: usize, phi: f64) -> f64 {
+        let r = certify(&self.positions[i..=i], &self.headings[i..=i], &[phi], &self.emitter, &self.limits, false);
+        if r.step_deficit > 0.0 { 1.0 + r.step_deficit } else { r.deficit() }
+    }
+
     /// The backup step from the current state: every UAV turns right by `θ_b`.
     pub fn backup(&self) -> Vec<f64> {
         self.limits.backup_headings(self.headings)

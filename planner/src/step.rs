@@ -46,7 +46,7 @@ use crate::constraints::{ActiveConstraint, ConstraintKind, Constraints};
 use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
 use crate::gradient::Gradient;
-use crate::heading_interval::{HeadingInterval, Uav, heading_interval};
+use crate::heading_interval::{HeadingInterval, Uav, heading_interval, heading_interval_of};
 use crate::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use crate::objective::ObjectiveKind;
 use crate::scenario::{Scenario, ScenarioError};
@@ -174,6 +174,7 @@ fn standoff_tiers(by_kind: [f64; 4]) -> [f64; TIERS] {
 /// headings moved into the boxes, their centre and their corners; when the spacing (the one coupling
 /// constraint) is violated there, a second search over every reachable heading from that plan. Returns
 /// the headings, iterations and evaluations.
+#[allow(clippy::too_many_arguments)]
 fn gradient_search(
     constraints: &Constraints,
     pos: &[Vector2<f64>],
@@ -182,13 +183,17 @@ fn gradient_search(
     sc: &Scenario,
     tiered: &mut dyn FnMut(&[f64]) -> Fitness,
     hard_tiers: usize,
+    own: Option<&dyn Fn(usize, f64) -> f64>,
 ) -> Result<(Vec<f64>, usize, usize), PlanError> {
     let n = pos.len();
     let solver = Gradient { config: sc.gradient };
     let boxes: Vec<HeadingInterval> = (0..n)
         .map(|i| {
             let uav = Uav { position: pos[i], heading: psi[i], speed: sc.speed, dt: sc.dt };
-            heading_interval(constraints, &uav, z)
+            match own {
+                Some(v) => heading_interval_of(constraints, &uav, z, &|phi| v(i, phi)),
+                None => heading_interval(constraints, &uav, z),
+            }
         })
         .collect();
     let lo: Vec<f64> = boxes.iter().map(|b| b.lo).collect();
@@ -273,7 +278,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             let formation = formation_headings(pos, psi, z, &constraints);
             (psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect(), 0, 0)
         } else if req.solver == SolverKind::Gradient {
-            gradient_search(&constraints, pos, psi, z, sc, &mut safe, 2)?
+            gradient_search(&constraints, pos, psi, z, sc, &mut safe, 2, Some(&|i, phi| shield.own_deficit(i, phi)))?
         } else {
             cone_then_reach(req, &constraints, &mut safe)?
         };
@@ -312,7 +317,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             let by_kind = constraints.violations_by_kind(pos, psi, z, phi, &next[..n]);
             Fitness::tiered(standoff_tiers(by_kind), objective.evaluate(&next[..n]))
         };
-        gradient_search(&constraints, pos, psi, z, sc, &mut tiered, 1)?
+        gradient_search(&constraints, pos, psi, z, sc, &mut tiered, 1, None)?
     } else if req.objective.is_optimised() {
         let mut lo = Vec::with_capacity(n);
         let mut hi = Vec::with_capacity(n);
