@@ -223,6 +223,11 @@ pub struct SafetyReport {
     pub certified: bool,
     /// The normalised deficits of every limit that does not hold, summed (0 when certified).
     pub total_deficit: f64,
+    /// The largest normalised shortfall of a standoff margin below its *reserve* `k·σ_p + |v̂|·Δt`
+    /// (0 when every standoff keeps it): what the planner keeps, where it can, beyond the bounds — one
+    /// more estimate update's worth and one step of the emitter's motion — so that the next step's
+    /// certificate does not start without slack. A plan inside the reserve is still certified.
+    pub reserve_deficit: f64,
     /// The largest normalised deficit of the step's own limits — turn radius, spacing and standoff
     /// along the arcs — (0 when they hold): what the step itself flies, ranked before the backup.
     pub step_deficit: f64,
@@ -308,12 +313,15 @@ pub fn certify(
     }
     // 3. Standoff along the arcs, from the emitter as predicted over the interval.
     let mut standoff = None::<f64>;
+    let reserve = limits.standoff_k * emitter.sigma_position + emitter.velocity.norm() * limits.dt;
+    let mut reserve_deficit = 0.0f64;
     let b_step = limits.l_min + limits.standoff_k * emitter.sigma_bound(limits.dt);
     if limits.l_min > 0.0 {
         let (z, v, dt) = (emitter.position, emitter.velocity, limits.dt);
         for (i, arc) in arcs[..n].iter().enumerate() {
-            let m = moving_point_min_distance(arc, z, v, dt, b_step).lower;
+            let m = moving_point_min_distance(arc, z, v, dt, b_step + reserve).lower;
             note(SafetyLimit::Standoff, i, None, (b_step - m) / b_step);
+            reserve_deficit = reserve_deficit.max((b_step + reserve - m) / (b_step + reserve));
             let m = if exact { moving_point_min_distance(arc, z, v, dt, f64::INFINITY).lower } else { m };
             let margin = m - b_step;
             standoff = Some(standoff.map_or(margin, |s| s.min(margin)));
@@ -358,6 +366,8 @@ pub fn certify(
             let margin = to_circle - need;
             backup_standoff = Some(backup_standoff.map_or(margin, |s| s.min(margin)));
             note(SafetyLimit::BackupStandoff, i, None, (need + delta - to_circle) / (need + delta));
+            let kept = need + delta + reserve;
+            reserve_deficit = reserve_deficit.max((kept - to_circle) / kept);
         }
     }
     let certified = tightest.is_none_or(|t| t.deficit <= 0.0);
@@ -365,6 +375,7 @@ pub fn certify(
         certified,
         total_deficit: total,
         step_deficit: step,
+        reserve_deficit: if reserve_deficit.is_nan() { f64::INFINITY } else { reserve_deficit.max(0.0) },
         min_pair_m: min_pair,
         standoff_margin_m: standoff,
         backup_pair_m: backup_pair,

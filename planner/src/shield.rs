@@ -8,7 +8,9 @@
 //! buys a backup margin with a collision this step, and among uncertified plans the one with the
 //! largest minimum margin (relative to each bound) wins; the third tier, the deficits summed, ranks the
 //! plans whose worst limit cannot be helped (a UAV already deep inside the ring) by the others. The
-//! heading cone (eq. 58) is the fourth tier — a preference of the paper's method that a certified plan may have to give up (on the
+//! fourth tier keeps a reserve beyond the standoff bounds where it can (`SafetyReport::reserve_deficit`:
+//! one estimate update's worth and one step of the emitter's motion), so that a small move of the
+//! estimate does not take the next step's certificate away. The heading cone (eq. 58) is the fifth tier — a preference of the paper's method that a certified plan may have to give up (on the
 //! standoff ring every heading in the cone leads inwards) — and the criterion decides among the rest.
 //! For an uncertified plan the criterion is not evaluated (its rank is settled by the first tier).
 //!
@@ -105,12 +107,16 @@ impl Shield<'_> {
     }
 
     /// The shield's fitness of `phi`: [largest deficit of the step's own limits, largest deficit of all,
-    /// summed deficits, cone excess], then `objective()` — evaluated only for a certified plan.
+    /// summed deficits, shortfall below the standoff reserve, cone excess], then `objective()` —
+    /// evaluated only for a certified plan.
     pub fn fitness(&self, phi: &[f64], objective: impl FnOnce() -> f64) -> Fitness {
         let report = self.check(phi);
         let cone = self.cone_excess(phi);
         let value = if report.certified { objective() } else { f64::INFINITY };
-        Fitness::tiered([report.step_deficit, report.deficit(), report.total_deficit, cone], value)
+        Fitness::tiered(
+            [report.step_deficit, report.deficit(), report.total_deficit, report.reserve_deficit, cone],
+            value,
+        )
     }
 
     /// The largest deficit of UAV `i`'s own limits (standoff along its arc, its backup's standoff; the

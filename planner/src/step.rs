@@ -166,6 +166,7 @@ fn standoff_tiers(by_kind: [f64; 4]) -> [f64; TIERS] {
         v(ConstraintKind::Approach),
         v(ConstraintKind::HeadingCone),
         0.0,
+        0.0,
     ]
 }
 
