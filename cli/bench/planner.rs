@@ -27,7 +27,7 @@ use std::time::Instant;
 
 use clap::Args;
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
+use planner::{ObjectiveKind, PlanRequest, SafetyMode, Scenario, SolverKind, plan_step};
 use serde::Serialize;
 use tdoa::rng::{Purpose, derive_seed};
 
@@ -121,6 +121,45 @@ pub struct PlannerBenchArgs {
     /// paper's 24 steps reach the L_min ring, where the planner's standoff search runs.
     #[arg(long, value_name = "N")]
     pub run_steps: Option<usize>,
+    /// Safety modes to time, repeatable or comma-separated: certified (every plan certified along the
+    /// arcs with a backup for ever) | waypoints (the paper's constraints at the waypoints). Each
+    /// objective × solver is timed once per mode, interleaved with the others.
+    #[arg(long, value_name = "MODE,..", value_delimiter = ',', default_values = ["certified"])]
+    pub safety: Vec<String>,
+}
+
+/// One timed combination: objective × solver × safety mode.
+pub type Combo = (ObjectiveKind, SolverKind, SafetyMode);
+
+/// `analytical/pso`, with `/waypoints` for the waypoint planner.
+fn combo_label(c: Combo) -> String {
+    match c.2 {
+        SafetyMode::Certified => format!("{}/{}", c.0, c.1),
+        SafetyMode::Waypoints => format!("{}/{}/waypoints", c.0, c.1),
+    }
+}
+
+/// Parses `--safety`.
+fn parse_safety(values: &[String]) -> Result<Vec<SafetyMode>, CliError> {
+    let mut out = Vec::new();
+    for v in values {
+        let m = match v.trim() {
+            "certified" => SafetyMode::Certified,
+            "waypoints" => SafetyMode::Waypoints,
+            other => {
+                return Err(CliError::Input(format!(
+                    "--safety: unknown mode '{other}' (expected certified or waypoints)"
+                )));
+            }
+        };
+        if !out.contains(&m) {
+            out.push(m);
+        }
+    }
+    if out.is_empty() {
+        out.push(SafetyMode::Certified);
+    }
+    Ok(out)
 }
 
 /// The timing of one objective × solver.
@@ -128,6 +167,8 @@ pub struct PlannerBenchArgs {
 pub struct Combination {
     pub objective: String,
     pub solver: String,
+    /// `certified` or `waypoints`.
+    pub safety: String,
     /// Timed samples (steps × repeats).
     pub n: usize,
     pub median_ms: f64,
@@ -200,6 +241,8 @@ pub struct PlannerBenchReport {
 pub struct Quality {
     pub objective: String,
     pub solver: String,
+    /// `certified` or `waypoints` (both plans).
+    pub safety: String,
     /// Planning problems compared.
     pub problems: usize,
     /// Of them, in the standoff regime (PSO's plan gives up a constraint: the L_min ring).
@@ -240,6 +283,8 @@ pub struct PlanInput {
     pub covariance: Matrix2<f64>,
     pub run_seed: u64,
     pub step: u64,
+    /// The emitter's estimated motion (a constant-velocity model), as the closed loop plans with it.
+    pub motion: Option<planner::EmitterMotion>,
 }
 
 impl PlanInput {
@@ -254,7 +299,7 @@ impl PlanInput {
             solver,
             run_seed: self.run_seed,
             step: self.step,
-            motion: None,
+            motion: self.motion,
         }
     }
 }
@@ -324,6 +369,10 @@ pub fn collect_inputs_of_runs(
                 covariance,
                 run_seed: run_sc.seed,
                 step: k,
+                motion: est.posterior.and_then(|p| p.velocity()).map(|(velocity, velocity_cov)| planner::EmitterMotion {
+                    velocity,
+                    velocity_cov,
+                }),
             };
             let plan = plan_step(&input.request(&run_sc, objective, solver))
                 .map_err(|e| failed(format!("step {k}: plan"), &e))?;
@@ -405,12 +454,20 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
     let run_steps = args.run_steps.unwrap_or(sc.steps);
     let (inputs, input_runs) = collect_inputs_of_runs(&sc, args.steps, run_steps)?;
 
-    let combos: Vec<(ObjectiveKind, SolverKind)> =
-        objectives.iter().flat_map(|&o| solvers.iter().map(move |&s| (o, s))).collect();
+    let modes = parse_safety(&args.safety)?;
+    let mut combos: Vec<Combo> = Vec::new();
+    for &o in &objectives {
+        for &s in &solvers {
+            combos.extend(modes.iter().map(|&m| (o, s, m)));
+        }
+    }
     let count = combos.len();
-    let label = |c: (ObjectiveKind, SolverKind)| format!("{}/{}", c.0, c.1);
-    let plan = |i: usize, c: (ObjectiveKind, SolverKind)| {
-        plan_step(black_box(&inputs[i].request(&sc, c.0, c.1)))
+    let with_mode = |m: SafetyMode| Scenario { safety: m, ..sc.clone() };
+    let scenarios = [with_mode(SafetyMode::Certified), with_mode(SafetyMode::Waypoints)];
+    let scenario_of = |m: SafetyMode| &scenarios[usize::from(m == SafetyMode::Waypoints)];
+    let label = combo_label;
+    let plan = |i: usize, c: Combo| {
+        plan_step(black_box(&inputs[i].request(scenario_of(c.2), c.0, c.1)))
             .map_err(|e| CliError::Failed(format!("{} at input {i} (step {}): {e}", label(c), inputs[i].step)))
     };
     for &c in &combos {
@@ -455,17 +512,19 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
     }
 
     let stats: Vec<Stats> = samples.iter().map(|s| Stats::of(s)).collect();
-    let reference = combos.iter().position(|&c| c == REFERENCE).map(|j| stats[j].median);
+    let reference_combo = (REFERENCE.0, REFERENCE.1, modes[0]);
+    let reference = combos.iter().position(|&c| c == reference_combo).map(|j| stats[j].median);
     let paper_reference = paper_ms(REFERENCE.0, REFERENCE.1).map(|p| p.0);
     let combinations = combos
         .iter()
         .zip(&stats)
         .enumerate()
-        .map(|(j, (&(o, s), st))| {
+        .map(|(j, (&(o, s, m), st))| {
             let paper = paper_ms(o, s);
             Combination {
                 objective: o.name().to_string(),
                 solver: s.name().to_string(),
+                safety: m.name().to_string(),
                 n: st.n,
                 median_ms: st.median,
                 p90_ms: st.p90,
@@ -484,7 +543,7 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
     Ok(PlannerBenchReport {
         steps: args.steps,
         repeats: args.repeats,
-        reference: label(REFERENCE),
+        reference: label(reference_combo),
         combinations,
         cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
         cpu_model: cpu_model(),
@@ -505,13 +564,13 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
 
 /// Every solver's plans against PSO's for the same objective and inputs (see [`Quality`]).
 pub fn quality(
-    combos: &[(ObjectiveKind, SolverKind)],
+    combos: &[Combo],
     fitness: &[Vec<planner::Fitness>],
     inputs: &[PlanInput],
 ) -> Vec<Quality> {
     let mut out = Vec::new();
-    for (j, &(o, s)) in combos.iter().enumerate() {
-        let Some(r) = combos.iter().position(|&c| c == (o, SolverKind::Pso)) else { continue };
+    for (j, &(o, s, m)) in combos.iter().enumerate() {
+        let Some(r) = combos.iter().position(|&c| c == (o, SolverKind::Pso, m)) else { continue };
         if s == SolverKind::Pso || !o.is_optimised() {
             continue;
         }
@@ -520,6 +579,7 @@ pub fn quality(
         let mut q = Quality {
             objective: o.name().into(),
             solver: s.name().into(),
+            safety: m.name().into(),
             problems: mine.len(),
             standoff_problems: pso.iter().filter(|f| !f.is_feasible()).count(),
             at_most_pso: 0,
@@ -622,8 +682,9 @@ impl Report for PlannerBenchReport {
             t = t.row(k, v);
         }
         for c in &self.combinations {
+            let mode = if c.safety == "waypoints" { "/waypoints" } else { "" };
             t = t.row(
-                format!("{}/{}", c.objective, c.solver),
+                format!("{}/{}{mode}", c.objective, c.solver),
                 format!(
                     "median {} ms, p90 {}, p99 {}, max {}, mean {} (n = {}); {} evals/plan; {} of {}{}",
                     ms(c.median_ms),
@@ -652,6 +713,7 @@ impl Report for PlannerBenchReport {
         let header = [
             "objective",
             "solver",
+            "safety",
             "n",
             "median ms",
             "p90 ms",
@@ -669,6 +731,7 @@ impl Report for PlannerBenchReport {
             rows.push(vec![
                 c.objective.clone(),
                 c.solver.clone(),
+                c.safety.clone(),
                 c.n.to_string(),
                 ms(c.median_ms),
                 ms(c.p90_ms),
@@ -688,7 +751,7 @@ impl Report for PlannerBenchReport {
             let mut line = String::new();
             for (i, cell) in r.iter().enumerate() {
                 let pad = widths[i] - cell.chars().count();
-                if i < 2 {
+                if i < 3 {
                     line += &format!("{cell}{:pad$}  ", "");
                 } else {
                     line += &format!("{:pad$}{cell}  ", "");
@@ -699,10 +762,11 @@ impl Report for PlannerBenchReport {
         }
         for q in &self.quality {
             out += &format!(
-                "\n{}/{} vs {}/pso: fitness <= PSO's on {} of {} problems ({:.2} %; {} standoff), better on {}",
+                "\n{}/{} vs {}/pso ({}): fitness <= PSO's on {} of {} problems ({:.2} %; {} standoff), better on {}",
                 q.objective,
                 q.solver,
                 q.objective,
+                q.safety,
                 q.at_most_pso,
                 q.problems,
                 100.0 * q.fraction_at_most_pso,

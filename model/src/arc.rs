@@ -136,6 +136,12 @@ pub fn pair_min_distance(a: &Arc, b: &Arc, threshold: f64) -> MinBracket {
 
 /// [`pair_min_distance`] with the end-point distances `f0 = |a(0) − b(0)|`, `f1 = |a(1) − b(1)|` given.
 pub fn pair_min_distance_from(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64) -> MinBracket {
+    // Far apart: the relative speed is at most L_a + L_b, so the Piyavskii bound over the whole interval
+    // with that slope certifies the pair without a single sine.
+    let coarse = 0.5 * (f0 + f1) - 0.5 * (a.length + b.length);
+    if coarse >= threshold {
+        return MinBracket { lower: coarse, upper: f0.min(f1) };
+    }
     let length = a.length.max(b.length);
     // The relative speed: 2L|sin(Δh/2)| with Δh linear in s (equal speeds, as the planner's UAVs fly).
     let d0 = a.heading - b.heading;
@@ -159,7 +165,18 @@ const CLOSED_FORM_ROUNDING_M: f64 = 1e-6;
 /// `q − c`; when that direction is inside the arc's sweep the minimum is `| |q − c| − |R| |`, else it is
 /// at an end point. Returned as a bracket of width 2·10⁻⁶ m (rounding).
 pub fn static_point_min_distance(arc: &Arc, q: Vector2<f64>) -> MinBracket {
+    static_point_min_distance_above(arc, q, f64::INFINITY)
+}
+
+/// [`static_point_min_distance`], or only certified to be at least `threshold`: every point of the arc
+/// is within `L/2` of arc length of an end, so `min(|q − p(0)|, |q − p(1)|) − L/2` is a lower bound
+/// that needs no trigonometry beyond the end point.
+pub fn static_point_min_distance_above(arc: &Arc, q: Vector2<f64>, threshold: f64) -> MinBracket {
     let end = arc.end();
+    let ends = (arc.start - q).norm().min((end - q).norm());
+    if ends - 0.5 * arc.length >= threshold {
+        return MinBracket { lower: ends - 0.5 * arc.length, upper: ends };
+    }
     let exact = if arc.turn.abs() < STRAIGHT_TURN {
         let d = end - arc.start;
         let len2 = d.norm_squared();
@@ -194,7 +211,7 @@ pub fn moving_point_min_distance(
     threshold: f64,
 ) -> MinBracket {
     if velocity == Vector2::zeros() {
-        return static_point_min_distance(arc, from);
+        return static_point_min_distance_above(arc, from, threshold);
     }
     let drift = velocity * dt;
     let point = |s: f64| from + drift * s;

@@ -265,122 +265,240 @@ pub fn certify(
     limits: &SafetyLimits,
     exact: bool,
 ) -> SafetyReport {
-    let n = positions.len().min(psi.len()).min(phi.len());
-    let mut arcs = [Arc::new(Vector2::zeros(), 0.0, 0.0, 0.0); tdoa::MAX_UAVS];
-    let mut ends = [Vector2::zeros(); tdoa::MAX_UAVS];
-    let n = n.min(tdoa::MAX_UAVS);
-    for i in 0..n {
-        arcs[i] = Arc::new(positions[i], psi[i], phi[i], limits.arc_len);
-        ends[i] = arcs[i].end();
+    Certifier::new(positions, psi, *emitter, *limits).check(phi, exact)
+}
+
+/// What one UAV's heading φ_i alone decides: its arc, its standoff along it, its backup circle.
+#[derive(Debug, Clone, Copy)]
+struct UavPart {
+    phi_bits: u64,
+    arc: Arc,
+    end: Vector2<f64>,
+    /// The standoff along the arc, checked against `B + reserve` (a lower bound), metres.
+    standoff: f64,
+    centre: Vector2<f64>,
+    /// sin(φ/2), cos(φ/2) of the wrapped φ.
+    half: (f64, f64),
+    /// Distance of the backup circle to the predicted emitter over the backup's time, metres.
+    to_circle: f64,
+}
+
+/// What a pair's two headings decide: their spacing along the arcs and on the backup circles.
+#[derive(Debug, Clone, Copy)]
+struct PairPart {
+    bits: (u64, u64),
+    along: f64,
+    backup: f64,
+}
+
+/// [`certify`] for many plans of one planning step: the parts of a plan that depend on one UAV's
+/// heading (or on one pair's) are kept and reused while that heading is unchanged — a finite-difference
+/// gradient or a coordinate search changes one heading at a time. The same answers, bit for bit.
+#[derive(Debug, Clone)]
+pub struct Certifier<'a> {
+    positions: &'a [Vector2<f64>],
+    psi: &'a [f64],
+    emitter: EmitterPrediction,
+    limits: SafetyLimits,
+    uavs: [Option<UavPart>; tdoa::MAX_UAVS],
+    pairs: [[Option<PairPart>; tdoa::MAX_UAVS]; tdoa::MAX_UAVS],
+}
+
+impl<'a> Certifier<'a> {
+    /// A certifier of plans for the UAVs at `positions` with headings `psi`.
+    pub fn new(positions: &'a [Vector2<f64>], psi: &'a [f64], emitter: EmitterPrediction, limits: SafetyLimits) -> Self {
+        Self { positions, psi, emitter, limits, uavs: [None; tdoa::MAX_UAVS], pairs: [[None; tdoa::MAX_UAVS]; tdoa::MAX_UAVS] }
     }
-    let mut tightest: Option<Tightest> = None;
-    let (mut total, mut step) = (0.0, 0.0f64);
-    let mut note = |limit, uav, other, deficit: f64| {
-        let deficit = if deficit.is_nan() { f64::INFINITY } else { deficit };
-        if deficit > 0.0 {
-            total += deficit;
-            if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::Standoff) {
-                step = step.max(deficit);
-            }
-        }
-        if tightest.is_none_or(|t| deficit > t.deficit) {
-            tightest = Some(Tightest { limit, uav, other, deficit });
-        }
-    };
-    let delta = MIN_TOLERANCE_M;
-    // 1. Turn radius.
-    let theta_max = max_turn(limits.arc_len, limits.r_min);
-    if limits.r_min > 0.0 {
-        for (i, arc) in arcs[..n].iter().enumerate() {
-            // A turn clamped exactly onto θ_max may come back one ulp beyond it: rounding, not a violation.
-            note(SafetyLimit::TurnRadius, i, None, (arc.turn.abs() - theta_max) / theta_max - TURN_ROUNDING);
-        }
+
+    /// The standoff bound along the step's arcs `B = L_min + k·σ̄(Δt)`, metres.
+    fn step_bound(&self) -> f64 {
+        self.limits.l_min + self.limits.standoff_k * self.emitter.sigma_bound(self.limits.dt)
     }
-    // 2. Spacing along the arcs.
-    let mut min_pair = None::<f64>;
-    if limits.d_min > 0.0 {
-        let d = limits.d_min;
-        for i in 0..n {
-            for j in i + 1..n {
-                let f0 = (positions[i] - positions[j]).norm();
-                let f1 = (ends[i] - ends[j]).norm();
-                let m = pair_min_distance_from(&arcs[i], &arcs[j], f0, f1, d).lower;
-                note(SafetyLimit::Spacing, i, Some(j), (d - m) / d);
-                let m = if exact { pair_min_distance_from(&arcs[i], &arcs[j], f0, f1, f64::INFINITY).lower } else { m };
-                min_pair = Some(min_pair.map_or(m, |p| p.min(m)));
-            }
-        }
+
+    /// The reserve `k·σ_p + |v̂|·Δt`, metres (see [`SafetyReport::reserve_deficit`]).
+    fn reserve(&self) -> f64 {
+        self.limits.standoff_k * self.emitter.sigma_position + self.emitter.velocity.norm() * self.limits.dt
     }
-    // 3. Standoff along the arcs, from the emitter as predicted over the interval.
-    let mut standoff = None::<f64>;
-    let reserve = limits.standoff_k * emitter.sigma_position + emitter.velocity.norm() * limits.dt;
-    let mut reserve_deficit = 0.0f64;
-    let b_step = limits.l_min + limits.standoff_k * emitter.sigma_bound(limits.dt);
-    if limits.l_min > 0.0 {
-        let (z, v, dt) = (emitter.position, emitter.velocity, limits.dt);
-        for (i, arc) in arcs[..n].iter().enumerate() {
-            let m = moving_point_min_distance(arc, z, v, dt, b_step + reserve).lower;
-            note(SafetyLimit::Standoff, i, None, (b_step - m) / b_step);
-            reserve_deficit = reserve_deficit.max((b_step + reserve - m) / (b_step + reserve));
-            let m = if exact { moving_point_min_distance(arc, z, v, dt, f64::INFINITY).lower } else { m };
-            let margin = m - b_step;
-            standoff = Some(standoff.map_or(margin, |s| s.min(margin)));
-        }
+
+    /// The backup circle's time window `[t0, t1]` after the plan's start, seconds.
+    fn backup_window(&self) -> (f64, f64) {
+        let dt = self.limits.dt;
+        if self.emitter.is_static() { (dt, dt) } else { (dt, dt + self.limits.horizon_s) }
     }
-    // 4. The backup circles from the end state.
-    let radius = limits.backup_radius();
-    let mut centres = [Vector2::zeros(); tdoa::MAX_UAVS];
-    let mut half = [(0.0, 0.0); tdoa::MAX_UAVS];
-    for i in 0..n {
-        let (s, c) = phi[i].sin_cos();
-        centres[i] = ends[i] + Vector2::new(s, -c) * radius;
-        half[i] = (0.5 * phi[i]).sin_cos();
-    }
-    let mut backup_pair = None::<f64>;
-    if limits.d_min > 0.0 {
-        let need = limits.d_min + delta;
-        for i in 0..n {
-            for j in i + 1..n {
-                // sin((φ_i − φ_j)/2) from the half-angle sines and cosines.
-                let sin_half = half[i].0 * half[j].1 - half[i].1 * half[j].0;
-                let b = 2.0 * radius * sin_half.abs();
-                let m = ((centres[i] - centres[j]).norm() - b).abs();
-                backup_pair = Some(backup_pair.map_or(m, |p| p.min(m)));
-                note(SafetyLimit::BackupSpacing, i, Some(j), (need - m) / need);
-            }
-        }
-    }
-    let mut backup_standoff = None::<f64>;
-    if limits.l_min > 0.0 {
-        let (t0, t1) =
-            if emitter.is_static() { (limits.dt, limits.dt) } else { (limits.dt, limits.dt + limits.horizon_s) };
+
+    /// The backup standoff bound `L_min + k·(σ̄(t1) + σ_p)`, metres.
+    fn backup_bound(&self) -> f64 {
+        let (_, t1) = self.backup_window();
         // The next estimate moves ẑ by at most k·σ_p along any direction with probability c (the update's
         // covariance M_k − M_{k+1} is below M_k): the backup keeps that much more, so that it still
         // holds from the next step's estimate.
-        let need = limits.l_min + limits.standoff_k * (emitter.sigma_bound(t1) + emitter.sigma_position);
-        let (q0, q1) = (emitter.at(t0), emitter.at(t1));
-        for (i, c) in centres[..n].iter().enumerate() {
-            let (dmin, dmax) = segment_distance_range(*c, q0, q1);
-            let to_circle =
-                if (dmin..=dmax).contains(&radius) { 0.0 } else { (dmin - radius).abs().min((dmax - radius).abs()) };
-            let margin = to_circle - need;
-            backup_standoff = Some(backup_standoff.map_or(margin, |s| s.min(margin)));
-            note(SafetyLimit::BackupStandoff, i, None, (need + delta - to_circle) / (need + delta));
-            let kept = need + delta + reserve;
-            reserve_deficit = reserve_deficit.max((kept - to_circle) / kept);
-        }
+        self.limits.l_min + self.limits.standoff_k * (self.emitter.sigma_bound(t1) + self.emitter.sigma_position)
     }
-    let certified = tightest.is_none_or(|t| t.deficit <= 0.0);
-    SafetyReport {
-        certified,
-        total_deficit: total,
-        step_deficit: step,
-        reserve_deficit: if reserve_deficit.is_nan() { f64::INFINITY } else { reserve_deficit.max(0.0) },
-        min_pair_m: min_pair,
-        standoff_margin_m: standoff,
-        backup_pair_m: backup_pair,
-        backup_standoff_margin_m: backup_standoff,
-        tightest,
+
+    fn uav(&mut self, i: usize, phi: f64) -> UavPart {
+        if let Some(u) = self.uavs[i]
+            && u.phi_bits == phi.to_bits()
+        {
+            return u;
+        }
+        let (limits, e) = (self.limits, self.emitter);
+        let arc = Arc::new(self.positions[i], self.psi[i], phi, limits.arc_len);
+        let end = arc.end();
+        let standoff = if limits.l_min > 0.0 {
+            moving_point_min_distance(&arc, e.position, e.velocity, limits.dt, self.step_bound() + self.reserve()).lower
+        } else {
+            f64::INFINITY
+        };
+        let radius = limits.backup_radius();
+        let (sin, cos) = phi.sin_cos();
+        let centre = end + Vector2::new(sin, -cos) * radius;
+        // sin(φ/2), cos(φ/2) from the full angle's (half-angle formulas): φ/2 for the wrapped φ ∈ (−π, π]
+        // lies in (−π/2, π/2], so the cosine is ≥ 0 and the sine has φ's sign.
+        let hc = (0.5 * (1.0 + cos)).max(0.0).sqrt();
+        let hs = (0.5 * (1.0 - cos)).max(0.0).sqrt();
+        let half = (if crate::kinematics::wrap_angle(phi) < 0.0 { -hs } else { hs }, hc);
+        let (t0, t1) = self.backup_window();
+        let (dmin, dmax) = segment_distance_range(centre, e.at(t0), e.at(t1));
+        let to_circle =
+            if (dmin..=dmax).contains(&radius) { 0.0 } else { (dmin - radius).abs().min((dmax - radius).abs()) };
+        let part = UavPart { phi_bits: phi.to_bits(), arc, end, standoff, centre, half, to_circle };
+        self.uavs[i] = Some(part);
+        part
+    }
+
+    fn pair(&mut self, i: usize, j: usize, a: &UavPart, b: &UavPart) -> PairPart {
+        let bits = (a.phi_bits, b.phi_bits);
+        if let Some(p) = self.pairs[i][j]
+            && p.bits == bits
+        {
+            return p;
+        }
+        let d = self.limits.d_min;
+        let f0 = (self.positions[i] - self.positions[j]).norm();
+        let f1 = (a.end - b.end).norm();
+        let along = pair_min_distance_from(&a.arc, &b.arc, f0, f1, d).lower;
+        // sin((φ_i − φ_j)/2) from the half-angle sines and cosines of the wrapped headings (a whole turn
+        // only flips its sign, and |·| is taken).
+        let sin_half = a.half.0 * b.half.1 - a.half.1 * b.half.0;
+        let chord = 2.0 * self.limits.backup_radius() * sin_half.abs();
+        let backup = ((a.centre - b.centre).norm() - chord).abs();
+        let part = PairPart { bits, along, backup };
+        self.pairs[i][j] = Some(part);
+        part
+    }
+
+    /// The certificate of the plan `phi` (see [`certify`]).
+    pub fn check(&mut self, phi: &[f64], exact: bool) -> SafetyReport {
+        let limits = self.limits;
+        let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
+        let mut parts = [None::<UavPart>; tdoa::MAX_UAVS];
+        for i in 0..n {
+            parts[i] = Some(self.uav(i, phi[i]));
+        }
+        let part = |i: usize| parts[i].expect("computed above");
+        let mut tightest: Option<Tightest> = None;
+        let (mut total, mut step) = (0.0, 0.0f64);
+        let mut note = |limit, uav, other, deficit: f64| {
+            let deficit = if deficit.is_nan() { f64::INFINITY } else { deficit };
+            if deficit > 0.0 {
+                total += deficit;
+                if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::Standoff) {
+                    step = step.max(deficit);
+                }
+            }
+            if tightest.is_none_or(|t| deficit > t.deficit) {
+                tightest = Some(Tightest { limit, uav, other, deficit });
+            }
+        };
+        let delta = MIN_TOLERANCE_M;
+        // 1. Turn radius.
+        let theta_max = max_turn(limits.arc_len, limits.r_min);
+        if limits.r_min > 0.0 {
+            for i in 0..n {
+                // A turn clamped exactly onto θ_max may come back one ulp beyond it: rounding, not a violation.
+                note(SafetyLimit::TurnRadius, i, None, (part(i).arc.turn.abs() - theta_max) / theta_max - TURN_ROUNDING);
+            }
+        }
+        // 2. Spacing along the arcs, and 4a. on the backup circles (closed form, for ever).
+        let mut pairs = [[None::<PairPart>; tdoa::MAX_UAVS]; tdoa::MAX_UAVS];
+        if limits.d_min > 0.0 {
+            for i in 0..n {
+                for j in i + 1..n {
+                    pairs[i][j] = Some(self.pair(i, j, &part(i), &part(j)));
+                }
+            }
+        }
+        let mut min_pair = None::<f64>;
+        let mut backup_pair = None::<f64>;
+        if limits.d_min > 0.0 {
+            let d = limits.d_min;
+            for i in 0..n {
+                for j in i + 1..n {
+                    let p = pairs[i][j].expect("computed above");
+                    note(SafetyLimit::Spacing, i, Some(j), (d - p.along) / d);
+                    let m = if exact {
+                        let (a, b) = (part(i), part(j));
+                        let (f0, f1) = ((self.positions[i] - self.positions[j]).norm(), (a.end - b.end).norm());
+                        pair_min_distance_from(&a.arc, &b.arc, f0, f1, f64::INFINITY).lower
+                    } else {
+                        p.along
+                    };
+                    min_pair = Some(min_pair.map_or(m, |q| q.min(m)));
+                }
+            }
+        }
+        // 3. Standoff along the arcs, from the emitter as predicted over the interval.
+        let mut standoff = None::<f64>;
+        let reserve = self.reserve();
+        let mut reserve_deficit = 0.0f64;
+        let b_step = self.step_bound();
+        if limits.l_min > 0.0 {
+            let (z, v, dt) = (self.emitter.position, self.emitter.velocity, limits.dt);
+            for i in 0..n {
+                let m = part(i).standoff;
+                note(SafetyLimit::Standoff, i, None, (b_step - m) / b_step);
+                reserve_deficit = reserve_deficit.max((b_step + reserve - m) / (b_step + reserve));
+                let m = if exact { moving_point_min_distance(&part(i).arc, z, v, dt, f64::INFINITY).lower } else { m };
+                let margin = m - b_step;
+                standoff = Some(standoff.map_or(margin, |s| s.min(margin)));
+            }
+        }
+        // 4b. The backup circles' spacing (computed with the pairs above).
+        if limits.d_min > 0.0 {
+            let need = limits.d_min + delta;
+            for i in 0..n {
+                for j in i + 1..n {
+                    let m = pairs[i][j].expect("computed above").backup;
+                    backup_pair = Some(backup_pair.map_or(m, |p| p.min(m)));
+                    note(SafetyLimit::BackupSpacing, i, Some(j), (need - m) / need);
+                }
+            }
+        }
+        // 4c. The backup circles' standoff.
+        let mut backup_standoff = None::<f64>;
+        if limits.l_min > 0.0 {
+            let need = self.backup_bound();
+            for i in 0..n {
+                let to_circle = part(i).to_circle;
+                let margin = to_circle - need;
+                backup_standoff = Some(backup_standoff.map_or(margin, |s| s.min(margin)));
+                note(SafetyLimit::BackupStandoff, i, None, (need + delta - to_circle) / (need + delta));
+                let kept = need + delta + reserve;
+                reserve_deficit = reserve_deficit.max((kept - to_circle) / kept);
+            }
+        }
+        let certified = tightest.is_none_or(|t| t.deficit <= 0.0);
+        SafetyReport {
+            certified,
+            total_deficit: total,
+            step_deficit: step,
+            reserve_deficit: if reserve_deficit.is_nan() { f64::INFINITY } else { reserve_deficit.max(0.0) },
+            min_pair_m: min_pair,
+            standoff_margin_m: standoff,
+            backup_pair_m: backup_pair,
+            backup_standoff_margin_m: backup_standoff,
+            tightest,
+        }
     }
 }
 

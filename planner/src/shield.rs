@@ -21,7 +21,9 @@
 //!
 //! Units: metres, seconds, radians.
 
-use model::safety::{EmitterPrediction, SafetyLimits, SafetyReport, certify};
+use std::cell::RefCell;
+
+use model::safety::{Certifier, EmitterPrediction, SafetyLimits, SafetyReport, certify};
 use nalgebra::{Matrix2, Vector2};
 
 use crate::constraints::{Constraints, FEASIBILITY_EPS};
@@ -66,7 +68,7 @@ pub fn prediction(
 }
 
 /// One planning step's shield: the UAVs' state, the limits and the predicted emitter.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug)]
 pub struct Shield<'a> {
     /// Current positions, metres.
     pub positions: &'a [Vector2<f64>],
@@ -80,12 +82,27 @@ pub struct Shield<'a> {
     pub constraints: &'a Constraints,
     /// ẑ, metres.
     pub estimate: Vector2<f64>,
+    /// The step's certifier, keeping what one heading or one pair decided while it is unchanged.
+    certifier: RefCell<Certifier<'a>>,
 }
 
-impl Shield<'_> {
+impl<'a> Shield<'a> {
+    /// The shield of UAVs at `positions` with headings `headings`.
+    pub fn new(
+        positions: &'a [Vector2<f64>],
+        headings: &'a [f64],
+        limits: SafetyLimits,
+        emitter: EmitterPrediction,
+        constraints: &'a Constraints,
+        estimate: Vector2<f64>,
+    ) -> Self {
+        let certifier = RefCell::new(Certifier::new(positions, headings, emitter, limits));
+        Self { positions, headings, limits, emitter, constraints, estimate, certifier }
+    }
+
     /// The certificate of the plan `phi` (fast: minima only checked against their bounds).
     pub fn check(&self, phi: &[f64]) -> SafetyReport {
-        certify(self.positions, self.headings, phi, &self.emitter, &self.limits, false)
+        self.certifier.borrow_mut().check(phi, false)
     }
 
     /// The certificate of the plan `phi` with its minima bracketed (for the step's report).

@@ -259,14 +259,14 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
     )?;
 
     if sc.safety == SafetyMode::Certified {
-        let shield = Shield {
-            positions: pos,
-            headings: psi,
-            limits: safety_limits(sc),
-            emitter: prediction(sc, z, &req.covariance, req.motion),
-            constraints: &constraints,
-            estimate: z,
-        };
+        let shield = Shield::new(
+            pos,
+            psi,
+            safety_limits(sc),
+            prediction(sc, z, &req.covariance, req.motion),
+            &constraints,
+            z,
+        );
         let mut safe = |phi: &[f64]| {
             shield.fitness(phi, || {
                 let next = waypoints_of(pos, psi, phi, sc);
