@@ -118,7 +118,8 @@ pub fn lipschitz_min(
     MinBracket { lower: search.lower.min(search.upper).max(0.0), upper: search.upper }
 }
 
-/// Largest `|sin(x)|` for `x` between `x0` and `x1`.
+/// Largest `|sin(x)|` for `x` between `x0` and `x1` (the exact slope factor the bound above covers).
+#[cfg(test)]
 fn max_abs_sin(x0: f64, x1: f64) -> f64 {
     let (lo, hi) = if x0 <= x1 { (x0, x1) } else { (x1, x0) };
     // An odd multiple of π/2 inside [lo, hi] reaches 1.
@@ -143,12 +144,19 @@ pub fn pair_min_distance_from(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64
         return MinBracket { lower: coarse, upper: f0.min(f1) };
     }
     let length = a.length.max(b.length);
-    // The relative speed: 2L|sin(Δh/2)| with Δh linear in s (equal speeds, as the planner's UAVs fly).
-    let d0 = a.heading - b.heading;
+    // The relative speed: 2L|sin(Δh/2)| with Δh linear in s (equal speeds, as the planner's UAVs fly),
+    // bounded by 2L·min(1, |Δh/2|) with Δh(0) wrapped into (−π, π] (no sine: tight where it matters,
+    // for UAVs flying nearly parallel).
+    let d0 = crate::kinematics::wrap_angle(a.heading - b.heading);
     let dd = a.turn - b.turn;
     let equal = a.length == b.length;
     let slope = move |s0: f64, s1: f64| {
-        if equal { 2.0 * length * max_abs_sin(0.5 * (d0 + dd * s0), 0.5 * (d0 + dd * s1)) } else { a.length + b.length }
+        if equal {
+            let x = (0.5 * (d0 + dd * s0)).abs().max((0.5 * (d0 + dd * s1)).abs());
+            2.0 * length * x.min(1.0)
+        } else {
+            a.length + b.length
+        }
     };
     lipschitz_min(&mut |s| (a.at(s) - b.at(s)).norm(), &slope, f0, f1, threshold)
 }

@@ -301,13 +301,21 @@ pub struct Certifier<'a> {
     emitter: EmitterPrediction,
     limits: SafetyLimits,
     uavs: [Option<UavPart>; tdoa::MAX_UAVS],
-    pairs: [[Option<PairPart>; tdoa::MAX_UAVS]; tdoa::MAX_UAVS],
+    /// Pair (i, j), i < j, at `j·(j − 1)/2 + i` (empty for one UAV).
+    pairs: Vec<Option<PairPart>>,
+}
+
+/// The index of pair (i, j), i < j, in [`Certifier`]'s pair list.
+fn pair_index(i: usize, j: usize) -> usize {
+    j * (j - 1) / 2 + i
 }
 
 impl<'a> Certifier<'a> {
     /// A certifier of plans for the UAVs at `positions` with headings `psi`.
     pub fn new(positions: &'a [Vector2<f64>], psi: &'a [f64], emitter: EmitterPrediction, limits: SafetyLimits) -> Self {
-        Self { positions, psi, emitter, limits, uavs: [None; tdoa::MAX_UAVS], pairs: [[None; tdoa::MAX_UAVS]; tdoa::MAX_UAVS] }
+        let n = positions.len().min(tdoa::MAX_UAVS);
+        let pairs = if n >= 2 { vec![None; n * (n - 1) / 2] } else { Vec::new() };
+        Self { positions, psi, emitter, limits, uavs: [None; tdoa::MAX_UAVS], pairs }
     }
 
     /// The standoff bound along the step's arcs `B = L_min + k·σ̄(Δt)`, metres.
@@ -368,7 +376,7 @@ impl<'a> Certifier<'a> {
 
     fn pair(&mut self, i: usize, j: usize, a: &UavPart, b: &UavPart) -> PairPart {
         let bits = (a.phi_bits, b.phi_bits);
-        if let Some(p) = self.pairs[i][j]
+        if let Some(p) = self.pairs[pair_index(i, j)]
             && p.bits == bits
         {
             return p;
@@ -383,7 +391,7 @@ impl<'a> Certifier<'a> {
         let chord = 2.0 * self.limits.backup_radius() * sin_half.abs();
         let backup = ((a.centre - b.centre).norm() - chord).abs();
         let part = PairPart { bits, along, backup };
-        self.pairs[i][j] = Some(part);
+        self.pairs[pair_index(i, j)] = Some(part);
         part
     }
 
@@ -420,21 +428,22 @@ impl<'a> Certifier<'a> {
             }
         }
         // 2. Spacing along the arcs, and 4a. on the backup circles (closed form, for ever).
-        let mut pairs = [[None::<PairPart>; tdoa::MAX_UAVS]; tdoa::MAX_UAVS];
         if limits.d_min > 0.0 {
             for i in 0..n {
                 for j in i + 1..n {
-                    pairs[i][j] = Some(self.pair(i, j, &part(i), &part(j)));
+                    self.pair(i, j, &part(i), &part(j));
                 }
             }
         }
+        let pairs = &self.pairs;
+        let pair = |i: usize, j: usize| pairs[pair_index(i, j)].expect("computed above");
         let mut min_pair = None::<f64>;
         let mut backup_pair = None::<f64>;
         if limits.d_min > 0.0 {
             let d = limits.d_min;
             for i in 0..n {
                 for j in i + 1..n {
-                    let p = pairs[i][j].expect("computed above");
+                    let p = pair(i, j);
                     note(SafetyLimit::Spacing, i, Some(j), (d - p.along) / d);
                     let m = if exact {
                         let (a, b) = (part(i), part(j));
@@ -468,7 +477,7 @@ impl<'a> Certifier<'a> {
             let need = limits.d_min + delta;
             for i in 0..n {
                 for j in i + 1..n {
-                    let m = pairs[i][j].expect("computed above").backup;
+                    let m = pair(i, j).backup;
                     backup_pair = Some(backup_pair.map_or(m, |p| p.min(m)));
                     note(SafetyLimit::BackupSpacing, i, Some(j), (need - m) / need);
                 }
