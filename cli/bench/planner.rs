@@ -813,6 +813,7 @@ mod tests {
             seed: None,
             repeats,
             run_steps: None,
+            safety: vec!["certified".into()],
         }
     }
 
@@ -872,6 +873,23 @@ mod tests {
         let mut a = args(&["analytical"], &["pso"], 2, 1);
         a.scenario = Some(PathBuf::from("/nonexistent/uavloc-bench-scenario.toml"));
         assert!(input_error(&a).contains("--scenario"));
+        let mut a = args(&["analytical"], &["pso"], 2, 1);
+        a.safety = vec!["certified".into(), "safe".into()];
+        let m = input_error(&a);
+        assert!(m.contains("--safety") && m.contains("safe"), "{m}");
+    }
+
+    #[test]
+    fn both_safety_modes_are_timed_side_by_side_and_compared_with_pso_in_their_own_mode() {
+        let mut a = args(&["analytical"], &["pso", "gradient"], 3, 1);
+        a.safety = vec!["certified".into(), "waypoints".into()];
+        let r = run(&a).unwrap();
+        let rows: Vec<(String, String)> = r.combinations.iter().map(|c| (c.solver.clone(), c.safety.clone())).collect();
+        let want = [("pso", "certified"), ("pso", "waypoints"), ("gradient", "certified"), ("gradient", "waypoints")];
+        assert_eq!(rows, want.map(|(s, m)| (s.to_string(), m.to_string())));
+        assert_eq!(r.reference, "analytical/pso");
+        let q: Vec<&str> = r.quality.iter().map(|q| q.safety.as_str()).collect();
+        assert_eq!(q, ["certified", "waypoints"]);
     }
 
     #[test]

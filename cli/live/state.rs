@@ -52,6 +52,13 @@ pub struct LiveState {
     pub planner: Option<String>,
     /// The last line worth showing (a restart, a rejection, the end).
     pub note: String,
+    /// The planner's safety word on the newest planned step (`None`: not certified by design — the
+    /// waypoint planner, a hold — or nothing planned yet).
+    pub certified: Option<bool>,
+    /// Planned steps whose command said that no certified plan existed.
+    pub uncertified: u64,
+    /// The newest such step.
+    pub last_uncertified: Option<u64>,
     /// The posterior CRLB as the steps come in (the records' `pcrlb_m` is computed only at the end of a
     /// run); see [`LiveState::with_bound`].
     bound: Option<monitor::RunningBound>,
@@ -109,7 +116,27 @@ impl LiveState {
         if let Some(p) = &r.planner {
             self.planner = Some(format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
         }
+        if r.step < self.last_step {
+            self.certified = r.safety.and_then(|x| x.certified);
+            if self.certified == Some(false) {
+                self.uncertified += 1;
+                self.last_uncertified = Some(r.step);
+            }
+        }
         self.steps = r.step + 1;
+    }
+
+    /// The safety line of the view: certified, or how many steps had no certified plan.
+    pub fn safety_line(&self) -> String {
+        let word = match self.certified {
+            Some(true) => "certified",
+            Some(false) => "NOT CERTIFIED (largest minimum margin flown)",
+            None => "not certified by design (waypoint planner or hold)",
+        };
+        match self.last_uncertified {
+            Some(k) => format!("safety: {word}; {} step(s) without a certified plan, last step {k}", self.uncertified),
+            None => format!("safety: {word}"),
+        }
     }
 
     /// Takes one event of the monitor's log (`step`, `restart`, `rejected`; others are ignored).
@@ -198,5 +225,35 @@ mod tests {
             s.apply_event(&json!({"event": "status", "role": "estimator", "instance": instance, "rejected": n}));
         }
         assert_eq!((s.rejected_of("estimator"), s.rejected_of("monitor"), s.rejected_of("planner")), (4, 1, 0));
+    }
+
+    #[test]
+    fn the_safety_line_says_which_steps_had_no_certified_plan() {
+        let mut s = LiveState::new("t", 3, 3000.0);
+        assert!(s.safety_line().contains("not certified by design"), "{}", s.safety_line());
+        let mut r = crate::live::state::tests::record_of(0);
+        r.safety = Some(monitor::StepSafety { certified: Some(true), ..Default::default() });
+        s.apply_step(&r);
+        assert_eq!(s.safety_line(), "safety: certified");
+        r.step = 1;
+        r.safety = Some(monitor::StepSafety { certified: Some(false), ..Default::default() });
+        s.apply_step(&r);
+        assert!(s.safety_line().starts_with("safety: NOT CERTIFIED"), "{}", s.safety_line());
+        assert!(s.safety_line().ends_with("1 step(s) without a certified plan, last step 1"), "{}", s.safety_line());
+        r.step = 2;
+        r.safety = Some(monitor::StepSafety { certified: Some(true), ..Default::default() });
+        s.apply_step(&r);
+        assert!(s.safety_line().starts_with("safety: certified; 1 step(s)"), "{}", s.safety_line());
+        assert_eq!(s.uncertified, 1);
+    }
+
+    pub(crate) fn record_of(step: u64) -> StepRecord {
+        serde_json::from_value(json!({
+            "step": step, "uavs": [[0.0, 0.0], [0.0, 1000.0], [0.0, 2000.0]], "headings_rad": [0.0, 0.0, 0.0],
+            "estimate": [25000.0, 15000.0], "estimate_cov": [[4.0e4, 0.0], [0.0, 9.0e4]],
+            "estimate_status": "ok", "rmse_m": null, "objective_value": null, "plan_ms": null,
+            "active_constraints": []
+        }))
+        .unwrap()
     }
 }
