@@ -369,10 +369,10 @@ pub fn collect_inputs_of_runs(
                 covariance,
                 run_seed: run_sc.seed,
                 step: k,
-                motion: est.posterior.and_then(|p| p.velocity()).map(|(velocity, velocity_cov)| planner::EmitterMotion {
-                    velocity,
-                    velocity_cov,
-                }),
+                motion: est
+                    .posterior
+                    .and_then(|p| p.velocity())
+                    .map(|(velocity, velocity_cov)| planner::EmitterMotion { velocity, velocity_cov }),
             };
             let plan = plan_step(&input.request(&run_sc, objective, solver))
                 .map_err(|e| failed(format!("step {k}: plan"), &e))?;
@@ -563,11 +563,7 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
 }
 
 /// Every solver's plans against PSO's for the same objective and inputs (see [`Quality`]).
-pub fn quality(
-    combos: &[Combo],
-    fitness: &[Vec<planner::Fitness>],
-    inputs: &[PlanInput],
-) -> Vec<Quality> {
+pub fn quality(combos: &[Combo], fitness: &[Vec<planner::Fitness>], inputs: &[PlanInput]) -> Vec<Quality> {
     let mut out = Vec::new();
     for (j, &(o, s, m)) in combos.iter().enumerate() {
         let Some(r) = combos.iter().position(|&c| c == (o, SolverKind::Pso, m)) else { continue };

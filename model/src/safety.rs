@@ -228,6 +228,9 @@ pub struct SafetyReport {
     /// more estimate update's worth and one step of the emitter's motion — so that the next step's
     /// certificate does not start without slack. A plan inside the reserve is still certified.
     pub reserve_deficit: f64,
+    /// The largest normalised deficit of the turn radius and the spacing along the arcs (0 when they
+    /// hold): a collision, ranked before everything else.
+    pub collision_deficit: f64,
     /// The largest normalised deficit of the step's own limits — turn radius, spacing and standoff
     /// along the arcs — (0 when they hold): what the step itself flies, ranked before the backup.
     pub step_deficit: f64,
@@ -312,7 +315,12 @@ fn pair_index(i: usize, j: usize) -> usize {
 
 impl<'a> Certifier<'a> {
     /// A certifier of plans for the UAVs at `positions` with headings `psi`.
-    pub fn new(positions: &'a [Vector2<f64>], psi: &'a [f64], emitter: EmitterPrediction, limits: SafetyLimits) -> Self {
+    pub fn new(
+        positions: &'a [Vector2<f64>],
+        psi: &'a [f64],
+        emitter: EmitterPrediction,
+        limits: SafetyLimits,
+    ) -> Self {
         let n = positions.len().min(tdoa::MAX_UAVS);
         let pairs = if n >= 2 { vec![None; n * (n - 1) / 2] } else { Vec::new() };
         Self { positions, psi, emitter, limits, uavs: [None; tdoa::MAX_UAVS], pairs }
@@ -405,13 +413,16 @@ impl<'a> Certifier<'a> {
         }
         let part = |i: usize| parts[i].expect("computed above");
         let mut tightest: Option<Tightest> = None;
-        let (mut total, mut step) = (0.0, 0.0f64);
+        let (mut total, mut step, mut collision) = (0.0, 0.0f64, 0.0f64);
         let mut note = |limit, uav, other, deficit: f64| {
             let deficit = if deficit.is_nan() { f64::INFINITY } else { deficit };
             if deficit > 0.0 {
                 total += deficit;
                 if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::Standoff) {
                     step = step.max(deficit);
+                }
+                if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing) {
+                    collision = collision.max(deficit);
                 }
             }
             if tightest.is_none_or(|t| deficit > t.deficit) {
@@ -424,7 +435,12 @@ impl<'a> Certifier<'a> {
         if limits.r_min > 0.0 {
             for i in 0..n {
                 // A turn clamped exactly onto θ_max may come back one ulp beyond it: rounding, not a violation.
-                note(SafetyLimit::TurnRadius, i, None, (part(i).arc.turn.abs() - theta_max) / theta_max - TURN_ROUNDING);
+                note(
+                    SafetyLimit::TurnRadius,
+                    i,
+                    None,
+                    (part(i).arc.turn.abs() - theta_max) / theta_max - TURN_ROUNDING,
+                );
             }
         }
         // 2. Spacing along the arcs, and 4a. on the backup circles (closed form, for ever).
@@ -501,6 +517,7 @@ impl<'a> Certifier<'a> {
             certified,
             total_deficit: total,
             step_deficit: step,
+            collision_deficit: collision,
             reserve_deficit: if reserve_deficit.is_nan() { f64::INFINITY } else { reserve_deficit.max(0.0) },
             min_pair_m: min_pair,
             standoff_margin_m: standoff,

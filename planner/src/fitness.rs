@@ -21,7 +21,7 @@
 use std::cmp::Ordering;
 
 /// Number of violation tiers.
-pub const TIERS: usize = 5;
+pub const TIERS: usize = 6;
 
 /// Violation (normalised, ≥ 0, 0 when feasible; by priority tier) and objective (m²) of one candidate;
 /// smaller is better.
@@ -50,7 +50,7 @@ fn sanitize(x: f64) -> f64 {
 impl Fitness {
     /// From a constraint violation (negative values count as 0) and an objective value, m².
     pub fn new(violation: f64, objective: f64) -> Self {
-        Self::tiered([violation, 0.0, 0.0, 0.0, 0.0], objective)
+        Self::tiered([violation, 0.0, 0.0, 0.0, 0.0, 0.0], objective)
     }
 
     /// From violations by priority tier (first tier first; negative values count as 0) and an objective
@@ -140,14 +140,20 @@ mod tests {
     #[test]
     fn tiers_are_compared_in_priority_order() {
         // A smaller first tier wins whatever the later tiers and the objective.
-        assert!(Fitness::tiered([0.1, 5.0, 5.0, 0.0, 0.0], 1e9) < Fitness::tiered([0.2, 0.0, 0.0, 0.0, 0.0], 1.0));
-        assert!(Fitness::tiered([0.0, 0.1, 9.0, 0.0, 0.0], 1e9) < Fitness::tiered([0.0, 0.2, 0.0, 0.0, 0.0], 1.0));
-        assert!(Fitness::tiered([0.0, 0.0, 0.1, 0.0, 0.0], 1e9) < Fitness::tiered([0.0, 0.0, 0.2, 0.0, 0.0], 1.0));
-        assert!(Fitness::tiered([0.0; TIERS], 1e9) < Fitness::tiered([0.0, 0.0, 1e-12, 0.0, 0.0], 1.0));
-        assert_eq!(Fitness::tiered([0.3, 0.0, 0.0, 0.0, 0.0], 2.0), Fitness::new(0.3, 2.0));
-        let f = Fitness::tiered([0.5, 0.25, f64::NAN, 0.0, 0.0], 1.0);
-        assert_eq!((f.violation(), f.tiers()), (f64::INFINITY, [0.5, 0.25, f64::INFINITY, 0.0, 0.0]));
-        assert!(!f.is_feasible() && Fitness::tiered([0.0, -1.0, 0.0, 0.0, 0.0], 1.0).is_feasible());
+        assert!(
+            Fitness::tiered([0.1, 5.0, 5.0, 0.0, 0.0, 0.0], 1e9) < Fitness::tiered([0.2, 0.0, 0.0, 0.0, 0.0, 0.0], 1.0)
+        );
+        assert!(
+            Fitness::tiered([0.0, 0.1, 9.0, 0.0, 0.0, 0.0], 1e9) < Fitness::tiered([0.0, 0.2, 0.0, 0.0, 0.0, 0.0], 1.0)
+        );
+        assert!(
+            Fitness::tiered([0.0, 0.0, 0.1, 0.0, 0.0, 0.0], 1e9) < Fitness::tiered([0.0, 0.0, 0.2, 0.0, 0.0, 0.0], 1.0)
+        );
+        assert!(Fitness::tiered([0.0; TIERS], 1e9) < Fitness::tiered([0.0, 0.0, 1e-12, 0.0, 0.0, 0.0], 1.0));
+        assert_eq!(Fitness::tiered([0.3, 0.0, 0.0, 0.0, 0.0, 0.0], 2.0), Fitness::new(0.3, 2.0));
+        let f = Fitness::tiered([0.5, 0.25, f64::NAN, 0.0, 0.0, 0.0], 1.0);
+        assert_eq!((f.violation(), f.tiers()), (f64::INFINITY, [0.5, 0.25, f64::INFINITY, 0.0, 0.0, 0.0]));
+        assert!(!f.is_feasible() && Fitness::tiered([0.0, -1.0, 0.0, 0.0, 0.0, 0.0], 1.0).is_feasible());
     }
 
     #[test]

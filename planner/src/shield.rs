@@ -1,18 +1,24 @@
 //! The planner's safety shield (`safety = "certified"`): every candidate plan ranked first by its
 //! safety certificate ([`model::safety`]), then by the heading cone, then by the criterion.
 //!
-//! The certificate is a hard constraint, never traded: the lexicographic [`Fitness`] puts the largest
-//! normalised deficit of the step's own limits (turn radius, spacing and standoff along the arcs; 0 when
-//! they hold) in its first tier and the largest of all (the backup's included; 0 when certified) in its
-//! second, so every certified plan ranks above every uncertified one whatever its criterion, no plan
-//! buys a backup margin with a collision this step, and among uncertified plans the one with the
-//! largest minimum margin (relative to each bound) wins; the third tier, the deficits summed, ranks the
-//! plans whose worst limit cannot be helped (a UAV already deep inside the ring) by the others. The
-//! fourth tier keeps a reserve beyond the standoff bounds where it can (`SafetyReport::reserve_deficit`:
-//! one estimate update's worth and one step of the emitter's motion), so that a small move of the
-//! estimate does not take the next step's certificate away. The heading cone (eq. 58) is the fifth tier — a preference of the paper's method that a certified plan may have to give up (on the
-//! standoff ring every heading in the cone leads inwards) — and the criterion decides among the rest.
-//! For an uncertified plan the criterion is not evaluated (its rank is settled by the first tier).
+//! The certificate is a hard constraint, never traded. The lexicographic [`Fitness`] has six tiers,
+//! each the largest (or summed) normalised deficit of a group of limits, 0 when they hold:
+//!
+//! 1. a collision this step — turn radius, spacing along the arcs (never bought with a standoff
+//!    margin, whose bound already carries the chance constraint's `k·σ`);
+//! 2. the step's own limits — the standoff along the arcs too (no backup margin bought with them);
+//! 3. every limit, the backup's included (0 exactly when certified): every certified plan ranks above
+//!    every uncertified one whatever its criterion, and among uncertified plans the one with the
+//!    largest minimum margin (relative to each bound) wins;
+//! 4. the deficits summed: ranks the plans whose worst limit cannot be helped (a UAV already deep
+//!    inside the ring) by the others;
+//! 5. the reserve beyond the standoff bounds (`SafetyReport::reserve_deficit`: one estimate update's
+//!    worth and one step of the emitter's motion), kept where it can be so that a small move of the
+//!    estimate does not take the next step's certificate away;
+//! 6. the heading cone (eq. 58): a preference of the paper's method that a certified plan may have to
+//!    give up (on the standoff ring every heading in the cone leads inwards).
+//!
+//! The criterion decides among the rest; for an uncertified plan it is not evaluated.
 //!
 //! Every solver's result is compared with the **backup step** (every UAV turns right by `θ_b`, the first
 //! step of the backup orbits of `model::safety`), which is certified whenever the previous step's plan
@@ -123,15 +129,21 @@ impl<'a> Shield<'a> {
             .sum()
     }
 
-    /// The shield's fitness of `phi`: [largest deficit of the step's own limits, largest deficit of all,
-    /// summed deficits, shortfall below the standoff reserve, cone excess], then `objective()` —
-    /// evaluated only for a certified plan.
+    /// The shield's fitness of `phi`: the six tiers of the module docs, then `objective()` — evaluated
+    /// only for a certified plan.
     pub fn fitness(&self, phi: &[f64], objective: impl FnOnce() -> f64) -> Fitness {
         let report = self.check(phi);
         let cone = self.cone_excess(phi);
         let value = if report.certified { objective() } else { f64::INFINITY };
         Fitness::tiered(
-            [report.step_deficit, report.deficit(), report.total_deficit, report.reserve_deficit, cone],
+            [
+                report.collision_deficit,
+                report.step_deficit,
+                report.deficit(),
+                report.total_deficit,
+                report.reserve_deficit,
+                cone,
+            ],
             value,
         )
     }

@@ -167,6 +167,7 @@ fn standoff_tiers(by_kind: [f64; 4]) -> [f64; TIERS] {
         v(ConstraintKind::HeadingCone),
         0.0,
         0.0,
+        0.0,
     ]
 }
 
@@ -259,14 +260,8 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
     )?;
 
     if sc.safety == SafetyMode::Certified {
-        let shield = Shield::new(
-            pos,
-            psi,
-            safety_limits(sc),
-            prediction(sc, z, &req.covariance, req.motion),
-            &constraints,
-            z,
-        );
+        let shield =
+            Shield::new(pos, psi, safety_limits(sc), prediction(sc, z, &req.covariance, req.motion), &constraints, z);
         let mut safe = |phi: &[f64]| {
             shield.fitness(phi, || {
                 let next = waypoints_of(pos, psi, phi, sc);
@@ -279,7 +274,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             let formation = formation_headings(pos, psi, z, &constraints);
             (psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect(), 0, 0)
         } else if req.solver == SolverKind::Gradient {
-            gradient_search(&constraints, pos, psi, z, sc, &mut safe, 2, Some(&|i, phi| shield.own_deficit(i, phi)))?
+            gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&|i, phi| shield.own_deficit(i, phi)))?
         } else {
             cone_then_reach(req, &constraints, &mut safe)?
         };
@@ -428,7 +423,7 @@ fn cone_then_reach(
         &SearchSpace::new(lo, hi, start_point)?,
         derive_seed(req.run_seed, req.step, Purpose::Solver),
     );
-    if cone.fitness.tiers()[..2].iter().all(|t| *t == 0.0) {
+    if cone.fitness.tiers()[..3].iter().all(|t| *t == 0.0) {
         return Ok((cone.best, cone.iterations, cone.evaluations));
     }
     let start_point = psi.iter().zip(&cone.best).map(|(p, b)| p + turn_angle(*p, *b).clamp(-theta, theta)).collect();
