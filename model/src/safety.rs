@@ -223,10 +223,11 @@ pub struct SafetyReport {
     pub certified: bool,
     /// The normalised deficits of every limit that does not hold, summed (0 when certified).
     pub total_deficit: f64,
-    /// The largest normalised shortfall of a standoff margin below its *reserve* `k·σ_p + |v̂|·Δt`
-    /// (0 when every standoff keeps it): what the planner keeps, where it can, beyond the bounds — one
-    /// more estimate update's worth and one step of the emitter's motion — so that the next step's
-    /// certificate does not start without slack. A plan inside the reserve is still certified.
+    /// The largest normalised shortfall of a standoff margin below its *reserve*
+    /// `k·σ_p + |v̂|·(Δt + πR_b/v)` (0 when every standoff keeps it): what the planner keeps, where it
+    /// can, beyond the bounds — one more estimate update's worth, and how far a moving emitter comes
+    /// while a UAV turns its backup circle away from it — so that the next step's certificate does not
+    /// start without slack. A plan inside the reserve is still certified.
     pub reserve_deficit: f64,
     /// The largest normalised deficit of the turn radius and the spacing along the arcs (0 when they
     /// hold): a collision, ranked before everything else.
@@ -331,9 +332,14 @@ impl<'a> Certifier<'a> {
         self.limits.l_min + self.limits.standoff_k * self.emitter.sigma_bound(self.limits.dt)
     }
 
-    /// The reserve `k·σ_p + |v̂|·Δt`, metres (see [`SafetyReport::reserve_deficit`]).
+    /// The reserve `k·σ_p + |v̂|·(Δt + πR_b/v)`, metres (see [`SafetyReport::reserve_deficit`]): one
+    /// estimate update, and how far the emitter moves while a UAV flies one step and half its backup
+    /// circle — the longest it may take to turn from flying towards the emitter to flying away, the only
+    /// way its backup circle moves away.
     fn reserve(&self) -> f64 {
-        self.limits.standoff_k * self.emitter.sigma_position + self.emitter.velocity.norm() * self.limits.dt
+        let l = self.limits;
+        let half_circle_s = std::f64::consts::PI * l.backup_radius() / (l.arc_len / l.dt);
+        l.standoff_k * self.emitter.sigma_position + self.emitter.velocity.norm() * (l.dt + half_circle_s)
     }
 
     /// The backup circle's time window `[t0, t1]` after the plan's start, seconds.
