@@ -55,7 +55,9 @@ pub fn write_trajectory_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
 
 /// Writes one row per step: `step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,
 /// objective_value_m,plan_ms,active_constraints,pcrlb_m,estimate_error_m,nees,min_true_distance_m,
-/// estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,pcrlb_at_estimate_m` (the active constraints
+/// estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,pcrlb_at_estimate_m,certified,
+/// min_pair_m,standoff_margin_m,min_true_distance_along_m` (the last four: the interval's safety along
+/// the arcs flown to the next step, [`crate::StepSafety`]; `certified` is `true`, `false` or empty; the active constraints
 /// joined with `;`; the truth-based columns empty without a truth).
 pub fn write_steps_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
     let mut out = BufWriter::new(File::create(path)?);
@@ -63,12 +65,12 @@ pub fn write_steps_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
         out,
         "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints,\
          pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,\
-         pcrlb_at_estimate_m"
+         pcrlb_at_estimate_m,certified,min_pair_m,standoff_margin_m,min_true_distance_along_m"
     )?;
     for s in &run.steps {
         writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             s.step,
             opt(s.crlb_true_m),
             opt(s.rmse_m),
@@ -87,6 +89,10 @@ pub fn write_steps_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
             s.estimate_cov[1][1],
             opt(s.crlb_at_estimate_m),
             opt(s.pcrlb_at_estimate_m),
+            s.safety.and_then(|x| x.certified).map_or(String::new(), |c| c.to_string()),
+            opt(s.safety.and_then(|x| x.min_pair_m)),
+            opt(s.safety.and_then(|x| x.standoff_margin_m)),
+            opt(s.safety.and_then(|x| x.min_true_distance_m)),
         )?;
     }
     out.flush()

@@ -142,6 +142,7 @@ impl Recordable for Command {
                 "planner_instance": self.planner_instance, "plan_time_us": self.plan_time_us,
                 "active_constraints": self.active_constraints, "violated_constraints": self.violated_constraints,
                 "count": self.count, "hold": self.is_hold(), "objective": self.objective,
+                "certified": self.certified(),
                 "headings": self.headings(), "waypoints": self.waypoints(),
                 "solver": self.solver().unwrap_or("?"), "objective_name": self.objective_name().unwrap_or("?"),
             }),
@@ -151,6 +152,7 @@ impl Recordable for Command {
         json!({
             "planner_instance": integer(), "plan_time_us": integer(), "active_constraints": integer(),
             "violated_constraints": integer(), "count": integer(), "hold": {"type": "boolean"},
+            "certified": {"type": ["boolean", "null"]},
             "objective": {"type": "number"}, "headings": numbers(), "waypoints": points(), "solver": string(),
             "objective_name": string(),
         })
@@ -493,6 +495,27 @@ mod tests {
 
     fn measurement(k: u64) -> Measurement {
         Measurement::new(k, 100 + k, &UAVS, &[0.1 + 0.2, -4010.9], &[28.7712; 3], &[0.1, 0.2, 0.3]).unwrap()
+    }
+
+    #[test]
+    fn a_command_records_its_safety_certificate() {
+        let plan = protocol::PlanInfo {
+            headings: &[0.1, 0.2, 0.3],
+            waypoints: &UAVS,
+            objective: 1.0,
+            solver: "gradient",
+            objective_name: "analytical",
+            plan_time_us: 5,
+            active_constraints: 0,
+            violated_constraints: 0,
+        };
+        let mut c = Command::new(3, 4, 5, &plan).unwrap();
+        assert!(c.to_json()["certified"].is_null(), "neither bit: not certified by design");
+        for (flag, word) in [(Command::FLAG_CERTIFIED, true), (Command::FLAG_UNCERTIFIED, false)] {
+            c.flags = flag;
+            assert_eq!(c.to_json()["certified"].as_bool(), Some(word));
+        }
+        assert_eq!(Command::schema_properties()["certified"]["type"][0], "boolean");
     }
 
     #[test]

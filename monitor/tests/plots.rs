@@ -298,11 +298,23 @@ fn comparison_labels_each_run() {
     done(&dir);
 }
 
+fn step_safety(certified: bool) -> monitor::StepSafety {
+    monitor::StepSafety {
+        certified: Some(certified),
+        min_pair_m: Some(812.5),
+        standoff_margin_m: Some(40.0),
+        min_true_distance_m: None,
+    }
+}
+
 #[test]
 fn csv_tables_have_one_row_per_step_and_empty_cells_for_none() {
     let dir = scratch("csv");
     let mut run = synthetic(5, "mc", "pso", 7);
     run.steps[3].active_constraints.push("turn, UAV1".to_owned()); // needs quoting
+    for (k, certified) in [(0, true), (1, false)] {
+        run.steps[k].safety = Some(step_safety(certified));
+    }
     write_trajectory_csv(&run, &dir.join("trajectory.csv")).unwrap();
     write_steps_csv(&run, &dir.join("steps.csv")).unwrap();
 
@@ -322,11 +334,16 @@ fn csv_tables_have_one_row_per_step_and_empty_cells_for_none() {
         lines[0],
         "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints,\
          pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,\
-         pcrlb_at_estimate_m"
+         pcrlb_at_estimate_m,certified,min_pair_m,standoff_margin_m,min_true_distance_along_m"
     );
     assert_eq!(lines.len(), 1 + 5);
     let rows: Vec<Vec<String>> = lines[1..].iter().map(|l| cells(l)).collect();
-    assert!(rows.iter().all(|r| r.len() == 18), "{rows:?}");
+    assert!(rows.iter().all(|r| r.len() == 22), "{rows:?}");
+    // The safety columns: the planner's word and the margins along the arcs; empty on the last step.
+    assert_eq!(rows[0][18], "true", "{:?}", rows[0]);
+    assert_eq!(rows[1][18], "false", "{:?}", rows[1]);
+    assert_eq!(rows[0][19].parse::<f64>().unwrap(), 812.5);
+    assert!(rows[4][18..].iter().all(String::is_empty), "{:?}", rows[4]);
     // No truth in these records: the truth-based columns are empty, not zero.
     assert!(rows.iter().all(|r| r[9..13].iter().all(String::is_empty)), "{rows:?}");
     assert_eq!(rows[2][2], "", "rmse None at step 2");
