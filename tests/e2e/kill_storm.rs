@@ -383,6 +383,9 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
     let sim = json_of(&["simulate", "--json", "--steps", &n]);
     assert_same_run(&sim, &run, tag);
     assert_eq!(run["rejected"].as_u64(), Some(0), "{}", run["rejected_by"]);
+    // Kills and restarts leave the flight safe: nothing broken along the arcs.
+    assert_eq!(run["true_spacing_violations"].as_u64(), Some(0), "{tag}: {}", run["min_pair_m"]);
+    assert_eq!(run["true_standoff_violations"].as_u64(), Some(0), "{tag}: {}", run["min_true_distance_m"]);
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
     eprintln!("kill storm {tag}: passed in {:.1} s", started.elapsed().as_secs_f64());

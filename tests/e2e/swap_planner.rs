@@ -66,6 +66,13 @@ fn the_planner_is_swapped_from_pso_to_ga_mid_run() {
         assert_eq!(pid, u64::from(if k < from { old } else { new }), "step {k}");
     }
     assert!(records[STEPS as usize]["planner"].is_null(), "the last step is not planned");
+    // Both planners fly under the same certificate: every step certified, nothing broken along the arcs.
+    for s in &records[..STEPS as usize] {
+        assert_eq!(s["safety"]["certified"], true, "step {}: {}", s["step"], s["safety"]);
+    }
+    assert_eq!(run["true_spacing_violations"].as_u64(), Some(0), "{}", run["min_pair_m"]);
+    assert_eq!(run["true_standoff_violations"].as_u64(), Some(0), "{}", run["min_true_distance_m"]);
+    assert_eq!(run["uncertified_steps"].as_u64(), Some(0));
     // No step was missed: emitter-sim never had to ask again, and flew one command per step.
     let processes = run["processes"].as_array().unwrap();
     let emitter = processes.iter().find(|p| p["role"] == "emitter-sim").unwrap();

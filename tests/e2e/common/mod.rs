@@ -61,6 +61,10 @@ pub fn assert_same_run(sim: &Value, launch: &Value, label: &str) {
     for key in ["objective", "solver", "seed", "emitter", "scenario"] {
         assert_eq!(sim[key], launch[key], "{label}: {key}");
     }
+    // The safety along the arcs, run totals included (the certificate's word crossed the wire).
+    for key in ["true_spacing_violations", "true_standoff_violations", "uncertified_steps", "min_pair_m"] {
+        assert_eq!(sim[key], launch[key], "{label}: {key}");
+    }
     assert_same_steps(sim, launch, label);
 }
 
@@ -80,7 +84,7 @@ pub fn assert_same_steps(sim: &Value, launch: &Value, label: &str) {
         }
         // The labels are equal, `violated` / `binding` included (both runs record the wire form).
         assert_eq!(s["active_constraints"], l["active_constraints"], "{label}: step {k} active_constraints");
-        for key in ["pcrlb_m", "estimate_error_m", "nees", "min_true_distance_m", "truth"] {
+        for key in ["pcrlb_m", "estimate_error_m", "nees", "min_true_distance_m", "truth", "safety"] {
             assert_eq!(s[key], l[key], "{label}: step {k} {key}");
         }
         assert_eq!(s["plan_ms"].is_null(), l["plan_ms"].is_null(), "{label}: step {k} plan_ms presence");
