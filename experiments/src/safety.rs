@@ -61,7 +61,7 @@ pub fn scenario(seed: u64, m: usize) -> Scenario {
         })
         .collect();
     let headings: Vec<f64> =
-        uavs.iter().map(|p| (-p[1]).atan2(-p[0]).to_degrees() + rng.random_range(-10.0..10.0)).collect();
+        uavs.iter().map(|p| (-p[1]).atan2(-p[0]) + rng.random_range(-10.0f64..10.0).to_radians()).collect();
     let moving = m % 2 == 1;
     let (emitter_velocity, emitter_model) = if moving {
         let (s, dir) =
@@ -311,7 +311,7 @@ mod tests {
         let headings = uavs
             .iter()
             .zip(senses.iter().cycle())
-            .map(|(p, s)| (p[1].atan2(p[0]) + s * std::f64::consts::FRAC_PI_2).to_degrees())
+            .map(|(p, s)| p[1].atan2(p[0]) + s * std::f64::consts::FRAC_PI_2)
             .collect();
         Scenario {
             uavs,
@@ -374,6 +374,11 @@ mod tests {
             assert_eq!(sc.emitter_velocity != [0.0, 0.0], m % 2 == 1);
             let v = sc.emitter_velocity[0].hypot(sc.emitter_velocity[1]);
             assert!(v <= 0.2 * sc.speed);
+            // Every UAV heads at the emitter ± 10° (radians inside the program).
+            for (p, h) in sc.uavs.iter().zip(sc.initial_headings()) {
+                let off = planner::wrap_angle(h - (sc.emitter[1] - p[1]).atan2(sc.emitter[0] - p[0]));
+                assert!(off.abs() <= 10f64.to_radians() + 1e-12, "scenario {m}: {off}");
+            }
         }
         assert_ne!(scenario(1, 0), scenario(2, 0));
     }

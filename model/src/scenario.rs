@@ -841,6 +841,21 @@ mod tests {
     }
 
     #[test]
+    fn an_unsafe_start_is_refused_naming_the_uavs_unless_the_waypoint_planner_flies_it() {
+        let close = "uavs = [[0.0, 0.0], [300.0, 0.0], [0.0, 5000.0]]\nemitter = [40000.0, 0.0]\n";
+        let e = Scenario::from_toml_str(close).unwrap_err().to_string();
+        assert!(e.contains("UAV 0 and UAV 1") && e.contains("d_min = 500") && e.contains("unsafe start"), "{e}");
+        let inside = "uavs = [[0.0, 0.0], [3000.0, 0.0], [0.0, 5000.0]]\nemitter = [1000.0, 1000.0]\n";
+        let e = Scenario::from_toml_str(inside).unwrap_err().to_string();
+        assert!(e.contains("UAV 0 starts") && e.contains("l_min = 3000"), "{e}");
+        // The paper's planner keeps its constraints at the waypoints and runs such a start.
+        Scenario::from_toml_str(&format!("{close}safety = \"waypoints\"\n")).unwrap();
+        // A safe start is not refused.
+        Scenario::from_toml_str("uavs = [[0.0, 0.0], [600.0, 0.0], [0.0, 5000.0]]\nemitter = [40000.0, 0.0]\n")
+            .unwrap();
+    }
+
+    #[test]
     fn invalid_values_are_named() {
         let cases = [
             ("uavs = [[0.0, 0.0], [1.0, 0.0]]", "uavs"),

@@ -132,7 +132,7 @@ mod tests {
         let half_pi = std::f64::consts::FRAC_PI_2;
         let sc = model::Scenario {
             uavs: vec![[0.0, 0.0], [250.0, -250.0], [0.0, 50_000.0]],
-            headings: Some(vec![0.0, 90.0, 0.0]),
+            headings: Some(vec![0.0, half_pi, 0.0]),
             emitter: [500.0, 40_000.0],
             d_min: 300.0,
             l_min: 0.0,
