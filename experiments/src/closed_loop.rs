@@ -138,21 +138,14 @@ pub fn run_closed_loop(
         on_step(&record, &trace);
         steps.push(record);
     }
-    let mut run = RunRecord {
-        scenario: scenario.clone(),
-        objective: objective.name().to_string(),
-        solver: solver.name().to_string(),
-        seed: scenario.seed,
-        emitter: Some(pair(&start)),
-        estimator: scenario.estimator.name().to_string(),
-        rejected_snapshots: 0,
-        true_standoff_violations: None,
-        true_spacing_violations: 0,
-        uncertified_steps: 0,
-        min_pair_m: None,
-        min_true_distance_m: None,
+    let mut run = RunRecord::new(
+        scenario.clone(),
+        (objective.name(), solver.name()),
+        scenario.seed,
+        Some(pair(&start)),
+        scenario.estimator.name(),
         steps,
-    };
+    );
     monitor::annotate(&mut run);
     Ok(run)
 }

@@ -149,21 +149,7 @@ mod tests {
                 ..record(k as u64, 1.0)
             })
             .collect();
-        let mut run = crate::RunRecord {
-            scenario: sc,
-            objective: "analytical".into(),
-            solver: "pso".into(),
-            seed: 1,
-            emitter: None,
-            estimator: "fused".into(),
-            rejected_snapshots: 0,
-            true_standoff_violations: None,
-            true_spacing_violations: 0,
-            uncertified_steps: 0,
-            min_pair_m: None,
-            min_true_distance_m: None,
-            steps,
-        };
+        let mut run = crate::RunRecord::new(sc, ("analytical", "pso"), 1, None, "fused", steps);
         annotate_along_arcs(&mut run);
         let s0 = run.steps[0].safety.unwrap();
         assert!(s0.min_pair_m.unwrap() < 0.25, "{s0:?}");

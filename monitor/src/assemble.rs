@@ -418,21 +418,14 @@ impl Assembler {
     /// The record of the steps completed so far (the whole run once [`is_done`](Self::is_done)).
     pub fn record(&self) -> RunRecord {
         let (objective, solver) = self.names.clone().unwrap_or_else(|| ("-".into(), "-".into()));
-        RunRecord {
-            scenario: self.scenario.clone(),
-            objective,
-            solver,
-            seed: self.scenario.seed,
-            emitter: self.truth.then(|| self.emitter.unwrap_or(self.scenario.emitter)),
-            estimator: self.estimator.unwrap_or(self.scenario.estimator.name()).to_string(),
-            rejected_snapshots: 0,
-            true_standoff_violations: None,
-            true_spacing_violations: 0,
-            uncertified_steps: 0,
-            min_pair_m: None,
-            min_true_distance_m: None,
-            steps: self.steps.clone(),
-        }
+        RunRecord::new(
+            self.scenario.clone(),
+            (&objective, &solver),
+            self.scenario.seed,
+            self.truth.then(|| self.emitter.unwrap_or(self.scenario.emitter)),
+            self.estimator.unwrap_or(self.scenario.estimator.name()),
+            self.steps.clone(),
+        )
     }
 }
 

@@ -133,21 +133,7 @@ mod tests {
                 ..record(k as u64, 1.0)
             })
             .collect();
-        crate::RunRecord {
-            scenario: model::Scenario::default(),
-            objective: "analytical".into(),
-            solver: "pso".into(),
-            seed: 1,
-            emitter: truth,
-            estimator: "fused".into(),
-            rejected_snapshots: 0,
-            true_standoff_violations: None,
-            true_spacing_violations: 0,
-            uncertified_steps: 0,
-            min_pair_m: None,
-            min_true_distance_m: None,
-            steps,
-        }
+        crate::RunRecord::new(model::Scenario::default(), ("analytical", "pso"), 1, truth, "fused", steps)
     }
 
     #[test]

@@ -168,6 +168,33 @@ pub struct RunRecord {
 }
 
 impl RunRecord {
+    /// A run's record before [`crate::annotate`]: the run's identity and its steps, every total 0 or
+    /// unknown (`annotate` fills them).
+    pub fn new(
+        scenario: Scenario,
+        (objective, solver): (&str, &str),
+        seed: u64,
+        emitter: Option<[f64; 2]>,
+        estimator: &str,
+        steps: Vec<StepRecord>,
+    ) -> Self {
+        Self {
+            scenario,
+            objective: objective.to_string(),
+            solver: solver.to_string(),
+            seed,
+            emitter,
+            estimator: estimator.to_string(),
+            rejected_snapshots: 0,
+            true_standoff_violations: None,
+            true_spacing_violations: 0,
+            uncertified_steps: 0,
+            min_pair_m: None,
+            min_true_distance_m: None,
+            steps,
+        }
+    }
+
     /// CRLB at the truth on the last step, metres.
     pub fn final_crlb_m(&self) -> Option<f64> {
         self.steps.last().and_then(|s| s.crlb_true_m)

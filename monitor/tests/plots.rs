@@ -85,21 +85,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
             step
         })
         .collect();
-    RunRecord {
-        scenario,
-        objective: objective.to_owned(),
-        solver: solver.to_owned(),
-        seed,
-        emitter: Some(emitter),
-        estimator: "snapshot".into(),
-        rejected_snapshots: 0,
-        true_standoff_violations: None,
-        true_spacing_violations: 0,
-        uncertified_steps: 0,
-        min_pair_m: None,
-        min_true_distance_m: None,
-        steps,
-    }
+    RunRecord::new(scenario, (objective, solver), seed, Some(emitter), "snapshot", steps)
 }
 
 fn read(path: &Path) -> String {

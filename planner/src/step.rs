@@ -315,17 +315,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         };
         gradient_search(&constraints, pos, psi, z, sc, &mut tiered, 1, None)?
     } else if req.objective.is_optimised() {
-        let mut lo = Vec::with_capacity(n);
-        let mut hi = Vec::with_capacity(n);
-        let mut start_point = Vec::with_capacity(n);
-        for i in 0..n {
-            let (l, h) = constraints.cone(pos[i], z);
-            let alpha = 0.5 * (l + h);
-            lo.push(l);
-            hi.push(h);
-            start_point.push(alpha + turn_angle(alpha, psi[i]));
-        }
-        let space = SearchSpace::new(lo, hi, start_point)?;
+        let space = cone_space(&constraints, pos, psi, z, None)?;
         let solver = req.solver.build(sc);
         let mut fitness = |phi: &[f64]| {
             let next = waypoints_of(pos, psi, phi, sc);
@@ -384,6 +374,42 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
     })
 }
 
+/// The heading cones `α_i ± Δα` as a search space, started from the current headings (unwrapped around
+/// α); with `reach = Some(θ_max)` each cone within the UAV's reach `ψ_i ± θ_max` (the turn radius is never
+/// traded), or the reachable heading nearest it when they do not meet.
+fn cone_space(
+    constraints: &Constraints,
+    pos: &[Vector2<f64>],
+    psi: &[f64],
+    z: Vector2<f64>,
+    reach: Option<f64>,
+) -> Result<SearchSpace, PlanError> {
+    let n = pos.len();
+    let (mut lo, mut hi, mut start_point) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+    for i in 0..n {
+        let (l, h) = constraints.cone(pos[i], z);
+        let alpha = 0.5 * (l + h);
+        let here = alpha + turn_angle(alpha, psi[i]);
+        let (l, h) = match reach {
+            None => (l, h),
+            Some(theta) => {
+                let (l, h) = (l.max(here - theta), h.min(here + theta));
+                if l <= h {
+                    (l, h)
+                } else if here - theta > h {
+                    (here - theta, here - theta)
+                } else {
+                    (here + theta, here + theta)
+                }
+            }
+        };
+        lo.push(l);
+        hi.push(h);
+        start_point.push(here);
+    }
+    Ok(SearchSpace::new(lo, hi, start_point)?)
+}
+
 /// The certified search of PSO, GA and ACO: the heading cones within reach first (the paper's search
 /// space, where the turn radius holds); when
 /// their best plan is not certified, every reachable heading `ψ_i ± L/R_min` (seeded by
@@ -395,32 +421,11 @@ fn cone_then_reach(
     safe: &mut dyn FnMut(&[f64]) -> Fitness,
 ) -> Result<(Vec<f64>, usize, usize), PlanError> {
     let (pos, psi, z, sc) = (req.positions, req.headings, req.estimate, req.scenario);
-    let n = pos.len();
     let theta = constraints.max_turn();
-    let mut lo = Vec::with_capacity(n);
-    let mut hi = Vec::with_capacity(n);
-    let mut start_point = Vec::with_capacity(n);
-    for i in 0..n {
-        // The cone within reach (the turn radius is never traded), or the reachable heading nearest it.
-        let (l, h) = constraints.cone(pos[i], z);
-        let alpha = 0.5 * (l + h);
-        let here = alpha + turn_angle(alpha, psi[i]);
-        let (l, h) = (l.max(here - theta), h.min(here + theta));
-        let (l, h) = if l <= h {
-            (l, h)
-        } else if here - theta > h {
-            (here - theta, here - theta)
-        } else {
-            (here + theta, here + theta)
-        };
-        lo.push(l);
-        hi.push(h);
-        start_point.push(here);
-    }
     let solver = req.solver.build(sc);
     let cone = solver.minimize(
         safe,
-        &SearchSpace::new(lo, hi, start_point)?,
+        &cone_space(constraints, pos, psi, z, Some(theta))?,
         derive_seed(req.run_seed, req.step, Purpose::Solver),
     );
     if cone.fitness.tiers()[..3].iter().all(|t| *t == 0.0) {
