@@ -969,7 +969,7 @@ mod tests {
         let text = r.text();
         let rows = text.lines().filter(|l| {
             let w: Vec<&str> = l.split_whitespace().collect();
-            w.len() == 13 && ["pso", "ga"].contains(&w[1])
+            w.len() == 14 && ["pso", "ga"].contains(&w[1])
         });
         assert_eq!(rows.count(), 6, "{text}");
         assert!(!r.table().render().is_empty());

@@ -93,9 +93,7 @@ pub struct EmitterPrediction {
 
 /// `sqrt(λ_max)` of a symmetric 2×2 matrix (0 for a non-positive one; NaN stays NaN).
 pub fn sqrt_lambda_max(m: &Matrix2<f64>) -> f64 {
-    let (a, b, d) = (m[(0, 0)], 0.5 * (m[(0, 1)] + m[(1, 0)]), m[(1, 1)]);
-    let mean = 0.5 * (a + d);
-    let lambda = mean + (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    let (_, lambda) = tdoa::fim::sym_eigenvalues(m);
     if lambda.is_nan() { f64::NAN } else { lambda.max(0.0).sqrt() }
 }
 
