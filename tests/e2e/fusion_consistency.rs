@@ -103,13 +103,20 @@ fn true_violations(runs: &[monitor::RunRecord]) -> (f64, f64) {
 #[test]
 fn the_standoff_chance_constraint_is_calibrated_on_60_step_runs() {
     let _scenario = crate::common::scenario(module_path!());
-    // 200 runs of 60 steps: the UAVs reach the L_min ring at about step 38 and orbit it.
-    let long = Scenario { steps: 60, ..Scenario::default() };
+    // 200 runs of 60 steps: the UAVs reach the L_min ring at about step 38 and orbit it. The waypoint
+    // planner keeps the chance constraint at its waypoints: along the arcs it holds at c = 0.99 …
+    let long = Scenario { steps: 60, safety: planner::SafetyMode::Waypoints, ..Scenario::default() };
     let (inside, depth) = true_violations(&batch(200, &long));
     assert!(inside <= 1.0 - long.standoff_confidence, "c = 0.99: {:.3} % of the pairs inside L_min", 100.0 * inside);
     assert!(depth < 100.0, "c = 0.99: the deepest violation is {depth:.1} m inside L_min");
-    // The paper's constraint at ẑ (c = 0) lets the UAVs well inside the true standoff.
-    let paper = Scenario { standoff_confidence: 0.0, ..long };
+    // … while the paper's constraint at ẑ (c = 0) lets the UAVs well inside the true standoff.
+    let paper = Scenario { standoff_confidence: 0.0, ..long.clone() };
     let (inside0, depth0) = true_violations(&batch(200, &paper));
     assert!(inside0 > 0.05 && depth0 > 300.0, "c = 0: {:.2} % inside, {depth0:.0} m deep", 100.0 * inside0);
+    // The certified planner keeps it along the arcs too, with no more UAV-steps inside than the waypoint
+    // planner.
+    let certified = Scenario { safety: planner::SafetyMode::Certified, ..long };
+    let (inside_c, depth_c) = true_violations(&batch(200, &certified));
+    assert!(inside_c <= inside, "certified: {:.3} % inside against {:.3} %", 100.0 * inside_c, 100.0 * inside);
+    assert!(depth_c < 100.0, "certified: the deepest violation is {depth_c:.1} m inside L_min");
 }
