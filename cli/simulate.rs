@@ -188,8 +188,23 @@ impl Report for SimulateReport {
             .row("estimator", format!("{} ({})", r.estimator, r.scenario.emitter_model))
             .row("rejected snapshots", r.rejected_snapshots.to_string())
             .row(
-                "(UAV, step) pairs inside L_min of the true emitter",
-                r.true_standoff_violations.map_or("-".into(), |v| v.to_string()),
+                "safety",
+                format!(
+                    "{} ({} step(s) without a certified plan)",
+                    r.scenario.safety.name(),
+                    r.uncertified_steps
+                ),
+            )
+            .row(
+                "along the arcs flown",
+                format!(
+                    "closest pair {} m ({} pair-interval(s) below d_min); closest to the true emitter {} m ({} \
+                     UAV-interval(s) inside l_min)",
+                    r.min_pair_m.map_or("-".into(), |m| format!("{m:.1}")),
+                    r.true_spacing_violations,
+                    r.min_true_distance_m.map_or("-".into(), |m| format!("{m:.1}")),
+                    r.true_standoff_violations.map_or("-".into(), |v| v.to_string())
+                ),
             )
             .row(
                 "columns",
@@ -233,6 +248,7 @@ impl Report for SimulateReport {
                 self.run.rejected_snapshots
             )));
         }
+        out.extend(monitor::safety_warnings(&self.run).into_iter().map(Diagnostic::Warning));
         out
     }
 }

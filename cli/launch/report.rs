@@ -150,6 +150,7 @@ impl Report for LaunchReport {
                 self.missed_commands
             )));
         }
+        out.extend(monitor::safety_warnings(&self.run).into_iter().map(Diagnostic::Warning));
         let n = self.run.steps.iter().filter(|s| s.estimate_status != "ok").count();
         if n > 0 {
             out.push(Diagnostic::Warning(format!(

@@ -120,6 +120,38 @@ pub fn annotate_along_arcs(run: &mut RunRecord) {
     run.min_true_distance_m = min_true;
 }
 
+/// The warnings a run's safety calls for (`simulate` and `launch` print them): steps without a
+/// certified plan, and every limit broken along the arcs flown.
+pub fn safety_warnings(run: &RunRecord) -> Vec<String> {
+    let sc = &run.scenario;
+    let mut out = Vec::new();
+    if run.uncertified_steps > 0 {
+        out.push(format!(
+            "{} step(s) had no certified plan (the UAVs flew the plan with the largest minimum margin): see \
+             safety.certified",
+            run.uncertified_steps
+        ));
+    }
+    if run.true_spacing_violations > 0 {
+        out.push(format!(
+            "{} time(s) two UAVs came closer than d_min = {} m along the arcs flown (closest {:.1} m): see \
+             safety.min_pair_m",
+            run.true_spacing_violations,
+            sc.d_min,
+            run.min_pair_m.unwrap_or(f64::NAN)
+        ));
+    }
+    if let Some(n) = run.true_standoff_violations.filter(|n| *n > 0) {
+        out.push(format!(
+            "{n} time(s) a UAV came inside l_min = {} m of the true emitter along the arcs flown (closest {:.1} \
+             m): see safety.min_true_distance_m",
+            sc.l_min,
+            run.min_true_distance_m.unwrap_or(f64::NAN)
+        ));
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -158,5 +190,10 @@ mod tests {
         // The truth is static 40 km away: the closest approach is UAV 2's, 10 km at the end of its arc.
         assert!((run.min_true_distance_m.unwrap() - (500f64.hypot(10_000.0) - 500.0 * 0.0)).abs() < 600.0);
         assert_eq!(run.true_standoff_violations, Some(0));
+        let warnings = safety_warnings(&run);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(warnings[0].starts_with("1 time(s) two UAVs came closer than d_min = 300 m"), "{warnings:?}");
+        run.uncertified_steps = 2;
+        assert!(safety_warnings(&run)[0].starts_with("2 step(s) had no certified plan"));
     }
 }

@@ -29,6 +29,7 @@ pub mod stamps;
 mod status;
 pub mod summary;
 
+pub use along_arcs::safety_warnings;
 pub use assemble::{Assembler, CompletedStep};
 pub use chart::{BarGroup, Series, plot_bars, plot_curves};
 pub use export::{ExportError, write_run, write_steps_csv, write_trajectory_csv};

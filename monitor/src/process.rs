@@ -322,7 +322,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         json!({
             "complete": summary.complete, "steps": summary.steps, "rejected": summary.rejected,
             "ignored": summary.ignored, "missed_commands": summary.missed_commands,
-            "stale_steps": summary.stale_steps,
+            "stale_steps": summary.stale_steps, "uncertified_steps": summary.uncertified_steps,
         }),
     );
     session.log.flush();

@@ -12,8 +12,9 @@
 //!   headings: the record then has `active_constraints: ["command_missed"]`, `objective_value` null);
 //!   `command_missed` (step) for such a step; `estimate_stale: true` when the step's command was the
 //!   planner's hold (no fresh estimate within its `--estimate-deadline-ms`; the record then has
-//!   `active_constraints: ["estimate_stale"]`), and an `estimate_stale` (step) event; `end` (complete,
-//!   steps, rejected, ignored, missed_commands, stale_steps);
+//!   `active_constraints: ["estimate_stale"]`), and an `estimate_stale` (step) event; `uncertified`
+//!   (step) when the step's command said that no certified plan existed (`safety.certified` false);
+//!   `end` (complete, steps, rejected, ignored, missed_commands, stale_steps, uncertified_steps);
 //! - `front_end_left` (step: the first step not recorded) with `--source external`, when the front end
 //!   left the measurement topic before the last step.
 //!

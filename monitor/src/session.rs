@@ -326,6 +326,10 @@ impl Session {
             self.summary.stale_steps += 1;
             self.log.write("estimate_stale", json!({"step": done.record.step}));
         }
+        if done.record.safety.is_some_and(|s| s.certified == Some(false)) {
+            self.summary.uncertified_steps += 1;
+            self.log.write("uncertified", json!({"step": done.record.step}));
+        }
         if !self.quiet {
             eprintln!("{}", status_line(&done, self.assembler.last_step(), rejected));
         }

@@ -28,6 +28,8 @@ pub struct MonitorSummary {
     pub missed_commands: u64,
     /// Steps recorded whose command was the planner's hold (no fresh estimate within its deadline).
     pub stale_steps: u64,
+    /// Steps recorded whose command said that no certified plan existed (logged as `uncertified`).
+    pub uncertified_steps: u64,
     /// Latencies of the planned steps.
     pub latency: LatencySummary,
     /// Messages of the recorded steps that never reached the monitor as first published (measurement,
