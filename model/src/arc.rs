@@ -91,10 +91,24 @@ pub fn lipschitz_min(
     f1: f64,
     threshold: f64,
 ) -> MinBracket {
+    lipschitz_min_within(f, slope, f0, f1, threshold, MIN_TOLERANCE_M)
+}
+
+/// [`lipschitz_min`] bracketing to `tolerance` metres instead of [`MIN_TOLERANCE_M`] (reports that must
+/// tell a minimum on a bound from one just below it).
+pub fn lipschitz_min_within(
+    f: &mut dyn FnMut(f64) -> f64,
+    slope: &dyn Fn(f64, f64) -> f64,
+    f0: f64,
+    f1: f64,
+    threshold: f64,
+    tolerance: f64,
+) -> MinBracket {
     struct Search<'a> {
         f: &'a mut dyn FnMut(f64) -> f64,
         slope: &'a dyn Fn(f64, f64) -> f64,
         threshold: f64,
+        tolerance: f64,
         upper: f64,
         lower: f64,
     }
@@ -102,7 +116,7 @@ pub fn lipschitz_min(
         fn refine(&mut self, a: f64, b: f64, fa: f64, fb: f64, depth: u32) {
             let bound = 0.5 * (fa + fb) - 0.5 * (self.slope)(a, b) * (b - a);
             // Nothing below the threshold here, or nothing more than the tolerance below the best sample.
-            if bound >= self.threshold || bound >= self.upper - MIN_TOLERANCE_M || depth == MAX_DEPTH {
+            if bound >= self.threshold || bound >= self.upper - self.tolerance || depth == MAX_DEPTH {
                 self.lower = self.lower.min(bound);
                 return;
             }
@@ -113,7 +127,7 @@ pub fn lipschitz_min(
             self.refine(m, b, fm, fb, depth + 1);
         }
     }
-    let mut search = Search { f, slope, threshold, upper: f0.min(f1), lower: f64::INFINITY };
+    let mut search = Search { f, slope, threshold, tolerance, upper: f0.min(f1), lower: f64::INFINITY };
     search.refine(0.0, 1.0, f0, f1, 0);
     MinBracket { lower: search.lower.min(search.upper).max(0.0), upper: search.upper }
 }
@@ -135,8 +149,19 @@ pub fn pair_min_distance(a: &Arc, b: &Arc, threshold: f64) -> MinBracket {
     pair_min_distance_from(a, b, f0, f1, threshold)
 }
 
+/// [`pair_min_distance`] bracketed to `tolerance` metres (see [`lipschitz_min_within`]).
+pub fn pair_min_distance_within(a: &Arc, b: &Arc, tolerance: f64) -> MinBracket {
+    let f0 = (a.start - b.start).norm();
+    let f1 = (a.end() - b.end()).norm();
+    pair_bracket(a, b, f0, f1, f64::INFINITY, tolerance)
+}
+
 /// [`pair_min_distance`] with the end-point distances `f0 = |a(0) − b(0)|`, `f1 = |a(1) − b(1)|` given.
 pub fn pair_min_distance_from(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64) -> MinBracket {
+    pair_bracket(a, b, f0, f1, threshold, MIN_TOLERANCE_M)
+}
+
+fn pair_bracket(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64, tolerance: f64) -> MinBracket {
     // Far apart: the relative speed is at most L_a + L_b, so the Piyavskii bound over the whole interval
     // with that slope certifies the pair without a single sine.
     let coarse = 0.5 * (f0 + f1) - 0.5 * (a.length + b.length);
@@ -158,7 +183,7 @@ pub fn pair_min_distance_from(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64
             a.length + b.length
         }
     };
-    lipschitz_min(&mut |s| (a.at(s) - b.at(s)).norm(), &slope, f0, f1, threshold)
+    lipschitz_min_within(&mut |s| (a.at(s) - b.at(s)).norm(), &slope, f0, f1, threshold, tolerance)
 }
 
 /// Turns below this (radians) are measured against the arc's chord, less the sagitta `L·|θ|/8` — a
@@ -218,6 +243,18 @@ pub fn moving_point_min_distance(
     dt: f64,
     threshold: f64,
 ) -> MinBracket {
+    moving_point_min_distance_within(arc, from, velocity, dt, threshold, MIN_TOLERANCE_M)
+}
+
+/// [`moving_point_min_distance`] bracketed to `tolerance` metres (see [`lipschitz_min_within`]).
+pub fn moving_point_min_distance_within(
+    arc: &Arc,
+    from: Vector2<f64>,
+    velocity: Vector2<f64>,
+    dt: f64,
+    threshold: f64,
+    tolerance: f64,
+) -> MinBracket {
     if velocity == Vector2::zeros() {
         return static_point_min_distance_above(arc, from, threshold);
     }
@@ -226,7 +263,7 @@ pub fn moving_point_min_distance(
     let f0 = (arc.start - from).norm();
     let f1 = (arc.end() - point(1.0)).norm();
     let k = arc.length + drift.norm();
-    lipschitz_min(&mut |s| (arc.at(s) - point(s)).norm(), &|_, _| k, f0, f1, threshold)
+    lipschitz_min_within(&mut |s| (arc.at(s) - point(s)).norm(), &|_, _| k, f0, f1, threshold, tolerance)
 }
 
 #[cfg(test)]

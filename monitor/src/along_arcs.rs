@@ -7,12 +7,12 @@
 //! k's commanded heading, `v·Δt` long ([`model::arc::Arc`]). Where that arc does not end at the next
 //! recorded position (an external front end that flew otherwise), the straight segment between the two
 //! recorded positions is taken instead. The true emitter moves in a straight line between its recorded
-//! positions (a constant-velocity truth). Minima are certified lower bounds within
-//! [`model::arc::MIN_TOLERANCE_M`] of the true minimum.
+//! positions (a constant-velocity truth). Minima are certified lower bounds within 1 mm of the
+//! true minimum.
 //!
 //! Units: metres, seconds, radians.
 
-use model::arc::{Arc, moving_point_min_distance, pair_min_distance};
+use model::arc::{Arc, moving_point_min_distance_within, pair_min_distance_within};
 use model::safety::EmitterPrediction;
 use nalgebra::{Matrix2, Vector2};
 
@@ -20,6 +20,10 @@ use crate::record::RunRecord;
 
 /// How far (m) an arc's end may be from the next recorded position and still be the path flown.
 const ARC_MATCH_M: f64 = 1.0;
+
+/// The bracket of every reported minimum, metres: fine enough to tell a pair the planner certified on
+/// its bound (the planner brackets to `model::arc::MIN_TOLERANCE_M`) from one below it.
+const REPORT_TOLERANCE_M: f64 = 1e-3;
 
 fn v2(p: [f64; 2]) -> Vector2<f64> {
     Vector2::new(p[0], p[1])
@@ -69,7 +73,7 @@ pub fn annotate_along_arcs(run: &mut RunRecord) {
         let mut pair = None::<f64>;
         for i in 0..n {
             for j in i + 1..n {
-                let m = pair_min_distance(&arcs[i], &arcs[j], f64::INFINITY).lower;
+                let m = pair_min_distance_within(&arcs[i], &arcs[j], REPORT_TOLERANCE_M).lower;
                 pair = Some(pair.map_or(m, |p: f64| p.min(m)));
                 if sc.d_min > 0.0 && m < sc.d_min {
                     spacing += 1;
@@ -90,7 +94,17 @@ pub fn annotate_along_arcs(run: &mut RunRecord) {
             };
             let bound = sc.l_min + k * e.sigma_bound(sc.dt);
             arcs.iter()
-                .map(|a| moving_point_min_distance(a, e.position, e.velocity, sc.dt, f64::INFINITY).lower - bound)
+                .map(|a| {
+                    let m = moving_point_min_distance_within(
+                        a,
+                        e.position,
+                        e.velocity,
+                        sc.dt,
+                        f64::INFINITY,
+                        REPORT_TOLERANCE_M,
+                    );
+                    m.lower - bound
+                })
                 .fold(f64::INFINITY, f64::min)
         });
         // The true emitter.
@@ -100,7 +114,9 @@ pub fn annotate_along_arcs(run: &mut RunRecord) {
                 let velocity = (v2(z1) - v2(z0)) / sc.dt;
                 let mut closest = f64::INFINITY;
                 for a in &arcs {
-                    let m = moving_point_min_distance(a, v2(z0), velocity, sc.dt, f64::INFINITY).lower;
+                    let m =
+                        moving_point_min_distance_within(a, v2(z0), velocity, sc.dt, f64::INFINITY, REPORT_TOLERANCE_M)
+                            .lower;
                     closest = closest.min(m);
                     if sc.l_min > 0.0 && m < sc.l_min {
                         standoff += 1;
