@@ -1,5 +1,5 @@
-//! The planner allocates per planning step, not per candidate (issue 17.2): the heap allocations of one
-//! `plan_step` do not grow with the number of candidates the solver evaluates.
+//! The planner allocates per planning step, not per candidate: the heap allocations of one `plan_step`
+//! do not grow with the number of candidates the solver evaluates.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -29,22 +29,31 @@ static GLOBAL: Counting = Counting;
 
 #[test]
 fn allocations_per_plan_do_not_grow_with_the_candidates() {
+    // The waypoint planner: exactly the same count whatever the candidates.
+    let counts = counts_of(planner::SafetyMode::Waypoints);
+    for objective in ["analytical", "single"] {
+        let c: Vec<usize> = counts.iter().filter(|s| s.0 == objective).map(|s| s.2).collect();
+        assert!(c.windows(2).all(|w| w[0] == w[1]), "{objective}: {counts:?}");
+        assert!(c[0] < 64, "{objective}: {counts:?}");
+    }
+    // The certified planner: a few per step (the certifier's pair list, the backup step, the report),
+    // and as many as the plan's active constraints, never per candidate (160 to 2 560 evaluations).
+    let counts = counts_of(planner::SafetyMode::Certified);
+    assert!(counts.iter().all(|s| s.2 < 64), "{counts:?}");
+}
+
+fn counts_of(safety: planner::SafetyMode) -> Vec<(&'static str, usize, usize)> {
     let mut seen = Vec::new();
     for particles in [10, 40, 160] {
-        let mut sc = Scenario::default();
+        let mut sc = Scenario { safety, ..Scenario::default() };
         sc.pso.particles = particles;
         sc.early_stop.window = usize::MAX; // every iteration runs: evaluations = particles · 16
         for (objective, (evaluations, allocations)) in ["analytical", "single"].iter().zip(allocations_of(&sc)) {
             assert_eq!(evaluations, particles * 16, "{objective}");
-            seen.push((objective, particles, allocations));
+            seen.push((*objective, particles, allocations));
         }
     }
-    // The same count for 160 or 2 560 evaluations, for each criterion.
-    for objective in ["analytical", "single"] {
-        let counts: Vec<usize> = seen.iter().filter(|s| *s.0 == objective).map(|s| s.2).collect();
-        assert!(counts.windows(2).all(|w| w[0] == w[1]), "{objective}: {seen:?}");
-        assert!(counts[0] < 64, "{objective}: {seen:?}");
-    }
+    seen
 }
 
 fn allocations_of(sc: &Scenario) -> Vec<(usize, usize)> {
