@@ -50,6 +50,11 @@ use crate::kinematics::max_turn;
 /// into a left turn.
 pub const BACKUP_MAX_TURN: f64 = 0.9 * std::f64::consts::PI;
 
+/// The backup's turn per step `θ_b = min(θ_max, 0.9π)` for the largest turn `θ_max` (radians).
+pub fn backup_turn(theta_max: f64) -> f64 {
+    theta_max.min(BACKUP_MAX_TURN)
+}
+
 /// Relative turn beyond `θ_max` that is rounding (a heading clamped onto the bound), not a violation.
 pub const TURN_ROUNDING: f64 = 1e-9;
 
@@ -169,7 +174,7 @@ pub struct SafetyLimits {
 impl SafetyLimits {
     /// The backup's turn per step `θ_b = min(L/R_min, 0.9π)`, radians.
     pub fn backup_turn(&self) -> f64 {
-        max_turn(self.arc_len, self.r_min).min(BACKUP_MAX_TURN)
+        backup_turn(max_turn(self.arc_len, self.r_min))
     }
 
     /// The backup circle's radius `R_b = L/θ_b ≥ R_min`, metres.

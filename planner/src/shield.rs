@@ -90,6 +90,8 @@ pub struct Shield<'a> {
     pub estimate: Vector2<f64>,
     /// The step's certifier, keeping what one heading or one pair decided while it is unchanged.
     certifier: RefCell<Certifier<'a>>,
+    /// Each UAV's cone centre `α_i` (the midpoint of [`Constraints::cone`]), computed once per step.
+    cone_centres: Vec<f64>,
 }
 
 impl<'a> Shield<'a> {
@@ -103,7 +105,14 @@ impl<'a> Shield<'a> {
         estimate: Vector2<f64>,
     ) -> Self {
         let certifier = RefCell::new(Certifier::new(positions, headings, emitter, limits));
-        Self { positions, headings, limits, emitter, constraints, estimate, certifier }
+        let cone_centres = positions
+            .iter()
+            .map(|p| {
+                let (lo, hi) = constraints.cone(*p, estimate);
+                0.5 * (lo + hi)
+            })
+            .collect();
+        Self { positions, headings, limits, emitter, constraints, estimate, certifier, cone_centres }
     }
 
     /// The certificate of the plan `phi` (fast: minima only checked against their bounds).
@@ -119,10 +128,10 @@ impl<'a> Shield<'a> {
     /// The summed normalised excess of the headings `phi` over their cones (eq. 58), 0 inside.
     pub fn cone_excess(&self, phi: &[f64]) -> f64 {
         let da = self.constraints.delta_alpha;
-        (0..phi.len())
-            .map(|i| {
-                let (lo, hi) = self.constraints.cone(self.positions[i], self.estimate);
-                let off = wrap_angle(phi[i] - 0.5 * (lo + hi)).abs();
+        phi.iter()
+            .zip(&self.cone_centres)
+            .map(|(phi, alpha)| {
+                let off = wrap_angle(phi - alpha).abs();
                 let v = (off - da) / da;
                 if v > FEASIBILITY_EPS { v } else { 0.0 }
             })

@@ -217,7 +217,7 @@ fn gradient_search(
     // backup does), which the shield's certificate always holds when the previous plan was certified.
     let centre: Vec<f64> =
         (0..n).map(|i| psi[i] + turn_angle(psi[i], bearing(pos[i], z)).clamp(-theta, theta)).collect();
-    let backup: Vec<f64> = psi.iter().map(|p| p - theta.min(model::safety::BACKUP_MAX_TURN)).collect();
+    let backup: Vec<f64> = psi.iter().map(|p| p - model::safety::backup_turn(theta)).collect();
     let second = solver.minimize_from(tiered, &reach, &[first.best.clone(), psi.to_vec(), centre, backup]);
     let (iterations, evaluations) = (first.iterations + second.iterations, first.evaluations + second.evaluations);
     let best = if second.fitness < first.fitness { second.best } else { first.best };
