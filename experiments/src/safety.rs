@@ -392,6 +392,24 @@ mod tests {
         assert!(waypoint_violations > 0, "the waypoint planner kept every case safe: the cases are not hard");
     }
 
+    /// Runs of the study's family where no certified plan existed for some steps (a standoff that
+    /// cannot be certified) and where the planner once bought the standoff with the backup circles'
+    /// spacing, bringing a pair to 0.53–0.995 D_min a step later: the spacing of the backup circles is a
+    /// collision, ranked first, so no pair comes below D_min along the arcs whatever the standoff does.
+    #[test]
+    fn spacing_holds_where_the_standoff_cannot_be_certified() {
+        let mut uncertified = 0;
+        for m in [36, 148, 153, 161] {
+            let sc = scenario(1, m);
+            let safe = fly(&sc, SafetyMode::Certified).unwrap();
+            let r = &safe.run;
+            uncertified += r.uncertified_steps;
+            assert_eq!(r.true_spacing_violations, 0, "scenario {m}: min pair {:?} (D_min {})", r.min_pair_m, sc.d_min);
+            assert!(r.min_pair_m.unwrap() >= sc.d_min, "scenario {m}");
+        }
+        assert!(uncertified > 0, "every step certified: the cases are not hard");
+    }
+
     #[test]
     fn the_family_is_fair_and_reproducible() {
         for m in 0..40 {

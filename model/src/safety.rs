@@ -232,8 +232,11 @@ pub struct SafetyReport {
     /// while a UAV turns its backup circle away from it — so that the next step's certificate does not
     /// start without slack. A plan inside the reserve is still certified.
     pub reserve_deficit: f64,
-    /// The largest normalised deficit of the turn radius and the spacing along the arcs (0 when they
-    /// hold): a collision, ranked before everything else.
+    /// The largest normalised deficit of the turn radius, the spacing along the arcs and the spacing
+    /// of the backup circles (0 when they hold): a collision now or one that no continuation could
+    /// avoid, ranked before everything else. The spacing does not depend on the emitter, so it is kept
+    /// by induction from a safe start: the backup step of a plan whose backup circles keep `D_min`
+    /// flies those circles, and its own backup circles are the same ones.
     pub collision_deficit: f64,
     /// The largest normalised deficit of the step's own limits — turn radius, spacing and standoff
     /// along the arcs — (0 when they hold): what the step itself flies, ranked before the backup.
@@ -430,7 +433,7 @@ impl<'a> Certifier<'a> {
                 if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::Standoff) {
                     step = step.max(deficit);
                 }
-                if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing) {
+                if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::BackupSpacing) {
                     collision = collision.max(deficit);
                 }
             }

@@ -4,8 +4,10 @@
 //! The certificate is a hard constraint, never traded. The lexicographic [`Fitness`] has six tiers,
 //! each the largest (or summed) normalised deficit of a group of limits, 0 when they hold:
 //!
-//! 1. a collision this step — turn radius, spacing along the arcs (never bought with a standoff
-//!    margin, whose bound already carries the chance constraint's `k·σ`);
+//! 1. a collision — turn radius, spacing along the arcs, and the spacing of the backup circles, for
+//!    ever (never bought with a standoff margin, whose bound already carries the chance constraint's
+//!    `k·σ`): the spacing does not depend on the emitter, so the backup step keeps it by induction
+//!    even when a moving emitter leaves no certified plan;
 //! 2. the step's own limits — the standoff along the arcs too (no backup margin bought with them);
 //! 3. every limit, the backup's included (0 exactly when certified): every certified plan ranks above
 //!    every uncertified one whatever its criterion, and among uncertified plans the one with the
