@@ -113,7 +113,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         planner: flags_of(Role::Planner)?,
         estimator: flags_of(Role::Estimator)?,
     })?;
-    let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts);
+    let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts, args.source);
     let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log);
     sup.stop_all();
     // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown

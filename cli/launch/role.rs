@@ -65,12 +65,19 @@ impl Role {
 
     /// The decision for an instance of this role that exited with `status` after `restarts_so_far`
     /// restarts of the role; `handed_over`: it left because a swapped-in instance took over.
+    ///
+    /// With an external front end (`source`) a crashed monitor is not restarted: the front end measures
+    /// each step once, and the steps it publishes while the monitor is down cannot be replayed to the
+    /// restarted one (emitter-sim would), so the record could never be whole — the launch fails at once,
+    /// saying so. A crashed estimator or planner is restarted: the monitor gives the measurement of the
+    /// step in flight again (`protocol::services::measurement_replay`).
     pub fn on_exit(
         self,
         status: ExitStatus,
         handed_over: bool,
         restarts_so_far: u32,
         max_restarts: u32,
+        source: runtime::Source,
     ) -> RestartDecision {
         if handed_over || (status.success() && self.ends_by_itself()) {
             return RestartDecision::Done;
@@ -79,6 +86,14 @@ impl Role {
         // Bad input (2) and a run that cannot go on (3) would fail again the same way.
         if matches!(status.code(), Some(c) if c == 2 || c == i32::from(runtime::EXIT_UNRECOVERABLE)) {
             return RestartDecision::Fail(format!("the {self} process stopped unexpectedly ({what})"));
+        }
+        if source == runtime::Source::External && self == Role::Monitor {
+            return RestartDecision::Fail(format!(
+                "the monitor process stopped unexpectedly ({what}); with an external front end (--source external) \
+                 a crashed monitor is not restarted: the steps published while it is down cannot be measured \
+                 again, so its record could not be whole — the steps recorded so far are in the log; start the \
+                 launch and the front end again"
+            ));
         }
         let attempt = restarts_so_far + 1;
         if attempt > max_restarts {
@@ -111,6 +126,8 @@ mod tests {
 
     use super::*;
 
+    const SIM: runtime::Source = runtime::Source::Simulator;
+
     fn code(c: i32) -> ExitStatus {
         ExitStatus::from_raw(c << 8)
     }
@@ -122,22 +139,35 @@ mod tests {
     #[test]
     fn restart_policy() {
         // A normal end.
-        assert_eq!(Role::Monitor.on_exit(code(0), false, 0, 5), RestartDecision::Done);
-        assert_eq!(Role::EmitterSim.on_exit(code(0), false, 0, 5), RestartDecision::Done);
+        assert_eq!(Role::Monitor.on_exit(code(0), false, 0, 5, SIM), RestartDecision::Done);
+        assert_eq!(Role::EmitterSim.on_exit(code(0), false, 0, 5, SIM), RestartDecision::Done);
         // The planner and the estimator do not end by themselves: exit 0 is a crash…
-        assert_eq!(Role::Planner.on_exit(code(0), false, 0, 5), RestartDecision::Restart { attempt: 1 });
+        assert_eq!(Role::Planner.on_exit(code(0), false, 0, 5, SIM), RestartDecision::Restart { attempt: 1 });
         // … unless a swapped-in instance took over.
-        assert_eq!(Role::Estimator.on_exit(code(0), true, 0, 5), RestartDecision::Done);
+        assert_eq!(Role::Estimator.on_exit(code(0), true, 0, 5, SIM), RestartDecision::Done);
         // Crashes restart, up to the limit.
-        assert_eq!(Role::Estimator.on_exit(signal(9), false, 2, 5), RestartDecision::Restart { attempt: 3 });
-        assert_eq!(Role::Monitor.on_exit(code(1), false, 4, 5), RestartDecision::Restart { attempt: 5 });
+        assert_eq!(Role::Estimator.on_exit(signal(9), false, 2, 5, SIM), RestartDecision::Restart { attempt: 3 });
+        // With an external front end nobody can measure the steps published while the monitor is down:
+        // its crash fails the launch at once, saying why; the estimator and the planner are restarted
+        // (the monitor gives the step in flight again).
+        let external = Role::Monitor.on_exit(signal(9), false, 0, 5, runtime::Source::External);
         assert!(
-            matches!(Role::Monitor.on_exit(code(1), false, 5, 5), RestartDecision::Fail(m) if m.contains("after 5 restart(s)"))
+            matches!(&external, RestartDecision::Fail(m) if m.contains("signal 9") && m.contains("not restarted")),
+            "{external:?}"
+        );
+        for role in [Role::Estimator, Role::Planner] {
+            let external = role.on_exit(signal(9), false, 0, 5, runtime::Source::External);
+            assert_eq!(external, RestartDecision::Restart { attempt: 1 }, "{role}");
+        }
+        assert_eq!(Role::Monitor.on_exit(code(0), false, 0, 5, runtime::Source::External), RestartDecision::Done);
+        assert_eq!(Role::Monitor.on_exit(code(1), false, 4, 5, SIM), RestartDecision::Restart { attempt: 5 });
+        assert!(
+            matches!(Role::Monitor.on_exit(code(1), false, 5, 5, SIM), RestartDecision::Fail(m) if m.contains("after 5 restart(s)"))
         );
         // Failures that would repeat are not restarted.
         for c in [2, i32::from(runtime::EXIT_UNRECOVERABLE)] {
             assert!(
-                matches!(Role::EmitterSim.on_exit(code(c), false, 0, 5), RestartDecision::Fail(m) if m.contains(&format!("exit code {c}")))
+                matches!(Role::EmitterSim.on_exit(code(c), false, 0, 5, SIM), RestartDecision::Fail(m) if m.contains(&format!("exit code {c}")))
             );
         }
     }

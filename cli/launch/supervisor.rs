@@ -70,16 +70,16 @@ impl Proc {
 
     /// Its role's decision on its exit (`None` while it runs, once it was replaced, and for a successful
     /// exit whose last lines — its summary — are not all in yet), given the role's `restarts` so far.
-    fn decision(&self, restarts: u32, max_restarts: u32) -> Option<RestartDecision> {
+    fn decision(&self, restarts: u32, max_restarts: u32, source: runtime::Source) -> Option<RestartDecision> {
         let status = self.exit?;
         if self.replaced || (status.success() && !self.closed) {
             return None;
         }
-        Some(self.role.on_exit(status, self.handed_over(), restarts, max_restarts))
+        Some(self.role.on_exit(status, self.handed_over(), restarts, max_restarts, source))
     }
 
-    fn needs_restart(&self) -> bool {
-        matches!(self.decision(0, u32::MAX), Some(RestartDecision::Restart { .. }))
+    fn needs_restart(&self, source: runtime::Source) -> bool {
+        matches!(self.decision(0, u32::MAX, source), Some(RestartDecision::Restart { .. }))
     }
 
     pub(super) fn describe_exit(&self) -> String {
@@ -98,13 +98,16 @@ pub(super) struct Supervisor {
     /// The monitor's JSON-lines log, where restarts are written too.
     log: Option<PathBuf>,
     max_restarts: u32,
+    /// Where the measurements come from: with an external front end a crash cannot be recovered
+    /// ([`Role::on_exit`]).
+    source: runtime::Source,
     pub(super) restarts: u64,
     /// CPU use of the idle children before the run (see [`LaunchArgs::idle_probe_ms`]).
     pub(super) idle_cpu: BTreeMap<String, f64>,
 }
 
 impl Supervisor {
-    pub(super) fn new(domain: Domain, log: Option<PathBuf>, max_restarts: u32) -> Self {
+    pub(super) fn new(domain: Domain, log: Option<PathBuf>, max_restarts: u32, source: runtime::Source) -> Self {
         let (tx, rx) = mpsc::channel();
         Self {
             procs: Vec::new(),
@@ -114,6 +117,7 @@ impl Supervisor {
             domain,
             log,
             max_restarts,
+            source,
             restarts: 0,
             idle_cpu: BTreeMap::new(),
         }
@@ -374,7 +378,7 @@ impl Supervisor {
         for i in 0..self.procs.len() {
             let role = self.procs[i].role;
             let restarts = self.procs.iter().filter(|q| q.role == role && q.replaced).count() as u32;
-            match self.procs[i].decision(restarts, self.max_restarts) {
+            match self.procs[i].decision(restarts, self.max_restarts, self.source) {
                 None | Some(RestartDecision::Done) => {}
                 Some(RestartDecision::Restart { attempt }) => self.restart(i, attempt)?,
                 Some(RestartDecision::Fail(why)) => return Err(CliError::Failed(why)),
@@ -418,7 +422,7 @@ impl Supervisor {
         self.spawn(role, flags)?;
         // Not ready, but exited, or another process needs a restart: the next round sees to it.
         self.until_ready(self.procs.len() - 1, |sup, p| {
-            Ok(p.exit.is_some() || sup.procs.iter().any(Proc::needs_restart))
+            Ok(p.exit.is_some() || sup.procs.iter().any(|q| q.needs_restart(sup.source)))
         })
     }
 

@@ -41,8 +41,8 @@ use std::time::Instant;
 
 use protocol::services;
 use protocol::{
-    Command, ControlKind, Estimate, EstimateStatus as WireStatus, EstimatorState, Fix, Measurement, Topic,
-    TopicPublisher, TopicSubscriber, Waitable,
+    Command, ControlKind, Estimate, EstimateStatus as WireStatus, EstimatorState, Fix, Measurement, MeasurementGate,
+    Topic, TopicPublisher, TopicSubscriber, Waitable,
 };
 use runtime::recovery::{Ask, StateRequests};
 use runtime::{Flow, Handler, Join, Node, ProcessError};
@@ -60,6 +60,9 @@ struct EstimatorNode<'a> {
     args: &'a EstimatorArgs,
     config: EstimatorConfig,
     measurements: &'a TopicSubscriber<Measurement>,
+    /// The measurements the monitor gives again with an external front end
+    /// ([`services::measurement_replay`]).
+    replays: &'a TopicSubscriber<Measurement>,
     /// The planner's commands, for the states they echo (read on every wake-up, never waited on).
     commands: &'a TopicSubscriber<Command>,
     command_seq: Option<u64>,
@@ -71,7 +74,8 @@ struct EstimatorNode<'a> {
     /// number of each of its instances.
     predecessor: Option<&'a TopicSubscriber<Estimate>>,
     predecessor_seq: HashMap<u64, Option<u64>>,
-    last_seq: Option<u64>,
+    /// One measurement source per run, one measurement per step ([`protocol::source`]).
+    gate: MeasurementGate,
     state: StepEstimator,
     /// With --takeover: the step this estimator takes over from.
     from_step: Option<u64>,
@@ -178,7 +182,9 @@ impl Handler for EstimatorNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
         // The measurements are taken (and stamped) first; the states that came before them are remembered
         // before any is answered.
-        let (batch, received_ns) = node.receive(self.measurements, &mut self.last_seq, "a measurement")?;
+        let (mut batch, received_ns) = node.receive_measurements(self.measurements, &mut self.gate)?;
+        // With an external front end, the monitor gives again a step whose estimate was lost.
+        batch.extend(node.receive_measurement_copies(self.replays, &mut self.gate)?.0);
         self.follow_predecessor(node)?;
         self.take_states(node)?;
         for (held, answer) in self.state.release() {
@@ -218,6 +224,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
     };
     let domain = node.domain().clone();
     let measurements = Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain))?;
+    let replays = Topic::<Measurement>::subscriber(node.link(), &services::measurement_replay(&domain))?;
     let estimates = Topic::<Estimate>::publisher(node.link(), &services::estimate(&domain))?;
     let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
     let states = Topic::<EstimatorState>::subscriber(node.link(), &services::state(&domain))?;
@@ -229,6 +236,7 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         args,
         config,
         measurements: &measurements,
+        replays: &replays,
         commands: &commands,
         command_seq: None,
         states: &states,
@@ -236,13 +244,13 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         estimates: &estimates,
         predecessor: predecessor.as_ref(),
         predecessor_seq: HashMap::new(),
-        last_seq: None,
+        gate: MeasurementGate::default(),
         state: StepEstimator::with_config(config),
         from_step: None,
         asks: StateRequests::default(),
         summary: EstimatorSummary::default(),
     };
-    let mut inputs: Vec<&dyn Waitable> = vec![&measurements, &states];
+    let mut inputs: Vec<&dyn Waitable> = vec![&measurements, &replays, &states];
     if let Some(p) = &predecessor {
         inputs.push(p);
     }

@@ -20,6 +20,12 @@ by default): `uavs`, `headings_deg` (omitted: each UAV heads at the emitter), `e
 --inject-bad publishes three malformed measurements before step 1 (a NaN range difference, a UAV count
 of 2, a sequence number that steps back); uavloc's processes reject and count them, and the run goes on.
 
+Options that break the contract on purpose, to see uavloc refuse it: --remeasure K publishes step K a
+second time with fresh noise (a different copy of a measured step: refused, `conflict`); --seq-start
+sets the first sequence number (e.g. 18446744073709551615 from a second front end: refused as a second
+source, it cannot make the first one's later measurements stale); --emitter X,Y moves the true emitter;
+--step-delay-s waits before each measurement (a slow front end, so that another can join mid-run).
+
 Exit codes: 0 done, 1 an error (a timeout waiting for uavloc, a malformed command), 2 bad arguments.
 """
 
@@ -211,21 +217,35 @@ def main():
     p.add_argument("--linger-s", type=float, default=10.0,
                    help="after the last step, stay (keeping the published measurements readable) until uavloc's "
                         "planner has left, at most this long")
+    p.add_argument("--emitter", help="X,Y: the true emitter, m (default: the scenario's)")
+    p.add_argument("--step-delay-s", type=float, default=0.0, help="wait this long before each measurement")
+    p.add_argument("--remeasure", type=int, help="publish step K again, with fresh noise, after its first copy")
+    p.add_argument("--seq-start", type=int, help="the first sequence number (default: the monotonic clock)")
     args = p.parse_args()
     if args.steps < 0:
         p.error("--steps must be >= 0")
+    if args.seq_start is not None and not 0 <= args.seq_start < 2**64:
+        p.error("--seq-start must be a u64")
 
     msg.check_layout()
     uavs, headings, emitter, sigmas = load_world(args.scenario)
+    if args.emitter:
+        try:
+            emitter = [float(v) for v in args.emitter.split(",")]
+        except ValueError:
+            p.error("--emitter takes X,Y in metres")
+        if len(emitter) != 2:
+            p.error("--emitter takes X,Y in metres")
     rng = random.Random(args.seed)
     link = Link(args.domain)
     link.wait_for_uavloc(args.timeout_s)
     # Sequence numbers start at the monotonic clock: a restarted front end numbers above its predecessor.
-    seq = time.monotonic_ns()
+    seq = time.monotonic_ns() if args.seq_start is None else args.seq_start
     flown, held, bad_sent = 0, 0, []
     trigger = (0, 0)
     last_accepted = None
     for k in range(args.steps + 1):
+        time.sleep(args.step_delay_s)
         m = measure(k, seq, uavs, headings, emitter, sigmas, rng)
         m.header.stamps.trigger_command_published_ns, m.header.stamps.trigger_command_received_ns = trigger
         if args.inject_bad and k == 1:
@@ -236,7 +256,13 @@ def main():
             m.header.seq = seq
         link.publish(m)
         last_accepted = seq
-        seq += 1
+        seq = min(seq + 1, 2**64 - 1)
+        if args.remeasure == k:
+            again = measure(k, seq, uavs, headings, emitter, sigmas, rng)
+            again.header.stamps.trigger_command_published_ns, again.header.stamps.trigger_command_received_ns = trigger
+            link.publish(again)
+            bad_sent.append("remeasured")
+            seq += 1
         if k == args.steps:
             break
         c, received_ns = link.command_of(k, args.timeout_s)

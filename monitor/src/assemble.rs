@@ -203,6 +203,11 @@ impl Assembler {
         self.pending.keys().next_back().copied()
     }
 
+    /// The measurement of `step` waiting for the rest of its step (the copy accepted first).
+    pub fn pending_measurement(&self, step: u64) -> Option<&Measurement> {
+        self.pending.get(&step).and_then(|p| p.measurement.as_ref())
+    }
+
     /// The next step to complete.
     pub fn next_step(&self) -> u64 {
         self.next

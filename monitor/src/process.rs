@@ -45,10 +45,10 @@ use std::time::Instant;
 use model::load_scenario;
 use protocol::services;
 use protocol::{
-    Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MessageKind, Topic, TopicPublisher,
-    TopicSubscriber, Truth, Waitable,
+    Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MeasurementGate, MessageKind, Topic,
+    TopicPublisher, TopicSubscriber, Truth, Waitable,
 };
-use runtime::recovery::{Lost, LostMessages, STALL_STEPS};
+use runtime::recovery::{Lost, LostMessages, STALL_STEPS, StalledStep};
 use runtime::{Flow, Handler, IDLE_WAKEUP, Join, Node, ProcessError};
 use serde_json::json;
 
@@ -86,6 +86,8 @@ struct MonitorNode<'a> {
     session: Session,
     /// The last accepted sequence number of each data topic.
     last_seq: [Option<u64>; MessageKind::ALL.len()],
+    /// One measurement source per run, one measurement per step ([`protocol::source`]).
+    gate: MeasurementGate,
     truths: &'a TopicSubscriber<Truth>,
     measurements: &'a TopicSubscriber<Measurement>,
     estimates: &'a TopicSubscriber<Estimate>,
@@ -94,6 +96,10 @@ struct MonitorNode<'a> {
     state_answers: &'a TopicPublisher<EstimatorState>,
     /// The replays asked for because a message was lost.
     lost: LostMessages,
+    /// With an external front end: where the monitor gives a step's measurement again
+    /// ([`services::measurement_replay`]), and when ([`StalledStep`]).
+    replays: Option<&'a TopicPublisher<Measurement>>,
+    stalled: StalledStep,
     progress_sent: Option<(u64, Instant)>,
     /// With an external source: the front end's presence.
     front_end: Option<FrontEndWatch>,
@@ -113,6 +119,28 @@ impl MonitorNode<'_> {
             match node.counter().check(&msg, &mut self.last_seq[T::KIND.index()]) {
                 Ok(()) => self.session.accept(msg, received_ns, add),
                 Err(r) => self.session.rejected(T::KIND, &r, msg.header().seq),
+            }
+        }
+        Ok(())
+    }
+}
+
+impl MonitorNode<'_> {
+    /// [`drain`](Self::drain) for the measurements: each also through the gate (one source per run, one
+    /// measurement per step: [`protocol::source`]), so the record holds the copy the estimator used.
+    fn drain_measurements(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        let sub = self.measurements;
+        let (batch, origins, received_ns) = sub.receive_sourced()?;
+        for (msg, origin) in batch.into_iter().zip(origins) {
+            self.session.arrived(&msg, received_ns);
+            match self.gate.check(node.counter(), &msg, origin, |s| sub.publisher_alive(s).unwrap_or(true)) {
+                Ok(_) => self.session.accept(msg, received_ns, Session::add_measurement),
+                // A refused publisher's first message is logged; its further ones are counted only.
+                Err(r) => {
+                    if self.gate.log_line(&r).is_some() {
+                        self.session.rejected(MessageKind::Measurement, &r, msg.header.seq);
+                    }
+                }
             }
         }
         Ok(())
@@ -158,6 +186,19 @@ impl Handler for MonitorNode<'_> {
             node.say(format_args!("a message of step {next} was lost ({why}); asking for a replay"));
             node.announce(ControlKind::Replay, next, "lost")?;
         }
+        // With an external front end nobody else can replay: the step waited for holds its measurement
+        // but its estimate or command was lost (a crashed estimator or planner) — give it again.
+        if let Some(replays) = self.replays {
+            let measurement = session.assembler.pending_measurement(next).copied();
+            if self.stalled.poll(Instant::now(), next, measurement.is_some())
+                && let Some(m) = measurement
+            {
+                session.summary.replays_requested += 1;
+                session.log.write("replay_request", json!({"step": next, "measurement": "given again"}));
+                node.say(format_args!("step {next} has its measurement but no estimate or command; giving it again"));
+                replays.publish(&m, true)?;
+            }
+        }
         if !session.assembler.is_done() {
             self.watch_front_end(node, next)?;
         }
@@ -171,7 +212,7 @@ impl MonitorNode<'_> {
     /// requests it can, and records the steps completed.
     fn take_messages(&mut self, node: &mut Node) -> Result<(), ProcessError> {
         self.drain(node, self.truths, Session::add_truth)?;
-        self.drain(node, self.measurements, Session::add_measurement)?;
+        self.drain_measurements(node)?;
         self.drain(node, self.estimates, Session::add_estimate)?;
         self.drain(node, self.commands, Session::add_command)?;
         for echo in self.session.states.take_answers() {
@@ -243,8 +284,12 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
     let truths = Topic::<Truth>::subscriber(node.link(), &services::truth(&domain))?;
     let state_answers = Topic::<EstimatorState>::publisher(node.link(), &services::state(&domain))?;
+    let replays = external
+        .then(|| Topic::<Measurement>::publisher(node.link(), &services::measurement_replay(&domain)))
+        .transpose()?;
     let mut monitor = MonitorNode {
         last_seq: [None; MessageKind::ALL.len()],
+        gate: MeasurementGate::default(),
         session: Session::new(assembler, log, states, args.process.node.quiet).with_outputs(stamps, recorder),
         truths: &truths,
         measurements: &measurements,
@@ -252,6 +297,8 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         commands: &commands,
         state_answers: &state_answers,
         lost: LostMessages::default(),
+        replays: replays.as_ref(),
+        stalled: StalledStep::default(),
         progress_sent: None,
         front_end: external.then(FrontEndWatch::default),
     };

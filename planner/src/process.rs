@@ -74,7 +74,8 @@ struct Planner<'a> {
     measurements: Option<&'a TopicSubscriber<Measurement>>,
     commands: &'a TopicPublisher<Command>,
     last_seq: Option<u64>,
-    measurement_seq: Option<u64>,
+    /// One measurement source per run, one measurement per step ([`protocol::source`]).
+    measurement_gate: protocol::MeasurementGate,
     /// With a staleness deadline: the steps measured and not yet estimated, and the steps held.
     tracker: Option<HoldTracker>,
     /// With --takeover: the step this planner takes over from, and how often the step before it was seen.
@@ -121,7 +122,7 @@ impl Planner<'_> {
     /// The staleness deadline: measurements start a step's deadline.
     fn track_measurements(&mut self, node: &mut Node) -> Result<(), ProcessError> {
         let (Some(t), Some(sub)) = (self.tracker.as_mut(), self.measurements) else { return Ok(()) };
-        let (batch, _) = node.receive(sub, &mut self.measurement_seq, "a measurement")?;
+        let (batch, _) = node.receive_measurements(sub, &mut self.measurement_gate)?;
         // The deadline runs from when the measurements are in hand (see `Node::receive`).
         let now = Instant::now();
         for m in batch {
@@ -281,7 +282,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         measurements: measurements.as_ref(),
         commands: &commands,
         last_seq: None,
-        measurement_seq: None,
+        measurement_gate: protocol::MeasurementGate::default(),
         tracker,
         from_step: None,
         seen_before_takeover: 0,

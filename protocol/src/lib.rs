@@ -26,6 +26,7 @@ pub mod control;
 pub mod messages;
 pub mod resources;
 pub mod services;
+pub mod source;
 pub mod transport;
 pub mod validate;
 
@@ -41,6 +42,7 @@ pub use messages::{
     now_ns, run_tag,
 };
 pub use services::Domain;
+pub use source::{Admitted, MeasurementGate, SourceLock, StepDigests, measurement_digest};
 pub use transport::{
     Link, Sent, Topic, TopicEvents, TopicPublisher, TopicSubscriber, TransportError, TransportKind, WaitMode,
     WaitPolicy, Waitable, node, poll, wait_attached,

@@ -157,10 +157,19 @@ pub fn state(domain: &Domain) -> String {
     format!("{domain}/state")
 }
 
+/// Topic of [`Measurement`](crate::Measurement) copies the monitor gives again with an external front
+/// end: monitor → estimator, the measurement of a step whose estimate or command was lost (a crashed
+/// estimator or planner), as the monitor recorded it. A front end measures each step once; emitter-sim's
+/// replays make this topic unnecessary with the simulator.
+pub fn measurement_replay(domain: &Domain) -> String {
+    format!("{domain}/measurement-replay")
+}
+
 /// All service names of a domain, with a short label each.
-pub fn all(domain: &Domain) -> [(&'static str, String); 6] {
+pub fn all(domain: &Domain) -> [(&'static str, String); 7] {
     [
         ("measurement", measurement(domain)),
+        ("measurement-replay", measurement_replay(domain)),
         ("estimate", estimate(domain)),
         ("command", command(domain)),
         ("truth", truth(domain)),

@@ -94,6 +94,22 @@ pub enum Rejection {
         /// The message's.
         got: u32,
     },
+    /// A measurement from a second source while the run's source is still there
+    /// ([`SourceLock`](crate::SourceLock)): one measurement source per run, never two mixed.
+    #[error("a second measurement source (publisher {got:032x}) while the run's source ({current:032x}) is there")]
+    SecondSource {
+        /// The run's source (its publisher id).
+        current: u128,
+        /// The refused publisher.
+        got: u128,
+    },
+    /// A copy of a step already accepted, with other data ([`StepDigests`](crate::StepDigests)): the
+    /// pipeline estimates, plans and records the first copy only.
+    #[error("a different copy of step {step}, already measured")]
+    Conflict {
+        /// The step.
+        step: u64,
+    },
     /// An enumerated field has an unknown value: a control message's kind (not one of [`ControlKind`]),
     /// a truth's `previous_command` (not one of [`CommandOutcome`](crate::CommandOutcome)).
     #[error("unknown {field} {kind}")]
@@ -107,7 +123,7 @@ pub enum Rejection {
 
 impl Rejection {
     /// All kind strings, in [`kind_index`](Self::kind_index) order.
-    pub const KINDS: [&'static str; 10] = [
+    pub const KINDS: [&'static str; 12] = [
         "bad_version",
         "bad_count",
         "not_finite",
@@ -118,6 +134,8 @@ impl Rejection {
         "bad_name",
         "unknown_kind",
         "other_run",
+        "second_source",
+        "conflict",
     ];
 
     /// Stable snake_case name of the reason (for logs and counters).
@@ -138,6 +156,8 @@ impl Rejection {
             Rejection::BadName { .. } => 7,
             Rejection::UnknownKind { .. } => 8,
             Rejection::OtherRun { .. } => 9,
+            Rejection::SecondSource { .. } => 10,
+            Rejection::Conflict { .. } => 11,
         }
     }
 }
@@ -381,13 +401,7 @@ impl RejectionCounter {
     /// different) is rejected before its sequence number is looked at, so it moves nothing; control
     /// messages are exempt (they state their run themselves: that is how another run is told to leave).
     pub fn check<T: Message>(&mut self, msg: &T, last_seq: &mut Option<u64>) -> Result<(), Rejection> {
-        let got = msg.header().run;
-        let verdict = if T::KIND != MessageKind::Control && self.run != 0 && got != 0 && got != self.run {
-            Err(Rejection::OtherRun { expected: self.run, got })
-        } else {
-            msg.validate(*last_seq)
-        };
-        match verdict {
+        match self.verdict(msg, *last_seq) {
             Ok(()) => {
                 *last_seq = Some(msg.header().seq);
                 self.record_accepted(T::KIND);
@@ -397,6 +411,16 @@ impl RejectionCounter {
                 self.record(T::KIND, &r);
                 Err(r)
             }
+        }
+    }
+
+    /// [`check`](Self::check)'s verdict on `msg`, counting nothing and moving nothing.
+    pub fn verdict<T: Message>(&self, msg: &T, last_seq: Option<u64>) -> Result<(), Rejection> {
+        let got = msg.header().run;
+        if T::KIND != MessageKind::Control && self.run != 0 && got != 0 && got != self.run {
+            Err(Rejection::OtherRun { expected: self.run, got })
+        } else {
+            msg.validate(last_seq)
         }
     }
 

@@ -32,8 +32,8 @@ use std::time::{Duration, Instant};
 use protocol::control::{instance_id_at, is_newer};
 use protocol::services::{self, Domain};
 use protocol::{
-    Control, ControlChannel, ControlKind, Link, Message, RejectionCounter, TopicSubscriber, TransportError, WaitMode,
-    WaitPolicy, Waitable, now_ns,
+    Admitted, Control, ControlChannel, ControlKind, Link, Measurement, MeasurementGate, Message, RejectionCounter,
+    TopicSubscriber, TransportError, WaitMode, WaitPolicy, Waitable, now_ns,
 };
 
 use crate::{NodeArgs, NodeSummary, ProcessError, SupervisorLine};
@@ -321,6 +321,55 @@ impl Node {
             Err(r) => {
                 self.summary.rejected += 1;
                 eprintln!("{}: rejected {what}: {r}", self.summary.role);
+                false
+            }
+        });
+        self.summary.accepted += out.len() as u64;
+        Ok((out, received_ns))
+    }
+
+    /// [`receive`](Self::receive) for the measurement topic: each message also through `gate` (one source
+    /// per run, one measurement per step: [`protocol::source`]); a successor source is logged.
+    pub fn receive_measurements(
+        &mut self,
+        sub: &TopicSubscriber<Measurement>,
+        gate: &mut MeasurementGate,
+    ) -> Result<(Vec<Measurement>, u64), ProcessError> {
+        let (batch, origins, received_ns) = sub.receive_sourced()?;
+        let mut out = Vec::with_capacity(batch.len());
+        for (m, origin) in batch.into_iter().zip(origins) {
+            match gate.check(&mut self.counter, &m, origin, |s| sub.publisher_alive(s).unwrap_or(true)) {
+                Ok(admitted) => {
+                    if let Admitted::Successor { .. } = admitted {
+                        self.say(format_args!("a new measurement source took over at step {}", m.header.step));
+                    }
+                    out.push(m);
+                }
+                Err(r) => {
+                    self.summary.rejected += 1;
+                    if let Some(line) = gate.log_line(&r) {
+                        eprintln!("{}: {line}", self.summary.role);
+                    }
+                }
+            }
+        }
+        self.summary.accepted += out.len() as u64;
+        Ok((out, received_ns))
+    }
+
+    /// The measurements the monitor gives again on `sub` ([`protocol::services::measurement_replay`]),
+    /// each validated as a copy ([`MeasurementGate::check_copy`]).
+    pub fn receive_measurement_copies(
+        &mut self,
+        sub: &TopicSubscriber<Measurement>,
+        gate: &mut MeasurementGate,
+    ) -> Result<(Vec<Measurement>, u64), ProcessError> {
+        let (mut out, received_ns) = sub.receive_stamped()?;
+        out.retain(|m| match gate.check_copy(&mut self.counter, m) {
+            Ok(()) => true,
+            Err(r) => {
+                self.summary.rejected += 1;
+                eprintln!("{}: rejected a measurement given again: {r}", self.summary.role);
                 false
             }
         });

@@ -233,6 +233,45 @@ impl LostMessages {
     }
 }
 
+/// How long the step waited for may hold its measurement without its estimate or command before the
+/// monitor of an external run gives the measurement again ([`StalledStep`]): far beyond a step's
+/// estimate-and-plan time (milliseconds), well within a launcher's restart (50 ms to 1.6 s) and start.
+pub const STALL_GRACE: Duration = Duration::from_secs(1);
+
+/// With an external front end, which measures each step once: when the monitor gives the measurement of
+/// the step it waits for again (on [`protocol::services::measurement_replay`]), a pure state machine over
+/// (time, the step waited for, whether its measurement is in): once it has waited [`STALL_GRACE`] with
+/// its measurement in — its estimate or command was lost with a crashed estimator or planner — and again
+/// every [`REASK`] while the step does not complete. A copy is harmless: every process takes a step seen
+/// again as a replay.
+#[derive(Debug, Clone, Default)]
+pub struct StalledStep {
+    /// The step waited for with its measurement in, since when, and when it was last given again.
+    waiting: Option<(u64, Instant, Option<Instant>)>,
+}
+
+impl StalledStep {
+    /// At `now`, with `next` the step the monitor waits for and `measured` whether its measurement is in:
+    /// whether to give that measurement again now.
+    pub fn poll(&mut self, now: Instant, next: u64, measured: bool) -> bool {
+        if !measured {
+            self.waiting = None;
+            return false;
+        }
+        let (step, since, given) = self.waiting.get_or_insert((next, now, None));
+        if *step != next {
+            *self = StalledStep { waiting: Some((next, now, None)) };
+            return false;
+        }
+        let due = now.saturating_duration_since(*since) >= STALL_GRACE
+            && given.is_none_or(|at| now.saturating_duration_since(at) >= REASK);
+        if due {
+            *given = Some(now);
+        }
+        due
+    }
+}
+
 /// How long an estimator's unanswered request for a state waits before it is asked again (the monitor may
 /// have been restarting).
 pub const STATE_RETRY: Duration = Duration::from_millis(500);
@@ -346,6 +385,29 @@ pub fn load<T: DeserializeOwned>(path: &Path, role: &str, domain: &str) -> Resul
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_stalled_step_is_given_again_after_its_grace_then_every_reask() {
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let mut s = StalledStep::default();
+        // Nothing in: nothing to give.
+        assert!(!s.poll(at(0), 4, false));
+        // Step 4's measurement in, its estimate not: given once the grace is over, not before.
+        assert!(!s.poll(at(10), 4, true));
+        assert!(!s.poll(at(1009), 4, true));
+        assert!(s.poll(at(1010), 4, true));
+        assert!(!s.poll(at(2000), 4, true));
+        assert!(s.poll(at(3010), 4, true));
+        // The step completed, the next one waits: its own grace.
+        assert!(!s.poll(at(3020), 5, true));
+        assert!(!s.poll(at(4000), 5, true));
+        assert!(s.poll(at(4020), 5, true));
+        // Its measurement not in (the front end has not measured it yet): nothing, and the clock restarts.
+        assert!(!s.poll(at(9000), 6, false));
+        assert!(!s.poll(at(9001), 6, true));
+    }
+
     use super::*;
 
     #[derive(Debug, PartialEq, Serialize, Deserialize)]

@@ -80,7 +80,9 @@ fn batch() -> Batch {
             (with(measurement(), |m| m.diffs[1] = f64::NAN), "not_finite"),
             (with(measurement(), |m| m.count = 200), "bad_count"),
             (with(measurement(), |m| m.sigmas[2] = -28.0), "non_positive_sigma"),
-            (measurement(), "stale"),
+            // Valid, with an old sequence number, from another publisher than emitter-sim: one measurement
+            // source per run (it would be `stale` in the source's own stream, but it is not the source).
+            (measurement(), "second_source"),
             (version(measurement()), "bad_version"),
             (other_run(measurement()), "other_run"),
         ],

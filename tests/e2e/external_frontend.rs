@@ -173,3 +173,190 @@ fn a_front_end_with_another_uav_count_is_rejected_naming_both_counts() {
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Starts `examples/python/frontend.py` in the background (stdout piped: its JSON summary).
+fn spawn_front_end(domain: &str, steps: &str, extra: &[&str]) -> std::process::Child {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/frontend.py");
+    Command::new(python())
+        .arg(script)
+        .args(["--domain", domain, "--steps", steps])
+        .args(extra)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start the front end")
+}
+
+/// The rejections of `reason` the monitor logged (one line per refused publisher for a second source).
+fn logged_rejections(events: &[Value], reason: &str) -> usize {
+    events.iter().filter(|e| e["event"] == "rejected" && e["reason"] == reason).count()
+}
+
+/// Two front ends on one domain: A (emitter at 25 000, 15 000) runs; B (emitter at 20 000, 24 000) joins
+/// once A's step 2 is recorded. One measurement source per run: B's measurements are refused
+/// (`second_source`, logged once, counted each) while A is there, and the run is A's alone — its estimate
+/// is A's emitter, every recorded measurement A's. (It used to be mixed: A's measurements, B's emitter.)
+#[test]
+fn a_second_front_end_is_refused_and_the_run_stays_the_first_ones() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("ext", "two");
+    let dir = scratch("ext-two");
+    let steps = STEPS.to_string();
+    let mut launch = Launch::start(&d, &dir, &["--source", "external", "--steps", &steps]);
+    let a = spawn_front_end(&d, &steps, &["--step-delay-s", "0.1", "--timeout-s", "60"]);
+    launch.wait_for_step(2, common::FINISH_TIMEOUT / 4);
+    let b = front_end(&d, &steps, &["--emitter", "20000,24000", "--seed", "8", "--timeout-s", "2", "--linger-s", "0"])
+        .expect("run the second front end");
+    // B never gets a command for its steps: the run's commands answer A's (B's step 0 was long answered).
+    assert!(!b.status.success(), "the second front end was answered");
+    let a = a.wait_with_output().expect("the first front end");
+    assert!(a.status.success(), "the first front end failed: {}", String::from_utf8_lossy(&a.stderr));
+    let fe: Value = serde_json::from_slice(&a.stdout).expect("the first front end's summary");
+    let log = launch.log.clone();
+    let report = launch.finish_json();
+    let events = common::read_events(&log);
+    // Logged once per receiver (the monitor's log holds its own); counted for each message.
+    assert_eq!(logged_rejections(&events, "second_source"), 1, "{}", report["rejected_by"]);
+    assert!(report["rejected_by"]["estimator"].as_u64().unwrap() >= 1, "{}", report["rejected_by"]);
+    assert_eq!(logged_rejections(&events, "stale"), 0);
+    let steps = report["steps"].as_array().unwrap();
+    assert_eq!(steps.len() as u64, STEPS + 1);
+    let last = &steps[STEPS as usize];
+    assert_eq!(last["uavs"], fe["uavs"], "the record's geometry is A's");
+    let (x, y) = (last["estimate"][0].as_f64().unwrap(), last["estimate"][1].as_f64().unwrap());
+    let a_err = (x - 25000.0).hypot(y - 15000.0);
+    assert!(a_err < 1655.58, "the final estimate ({x}, {y}) is not A's emitter ({a_err} m off)");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// One valid measurement numbered `u64::MAX` from another client (here: a second front end that publishes
+/// one step and leaves) used to make every later measurement of the real front end stale — the run
+/// stalled. The sequence numbers are a stream per source, and the other client is refused as a second
+/// source: nothing stale, every step recorded.
+#[test]
+fn a_foreign_measurement_numbered_u64_max_cannot_stall_the_run() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("ext", "max");
+    let dir = scratch("ext-max");
+    let steps = STEPS.to_string();
+    let mut launch = Launch::start(&d, &dir, &["--source", "external", "--steps", &steps]);
+    let a = spawn_front_end(&d, &steps, &["--step-delay-s", "0.1", "--timeout-s", "20"]);
+    launch.wait_for_step(2, common::FINISH_TIMEOUT / 4);
+    let max = u64::MAX.to_string();
+    let b = front_end(&d, "0", &["--seq-start", &max, "--linger-s", "0"]).expect("run the intruder");
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+    let a = a.wait_with_output().expect("the front end");
+    assert!(a.status.success(), "the front end stalled: {}", String::from_utf8_lossy(&a.stderr));
+    let log = launch.log.clone();
+    let report = launch.finish_json();
+    let events = common::read_events(&log);
+    assert_eq!(logged_rejections(&events, "stale"), 0);
+    assert_eq!(logged_rejections(&events, "second_source"), 1);
+    assert_eq!(report["rejected_by"]["estimator"], 1, "{}", report["rejected_by"]);
+    assert_eq!(report["steps"].as_array().unwrap().len() as u64, STEPS + 1);
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A front end that publishes step 5 twice with different data: the second copy is refused
+/// (`conflict`) by the estimator and the monitor alike, so what is recorded is what was estimated —
+/// `uavloc replay` of the recording reproduces every estimate. (The estimator used to continue from the
+/// second copy while the monitor recorded the first: 6 of 21 estimates reproduced.)
+#[test]
+fn a_different_copy_of_a_step_is_refused_and_the_recording_replays_every_estimate() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("ext", "twice");
+    let dir = scratch("ext-twice");
+    let steps = STEPS.to_string();
+    let mcap = dir.join("run.mcap");
+    let launch =
+        Launch::start(&d, &dir, &["--source", "external", "--steps", &steps, "--record", mcap.to_str().unwrap()]);
+    let out = front_end(&d, &steps, &["--remeasure", "5"]).expect("run the front end");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let log = launch.log.clone();
+    let report = launch.finish_json();
+    assert_eq!(report["rejected_by"]["estimator"], 1, "{}", report["rejected_by"]);
+    assert_eq!(report["rejected_by"]["monitor"], 1, "{}", report["rejected_by"]);
+    assert_eq!(logged_rejections(&common::read_events(&log), "conflict"), 1);
+    let replay = common::json_of(&["--json", "replay", mcap.to_str().unwrap()]);
+    assert_eq!(replay["estimates_equal"], STEPS + 1, "{replay}");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The estimates of a run, bit for bit (as JSON text).
+fn estimates(report: &Value) -> Vec<String> {
+    report["steps"].as_array().unwrap().iter().map(|s| format!("{} {}", s["estimate"], s["estimate_cov"])).collect()
+}
+
+/// SIGKILL of the estimator or the planner with an external front end, a step in flight: the process is
+/// stopped (SIGSTOP) until the step's measurement (estimator) or estimate (planner) is in its buffer, then
+/// killed — that message is lost with it, and the front end measures each step once. It used to hang:
+/// the restarted process waited for ever for a replay nobody served. The monitor, which recorded the
+/// step's measurement, now gives it again: the run completes, equal estimate for estimate to one that
+/// was not interrupted.
+#[test]
+fn a_process_killed_with_a_step_in_flight_is_recovered_with_an_external_front_end() {
+    let _scenario = common::scenario(module_path!());
+    let (reference, _) = run(&domain("ext", "ref"), "ext-ref", &[]);
+    for (role, lost) in [("estimator", "measurement"), ("planner", "estimate")] {
+        let d = domain("ext", &format!("flight-{role}"));
+        let dir = scratch(&format!("ext-flight-{role}"));
+        let steps = STEPS.to_string();
+        let mut launch = Launch::start(&d, &dir, &["--source", "external", "--steps", &steps]);
+        let fe = spawn_front_end(&d, &steps, &["--step-delay-s", "0.2", "--timeout-s", "30"]);
+        launch.wait_for_step(3, common::FINISH_TIMEOUT / 4);
+        let pid = common::pid_of(&d, role).expect("the role's process");
+        common::kill(pid, libc::SIGSTOP);
+        // The monitor logs each message it takes: once it has the lost kind of a step not recorded yet,
+        // the stopped process has it in its buffer too.
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+        loop {
+            let events = launch.events();
+            let recorded = events.iter().filter(|e| e["event"] == "step").filter_map(|e| e["step"].as_u64()).max();
+            if events.iter().any(|e| e["event"] == "message" && e["kind"] == lost && e["step"].as_u64() > recorded) {
+                break;
+            }
+            assert!(std::time::Instant::now() < deadline, "{role}: no {lost} in flight");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        common::kill(pid, libc::SIGKILL);
+        let fe = fe.wait_with_output().expect("the front end");
+        assert!(fe.status.success(), "{role}: {}", String::from_utf8_lossy(&fe.stderr));
+        let log = launch.log.clone();
+        let report = launch.finish_json();
+        assert_eq!(report["restarts"], 1, "{role}");
+        assert_eq!(estimates(&report), estimates(&reference), "{role}: the run differs from the uninterrupted one");
+        let events = common::read_events(&log);
+        assert!(events.iter().any(|e| e["event"] == "replay_request" && e["measurement"] == "given again"), "{role}");
+        assert_nothing_left(&d);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+/// SIGKILL of the monitor with an external front end: the steps the front end publishes while it is down
+/// cannot be replayed to a restarted monitor (it used to end with "step 11 never recorded" after the
+/// front end had flown every command). The launch fails at once, saying that a crashed monitor is not
+/// restarted with an external source, and leaves nothing behind.
+#[test]
+fn a_monitor_crash_with_an_external_front_end_fails_the_launch_at_once_saying_why() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("ext", "kill-monitor");
+    let dir = scratch("ext-kill-monitor");
+    let steps = STEPS.to_string();
+    let mut launch = Launch::start(&d, &dir, &["--source", "external", "--steps", &steps]);
+    let fe = spawn_front_end(&d, &steps, &["--step-delay-s", "0.1", "--timeout-s", "3", "--linger-s", "0"]);
+    launch.wait_for_step(2, common::FINISH_TIMEOUT / 4);
+    common::kill(common::pid_of(&d, "monitor").expect("the monitor"), libc::SIGKILL);
+    let killed = std::time::Instant::now();
+    let (status, _stdout, stderr) = launch.finish();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("the monitor process stopped unexpectedly (signal 9)"), "{stderr}");
+    assert!(stderr.contains("not restarted"), "{stderr}");
+    assert!(killed.elapsed() < std::time::Duration::from_secs(15), "took {:?}", killed.elapsed());
+    // The front end gets no more commands and gives up after its own timeout.
+    let _ = fe.wait_with_output().expect("the front end");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -5,6 +5,7 @@ use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use core::time::Duration;
 
+use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -133,6 +134,7 @@ pub struct IoxSubscriber<T: Message> {
     pubsub: publish_subscribe::PortFactory<ipc::Service, T, ()>,
     subscriber: Subscriber<ipc::Service, T, ()>,
     listener: Listener<ipc::Service>,
+    config: iceoryx2::config::Config,
 }
 
 impl<T: Message> core::fmt::Debug for IoxSubscriber<T> {
@@ -152,7 +154,8 @@ impl<T: Message> IoxSubscriber<T> {
             .create()
             .map_err(|e| failed("creating subscriber", name, e))?;
         let listener = services.event.listener_builder().create().map_err(|e| failed("creating listener", name, e))?;
-        Ok(IoxSubscriber { name: name.to_owned(), pubsub: services.pubsub, subscriber, listener })
+        let config = node.config().clone();
+        Ok(IoxSubscriber { name: name.to_owned(), pubsub: services.pubsub, subscriber, listener, config })
     }
 }
 
@@ -167,6 +170,43 @@ impl<T: Message> SubscribePort<T> for IoxSubscriber<T> {
             events.samples += 1;
         }
         Ok(events)
+    }
+
+    fn receive_sourced(&self, out: &mut Vec<T>, origins: &mut Vec<u128>) -> Result<TopicEvents, TransportError> {
+        let mut events = TopicEvents::default();
+        while let Some(sample) = self.subscriber.receive().map_err(|e| failed("receiving", &self.name, e))? {
+            events.in_hand_ns = now_ns();
+            out.push(*sample.payload());
+            origins.push(sample.origin().value());
+            events.samples += 1;
+        }
+        Ok(events)
+    }
+
+    fn publisher_alive(&self, origin: u128) -> Result<bool, TransportError> {
+        let mut node = None;
+        self.pubsub.dynamic_config().list_publishers(|p| {
+            if p.publisher_id.value() == origin {
+                node = Some(p.node_id);
+                CallbackProgression::Stop
+            } else {
+                CallbackProgression::Continue
+            }
+        });
+        let Some(node) = node else { return Ok(false) };
+        // Listed: alive unless its node is dead (killed, not yet cleaned up).
+        let mut dead = false;
+        Node::<ipc::Service>::list(&self.config, |state| {
+            if let NodeState::Dead(view) = &state
+                && *view.id() == node
+            {
+                dead = true;
+                return CallbackProgression::Stop;
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(|e| failed("listing nodes", &self.name, e))?;
+        Ok(!dead)
     }
 
     fn consume_wakeups(&self) -> Result<TopicEvents, TransportError> {

@@ -452,6 +452,14 @@ pub trait SubscribePort<T: Message>: fmt::Debug {
     /// transport, the malformed datagrams dropped).
     fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError>;
 
+    /// [`receive_into`](Self::receive_into), and each message's publisher into `origins` (iceoryx2: the
+    /// sample's `UniquePublisherId`; the socket transport names none and gives 0).
+    fn receive_sourced(&self, out: &mut Vec<T>, origins: &mut Vec<u128>) -> Result<TopicEvents, TransportError>;
+
+    /// Whether the publisher `origin` (of [`receive_sourced`](Self::receive_sourced)) is still on the
+    /// topic and its process alive (iceoryx2: listed, and its node not dead; the socket transport: always).
+    fn publisher_alive(&self, origin: u128) -> Result<bool, TransportError>;
+
     /// Consumes the pending wake-ups (and lifecycle events) before a blocking wait: a subscriber that only
     /// polls never calls it, so that its publishers' notifications coalesce into the one still pending
     /// and cost them no system call (see the module docs).
@@ -641,6 +649,20 @@ impl<T: Message> TopicSubscriber<T> {
         let mut out = Vec::new();
         let events = self.receive_into(&mut out)?;
         Ok((out, if events.in_hand_ns == 0 { now_ns() } else { events.in_hand_ns }))
+    }
+
+    /// [`receive_stamped`](Self::receive_stamped), and each message's publisher
+    /// ([`SubscribePort::receive_sourced`]).
+    pub fn receive_sourced(&self) -> Result<(Vec<T>, Vec<u128>, u64), TransportError> {
+        let (mut out, mut origins) = (Vec::new(), Vec::new());
+        let events = self.port.receive_sourced(&mut out, &mut origins)?;
+        Ok((out, origins, if events.in_hand_ns == 0 { now_ns() } else { events.in_hand_ns }))
+    }
+
+    /// Whether the publisher `origin` is still on the topic, its process alive
+    /// ([`SubscribePort::publisher_alive`]).
+    pub fn publisher_alive(&self, origin: u128) -> Result<bool, TransportError> {
+        self.port.publisher_alive(origin)
     }
 
     /// Returns every buffered message (oldest first; possibly none).

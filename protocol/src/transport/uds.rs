@@ -515,6 +515,17 @@ impl<T: Message> UdsSubscriber<T> {
 }
 
 impl<T: Message> SubscribePort<T> for UdsSubscriber<T> {
+    fn receive_sourced(&self, out: &mut Vec<T>, origins: &mut Vec<u128>) -> Result<TopicEvents, TransportError> {
+        let before = out.len();
+        let events = self.receive_into(out)?;
+        origins.resize(origins.len() + out.len() - before, 0);
+        Ok(events)
+    }
+
+    fn publisher_alive(&self, _origin: u128) -> Result<bool, TransportError> {
+        Ok(true)
+    }
+
     fn receive_into(&self, out: &mut Vec<T>) -> Result<TopicEvents, TransportError> {
         let mut events = TopicEvents::default();
         let mut pending = self.pending.borrow_mut();
