@@ -425,6 +425,8 @@ fn parse(bytes: &[u8], strict: bool) -> Result<Recording, (u64, String)> {
 /// was read before it stays in `out`).
 fn walk(bytes: &[u8], out: &mut Recording) -> Result<(), (u64, String)> {
     let mut topics: BTreeMap<u16, String> = BTreeMap::new();
+    // Where the summary section starts (just after the DataEnd record).
+    let mut summary_from = None::<usize>;
     let mut at = MAGIC.len();
     loop {
         let offset = at as u64;
@@ -468,6 +470,36 @@ fn walk(bytes: &[u8], out: &mut Recording) -> Result<(), (u64, String)> {
                 out.messages.push(RecordedMessage { topic, log_time: header.log_time, json });
             }
             mcap::records::Record::Metadata(m) if m.name == METADATA_NAME => out.metadata = m.metadata,
+            // The data section's CRC32 covers every byte before this record, the magic included (0: not
+            // computed by the writer).
+            mcap::records::Record::DataEnd(end) => {
+                let crc = crc32fast::hash(&bytes[..at]);
+                if end.data_section_crc != 0 && end.data_section_crc != crc {
+                    return Err((
+                        offset,
+                        format!(
+                            "the data section's CRC does not match (stored {:#010x}, computed {crc:#010x}): the \
+                             bytes before this offset were changed",
+                            end.data_section_crc
+                        ),
+                    ));
+                }
+                summary_from = Some(body_end);
+            }
+            // The summary's CRC32 covers the summary section and the footer up to its own field.
+            mcap::records::Record::Footer(footer) if footer.summary_crc != 0 => {
+                let from = summary_from.unwrap_or(at);
+                let crc = crc32fast::hash(&bytes[from..body_start + 16]);
+                if footer.summary_crc != crc {
+                    return Err((
+                        from as u64,
+                        format!(
+                            "the summary section's CRC does not match (stored {:#010x}, computed {crc:#010x})",
+                            footer.summary_crc
+                        ),
+                    ));
+                }
+            }
             _ => {}
         }
         at = body_end;
@@ -538,6 +570,35 @@ mod tests {
         assert_eq!(back.messages[0].log_time, 11);
         let e = &back.messages[1].json;
         assert_eq!((e["status"].as_str(), e["position"][0].is_null()), (Some("failed"), true), "NaN is null");
+        std::fs::remove_dir_all(path.parent().unwrap()).ok();
+    }
+
+    /// One changed digit in a recorded range difference still parses as a valid message: only the data
+    /// section's CRC tells. Every byte of the data section is covered, and so is the summary's.
+    #[test]
+    fn a_changed_byte_anywhere_is_refused_by_its_crc() {
+        let path = scratch("crc");
+        let mut r = Recorder::create(&path, BTreeMap::new(), false).unwrap();
+        for k in 0..3 {
+            r.record(&measurement(k), k);
+        }
+        r.finish().unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(read_recording(&path).is_ok());
+        let digit = bytes.windows(7).position(|w| w == b"-4010.9").expect("the recorded range difference") + 3;
+        let mut changed = bytes.clone();
+        changed[digit] = if changed[digit] == b'1' { b'2' } else { b'1' };
+        std::fs::write(&path, &changed).unwrap();
+        let e = read_recording(&path).unwrap_err();
+        assert!(e.what.contains("data section's CRC"), "{e}");
+        assert!(e.offset > digit as u64, "the DataEnd record, after the change: {e}");
+        // The last byte before the footer's CRC field, in the summary section (or the footer itself).
+        let footer_crc = bytes.len() - MAGIC.len() - 4;
+        let mut changed = bytes.clone();
+        changed[footer_crc - 1] ^= 0x01;
+        std::fs::write(&path, &changed).unwrap();
+        let e = read_recording(&path).unwrap_err();
+        assert!(e.what.contains("CRC"), "{e}");
         std::fs::remove_dir_all(path.parent().unwrap()).ok();
     }
 

@@ -97,6 +97,18 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
     let out = uavloc(&["replay", junk.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("not an MCAP file"), "{out:?}");
+    // One digit of a recorded range difference changed: still valid JSON, a different report — refused by
+    // the data section's CRC (it used to be replayed, exit 0).
+    let at = bytes.windows(9).position(|w| w == b"\"diffs\":[").expect("a recorded measurement") + 10;
+    let digit = at + bytes[at..].iter().position(u8::is_ascii_digit).unwrap();
+    let mut changed = bytes.clone();
+    changed[digit] = if changed[digit] == b'7' { b'8' } else { b'7' };
+    let fuzzed = dir.join("fuzzed.mcap");
+    std::fs::write(&fuzzed, &changed).unwrap();
+    let out = uavloc(&["replay", fuzzed.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("CRC does not match") && err.contains("at byte offset"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
