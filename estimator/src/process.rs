@@ -146,7 +146,8 @@ impl EstimatorNode<'_> {
         };
         if reply.fix == Fix::Failed {
             self.summary.failed += 1;
-            node.warn(format_args!("step {step}: no fix (the previous estimate stands)"));
+            let stands = if reply.standing.is_some() { "the previous estimate stands" } else { "no earlier estimate" };
+            node.warn(format_args!("step {step}: no fix ({stands})"));
         }
         let seq = node.next_seq();
         let estimate = reply

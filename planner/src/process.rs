@@ -155,9 +155,13 @@ impl Planner<'_> {
             return Ok(None);
         }
         let Some((position, covariance)) = est.plan_from() else {
-            self.summary.errors += 1;
-            node.warn(format_args!("step {step}: the estimator has no fix yet, nothing to plan from"));
-            return Ok(None);
+            // A failed estimate with no earlier one to stand (the first fixes found no physical solution):
+            // the same measurements give the same answer to any restart — the run cannot go on, as
+            // `uavloc simulate` of the scenario says at once.
+            return Err(ProcessError::Unrecoverable(format!(
+                "step {step}: the estimator found no fix and has no earlier estimate to plan from (no emitter \
+                 position fits the range differences: too much noise for this geometry?) — the run cannot go on"
+            )));
         };
         let args = self.args;
         if args.plan_delay_ms > 0 && (args.plan_delay_steps.is_empty() || args.plan_delay_steps.contains(&step)) {

@@ -107,6 +107,44 @@ fn a_start_that_cannot_be_localised_is_refused_up_front() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A step 0 without a fix (the nominal scenario with σ = 500 m, seed 10: Chan finds no physical solution,
+/// and there is no earlier estimate): `simulate` ends at once with the reason, and so does `launch` —
+/// the planner says the run cannot go on (exit code 3, no restart). It used to grind 62 s through five
+/// emitter-sim restarts and end with "no command within 10 s".
+#[test]
+fn a_step_0_without_a_fix_ends_launch_at_once_as_it_ends_simulate() {
+    let _scenario = common::scenario(module_path!());
+    let dir = common::scratch("no-fix");
+    let nominal =
+        std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/nominal.toml"))
+            .unwrap();
+    let noisy: String = nominal
+        .lines()
+        .map(|l| if l.starts_with("sigma =") { "sigma = 500.0" } else { l })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert_ne!(noisy, nominal);
+    let path = dir.join("noisy.toml");
+    std::fs::write(&path, noisy).unwrap();
+    let path = path.to_str().unwrap();
+    let sim = Command::new(UAVLOC).args(["simulate", "--scenario", path, "--seed", "10"]).output().unwrap();
+    assert_eq!(sim.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&sim.stderr).contains("no physical solution"));
+    let d = domain("nofix", "launch");
+    let started = std::time::Instant::now();
+    let out = Command::new(UAVLOC)
+        .args(["launch", "--headless", "--json", "--scenario", path, "--seed", "10", "--domain", &d])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("step 0: the estimator found no fix") && err.contains("the run cannot go on"), "{err}");
+    assert!(!err.contains("restarting"), "{err}");
+    assert!(started.elapsed() < std::time::Duration::from_secs(10), "took {:?}", started.elapsed());
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--out` is checked before the run (before, a 2 000-step launch was computed, then the monitor failed
 /// on the path, was restarted five times and the run's JSON was lost), and a failure to write the files
 /// at the end no longer loses the run: the JSON is printed, the exit code is 1, the error names the path.
