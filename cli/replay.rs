@@ -260,7 +260,19 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
     if measurements.is_empty() {
         return Err(CliError::Input(format!("{}: the recording has no measurement", args.file.display())));
     }
-    let mut estimator = Estimator::with_config(EstimatorConfig::new(sc.estimator, dynamics));
+    // Without --estimator, each step with the estimator that made its recorded estimate (a run whose
+    // estimator was swapped: the new one resumed from the last estimate of the old one, as it did).
+    let recorded_kind = |step: u64| -> Option<EstimatorKind> {
+        match estimates.get(&step)?["estimator"].as_str()? {
+            "fused" => Some(EstimatorKind::Fused),
+            "snapshot" => Some(EstimatorKind::Snapshot),
+            _ => None,
+        }
+    };
+    let mut kind = args.estimator.or_else(|| recorded_kind(0)).unwrap_or(sc.estimator);
+    let mut kinds_used = vec![kind];
+    let mut estimator = Estimator::with_config(EstimatorConfig::new(kind, dynamics));
+    let mut last_replayed: Option<protocol::Estimate> = None;
     let mut per_step = Vec::new();
     // The objective and solver of each planned step, in step order.
     let mut planners_used: Vec<(ObjectiveKind, SolverKind)> = Vec::new();
@@ -273,9 +285,21 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             )));
         }
         let m = measurement_of(json)?;
+        if args.estimator.is_none()
+            && let Some(k) = recorded_kind(step).filter(|k| *k != kind)
+        {
+            let previous = last_replayed.as_ref().filter(|e| e.status().is_some_and(|s| s.is_usable()));
+            estimator = match previous {
+                Some(e) => estimator::chain::resumed(EstimatorConfig::new(k, dynamics), e),
+                None => Estimator::with_config(EstimatorConfig::new(k, dynamics)),
+            };
+            kind = k;
+            kinds_used.push(k);
+        }
         let reply = estimator::chain::estimate_measurement(&mut estimator, &m);
         let replayed = reply.to_estimate(&m, 0, 0, 0).map_err(|e| CliError::Failed(format!("step {step}: {e}")))?;
         let replayed_view = view_of_estimate(&replayed);
+        last_replayed = Some(replayed);
         let recorded = estimates.get(&step).map(|e| view_of_json(e, step)).transpose()?;
         let estimate_equal = recorded.as_ref().is_some_and(|r| {
             let bits = |v: &EstimateView| {
@@ -342,7 +366,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         per_step.iter().filter(|s| s.recorded_headings.is_some() && s.replayed_headings.is_some()).collect();
     Ok(ReplayReport {
         file: args.file.display().to_string(),
-        estimator: sc.estimator.name().to_string(),
+        estimator: in_order_used(kinds_used.iter().map(|k| k.name())),
         emitter_model: sc.emitter_model.name().to_string(),
         objective: in_order_used(planners_used.iter().map(|p| p.0.name())),
         solver: in_order_used(planners_used.iter().map(|p| p.1.name())),

@@ -84,6 +84,15 @@ impl Chain {
     }
 }
 
+/// An estimator of `config` taking over from `estimate` (a usable one): the next step it estimates is the
+/// one after it, from the posterior the estimate carries — what `uavloc swap estimator` does.
+pub fn resumed(config: EstimatorConfig, estimate: &protocol::Estimate) -> Estimator {
+    let extra = estimate.extra();
+    let state =
+        EchoedState::State { step: estimate.header.step, estimate: (estimate.position, estimate.covariance), extra };
+    Chain::from_echo(config, &state).estimator
+}
+
 /// A measurement held until the state before it is known, with the time it was received.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Held {

@@ -97,6 +97,7 @@ pub fn run_closed_loop(
             active_constraints: Vec::new(),
             planner: None,
             criterion_ess: None,
+            estimator: Some(scenario.estimator.name().to_string()),
             safety: None,
         };
         let measured_headings = world.headings().to_vec();

@@ -368,6 +368,7 @@ impl Assembler {
             active_constraints: if missed { vec![COMMAND_MISSED.to_string()] } else { Vec::new() },
             planner: None,
             criterion_ess: None,
+            estimator: Some(if e.estimator == 1 { "fused" } else { "snapshot" }.to_string()),
             safety: None,
         };
         let mut planner = None;

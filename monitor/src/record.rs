@@ -75,6 +75,11 @@ pub struct StepRecord {
     /// run in real-time mode, `["command_missed"]` when no command arrived before the next step was due
     /// (the UAVs flew straight on; `objective_value`, `plan_ms` and `planner` are then null).
     pub active_constraints: Vec<String>,
+    /// The estimator that made this step's estimate (`fused` or `snapshot`): the run's, or — after
+    /// `uavloc swap estimator --estimator KIND` — the one swapped in (`uavloc replay` replays each step
+    /// with it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<String>,
     /// The planner process that chose the headings (pipeline runs only; absent from `simulate` and on
     /// the last step).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -230,6 +235,7 @@ pub(crate) mod tests {
             active_constraints: vec![],
             planner: None,
             criterion_ess: None,
+            estimator: None,
             safety: None,
         }
     }

@@ -76,6 +76,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
                 },
                 planner: None,
                 criterion_ess: None,
+                estimator: None,
                 safety: None,
             };
             for (p, h) in uavs.iter_mut().zip(&headings) {

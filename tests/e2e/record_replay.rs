@@ -176,6 +176,39 @@ fn a_recording_of_a_swapped_planner_replays_each_step_with_its_own_planner() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `uavloc swap estimator --estimator snapshot` mid-run: each step of the record says which estimator
+/// made its estimate, and `uavloc replay` replays each step with it, the snapshot estimator resumed from
+/// the fused one's last estimate — every estimate reproduced. (The record said `fused` throughout, and
+/// the replay redid every step as fused: 36 of 101 equal.)
+#[test]
+fn a_recording_of_a_swapped_estimator_replays_each_step_with_its_own_estimator() {
+    let _scenario = common::scenario(module_path!());
+    let dir = scratch("record-swap-est");
+    let file = dir.join("run.mcap");
+    let d = domain("rec", "swap-est");
+    let mut launch =
+        Launch::start(&d, &dir, &["--steps", "24", "--step-delay-ms", "80", "--record", file.to_str().unwrap()]);
+    launch.wait_for_step(3, Duration::from_secs(30));
+    let swapped = Command::new(common::UAVLOC)
+        .args(["swap", "estimator", "--domain", &d, "--estimator", "snapshot", "--json"])
+        .stderr(std::fs::File::create(dir.join("swap.stderr")).unwrap())
+        .output()
+        .unwrap();
+    assert!(swapped.status.success(), "{}", std::fs::read_to_string(dir.join("swap.stderr")).unwrap_or_default());
+    let from = serde_json::from_slice::<Value>(&swapped.stdout).unwrap()["from_step"].as_u64().unwrap();
+    let run = launch.finish_json();
+    for s in run["steps"].as_array().unwrap() {
+        let k = s["step"].as_u64().unwrap();
+        assert_eq!(s["estimator"], if k < from { "fused" } else { "snapshot" }, "step {k}");
+    }
+    let r = replay(&file, &[]);
+    assert_eq!(r["estimator"], "fused → snapshot", "{r}");
+    assert_eq!(r["estimates_equal"], 25, "{r}");
+    // A flag still replays every step with one estimator.
+    assert_eq!(replay(&file, &["--estimator", "fused"])["estimator"], "fused");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_recording_with_a_step_missing_or_without_its_scenario_is_refused() {
     let _scenario = common::scenario(module_path!());
