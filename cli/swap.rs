@@ -194,11 +194,17 @@ pub fn run(args: &SwapArgs, given: &[String]) -> Result<SwapReport, CliError> {
     // The run's settings, when a launch runs the domain: a swapped-in planner runs the same scenario.
     let run = crate::launch::state_dir::find_run_settings(&domain);
     // The new process runs in the domain found above, under this command's supervision.
-    let node =
-        |a: &runtime::NodeArgs| runtime::NodeArgs { domain: Some(domain.to_string()), supervised: true, ..a.clone() };
+    // It stops when the launch does (it is not the launch's child): nothing outlives its launcher.
+    let launcher = run.as_ref().map(|(_, _, pid)| *pid);
+    let node = |a: &runtime::NodeArgs| runtime::NodeArgs {
+        domain: Some(domain.to_string()),
+        supervised: true,
+        watch_pid: launcher,
+        ..a.clone()
+    };
     let no_flags: Vec<String> = Vec::new();
     let launch_flags = |f: fn(&crate::launch::state_dir::RunSettings) -> &Vec<String>| {
-        run.as_ref().map_or(&no_flags, |(settings, _)| f(settings))
+        run.as_ref().map_or(&no_flags, |(settings, ..)| f(settings))
     };
     let mut planner = None;
     let flags = match &args.role {
@@ -207,7 +213,7 @@ pub fn run(args: &SwapArgs, given: &[String]) -> Result<SwapReport, CliError> {
             // The run's scenario, steps and seed (a given one that differs is refused), the launch's other
             // flags where none is given.
             let mut given = given.to_vec();
-            if let Some((settings, file)) = &run {
+            if let Some((settings, file, _)) = &run {
                 reconcile(&mut a, settings, file)?;
                 given.extend(["scenario", "steps", "seed"].map(String::from));
             }
@@ -270,7 +276,7 @@ pub fn run(args: &SwapArgs, given: &[String]) -> Result<SwapReport, CliError> {
         }
     };
     // A run that has ended has nothing to take over (the new process saw the last step).
-    if let Some((settings, _)) = &run
+    if let Some((settings, ..)) = &run
         && let Err(e) = check_not_over(role, &domain, from_step, settings.steps)
     {
         let _ = give_up(&mut child, String::new());

@@ -26,8 +26,13 @@ pub(super) fn child_flags(
     state: &StateDir,
     log: &std::path::Path,
 ) -> Result<Vec<String>, CliError> {
-    let node =
-        |quiet| runtime::NodeArgs { domain: Some(domain.to_string()), link: args.link, quiet, supervised: false };
+    let node = |quiet| runtime::NodeArgs {
+        domain: Some(domain.to_string()),
+        link: args.link,
+        quiet,
+        supervised: false,
+        watch_pid: None,
+    };
     let run = runtime::RunArgs { scenario: args.run.scenario.clone(), steps: args.run.steps, seed: args.run.seed };
     let flags = match role {
         Role::Monitor => to_flags(&monitor::args::MonitorArgs {

@@ -135,12 +135,12 @@ pub struct RunSettings {
 }
 
 /// The settings of the launch running in `domain` (its launcher alive), with the file they came from.
-pub fn find_run_settings(domain: &Domain) -> Option<(RunSettings, PathBuf)> {
+pub fn find_run_settings(domain: &Domain) -> Option<(RunSettings, PathBuf, u32)> {
     launch_dirs(&state_root().ok()?).filter(|(pid, d, _)| d == domain.as_str() && pid_alive(*pid)).find_map(
-        |(.., dir)| {
+        |(pid, _, dir)| {
             let path = dir.join("run.json");
             let settings = serde_json::from_str(&std::fs::read_to_string(&path).ok()?).ok()?;
-            Some((settings, path))
+            Some((settings, path, pid))
         },
     )
 }

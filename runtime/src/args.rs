@@ -68,6 +68,10 @@ pub struct NodeArgs {
     /// the role tells its supervisor besides: emitter-sim's `finished`, the monitor's `record {json}`).
     #[arg(long, hide = true)]
     pub supervised: bool,
+    /// Stop once the process PID has ended: what `uavloc swap` gives a swapped-in process (not the
+    /// launch's child, so not stopped with it otherwise), with the pid of the launch that runs the domain.
+    #[arg(long, hide = true, value_name = "PID")]
+    pub watch_pid: Option<u32>,
 }
 
 /// The flags of a process that takes part in a run with a scenario (emitter-sim, the planner, the

@@ -120,6 +120,51 @@ pub struct Node {
     told_to_leave: Vec<u64>,
     /// An observer's drain period ([`Node::drain_every`]).
     drain_every: Option<Duration>,
+    /// The process whose end stops this one (`--watch-pid`), and when it was last looked at.
+    watched: Option<Watched>,
+}
+
+/// A process watched for its end (`--watch-pid`): through a pidfd (immune to the pid's reuse), else
+/// `kill(pid, 0)`.
+#[derive(Debug)]
+struct Watched {
+    pid: u32,
+    pidfd: Option<std::os::fd::OwnedFd>,
+    looked: Option<Instant>,
+}
+
+impl Watched {
+    fn open(pid: u32) -> Self {
+        // SAFETY: pidfd_open(2) takes a pid and flags and returns a new descriptor or −1; nothing is
+        // borrowed. The descriptor is owned from here.
+        let fd = unsafe { libc::syscall(libc::SYS_pidfd_open, pid as libc::pid_t, 0) };
+        let pidfd = (fd >= 0).then(|| {
+            // SAFETY: `fd` is a descriptor pidfd_open just returned, owned by nobody else.
+            unsafe { <std::os::fd::OwnedFd as std::os::fd::FromRawFd>::from_raw_fd(fd as i32) }
+        });
+        Watched { pid, pidfd, looked: None }
+    }
+
+    /// Whether the watched process has ended — looked at no more than once per [`IDLE_WAKEUP`] (a
+    /// system call, kept off the per-message path).
+    fn ended(&mut self, now: Instant) -> bool {
+        if self.looked.is_some_and(|at| now.saturating_duration_since(at) < IDLE_WAKEUP) {
+            return false;
+        }
+        self.looked = Some(now);
+        match &self.pidfd {
+            Some(fd) => {
+                let mut p = libc::pollfd { fd: std::os::fd::AsRawFd::as_raw_fd(fd), events: libc::POLLIN, revents: 0 };
+                // SAFETY: one valid pollfd, a zero timeout.
+                unsafe { libc::poll(&mut p, 1, 0) > 0 && p.revents & libc::POLLIN != 0 }
+            }
+            None => {
+                // SAFETY: kill(2) with signal 0 only checks that the process exists.
+                let gone = unsafe { libc::kill(self.pid as libc::pid_t, 0) } != 0;
+                gone && std::io::Error::last_os_error().raw_os_error() == Some(libc::ESRCH)
+            }
+        }
+    }
 }
 
 /// What a wait (or a drain's sleep) means for the loop: SIGINT/SIGTERM ends it, another error fails it.
@@ -135,7 +180,7 @@ impl Node {
     /// Opens the node of `role` in the domain of `args` (default: `$UAVLOC_DOMAIN`, else `uavloc`) on
     /// its link; `Ok(None)` when SIGINT/SIGTERM came while it opened (the process then ends cleanly).
     pub fn open(role: &'static str, args: &NodeArgs) -> Result<Option<Self>, ProcessError> {
-        let NodeArgs { domain, link, quiet, supervised } = args;
+        let NodeArgs { domain, link, quiet, supervised, watch_pid } = args;
         protocol::transport::quiet_logs();
         let domain = Domain::resolve_named(domain.as_deref()).map_err(ProcessError::Input)?;
         let opened = Link::open(link.transport, &services::node_name(&domain, role))?;
@@ -162,6 +207,7 @@ impl Node {
             rejected_reported: 0,
             told_to_leave: Vec::new(),
             drain_every: None,
+            watched: watch_pid.map(Watched::open),
         }))
     }
 
@@ -540,6 +586,13 @@ impl Node {
             }
             if let Some(ended) = self.on_control(handler)? {
                 return Ok(ended);
+            }
+            if let Some(w) = &mut self.watched
+                && w.ended(Instant::now())
+            {
+                let pid = w.pid;
+                self.warn(format_args!("the launch that runs this domain (pid {pid}) has ended; stopping"));
+                return Ok(Ended::Shutdown);
             }
             if let Some(f) = self.handover_due(handler.last_answered()) {
                 return Ok(Ended::HandedOver(f));

@@ -310,3 +310,35 @@ fn of_two_swaps_at_once_one_swaps_and_the_other_is_refused() {
     }
     common::assert_nothing_left(&d);
 }
+
+/// kill -9 of the launcher after a swap: the swapped-in planner is not the launch's child, so the
+/// launch's end did not stop it — it ran on for ever, and every later launch into the domain was refused.
+/// It watches the launch (`--watch-pid`, a pidfd) and stops within a second or two; the domain is free
+/// for the next launch.
+#[test]
+fn a_swapped_in_planner_stops_when_its_launcher_is_killed() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("swap", "orphan");
+    let dir = scratch("swap-orphan");
+    let mut launch = Launch::start(&d, &dir, &["--steps", "2000", "--step-delay-ms", "40"]);
+    launch.wait_for_step(3, Duration::from_secs(30));
+    let report = swap(&dir, &["planner", "--domain", &d, "--solver", "ga"]);
+    let new = report["pid"].as_u64().unwrap() as u32;
+    common::kill(launch.child.id(), libc::SIGKILL);
+    let _ = launch.child.wait();
+    let killed = std::time::Instant::now();
+    while !gone(new) {
+        assert!(killed.elapsed() < Duration::from_secs(10), "the swapped-in planner {new} outlived its launcher");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Every process of the domain is gone (the launch's children by their parent-death signal).
+    while !common::processes_mentioning(&d).is_empty() {
+        assert!(killed.elapsed() < Duration::from_secs(10), "{:?}", common::processes_mentioning(&d));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // The domain is free: a new launch runs in it.
+    let next = common::json_of(&["launch", "--headless", "--json", "--steps", "3", "--domain", &d]);
+    assert_eq!(next["steps"].as_array().unwrap().len(), 4);
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
