@@ -232,7 +232,13 @@ mod tests {
         };
         let e = EmitterSimArgs {
             process: runtime::ProcessArgs {
-                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: false },
+                node: runtime::NodeArgs {
+                    domain: Some("d".into()),
+                    link,
+                    quiet: true,
+                    supervised: false,
+                    watch_pid: None,
+                },
                 run: runtime::RunArgs { scenario: Some("x.toml".into()), steps: Some(2), seed: Some(1) },
             },
             command_timeout_s: 0.1 + 0.2,

@@ -98,7 +98,13 @@ mod tests {
         let link = runtime::LinkArgs { transport: protocol::TransportKind::Uds, wait: None, spin_us: Some(30) };
         let m = MonitorArgs {
             process: runtime::ProcessArgs {
-                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: true, supervised: true },
+                node: runtime::NodeArgs {
+                    domain: Some("d".into()),
+                    link,
+                    quiet: true,
+                    supervised: true,
+                    watch_pid: None,
+                },
                 run: runtime::RunArgs { scenario: Some("a b.toml".into()), steps: Some(7), seed: Some(9) },
             },
             source: runtime::Source::External,

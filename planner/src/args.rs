@@ -79,7 +79,13 @@ mod tests {
         };
         let p = PlannerArgs {
             process: runtime::ProcessArgs {
-                node: runtime::NodeArgs { domain: Some("d".into()), link, quiet: false, supervised: true },
+                node: runtime::NodeArgs {
+                    domain: Some("d".into()),
+                    link,
+                    quiet: false,
+                    supervised: true,
+                    watch_pid: Some(4242),
+                },
                 run: runtime::RunArgs { scenario: None, steps: Some(3), seed: None },
             },
             objective: ObjectiveKind::PosteriorCubature,
