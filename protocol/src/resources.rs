@@ -103,8 +103,10 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {
     let config = Config::global_config();
     let mut dead = Vec::new();
     Node::<ipc::Service>::list(config, |state| {
+        // A node whose owner died before it wrote its details (killed during its creation) belongs to no
+        // domain that can be read, and to no live process: it is removed too.
         if let NodeState::Dead(view) = state
-            && view.details().as_ref().is_some_and(|d| in_domain(d.name().as_str(), domain))
+            && view.details().as_ref().is_none_or(|d| in_domain(d.name().as_str(), domain))
         {
             dead.push(view);
         }
@@ -113,9 +115,24 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {
     .map_err(|e| format!("listing iceoryx2 nodes: {e:?}"))?;
     let mut removed = 0;
     for view in dead {
+        let id = view.id().value();
         match view.blocking_remove_stale_resources(Duration::from_secs(1)) {
             Ok(()) => removed += 1,
-            Err(e) => return Err(format!("removing a dead node's resources: {e:?}")),
+            // A node killed in the middle of its creation (or of its own clean-up) can leave files
+            // iceoryx2's clean-up stops at: its directory is removed instead, and the run goes on — one
+            // dead node is never a reason to give up the domain.
+            Err(e) => {
+                let dir = std::path::PathBuf::from(config.global.node_dir().to_string()).join(id.to_string());
+                match std::fs::remove_dir_all(&dir) {
+                    Ok(()) => removed += 1,
+                    Err(io) if io.kind() == std::io::ErrorKind::NotFound => removed += 1,
+                    Err(io) => eprintln!(
+                        "warning: the resources of a dead iceoryx2 node ({}) could not be removed ({e:?}; {io}); \
+                         going on",
+                        dir.display()
+                    ),
+                }
+            }
         }
     }
     Ok(removed)

@@ -277,3 +277,38 @@ fn a_scenario_file_edited_during_the_run_changes_no_restart() {
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A restarted process killed again during its start-up (its node being created, its resources in the
+/// making), three times in a row, for the estimator and for the monitor: each kill is one more restart.
+/// It used to abort the launch now and then ("removing a dead node's resources: InternalError", exit 1;
+/// estimator 3 of 8, monitor 2 of 5): a node killed mid-creation leaves files iceoryx2's clean-up stops
+/// at. Its directory is removed instead, and the run completes equal to `simulate`.
+#[test]
+fn a_restarted_process_killed_during_its_start_up_is_one_more_restart() {
+    let _scenario = common::scenario(module_path!());
+    for role in ["estimator", "monitor"] {
+        let d = domain("startup", role);
+        let dir = scratch(&format!("startup-{role}"));
+        let total = 60u64;
+        let steps = total.to_string();
+        let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "30"]);
+        launch.wait_for_step(3, Duration::from_secs(60));
+        let mut pid = pid_of(&d, role).expect("the role's process");
+        for _ in 0..3 {
+            kill(pid, libc::SIGKILL);
+            // The next instance, killed as soon as it is seen (while it starts up).
+            let deadline = std::time::Instant::now() + Duration::from_secs(20);
+            pid = loop {
+                if let Some(next) = pid_of(&d, role).filter(|p| *p != pid) {
+                    break next;
+                }
+                assert!(std::time::Instant::now() < deadline, "{role}: no restarted instance");
+                std::thread::yield_now();
+            };
+        }
+        let run = launch.finish_json();
+        assert_eq!(run["restarts"].as_u64(), Some(3), "{role}");
+        common::assert_complete_run_equals_simulate(&run, &dir, &d, total, role);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
