@@ -9,6 +9,7 @@ mod args;
 mod children;
 mod report;
 mod role;
+mod shm;
 mod signals;
 pub mod state_dir;
 mod supervisor;
@@ -88,6 +89,10 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     }
 
     signals::catch_termination();
+    // Room in /dev/shm for the domain's topics, before anything starts (children would die of SIGBUS).
+    if args.link.transport == protocol::TransportKind::Iceoryx2 {
+        shm::check()?;
+    }
     // Checkpoints (and the monitor's log when --log is not given) live in a private directory of this
     // launch, removed at the end: a restarted child resumes from what its predecessor wrote there.
     let state = StateDir::create(&domain)?;

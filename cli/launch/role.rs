@@ -83,6 +83,13 @@ impl Role {
             return RestartDecision::Done;
         }
         let what = describe(status);
+        // Shared memory exhausted: a restart would die the same way (and burn every restart in a second).
+        if std::os::unix::process::ExitStatusExt::signal(&status) == Some(libc::SIGBUS) {
+            return RestartDecision::Fail(format!(
+                "the {self} process stopped unexpectedly ({what}); {}",
+                super::shm::sigbus_reason()
+            ));
+        }
         // Bad input (2) and a run that cannot go on (3) would fail again the same way.
         if matches!(status.code(), Some(c) if c == 2 || c == i32::from(runtime::EXIT_UNRECOVERABLE)) {
             return RestartDecision::Fail(format!("the {self} process stopped unexpectedly ({what})"));
@@ -147,6 +154,9 @@ mod tests {
         assert_eq!(Role::Estimator.on_exit(code(0), true, 0, 5, SIM), RestartDecision::Done);
         // Crashes restart, up to the limit.
         assert_eq!(Role::Estimator.on_exit(signal(9), false, 2, 5, SIM), RestartDecision::Restart { attempt: 3 });
+        // SIGBUS: shared memory exhausted — no restart, said so.
+        let bus = Role::Planner.on_exit(signal(libc::SIGBUS), false, 0, 5, SIM);
+        assert!(matches!(&bus, RestartDecision::Fail(m) if m.contains("shared memory is exhausted")), "{bus:?}");
         // With an external front end nobody can measure the steps published while the monitor is down:
         // its crash fails the launch at once, saying why; the estimator and the planner are restarted
         // (the monitor gives the step in flight again).

@@ -25,7 +25,15 @@ pub(super) fn state_root() -> Result<PathBuf, CliError> {
     match std::fs::DirBuilder::new().mode(0o700).create(&parent) {
         Ok(()) => {}
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
-        Err(e) => return Err(failed(&parent, e)),
+        // An unusable $TMPDIR is bad input: said as such, exit 2.
+        Err(e) => {
+            return Err(CliError::Input(format!(
+                "the temporary directory {} ($TMPDIR) is not usable: cannot create {}: {e}; set TMPDIR to a \
+                 writable directory",
+                std::env::temp_dir().display(),
+                parent.display()
+            )));
+        }
     }
     let meta = std::fs::symlink_metadata(&parent).map_err(|e| failed(&parent, e))?;
     if !meta.is_dir() || meta.uid() != uid || meta.mode() & 0o077 != 0 {

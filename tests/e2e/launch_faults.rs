@@ -456,3 +456,18 @@ fn two_outputs_on_one_file_are_refused_before_the_run() {
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An unusable `$TMPDIR` (the launch's state directory cannot be made there) is bad input: exit 2,
+/// naming it (it used to be exit 1).
+#[test]
+fn an_unusable_tmpdir_is_refused_naming_it() {
+    let _scenario = common::scenario(module_path!());
+    let out = Command::new(UAVLOC)
+        .args(["launch", "--headless", "--steps", "2"])
+        .env("TMPDIR", "/nonexistent/uavloc-tmp")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("/nonexistent/uavloc-tmp ($TMPDIR) is not usable"), "{err}");
+}
