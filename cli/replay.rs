@@ -321,12 +321,13 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             Some((position, covariance)) if planned => {
                 let (z, cov) = tdoa::estimate_from_arrays(&position, &covariance);
                 let positions: Vec<Vector2<f64>> = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+                let stated = planner::wire::scenario_with_sigmas(&sc, replayed.range_sigmas());
                 plan_step(&PlanRequest {
                     positions: &positions,
                     headings: m.headings(),
                     estimate: z,
                     covariance: cov,
-                    scenario: &sc,
+                    scenario: stated.as_ref().unwrap_or(&sc),
                     objective,
                     solver,
                     run_seed: sc.seed,

@@ -97,6 +97,7 @@ pub fn run_closed_loop(
             active_constraints: Vec::new(),
             planner: None,
             criterion_ess: None,
+            range_sigmas_m: None,
             estimator: Some(scenario.estimator.name().to_string()),
             safety: None,
         };

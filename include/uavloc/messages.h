@@ -27,13 +27,13 @@ extern "C" {
 
 /* Layout versions (the header's `version` must equal the type's). */
 #define UAVLOC_MEASUREMENT_VERSION 1u
-#define UAVLOC_ESTIMATE_VERSION 3u
+#define UAVLOC_ESTIMATE_VERSION 4u
 #define UAVLOC_COMMAND_VERSION 4u
 #define UAVLOC_TRUTH_VERSION 2u
 #define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v1"
-#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v3"
+#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v4"
 #define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v4"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
@@ -97,6 +97,7 @@ typedef struct uavloc_estimate {
     double velocity[2];               /* m/s (constant velocity; else 0) */
     double cross_cov[2][2];           /* position-velocity covariance, m^2/s */
     double velocity_cov[2][2];        /* m^2/s^2 */
+    double sigmas[UAVLOC_MAX_UAVS];   /* m: range noise of the measurement it was made from; all 0: not stated */
 } uavloc_estimate;
 
 /* uavloc_command.flags */

@@ -368,6 +368,7 @@ impl Assembler {
             active_constraints: if missed { vec![COMMAND_MISSED.to_string()] } else { Vec::new() },
             planner: None,
             criterion_ess: None,
+            range_sigmas_m: (m.sigmas() != self.scenario.range_sigmas().as_slice()).then(|| m.sigmas().to_vec()),
             estimator: Some(if e.estimator == 1 { "fused" } else { "snapshot" }.to_string()),
             safety: None,
         };

@@ -63,11 +63,15 @@ impl RunningBound {
         Self { noise, bound: tdoa::InformationBound::new(dynamics), last_step: None }
     }
 
-    /// The bound (m) after the snapshot of `step` from UAVs at `uavs`, its information taken at `z`;
-    /// `None` while the information is singular.
-    pub fn add(&mut self, step: u64, uavs: &[[f64; 2]], z: &Vector2<f64>) -> Option<f64> {
-        let fim =
-            self.noise.as_ref().and_then(|noise| Sensors::new(uavs, noise.clone()).ok()).and_then(|s| tdoa::fim(&s, z));
+    /// The bound (m) after the snapshot of `step` from UAVs at `uavs`, its information taken at `z` under
+    /// the scenario's σ or the snapshot's own (`sigmas`: what an external front end stated); `None` while
+    /// the information is singular.
+    pub fn add(&mut self, step: u64, uavs: &[[f64; 2]], sigmas: Option<&[f64]>, z: &Vector2<f64>) -> Option<f64> {
+        let own = sigmas.and_then(|s| tdoa::NoiseModel::from_range_sigmas(s).ok());
+        let fim = own
+            .or_else(|| self.noise.clone())
+            .and_then(|noise| Sensors::new(uavs, noise).ok())
+            .and_then(|s| tdoa::fim(&s, z));
         let elapsed = self.last_step.map_or(1, |l| step.saturating_sub(l).max(1));
         self.last_step = Some(step);
         let b = self.bound.add(fim, elapsed);
@@ -90,8 +94,11 @@ pub fn annotate(run: &mut crate::RunRecord) {
     run.rejected_snapshots = run.steps.iter().filter(|s| s.estimate_status == "rejected").count() as u64;
     for s in &mut run.steps {
         let est = Vector2::new(s.estimate[0], s.estimate[1]);
-        s.pcrlb_at_estimate_m =
-            if est.iter().all(|v| v.is_finite()) { along_estimates.add(s.step, &s.uavs, &est) } else { None };
+        s.pcrlb_at_estimate_m = if est.iter().all(|v| v.is_finite()) {
+            along_estimates.add(s.step, &s.uavs, s.range_sigmas_m.as_deref(), &est)
+        } else {
+            None
+        };
         let Some(truth) = s.truth else {
             s.estimate_error_m = None;
             s.nees = None;
@@ -108,7 +115,7 @@ pub fn annotate(run: &mut crate::RunRecord) {
         );
         s.estimate_error_m = est.iter().all(|v| v.is_finite()).then(|| (est - z).norm());
         s.nees = tdoa::nees(&est, &cov, &z);
-        s.pcrlb_m = at_truth.add(s.step, &s.uavs, &z);
+        s.pcrlb_m = at_truth.add(s.step, &s.uavs, s.range_sigmas_m.as_deref(), &z);
         let min = s.uavs.iter().map(|w| (w[0] - z.x).hypot(w[1] - z.y)).fold(f64::INFINITY, f64::min);
         s.min_true_distance_m = min.is_finite().then_some(min);
     }

@@ -75,6 +75,10 @@ pub struct StepRecord {
     /// run in real-time mode, `["command_missed"]` when no command arrived before the next step was due
     /// (the UAVs flew straight on; `objective_value`, `plan_ms` and `planner` are then null).
     pub active_constraints: Vec<String>,
+    /// The range noise σ per UAV of this step's measurement, metres, when it is not the scenario's (an
+    /// external front end states its own): what `pcrlb_m`, `pcrlb_at_estimate_m` and the planner used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_sigmas_m: Option<Vec<f64>>,
     /// The estimator that made this step's estimate (`fused` or `snapshot`): the run's, or — after
     /// `uavloc swap estimator --estimator KIND` — the one swapped in (`uavloc replay` replays each step
     /// with it).
@@ -235,6 +239,7 @@ pub(crate) mod tests {
             active_constraints: vec![],
             planner: None,
             criterion_ess: None,
+            range_sigmas_m: None,
             estimator: None,
             safety: None,
         }

@@ -76,6 +76,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
                 },
                 planner: None,
                 criterion_ess: None,
+                range_sigmas_m: None,
                 estimator: None,
                 safety: None,
             };

@@ -171,12 +171,14 @@ impl Planner<'_> {
         }
         let (z_hat, m) = tdoa::estimate_from_arrays(&position, &covariance);
         let positions = points(est.uavs());
+        // The noise the measurement stated (an external front end's σ) is the noise planned for.
+        let stated = wire::scenario_with_sigmas(&self.scenario, est.range_sigmas());
         let plan = match plan_step(&PlanRequest {
             positions: &positions,
             headings: est.headings(),
             estimate: z_hat,
             covariance: m,
-            scenario: &self.scenario,
+            scenario: stated.as_ref().unwrap_or(&self.scenario),
             objective: args.objective,
             solver: args.solver,
             run_seed: self.scenario.seed,

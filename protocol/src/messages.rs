@@ -659,7 +659,7 @@ impl_posterior_fields!(StateEcho);
 
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v3")]
+#[type_name("uavloc::Estimate/v4")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -693,9 +693,13 @@ pub struct Estimate {
     pub cross_cov: [[f64; 2]; 2],
     /// Fused, constant velocity: velocity covariance, m²/s² (0 otherwise).
     pub velocity_cov: [[f64; 2]; 2],
+    /// The range noise σ_i per UAV of the measurement it was made from, metres (v4): the noise every
+    /// later stage uses (the planner's criterion, the monitor's bounds), so a front end's stated noise
+    /// is the run's. All 0: not stated (the scenario's σ is used).
+    pub sigmas: [f64; MAX_UAVS],
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 3, "uavloc::Estimate/v3");
+impl_message!(Estimate, MessageKind::Estimate, 4, "uavloc::Estimate/v4");
 
 impl Estimate {
     /// An estimate for `uavs.len()` UAVs (`headings` one per UAV).
@@ -725,10 +729,17 @@ impl Estimate {
             velocity: [0.0; 2],
             cross_cov: [[0.0; 2]; 2],
             velocity_cov: [[0.0; 2]; 2],
+            sigmas: [0.0; MAX_UAVS],
         };
         e.uavs[..n].copy_from_slice(uavs);
         e.headings[..n].copy_from_slice(headings);
         Ok(e)
+    }
+
+    /// The range σ per UAV it was made from, metres; `None` when not stated (all 0).
+    pub fn range_sigmas(&self) -> Option<&[f64]> {
+        let s = &self.sigmas[..self.len()];
+        s.iter().any(|v| *v != 0.0).then_some(s)
     }
 
     /// The estimate of `measurement` (received at `received_ns`): same step, same UAV geometry, the
@@ -740,8 +751,12 @@ impl Estimate {
         instance: u64,
         fix: Fix,
     ) -> Result<Self, ProtocolError> {
-        Ok(Estimate::new(measurement.header.step, seq, instance, measurement.uavs(), measurement.headings(), fix)?
-            .carrying(measurement, received_ns))
+        let mut e =
+            Estimate::new(measurement.header.step, seq, instance, measurement.uavs(), measurement.headings(), fix)?
+                .carrying(measurement, received_ns);
+        let n = e.len();
+        e.sigmas[..n].copy_from_slice(measurement.sigmas());
+        Ok(e)
     }
 
     /// This estimate with the fused estimator's state beyond the position.

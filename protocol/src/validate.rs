@@ -225,6 +225,14 @@ impl Estimate {
             ESTIMATE_FIELDS.check_estimate(&self.position, &self.covariance)?;
         }
         ESTIMATE_FIELDS.check_posterior(&self.extra())?;
+        // The σ it was made from: stated (every one finite and > 0) or not (all 0).
+        let sigmas = &self.sigmas[..n];
+        if sigmas.iter().any(|v| *v != 0.0) {
+            check_finite("sigmas", sigmas)?;
+            if let Some(index) = sigmas.iter().position(|v| *v <= 0.0) {
+                return Err(Rejection::NonPositiveSigma { index });
+            }
+        }
         check_seq(self.header.seq, last_seq)
     }
 }

@@ -360,3 +360,52 @@ fn a_monitor_crash_with_an_external_front_end_fails_the_launch_at_once_saying_wh
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A front end whose range noise is not the launch scenario's (σ 20/35/50 m against 28.77 m): the noise
+/// it states in its measurements is the noise every stage uses — the estimator's estimate carries it
+/// (Estimate v4), the planner plans with it, the monitor's bounds use it. The run equals one whose
+/// `--scenario` states the same σ, plan for plan; the record says which σ each step had. (The planner and
+/// the monitor used to take the scenario's σ: the plans silently changed from step 2.)
+#[test]
+fn the_noise_a_front_end_states_is_the_noise_the_run_plans_for() {
+    let _scenario = common::scenario(module_path!());
+    let dir = scratch("ext-sigma");
+    let nominal =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/nominal.toml")).unwrap();
+    let noisy: String = nominal
+        .lines()
+        .map(|l| if l.starts_with("sigma =") { "sigma = [20.0, 35.0, 50.0]" } else { l })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert_ne!(noisy, nominal);
+    let world = dir.join("noisy.toml");
+    std::fs::write(&world, noisy).unwrap();
+    let world = world.to_str().unwrap();
+    let steps = STEPS.to_string();
+    let run_with = |tag: &str, launch_scenario: &[&str]| -> Value {
+        let d = domain("ext", tag);
+        let mut args = vec!["--source", "external", "--steps", &steps];
+        args.extend_from_slice(launch_scenario);
+        let launch = Launch::start(&d, &dir.join(tag), &args);
+        let out = front_end(&d, &steps, &["--scenario", world]).expect("run the front end");
+        assert!(out.status.success(), "{tag}: {}", String::from_utf8_lossy(&out.stderr));
+        let report = launch.finish_json();
+        assert_nothing_left(&d);
+        report
+    };
+    std::fs::create_dir_all(dir.join("default")).unwrap();
+    std::fs::create_dir_all(dir.join("stated")).unwrap();
+    let default = run_with("default", &[]);
+    let stated = run_with("stated", &["--scenario", world]);
+    let (a, b) = (default["steps"].as_array().unwrap(), stated["steps"].as_array().unwrap());
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(b) {
+        let k = &x["step"];
+        for key in ["headings_rad", "estimate", "objective_value", "pcrlb_at_estimate_m"] {
+            assert_eq!(x[key], y[key], "step {k}: {key}");
+        }
+        assert_eq!(x["range_sigmas_m"], serde_json::json!([20.0, 35.0, 50.0]), "step {k}");
+        assert!(y.get("range_sigmas_m").is_none(), "the scenario's own σ is not repeated: {y}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

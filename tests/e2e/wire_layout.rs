@@ -65,6 +65,7 @@ fn layouts() -> Vec<Layout> {
                 velocity,
                 cross_cov,
                 velocity_cov,
+                sigmas,
             ]
         ),
         layout!(
