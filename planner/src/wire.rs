@@ -97,6 +97,16 @@ pub fn hold_command(
     Ok(hold)
 }
 
+/// `scenario` with the range σ an estimate states ([`protocol::Estimate::range_sigmas`]) — `None` when it
+/// states none or the scenario's already are those (no copy on the hot path of a simulated run).
+pub fn scenario_with_sigmas(scenario: &Scenario, sigmas: Option<&[f64]>) -> Option<Scenario> {
+    let sigmas = sigmas?;
+    if sigmas.len() != scenario.uavs.len() || scenario.range_sigmas() == sigmas {
+        return None;
+    }
+    Some(Scenario { sigma: model::RangeSigma::PerUav(sigmas.to_vec()), ..scenario.clone() })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -114,14 +124,4 @@ mod tests {
         // Not one heading per UAV: an error, not a command.
         assert!(hold_command(7, &at, &headings[..1], &sc, names, 3).is_err());
     }
-}
-
-/// `scenario` with the range σ an estimate states ([`protocol::Estimate::range_sigmas`]) — `None` when it
-/// states none or the scenario's already are those (no copy on the hot path of a simulated run).
-pub fn scenario_with_sigmas(scenario: &Scenario, sigmas: Option<&[f64]>) -> Option<Scenario> {
-    let sigmas = sigmas?;
-    if sigmas.len() != scenario.uavs.len() || scenario.range_sigmas() == sigmas {
-        return None;
-    }
-    Some(Scenario { sigma: model::RangeSigma::PerUav(sigmas.to_vec()), ..scenario.clone() })
 }
