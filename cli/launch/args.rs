@@ -46,7 +46,9 @@ terminal, or with --headless or --json, the monitor shows one line per step on s
 RMSE at the truth, estimate error, hop latencies, active planner, rejected messages), or nothing with
 --headless. At the end the run is printed as a table, or with
 --json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\",
-\"missed_commands\" and \"processes\".
+\"missed_commands\" and \"processes\" — and, for a run that ended early, \"interrupted\": true (Ctrl-C) or
+\"failed\": \"<the error>\" (a step 0 without a fix, a front end of another formation: exit code 1, the
+steps done are in the record).
 
 A child that crashes is restarted (at most --max-restarts times per process role, after 50 ms, 100 ms, ...,
 at most 1.6 s; written to the --log): emitter-sim replays the run to the new process, which picks up

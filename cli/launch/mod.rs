@@ -123,7 +123,8 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     sup.stop_all();
     // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown
     // message.
-    if resources::list(&domain).is_ok_and(|r| r.alive_nodes().next().is_some()) {
+    let own = |n: &str| Role::START_ORDER.iter().any(|role| n.ends_with(&format!("/{role}")));
+    if resources::list(&domain).is_ok_and(|r| r.alive_nodes().any(own)) {
         match send_shutdown(&domain, args.link.transport) {
             Ok(control) => {
                 wait_until_no_process_left(&domain);
@@ -140,12 +141,15 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     }
     // Interrupted (SIGINT/SIGTERM): the steps done are kept — the monitor sent its partial record when it
     // was stopped — and printed with `"interrupted": true` (exit code 1).
-    let interrupted = match result {
+    // A process ended the run with an error a restart cannot mend, and the monitor sent the steps done:
+    // they are printed too, with `"failed"` (exit code 1).
+    let (interrupted, failed) = match result {
         Err(e) => match (signals::received(), &sup.record) {
-            (Some(_), Some(_)) => Some(e.to_string()),
+            (Some(_), Some(_)) => (Some(e.to_string()), None),
+            (None, Some(Ok(_))) => (None, Some(e.to_string())),
             _ => return Err(e),
         },
-        Ok(()) => None,
+        Ok(()) => (None, None),
     };
     cleaned?;
     let leftovers = resources::list(&domain).map_err(CliError::Failed)?;
@@ -184,6 +188,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         (flagged(monitor::assemble::COMMAND_MISSED), flagged(monitor::assemble::ESTIMATE_STALE));
     Ok(LaunchReport {
         interrupted,
+        failed,
         run,
         restarts: sup.restarts,
         rejected: children.iter().map(|c| c.rejected).sum(),
@@ -230,7 +235,11 @@ fn wait_until_no_process_left(domain: &Domain) {
     let deadline = Instant::now() + STOP_GRACE;
     while Instant::now() < deadline {
         match resources::list(domain) {
-            Ok(r) if r.alive_nodes().any(|n| !n.ends_with("/launcher")) => std::thread::sleep(TICK / 5),
+            // uavloc's own processes (a swapped-in one): a foreign node — an external front end — is not
+            // the launch's to wait for.
+            Ok(r) if r.alive_nodes().any(|n| Role::START_ORDER.iter().any(|role| n.ends_with(&format!("/{role}")))) => {
+                std::thread::sleep(TICK / 5)
+            }
             _ => return,
         }
     }

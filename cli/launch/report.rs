@@ -35,6 +35,11 @@ pub struct LaunchReport {
     /// true`, absent otherwise).
     #[serde(rename = "interrupted", serialize_with = "as_true", skip_serializing_if = "Option::is_none")]
     pub interrupted: Option<String>,
+    /// Set when a process ended the run before its last step with an error no restart could mend (a
+    /// step 0 without a fix, a front end of another formation, a crashed monitor with an external front
+    /// end): the error; `steps` are those done. Exit code 1.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failed: Option<String>,
     /// Children restarted after a crash.
     pub restarts: u64,
     /// Invalid messages counted and ignored by all four processes.
@@ -118,7 +123,7 @@ impl Report for LaunchReport {
 
     fn diagnostics(&self) -> Vec<Diagnostic> {
         let mut out = Vec::new();
-        if let Some(why) = &self.interrupted {
+        if let Some(why) = self.interrupted.as_ref().or(self.failed.as_ref()) {
             out.push(Diagnostic::Failure(format!("{why}; the record holds the {} step(s) done", self.run.steps.len())));
         }
         // Writing the monitor's files failed at the end: the run's record is still printed, the exit

@@ -147,12 +147,12 @@ impl Planner<'_> {
         // UAVs than the launch's --scenario): rejected, naming both counts — not planned as a length error.
         let (got, want) = (est.uavs().len(), self.scenario.uav_count());
         if got != want {
+            // Counted, and the run ends at once: every later estimate is of the same other formation.
             node.summary().rejected += 1;
-            node.warn(format_args!(
-                "rejected the estimate of step {step}: {got} UAVs, this run's scenario has {want} (a front end flying \
-                 another formation than --scenario?); nothing to plan"
-            ));
-            return Ok(None);
+            return Err(ProcessError::Unrecoverable(format!(
+                "rejected the estimate of step {step}: {got} UAVs, this run's scenario has {want} (a front end \
+                 flying another formation than --scenario?); the run cannot go on"
+            )));
         }
         let Some((position, covariance)) = est.plan_from() else {
             // A failed estimate with no earlier one to stand (the first fixes found no physical solution):

@@ -1390,7 +1390,7 @@ mod tests {
         assert_eq!((size_of::<Header>(), align_of::<Header>()), (88, 8));
         assert_eq!((size_of::<Name16>(), align_of::<Name16>()), (16, 1));
         assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (408, 8));
-        assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (424, 8));
+        assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (488, 8));
         assert_eq!((size_of::<Command>(), align_of::<Command>()), (504, 8));
         assert_eq!((size_of::<StateEcho>(), align_of::<StateEcho>()), (144, 8));
         assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
@@ -1408,7 +1408,8 @@ mod tests {
         assert_eq!(offset_of!(Measurement, uavs), 96);
         assert_eq!(offset_of!(Estimate, position), 88 + 8 + 8);
         assert_eq!(offset_of!(Estimate, headings) + 8 * MAX_UAVS, offset_of!(Estimate, velocity));
-        assert_eq!(offset_of!(Estimate, velocity_cov) + 32, size_of::<Estimate>());
+        assert_eq!(offset_of!(Estimate, velocity_cov) + 32, offset_of!(Estimate, sigmas));
+        assert_eq!(offset_of!(Estimate, sigmas) + 8 * MAX_UAVS, size_of::<Estimate>());
         assert_eq!(offset_of!(Estimate, rejected_run) + 1, offset_of!(Estimate, position));
         assert_eq!(offset_of!(Command, objective), 88 + 40);
         assert_eq!(offset_of!(Command, objective_name) + 16, offset_of!(Command, state));

@@ -139,8 +139,9 @@ fn a_front_end_that_leaves_before_the_last_step_ends_the_launch_with_a_clear_err
 }
 
 /// A front end flying another formation than the launch's scenario (4 UAVs against 3): the planner rejects
-/// its estimates naming both counts (before: "positions: expected 3 values, got 4", as if the planner had
-/// erred), plans nothing, and the launch ends once the front end gives up waiting for a command.
+/// its first estimate naming both counts (before: "positions: expected 3 values, got 4", as if the planner
+/// had erred), counts it, and ends the run at once (exit code 3, not restarted) — it used to stall until
+/// the front end gave up, then exit 1 with no JSON. The launch prints the record it has.
 #[test]
 fn a_front_end_with_another_uav_count_is_rejected_naming_both_counts() {
     let _scenario = common::scenario(module_path!());
@@ -163,13 +164,19 @@ fn a_front_end_with_another_uav_count_is_rejected_naming_both_counts() {
     let world = dir.join("four.toml");
     std::fs::write(&world, four).unwrap();
     let launch = Launch::start(&d, &dir, &["--source", "external", "--steps", "6"]);
-    let out = front_end(&d, "6", &["--scenario", world.to_str().unwrap(), "--timeout-s", "3", "--linger-s", "0"])
-        .expect("run the front end");
+    let started = std::time::Instant::now();
+    let fe = spawn_front_end(&d, "6", &["--scenario", world.to_str().unwrap(), "--timeout-s", "3", "--linger-s", "0"]);
+    let (status, stdout, stderr) = launch.finish();
+    // At once, not when the front end gives up waiting for a command (it used to).
+    assert!(started.elapsed() < std::time::Duration::from_secs(3), "took {:?}: {stderr}", started.elapsed());
+    let out = fe.wait_with_output().expect("the front end");
     assert!(!out.status.success(), "the front end got a command for another formation");
-    let (status, _stdout, stderr) = launch.finish();
     assert_eq!(status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("rejected the estimate of step 0: 4 UAVs, this run's scenario has 3"), "{stderr}");
-    assert!(!stderr.contains("expected 3 values"), "{stderr}");
+    assert!(stderr.contains("the run cannot go on"), "{stderr}");
+    assert!(!stderr.contains("expected 3 values") && !stderr.contains("restarting"), "{stderr}");
+    let record: Value = serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("the record ({e}): {stdout}"));
+    assert!(record["steps"].is_array(), "{record}");
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
 }

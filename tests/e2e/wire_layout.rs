@@ -190,7 +190,7 @@ fn every_field_of_every_type_is_listed() {
         ("uavloc_header", vec![4, 4, 8, 8, size_of::<Stamps>()]),
         ("uavloc_name16", vec![16]),
         ("uavloc_measurement", vec![size_of::<Header>(), 4, 4, 128, 56, 64, 64]),
-        ("uavloc_estimate", vec![size_of::<Header>(), 8, 4, 1, 1, 1, 1, 16, 32, 128, 64, 16, 32, 32]),
+        ("uavloc_estimate", vec![size_of::<Header>(), 8, 4, 1, 1, 1, 1, 16, 32, 128, 64, 16, 32, 32, 64]),
         ("uavloc_command", vec![size_of::<Header>(), 8, 8, 8, 8, 4, 4, 8, 64, 128, 16, 16, size_of::<StateEcho>()]),
         ("uavloc_state_echo", vec![8, 1, 1, 1, 1, 4, 16, 32, 16, 32, 32]),
         ("uavloc_truth", vec![size_of::<Header>(), 16, 4, 4]),
