@@ -15,8 +15,8 @@
 //!   copy: what is recorded is what was estimated.
 //!
 //! Pure: the publisher ids and the source's liveness come in (the transport's
-//! [`SubscribePort::receive_sourced`](crate::SubscribePort::receive_sourced) and
-//! [`publisher_alive`](crate::SubscribePort::publisher_alive)); the verdicts go out.
+//! [`SubscribePort::receive_sourced`](crate::transport::SubscribePort::receive_sourced) and
+//! [`publisher_alive`](crate::transport::SubscribePort::publisher_alive)); the verdicts go out.
 
 use std::collections::VecDeque;
 
