@@ -380,10 +380,42 @@ impl Supervisor {
             let restarts = self.procs.iter().filter(|q| q.role == role && q.replaced).count() as u32;
             match self.procs[i].decision(restarts, self.max_restarts, self.source) {
                 None | Some(RestartDecision::Done) => {}
+                Some(RestartDecision::Restart { .. }) if let Some(pid) = self.swapped_in(role) => {
+                    self.leave_to_swapped_in(i, pid)?
+                }
                 Some(RestartDecision::Restart { attempt }) => self.restart(i, attempt)?,
                 Some(RestartDecision::Fail(why)) => return Err(CliError::Failed(why)),
             }
         }
+        Ok(())
+    }
+
+    /// A planner of the domain that is not one of this launch's children (swapped in by `uavloc swap`,
+    /// alive): its pid. Only the planner: a swapped-in planner plans the step its predecessor left (it
+    /// comes again), while a swapped-in estimator needs its predecessor's last estimate to take over.
+    fn swapped_in(&self, role: Role) -> Option<u32> {
+        if role != Role::Planner {
+            return None;
+        }
+        let name = protocol::services::node_name(&self.domain, role.name());
+        let ours: Vec<u32> = self.procs.iter().map(|p| p.child.id()).collect();
+        resources::list(&self.domain).ok()?.alive_pids(&name).into_iter().find(|pid| !ours.contains(pid))
+    }
+
+    /// Process `i` died while a swapped-in instance of its role (pid `pid`) runs: that one goes on, no
+    /// restart (a restart would be refused: two would answer every step).
+    fn leave_to_swapped_in(&mut self, i: usize, pid: u32) -> Result<(), CliError> {
+        let (role, exit, old) = (self.procs[i].role, self.procs[i].describe_exit(), self.procs[i].child.id());
+        eprintln!(
+            "warning: the {role} process (pid {old}) stopped unexpectedly ({exit}) during a swap; the swapped-in \
+             {role} (pid {pid}) goes on, no restart"
+        );
+        self.write_log(serde_json::json!({
+            "event": "left_to_swapped_in", "t_ns": protocol::now_ns(), "role": role.name(), "pid": old,
+            "exit": exit, "swapped_in": pid,
+        }));
+        self.procs[i].replaced = true;
+        resources::remove_dead_nodes(&self.domain).map_err(CliError::Failed)?;
         Ok(())
     }
 
@@ -412,6 +444,17 @@ impl Supervisor {
         let until = Instant::now() + backoff;
         while Instant::now() < until {
             self.pump()?;
+        }
+        // A swap was starting its new instance meanwhile (its node did not show yet when the old one died):
+        // that one goes on instead.
+        if let Some(other) = self.swapped_in(role) {
+            eprintln!("warning: not restarting the {role}: the swapped-in {role} (pid {other}) goes on");
+            self.write_log(serde_json::json!({
+                "event": "left_to_swapped_in", "t_ns": protocol::now_ns(), "role": role.name(), "pid": pid,
+                "exit": exit, "swapped_in": other,
+            }));
+            self.restarts -= 1;
+            return Ok(());
         }
         let mut flags = self.procs[i].flags.clone();
         if let Some(flag) = role.restart_flag()

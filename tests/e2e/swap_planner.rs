@@ -342,3 +342,45 @@ fn a_swapped_in_planner_stops_when_its_launcher_is_killed() {
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The old planner killed in the first moments of `uavloc swap planner` (before the new one has taken
+/// over): the run used to be lost (the launcher restarted the old role, which was refused — a planner
+/// was already running —, exit 1; the swap said the new planner stopped before taking over).
+#[test]
+fn the_old_planner_killed_during_a_swap_leaves_the_run_going() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("swap", "killold");
+    let dir = scratch("swap-killold");
+    let steps = STEPS.to_string();
+    let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "40"]);
+    launch.wait_for_step(3, Duration::from_secs(30));
+    let old = pid_of(&d, "planner").expect("the launch's planner");
+    let swap = Command::new(UAVLOC)
+        .args(["swap", "planner", "--domain", &d, "--solver", "ga", "--json"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(std::fs::File::create(dir.join("swap.stderr")).unwrap())
+        .spawn()
+        .unwrap();
+    // As soon as the new planner is there (it starts, then takes over at the next step).
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while common::processes_mentioning(&d).iter().all(|(_, c)| !c.contains("--takeover")) {
+        assert!(std::time::Instant::now() < deadline, "no new planner");
+        std::thread::yield_now();
+    }
+    common::kill(old, libc::SIGKILL);
+    let swapped = swap.wait_with_output().unwrap();
+    let swap_err = std::fs::read_to_string(dir.join("swap.stderr")).unwrap_or_default();
+    let (status, stdout, stderr) = launch.finish();
+    assert!(status.success(), "the run was lost: {stderr}\nswap ({}): {swap_err}", swapped.status);
+    let run: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(run["steps"].as_array().unwrap().len() as u64, STEPS + 1);
+    // The swap completed: the new planner took over and planned the rest; the launcher said why it did
+    // not restart the old one.
+    assert!(swapped.status.success(), "{swap_err}");
+    assert!(stderr.contains("the swapped-in planner"), "{stderr}");
+    let last = &run["steps"].as_array().unwrap()[STEPS as usize - 1];
+    assert_eq!(last["planner"]["solver"], "ga", "{last}");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
