@@ -86,6 +86,8 @@ pub(crate) struct Session {
     /// The estimator states the commands echoed, and the ones an estimator asked for
     /// ([`runtime::recovery`]).
     pub(crate) states: StateStore,
+    /// The rate of rejection lines in the log and on stderr ([`runtime::LogBudget`]).
+    pub(crate) rejections_logged: runtime::LogBudget,
 }
 
 impl Session {
@@ -104,6 +106,7 @@ impl Session {
             emitter_joined: false,
             recorder: None,
             states,
+            rejections_logged: runtime::LogBudget::default(),
         }
     }
 
@@ -123,8 +126,16 @@ impl Session {
         }
     }
 
-    /// A message that failed validation: logged (it is counted by the node).
+    /// A message that failed validation: logged within the budget of [`runtime::LogBudget`] (it is
+    /// counted by the node, exactly).
     pub(crate) fn rejected(&mut self, kind: MessageKind, r: &Rejection, seq: u64) {
+        // A flood is summarised (`unlogged`: the lines left out before this one); the counts stay exact.
+        let runtime::Admit::Log { unlogged } = self.rejections_logged.admit(std::time::Instant::now()) else {
+            return;
+        };
+        if unlogged > 0 {
+            self.log.write("rejected_unlogged", json!({"count": unlogged}));
+        }
         self.log
             .write("rejected", json!({"kind": kind.name(), "reason": r.kind(), "detail": r.to_string(), "seq": seq}));
         if !self.quiet {

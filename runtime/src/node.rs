@@ -122,6 +122,19 @@ pub struct Node {
     drain_every: Option<Duration>,
     /// The process whose end stops this one (`--watch-pid`), and when it was last looked at.
     watched: Option<Watched>,
+    /// The rate of rejection lines ([`crate::LogBudget`]).
+    log_budget: crate::LogBudget,
+}
+
+/// Logs a rejection line of `role` on stderr within `budget` (a flood is summarised, the counts stay
+/// exact: see [`crate::LogBudget`]).
+fn log_rejection(budget: &mut crate::LogBudget, role: &str, line: impl FnOnce() -> String) {
+    if let crate::Admit::Log { unlogged } = budget.admit(Instant::now()) {
+        if unlogged > 0 {
+            eprintln!("{role}: … and {unlogged} more rejected messages, counted but not logged (a flood)");
+        }
+        eprintln!("{role}: {}", line());
+    }
 }
 
 /// A process watched for its end (`--watch-pid`): through a pidfd (immune to the pid's reuse), else
@@ -208,6 +221,7 @@ impl Node {
             told_to_leave: Vec::new(),
             drain_every: None,
             watched: watch_pid.map(Watched::open),
+            log_budget: crate::LogBudget::default(),
         }))
     }
 
@@ -366,7 +380,7 @@ impl Node {
             Ok(()) => true,
             Err(r) => {
                 self.summary.rejected += 1;
-                eprintln!("{}: rejected {what}: {r}", self.summary.role);
+                log_rejection(&mut self.log_budget, self.summary.role, || format!("rejected {what}: {r}"));
                 false
             }
         });
@@ -394,7 +408,7 @@ impl Node {
                 Err(r) => {
                     self.summary.rejected += 1;
                     if let Some(line) = gate.log_line(&r) {
-                        eprintln!("{}: {line}", self.summary.role);
+                        log_rejection(&mut self.log_budget, self.summary.role, || line);
                     }
                 }
             }
@@ -415,7 +429,8 @@ impl Node {
             Ok(()) => true,
             Err(r) => {
                 self.summary.rejected += 1;
-                eprintln!("{}: rejected a measurement given again: {r}", self.summary.role);
+                let line = || format!("rejected a measurement given again: {r}");
+                log_rejection(&mut self.log_budget, self.summary.role, line);
                 false
             }
         });

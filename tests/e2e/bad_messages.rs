@@ -208,3 +208,50 @@ fn read_rejections(log: &std::path::Path) -> Vec<(String, String)> {
         .map(|e| (e["kind"].as_str().unwrap().to_string(), e["reason"].as_str().unwrap().to_string()))
         .collect()
 }
+
+/// A flood of malformed measurements (20 000 as fast as one publisher sends them) during a launch: each
+/// process logs at most [`runtime::LogBudget::PER_SECOND`] rejection lines a second and says how many it
+/// left out — it used to write a line each (32 MB in 4 s at 100 000 a second) — and the counts stay
+/// exact: the monitor's `rejected` count is its logged lines plus the ones it said it left out.
+#[test]
+fn a_flood_of_bad_messages_is_logged_at_a_bounded_rate_with_exact_counts() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("bad-msg", "flood");
+    let dir = scratch("bad-flood");
+    let mut launch = Launch::start(&d, &dir, &["--steps", "120", "--step-delay-ms", "30"]);
+    launch.wait_for_step(2, Duration::from_secs(30));
+    {
+        protocol::transport::quiet_logs();
+        let domain = Domain::new(&d).unwrap();
+        let node = protocol::Link::open(protocol::TransportKind::Iceoryx2, &format!("{d}-flood")).unwrap();
+        let m = Topic::<Measurement>::publisher(&node, &services::measurement(&domain)).unwrap();
+        let bad = with(measurement(), |m| m.diffs[1] = f64::NAN);
+        for k in 0..20_000 {
+            m.send(&bad).unwrap();
+            // Bursts the receivers' buffers (64) can hold, so that most of the flood reaches them.
+            if k % 16 == 15 {
+                std::thread::sleep(Duration::from_micros(200));
+            }
+        }
+        // One more, a second later: its line says how many of the flood were left out.
+        std::thread::sleep(Duration::from_millis(1100));
+        m.send(&bad).unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let stderr_path = launch.stderr.clone();
+    let run = launch.finish_json();
+    let stderr = std::fs::read_to_string(stderr_path).unwrap();
+    let monitor = run["rejected_by"]["monitor"].as_u64().unwrap();
+    assert!(monitor > 2 * runtime::LogBudget::PER_SECOND, "the flood did not reach the monitor: {monitor}");
+    let events = common::read_events(&dir.join("run.jsonl"));
+    let logged = events.iter().filter(|e| e["event"] == "rejected").count() as u64;
+    let unlogged: u64 =
+        events.iter().filter(|e| e["event"] == "rejected_unlogged").filter_map(|e| e["count"].as_u64()).sum();
+    // Bounded (the flood took well under a second, the last one came a second later), and exact.
+    assert!(logged <= 2 * runtime::LogBudget::PER_SECOND + 1, "{logged} lines logged of {monitor}");
+    assert_eq!(logged + unlogged, monitor, "{logged} logged + {unlogged} left out");
+    assert!(stderr.len() < 200_000, "{} bytes of stderr", stderr.len());
+    assert_eq!(run["steps"].as_array().unwrap().len(), 121);
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
