@@ -439,7 +439,6 @@ impl Supervisor {
             "attempt": attempt, "backoff_ms": backoff.as_millis() as u64,
         }));
         self.procs[i].replaced = true;
-        self.restarts += 1;
         resources::remove_dead_nodes(&self.domain).map_err(CliError::Failed)?;
         let until = Instant::now() + backoff;
         while Instant::now() < until {
@@ -453,9 +452,9 @@ impl Supervisor {
                 "event": "left_to_swapped_in", "t_ns": protocol::now_ns(), "role": role.name(), "pid": pid,
                 "exit": exit, "swapped_in": other,
             }));
-            self.restarts -= 1;
             return Ok(());
         }
+        self.restarts += 1;
         let mut flags = self.procs[i].flags.clone();
         if let Some(flag) = role.restart_flag()
             && !flags.iter().any(|f| f == flag)

@@ -375,8 +375,20 @@ impl Node {
         last_seq: &mut Option<u64>,
         what: &str,
     ) -> Result<(Vec<T>, u64), ProcessError> {
+        self.receive_checked(sub, what, |counter, m| counter.check(m, last_seq))
+    }
+
+    /// The messages waiting on `sub` that pass `check` (which counts them in the node's counter) and when
+    /// they were received; each rejected one is counted and logged ("rejected {what}: …", within the log
+    /// budget), each accepted one counted.
+    fn receive_checked<T: Message>(
+        &mut self,
+        sub: &TopicSubscriber<T>,
+        what: &str,
+        mut check: impl FnMut(&mut RejectionCounter, &T) -> Result<(), protocol::Rejection>,
+    ) -> Result<(Vec<T>, u64), ProcessError> {
         let (mut out, received_ns) = sub.receive_stamped()?;
-        out.retain(|m| match self.counter.check(m, last_seq) {
+        out.retain(|m| match check(&mut self.counter, m) {
             Ok(()) => true,
             Err(r) => {
                 self.summary.rejected += 1;
@@ -424,18 +436,7 @@ impl Node {
         sub: &TopicSubscriber<Measurement>,
         gate: &mut MeasurementGate,
     ) -> Result<(Vec<Measurement>, u64), ProcessError> {
-        let (mut out, received_ns) = sub.receive_stamped()?;
-        out.retain(|m| match gate.check_copy(&mut self.counter, m) {
-            Ok(()) => true,
-            Err(r) => {
-                self.summary.rejected += 1;
-                let line = || format!("rejected a measurement given again: {r}");
-                log_rejection(&mut self.log_budget, self.summary.role, line);
-                false
-            }
-        });
-        self.summary.accepted += out.len() as u64;
-        Ok((out, received_ns))
+        self.receive_checked(sub, "a measurement given again", |counter, m| gate.check_copy(counter, m))
     }
 
     /// Announces that this instance takes over from `from_step` (a swap): the control topic, the
