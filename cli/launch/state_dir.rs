@@ -49,8 +49,60 @@ pub(super) fn state_root() -> Result<PathBuf, CliError> {
 /// root, `flock(LOCK_EX | LOCK_NB)`. The kernel releases it when the launcher exits, however it exits
 /// (SIGKILL included), so a lock is never stale. Two launches into one domain at the same instant: one
 /// gets it, the other is refused (exit 2) before it touches the domain.
+///
+/// The file is removed when the lock is dropped, while it is still held; a launcher killed before that
+/// leaves it, and the next launch removes it ([`remove_unheld_locks`]). Removing a lock file is safe
+/// because a taker checks, once it holds the lock, that the file it locked is still the one at the path
+/// (else it was removed meanwhile and the taker tries again on the new file).
 pub(crate) struct DomainLock {
+    /// Holds the lock until dropped.
     _file: File,
+    path: PathBuf,
+}
+
+impl Drop for DomainLock {
+    fn drop(&mut self) {
+        // Still held: a taker that opened the old file finds it gone from the path and takes the new one.
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Whether `file` is the file at `path` now (same device and inode).
+fn still_at(file: &File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt as _;
+    match (file.metadata(), std::fs::metadata(path)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+/// `flock(LOCK_EX | LOCK_NB)` on `file`: `Ok(false)` when another holds it.
+fn try_flock(file: &File) -> std::io::Result<bool> {
+    // SAFETY: flock on a file descriptor we own, valid for the call.
+    let rc = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+    if rc == 0 {
+        return Ok(true);
+    }
+    let e = std::io::Error::last_os_error();
+    if e.raw_os_error() == Some(libc::EWOULDBLOCK) { Ok(false) } else { Err(e) }
+}
+
+/// Removes the lock files in `root` (`domain-*.lock`, `swap-*.lock`) that nobody holds — left by
+/// launchers and swaps that were killed; returns how many.
+pub(super) fn remove_unheld_locks(root: &Path) -> usize {
+    let locks = std::fs::read_dir(root).into_iter().flatten().flatten().map(|e| e.path()).filter(|p| {
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        name.ends_with(".lock") && (name.starts_with("domain-") || name.starts_with("swap-"))
+    });
+    let mut removed = 0;
+    for path in locks {
+        let Ok(file) = File::open(&path) else { continue };
+        // Held under the lock, and only if it is still the file at the path: the same rule as a taker's.
+        if try_flock(&file).unwrap_or(false) && still_at(&file, &path) && std::fs::remove_file(&path).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
 }
 
 impl DomainLock {
@@ -75,23 +127,39 @@ impl DomainLock {
 
     /// `flock(LOCK_EX | LOCK_NB)` on `name` in the state root; `busy` words the refusal.
     fn take(name: &str, busy: impl FnOnce(&Path) -> String) -> Result<Self, CliError> {
-        let path = state_root()?.join(name);
-        let file = std::fs::OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&path)
-            .map_err(|e| failed(&path, e))?;
-        // SAFETY: flock on a file descriptor we own, valid for the call.
-        let rc = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
-        if rc != 0 {
-            let e = std::io::Error::last_os_error();
-            if e.raw_os_error() == Some(libc::EWOULDBLOCK) {
-                return Err(CliError::Input(busy(&path)));
+        Self::take_in(&state_root()?, name, busy)
+    }
+
+    fn take_in(root: &Path, name: &str, busy: impl FnOnce(&Path) -> String) -> Result<Self, CliError> {
+        let path = root.join(name);
+        // A file removed between our open and our lock (its holder let go): try again on the new one. Each
+        // round needs another holder to have taken and released the lock meanwhile, so few rounds do.
+        for _ in 0..100 {
+            let file = std::fs::OpenOptions::new()
+                .create(true)
+                .truncate(false)
+                .write(true)
+                .open(&path)
+                .map_err(|e| failed(&path, e))?;
+            // Held: by a launch (refused), or for an instant by the sweep of a stale file (gone then).
+            let deadline = std::time::Instant::now() + std::time::Duration::from_millis(100);
+            let locked = loop {
+                if try_flock(&file).map_err(|e| failed(&path, e))? {
+                    break true;
+                }
+                if !still_at(&file, &path) {
+                    break false;
+                }
+                if std::time::Instant::now() > deadline {
+                    return Err(CliError::Input(busy(&path)));
+                }
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            };
+            if locked && still_at(&file, &path) {
+                return Ok(Self { _file: file, path });
             }
-            return Err(failed(&path, e));
         }
-        Ok(Self { _file: file })
+        Err(CliError::Failed(format!("the lock file {} kept being replaced; try again", path.display())))
     }
 }
 
@@ -163,6 +231,7 @@ impl StateDir {
         use std::os::unix::fs::DirBuilderExt as _;
         let parent = state_root()?;
         remove_stale_state_dirs(&parent);
+        remove_unheld_locks(&parent);
         let dir = parent.join(format!("launch-{}-{domain}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir); // a leftover of an earlier launch with the same pid
         std::fs::DirBuilder::new().mode(0o700).create(&dir).map_err(|e| failed(&dir, e))?;
@@ -221,6 +290,37 @@ mod tests {
         let removed = remove_stale_state_dirs(&root);
         assert_eq!(removed == 1, !root.join("launch-12-lab-1").exists());
         assert_eq!(removed == 1, !pid_alive(12));
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn a_lock_file_goes_with_its_lock_and_an_unheld_one_is_swept() {
+        let root = std::env::temp_dir().join(format!("uavloc-locks-test-{}", std::process::id()));
+        std::fs::create_dir_all(&root).unwrap();
+        let busy = |p: &Path| format!("busy {}", p.display());
+        let held = DomainLock::take_in(&root, "domain-a.lock", busy).unwrap();
+        assert!(root.join("domain-a.lock").exists());
+        // A second taker is refused while it is held.
+        assert!(matches!(DomainLock::take_in(&root, "domain-a.lock", busy), Err(CliError::Input(_))));
+        // A file left by a killed launcher (nobody holds it) is swept, a held one and other files are not.
+        std::fs::write(root.join("domain-b.lock"), "").unwrap();
+        std::fs::write(root.join("swap-b-planner.lock"), "").unwrap();
+        std::fs::write(root.join("notes.lock"), "").unwrap();
+        assert_eq!(remove_unheld_locks(&root), 2);
+        assert!(root.join("domain-a.lock").exists() && root.join("notes.lock").exists());
+        assert!(!root.join("domain-b.lock").exists() && !root.join("swap-b-planner.lock").exists());
+        drop(held);
+        assert!(!root.join("domain-a.lock").exists(), "the lock file outlived its lock");
+        // A taker that opened the file before its holder removed it does not hold a lock on a file that is
+        // gone from the path: it takes the new file, which a third taker then finds held.
+        let first = DomainLock::take_in(&root, "domain-c.lock", busy).unwrap();
+        let early = File::open(root.join("domain-c.lock")).unwrap();
+        drop(first);
+        assert!(try_flock(&early).unwrap(), "the old file is free once dropped");
+        assert!(!still_at(&early, &root.join("domain-c.lock")));
+        let second = DomainLock::take_in(&root, "domain-c.lock", busy).unwrap();
+        assert!(matches!(DomainLock::take_in(&root, "domain-c.lock", busy), Err(CliError::Input(_))));
+        drop(second);
         std::fs::remove_dir_all(&root).unwrap();
     }
 }

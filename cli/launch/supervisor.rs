@@ -390,11 +390,11 @@ impl Supervisor {
         Ok(())
     }
 
-    /// A planner of the domain that is not one of this launch's children (swapped in by `uavloc swap`,
-    /// alive): its pid. Only the planner: a swapped-in planner plans the step its predecessor left (it
-    /// comes again), while a swapped-in estimator needs its predecessor's last estimate to take over.
+    /// A planner or estimator of the domain that is not one of this launch's children (swapped in by
+    /// `uavloc swap`, alive): its pid. It goes on from the step its predecessor left (a planner plans it
+    /// when it comes again; an estimator asks for it and for the state it lacks).
     fn swapped_in(&self, role: Role) -> Option<u32> {
-        if role != Role::Planner {
+        if !matches!(role, Role::Planner | Role::Estimator) {
             return None;
         }
         let name = protocol::services::node_name(&self.domain, role.name());

@@ -33,7 +33,9 @@
 //! estimator's state after step k ([`crate::Estimator::resume`]). It then announces [`ControlKind::TakeOver`]
 //! from step k + 1 (and prints `takeover {"from_step": k + 1}` when supervised); the running estimator
 //! estimates every step before k + 1 and exits (exit 0, `handed_over_at` in its summary); the new one
-//! estimates from k + 1 on — exactly what the old one would have.
+//! estimates from k + 1 on — exactly what the old one would have. If the running estimator dies before
+//! that (killed in the first moments of a swap), the new one goes on as a restarted estimator would: it
+//! answers the steps the old one left (kept, or asked again) and asks for the states it lacks.
 
 use std::collections::HashMap;
 use std::process::ExitCode;
@@ -51,6 +53,9 @@ use crate::EstimatorConfig;
 use crate::args::EstimatorArgs;
 use crate::chain::{Answer, StepEstimator};
 use crate::summary::EstimatorSummary;
+
+/// How often an estimator started with --takeover looks whether the running estimator is still there.
+const LOOK_FOR_PREDECESSOR: std::time::Duration = std::time::Duration::from_millis(200);
 
 /// The role name (node name suffix, `uavloc process estimator`).
 pub const ROLE: &str = "estimator";
@@ -79,6 +84,13 @@ struct EstimatorNode<'a> {
     state: StepEstimator,
     /// With --takeover: the step this estimator takes over from.
     from_step: Option<u64>,
+    /// With --takeover: the running estimator died before this one took over; this one goes on as a
+    /// restarted estimator would (it asks for the step in flight and for the states it lacks).
+    orphaned: bool,
+    /// With --takeover, until it takes over: the measurements the running estimator was to answer, kept
+    /// for the case that it dies first; and when to look next whether it is still there.
+    skipped: Vec<(Measurement, u64)>,
+    next_look: Instant,
     /// The requests for the states it lacks.
     asks: StateRequests,
     summary: EstimatorSummary,
@@ -99,6 +111,8 @@ impl EstimatorNode<'_> {
                 node.warn(format_args!("rejected an estimate of the running estimator: {r}"));
                 continue;
             }
+            // Answered by the running estimator: no longer to be kept for the case that it dies.
+            self.skipped.retain(|(m, _)| m.header.step > e.header.step);
             if e.status().is_some_and(WireStatus::is_usable) {
                 let f = e.header.step + 1;
                 self.state = StepEstimator::resume(self.config, e.header.step, e.position, e.covariance, &e.extra());
@@ -107,6 +121,40 @@ impl EstimatorNode<'_> {
             }
         }
         Ok(())
+    }
+
+    /// With --takeover, before taking over: when the running estimator is gone (killed in the first
+    /// moments of a swap), this one takes over from the oldest step it left unanswered — the measurements
+    /// it kept, or the step in flight given again — as a restarted estimator would: the states it lacks
+    /// it asks for.
+    fn adopt_if_orphaned(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        if !self.args.takeover || self.from_step.is_some() || self.orphaned || Instant::now() < self.next_look {
+            return Ok(());
+        }
+        self.next_look = Instant::now() + LOOK_FOR_PREDECESSOR;
+        if !node.other_instances()?.is_empty() {
+            return Ok(());
+        }
+        node.warn(format_args!(
+            "the running estimator is gone before the hand-over; going on from the steps it left, as a restarted \
+             estimator"
+        ));
+        self.orphaned = true;
+        node.announce(ControlKind::Replay, ControlKind::IN_FLIGHT, "")?;
+        for (m, received_ns) in std::mem::take(&mut self.skipped) {
+            self.answer(node, &m, received_ns)?;
+        }
+        Ok(())
+    }
+
+    /// Estimates `m` (received at `received_ns`); an orphaned take-over announces itself with its first.
+    fn answer(&mut self, node: &mut Node, m: &Measurement, received_ns: u64) -> Result<(), ProcessError> {
+        if self.orphaned && self.from_step.is_none() {
+            self.from_step = Some(m.header.step);
+            node.take_over(m.header.step, "")?;
+        }
+        let answer = self.state.handle(m, received_ns);
+        self.publish(node, m, received_ns, answer)
     }
 
     /// The states the messages carry: the commands' echoes and the monitor's answers.
@@ -198,18 +246,21 @@ impl Handler for EstimatorNode<'_> {
             if node.hands_over(m.header.step) {
                 return Ok(Flow::Stop);
             }
-            if self.args.takeover && self.from_step.is_none() {
-                continue; // the running estimator's step
+            if self.args.takeover && self.from_step.is_none() && !self.orphaned {
+                self.skipped.push((m, received_ns)); // the running estimator's step
+                continue;
             }
-            let answer = self.state.handle(&m, received_ns);
-            self.publish(node, &m, received_ns, answer)?;
+            self.answer(node, &m, received_ns)?;
         }
+        self.adopt_if_orphaned(node)?;
         self.ask(node)?;
         Ok(Flow::Continue)
     }
 
     fn deadline(&self) -> Option<Instant> {
-        self.asks.deadline()
+        let waiting = self.args.takeover && self.from_step.is_none() && !self.orphaned;
+        let look = waiting.then_some(self.next_look);
+        [self.asks.deadline(), look].into_iter().flatten().min()
     }
 
     fn last_answered(&self) -> Option<u64> {
@@ -248,6 +299,9 @@ pub fn run(args: &EstimatorArgs) -> Result<EstimatorSummary, ProcessError> {
         gate: MeasurementGate::default(),
         state: StepEstimator::with_config(config),
         from_step: None,
+        orphaned: false,
+        skipped: Vec::new(),
+        next_look: Instant::now() + LOOK_FOR_PREDECESSOR,
         asks: StateRequests::default(),
         summary: EstimatorSummary::default(),
     };

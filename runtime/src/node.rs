@@ -328,10 +328,7 @@ impl Node {
     /// newer) would win silently. Replacing a running process is a take-over (`uavloc swap`). A process
     /// that crashed or was killed is no obstacle: its node is dead.
     fn refuse_a_second_instance(&self) -> Result<(), ProcessError> {
-        let name = services::node_name(&self.domain, self.role());
-        let listed = protocol::resources::list(&self.domain).map_err(ProcessError::Failed)?;
-        let others: Vec<u32> = listed.alive_pids(&name).into_iter().filter(|p| *p != std::process::id()).collect();
-        match others.first() {
+        match self.other_instances()?.first() {
             None => Ok(()),
             Some(pid) => Err(ProcessError::Input(format!(
                 "a {role} is already running in domain {domain} (pid {pid}); two would both answer every step. \
@@ -341,6 +338,14 @@ impl Node {
                 domain = self.domain
             ))),
         }
+    }
+
+    /// The pids of the other live processes of this role in the domain (a killed one's node is dead, not
+    /// listed): the instance a take-over waits for, or the one a second instance would double.
+    pub fn other_instances(&self) -> Result<Vec<u32>, ProcessError> {
+        let name = services::node_name(&self.domain, self.role());
+        let listed = protocol::resources::list(&self.domain).map_err(ProcessError::Failed)?;
+        Ok(listed.alive_pids(&name).into_iter().filter(|p| *p != std::process::id()).collect())
     }
 
     /// Logs a line on stderr, prefixed with the role, unless `--quiet`.

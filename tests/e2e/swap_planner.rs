@@ -343,29 +343,30 @@ fn a_swapped_in_planner_stops_when_its_launcher_is_killed() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// The old planner killed in the first moments of `uavloc swap planner` (before the new one has taken
-/// over): the run used to be lost (the launcher restarted the old role, which was refused — a planner
-/// was already running —, exit 1; the swap said the new planner stopped before taking over).
-#[test]
-fn the_old_planner_killed_during_a_swap_leaves_the_run_going() {
+/// The old planner or estimator killed in the first moments of `uavloc swap` (before the new one has
+/// taken over): the run used to be lost (the launcher restarted the old role, which was refused — one was
+/// already running —, exit 1; the swap said the new one stopped before taking over). The swap completes,
+/// the run goes on; with the estimator, the run is still the one `simulate` gives.
+fn kill_the_old_one_during_a_swap(role: &str, flags: &[&str], solver_after: Option<&str>) -> Value {
     let _scenario = common::scenario(module_path!());
-    let d = domain("swap", "killold");
-    let dir = scratch("swap-killold");
+    let d = domain("swap", &format!("kill{role}"));
+    let dir = scratch(&format!("swap-kill-{role}"));
     let steps = STEPS.to_string();
     let mut launch = Launch::start(&d, &dir, &["--steps", &steps, "--step-delay-ms", "40"]);
     launch.wait_for_step(3, Duration::from_secs(30));
-    let old = pid_of(&d, "planner").expect("the launch's planner");
+    let old = pid_of(&d, role).expect("the launch's process");
     let swap = Command::new(UAVLOC)
-        .args(["swap", "planner", "--domain", &d, "--solver", "ga", "--json"])
+        .args(["swap", role, "--domain", &d, "--json"])
+        .args(flags)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(std::fs::File::create(dir.join("swap.stderr")).unwrap())
         .spawn()
         .unwrap();
-    // As soon as the new planner is there (it starts, then takes over at the next step).
+    // As soon as the new process is there (it starts, then takes over at the next step).
     let deadline = std::time::Instant::now() + Duration::from_secs(20);
     while common::processes_mentioning(&d).iter().all(|(_, c)| !c.contains("--takeover")) {
-        assert!(std::time::Instant::now() < deadline, "no new planner");
+        assert!(std::time::Instant::now() < deadline, "no new {role}");
         std::thread::yield_now();
     }
     common::kill(old, libc::SIGKILL);
@@ -375,12 +376,31 @@ fn the_old_planner_killed_during_a_swap_leaves_the_run_going() {
     assert!(status.success(), "the run was lost: {stderr}\nswap ({}): {swap_err}", swapped.status);
     let run: Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(run["steps"].as_array().unwrap().len() as u64, STEPS + 1);
-    // The swap completed: the new planner took over and planned the rest; the launcher said why it did
-    // not restart the old one.
+    // The swap completed: the new process took over and did the rest; the launcher said why it did not
+    // restart the old one.
     assert!(swapped.status.success(), "{swap_err}");
-    assert!(stderr.contains("the swapped-in planner"), "{stderr}");
+    assert!(stderr.contains(&format!("the swapped-in {role}")), "{stderr}");
     let last = &run["steps"].as_array().unwrap()[STEPS as usize - 1];
-    assert_eq!(last["planner"]["solver"], "ga", "{last}");
+    let first = &run["steps"].as_array().unwrap()[0];
+    assert_eq!(
+        last["planner"]["solver"],
+        solver_after.map_or(first["planner"]["solver"].clone(), Value::from),
+        "{last}"
+    );
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
+    run
+}
+
+#[test]
+fn the_old_planner_killed_during_a_swap_leaves_the_run_going() {
+    kill_the_old_one_during_a_swap("planner", &["--solver", "ga"], Some("ga"));
+}
+
+#[test]
+fn the_old_estimator_killed_during_a_swap_leaves_the_run_going_and_unchanged() {
+    let run = kill_the_old_one_during_a_swap("estimator", &[], None);
+    let steps = STEPS.to_string();
+    let reference = json_of(&["simulate", "--json", "--steps", &steps]);
+    assert_same_run(&reference, &run, "an estimator swap whose old estimator was killed");
 }
