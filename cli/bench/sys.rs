@@ -319,7 +319,22 @@ mod tests {
 
     #[test]
     fn own_cpu_time_and_memory() {
-        assert!(process_cpu_seconds(std::process::id()).unwrap() >= 0.0);
+        // 100 ms of this thread's CPU time shows in the process's (in clock ticks of 10 ms; other tests'
+        // threads only add to it).
+        let thread_cpu = || {
+            let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+            // SAFETY: clock_gettime writes into the timespec we own.
+            unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+            ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+        };
+        let before = process_cpu_seconds(std::process::id()).unwrap();
+        let start = thread_cpu();
+        let mut x = 0u64;
+        while thread_cpu() - start < 0.1 {
+            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+        }
+        let after = process_cpu_seconds(std::process::id()).unwrap();
+        assert!(after - before >= 0.08, "{before} s then {after} s after 0.1 s of CPU");
         let rss = rss_bytes(std::process::id()).unwrap();
         assert!(rss > 0 && rss.is_multiple_of(4096), "{rss}");
         assert!(rss_bytes(u32::MAX).is_err());

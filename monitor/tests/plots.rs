@@ -442,12 +442,14 @@ fn export_errors_name_the_path() {
     done(&dir);
 }
 
-/// Renders a realistic set of figures into `$UAVLOC_PLOT_CHECK_DIR` (kept, for looking at them).
+/// Renders a realistic set of figures — into `$UAVLOC_PLOT_CHECK_DIR` when set (kept, for looking at
+/// them), else into a scratch directory — and checks each: a PNG of the figure size, three distinct data
+/// lines in the three-run comparison, empty charts still valid.
 #[test]
-fn render_for_visual_check() {
-    let Some(dir) = std::env::var_os("UAVLOC_PLOT_CHECK_DIR").map(PathBuf::from) else {
-        return;
-    };
+fn a_realistic_set_of_figures_renders() {
+    let kept = std::env::var_os("UAVLOC_PLOT_CHECK_DIR").map(PathBuf::from);
+    let dir = kept.clone().unwrap_or_else(|| scratch("visual"));
+    fs::create_dir_all(&dir).unwrap();
     let run = synthetic(24, "mc", "pso", 1);
     write_run(&run, &dir).unwrap();
     let b = synthetic(24, "analytical", "ga", 1);
@@ -457,6 +459,9 @@ fn render_for_visual_check() {
     }
     plot_comparison(&[&run, &b, &c], Metric::CrlbTrue, &dir.join("comparison.png")).unwrap();
     plot_comparison(&[&run, &b, &c], Metric::CrlbTrue, &dir.join("comparison.svg")).unwrap();
+    let strokes = data_line_strokes(&read(&dir.join("comparison.svg")));
+    assert_eq!(strokes.len(), 3, "{strokes:?}");
+    assert!(strokes[0] != strokes[1] && strokes[1] != strokes[2] && strokes[0] != strokes[2], "{strokes:?}");
     let mut narrow = synthetic(8, "mc", "pso", 1);
     for s in &mut narrow.steps {
         s.crlb_true_m = Some(50.0 + s.step as f64);
@@ -465,6 +470,12 @@ fn render_for_visual_check() {
     plot_metrics(&narrow, &dir.join("metrics-linear.png")).unwrap();
     plot_trajectories(&synthetic(0, "mc", "pso", 1), &dir.join("empty-trajectories.png")).unwrap();
     plot_metrics(&synthetic(0, "mc", "pso", 1), &dir.join("empty-metrics.png")).unwrap();
+    for png in ["comparison.png", "metrics-linear.png", "empty-trajectories.png", "empty-metrics.png"] {
+        check_png(&dir.join(png));
+    }
+    if kept.is_none() {
+        done(&dir);
+    }
 }
 
 // The generic charts.

@@ -13,7 +13,7 @@ use std::time::Duration;
 use common::{Launch, assert_nothing_left, assert_same_run, domain, json_of, scratch};
 use protocol::messages::{Fix, PlanInfo};
 use protocol::services::{self, Domain};
-use protocol::{Command, Estimate, Measurement, Message, Topic, Truth};
+use protocol::{Command, Estimate, Measurement, Message, Topic, TopicPublisher, Truth};
 
 const UAVS: [[f64; 2]; 3] = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
 /// Every bad message is numbered 1: below any sequence number a real process uses (they start at the
@@ -110,35 +110,36 @@ fn batch() -> Batch {
     }
 }
 
-/// Publishes the batch on `domain` from this process, one message every few milliseconds (so no
-/// subscriber buffer overflows and pushes out a real message).
-fn send_batch(domain: &str, b: &Batch) {
+/// The publishers of a batch, kept until the run has ended: a sample whose publisher went away may be
+/// gone before a receiver took it.
+struct Publishers {
+    _ports: (TopicPublisher<Measurement>, TopicPublisher<Estimate>, TopicPublisher<Command>, TopicPublisher<Truth>),
+    _link: protocol::Link,
+}
+
+/// Publishes the batch on `domain` from this process, all at once: a few messages per topic, far fewer
+/// than a subscriber's buffer holds, so none pushes out a real message.
+fn send_batch(domain: &str, b: &Batch) -> Publishers {
     protocol::transport::quiet_logs();
     let d = Domain::new(domain).unwrap();
-    let node = protocol::Link::open(protocol::TransportKind::Iceoryx2, &format!("{domain}-bad-publisher")).unwrap();
-    let pause = || std::thread::sleep(Duration::from_millis(4));
-    let m = Topic::<Measurement>::publisher(&node, &services::measurement(&d)).unwrap();
-    for (msg, _) in &b.measurements {
+    let link = protocol::Link::open(protocol::TransportKind::Iceoryx2, &format!("{domain}-bad-publisher")).unwrap();
+    let m = Topic::<Measurement>::publisher(&link, &services::measurement(&d)).unwrap();
+    let e = Topic::<Estimate>::publisher(&link, &services::estimate(&d)).unwrap();
+    let c = Topic::<Command>::publisher(&link, &services::command(&d)).unwrap();
+    let t = Topic::<Truth>::publisher(&link, &services::truth(&d)).unwrap();
+    b.measurements.iter().for_each(|(msg, _)| {
         m.send(msg).unwrap();
-        pause();
-    }
-    let e = Topic::<Estimate>::publisher(&node, &services::estimate(&d)).unwrap();
-    for (msg, _) in &b.estimates {
+    });
+    b.estimates.iter().for_each(|(msg, _)| {
         e.send(msg).unwrap();
-        pause();
-    }
-    let c = Topic::<Command>::publisher(&node, &services::command(&d)).unwrap();
-    for (msg, _) in &b.commands {
+    });
+    b.commands.iter().for_each(|(msg, _)| {
         c.send(msg).unwrap();
-        pause();
-    }
-    let t = Topic::<Truth>::publisher(&node, &services::truth(&d)).unwrap();
-    for (msg, _) in &b.truths {
+    });
+    b.truths.iter().for_each(|(msg, _)| {
         t.send(msg).unwrap();
-        pause();
-    }
-    // Let the receivers drain before the publishers go away.
-    std::thread::sleep(Duration::from_millis(20));
+    });
+    Publishers { _ports: (m, e, c, t), _link: link }
 }
 
 #[test]
@@ -152,12 +153,13 @@ fn invalid_messages_are_counted_ignored_and_change_nothing() {
     // stale from now on.
     launch.wait_for_step(2, Duration::from_secs(30));
     let b = batch();
-    send_batch(&d, &b);
+    let sent = send_batch(&d, &b);
     // The batch went out while the run was still going.
     let last_logged =
         launch.events().iter().filter(|e| e["event"] == "step").filter_map(|e| e["step"].as_u64()).max().unwrap();
     assert!(last_logged < 30, "the run ended before the batch was sent");
     let run = launch.finish_json();
+    drop(sent);
 
     // The trajectory is exactly simulate's: nothing bad was acted on.
     let sim = json_of(&["simulate", "--json", "--steps", steps]);

@@ -221,7 +221,22 @@ fn an_estimator_restarted_in_a_pipeline_without_a_monitor_has_the_run_replayed_f
         &d,
         &[&run[..], &["--min-subscribers", "1", "--step-delay-ms", "20", "--retry-interval-ms", "200"]].concat(),
     );
-    std::thread::sleep(Duration::from_millis(400));
+    // Mid-run: once the estimator has answered step 5 (an observer of the estimate topic sees it), well
+    // before the last step (60, at ≥ 20 ms a step).
+    let link = protocol::Link::open(protocol::TransportKind::Iceoryx2, &format!("{d}-observer")).unwrap();
+    let dom = protocol::services::Domain::new(&d).unwrap();
+    let estimates =
+        protocol::Topic::<protocol::Estimate>::subscriber(&link, &protocol::services::estimate(&dom)).unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    let mut newest = 0;
+    while newest < 5 {
+        newest = estimates.receive_all().unwrap().iter().map(|e| e.header.step).fold(newest, u64::max);
+        assert!(std::time::Instant::now() < deadline, "no estimate of step 5 within 30 s");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    assert!(newest < 50, "the run was nearly over (step {newest}) when the estimator was to be killed");
+    drop(estimates);
+    drop(link);
     kill(estimator.id(), libc::SIGKILL);
     let _ = estimator.wait();
     let mut estimator = start_process("estimator", &d, &[]);

@@ -489,8 +489,22 @@ fn emitter_sim_killed_while_the_planner_restarts_is_not_the_end_of_the_run() {
     wait_for_step(&mut launch, &mut tail, 20);
     let emitter = pid_of(&d, "emitter-sim").expect("an emitter-sim");
     kill(planner, libc::SIGKILL);
-    std::thread::sleep(Duration::from_millis(30)); // within the planner's 100 ms backoff
+    // As soon as the launcher has begun the planner's restart (its `restart` event, written before the
+    // backoff), within that backoff: checked against the event's own time and backoff, so that a starved
+    // run fails here instead of passing while testing something else.
+    let deadline = Instant::now() + READY_TIMEOUT;
+    let restart = loop {
+        let found = launch.events().into_iter().find(|e| e["event"] == "restart" && e["pid"] == planner);
+        if let Some(e) = found {
+            break e;
+        }
+        assert!(Instant::now() < deadline, "no restart of the planner {planner} logged");
+        std::thread::yield_now();
+    };
     kill(emitter, libc::SIGKILL);
+    let killed_at = protocol::now_ns();
+    let backoff_ends = restart["t_ns"].as_u64().unwrap() + restart["backoff_ms"].as_u64().unwrap() * 1_000_000;
+    assert!(killed_at < backoff_ends, "emitter-sim was killed after the planner's backoff: {restart}");
     guard.0 = None;
     let run = launch.finish_json();
 

@@ -49,7 +49,11 @@ fn the_default_24_step_run_equals_simulate() {
     assert_same_run(&sim, &run, "default");
     assert_eq!(run["rejected"].as_u64(), Some(0));
     assert_eq!(run["restarts"].as_u64(), Some(0));
-    assert!(took < Duration::from_secs(20), "a 24-step launch took {took:?}");
+    // Lock-step from start to end: nothing was waited for until a retry interval or replayed.
+    let emitter = run["processes"].as_array().unwrap().iter().find(|p| p["role"] == "emitter-sim").unwrap();
+    assert_eq!(emitter["summary"]["retries"].as_u64(), Some(0), "{emitter}");
+    assert_eq!(emitter["summary"]["replays"].as_u64(), Some(0), "{emitter}");
+    eprintln!("a 24-step launch took {took:?}");
     assert_nothing_left(&d);
 }
 

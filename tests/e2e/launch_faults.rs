@@ -92,15 +92,19 @@ fn a_start_that_cannot_be_localised_is_refused_up_front() {
             vec!["simulate", "--scenario", path],
             vec!["launch", "--headless", "--json", "--steps", "50", "--scenario", path, "--domain", &d],
         ] {
-            let started = std::time::Instant::now();
-            let out = Command::new(UAVLOC).args(&args).output().unwrap();
+            // A temporary directory of its own: a launch that got as far as its domain lock or its state
+            // directory (before any child starts) leaves `uavloc-<uid>` there.
+            let tmp = dir.join(format!("tmp-{name}-{}", args[0]));
+            std::fs::create_dir_all(&tmp).unwrap();
+            let out = Command::new(UAVLOC).args(&args).env("TMPDIR", &tmp).output().unwrap();
             let err = String::from_utf8_lossy(&out.stderr);
             assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
             assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
             assert!(err.contains(&format!("key `{key}`")) && err.contains("cannot be localised"), "{err}");
             assert!(out.stdout.is_empty());
-            // Refused before anything starts: no restarts, no minute of grinding (generous bound).
-            assert!(started.elapsed() < std::time::Duration::from_secs(10), "{args:?} took {:?}", started.elapsed());
+            // Refused before anything starts: no lock taken, no state directory, no child.
+            let left: Vec<_> = std::fs::read_dir(&tmp).unwrap().flatten().map(|e| e.file_name()).collect();
+            assert!(left.is_empty(), "{args:?} got as far as {left:?}");
         }
         assert_nothing_left(&d);
     }
@@ -131,7 +135,6 @@ fn a_step_0_without_a_fix_ends_launch_at_once_as_it_ends_simulate() {
     assert_eq!(sim.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&sim.stderr).contains("no physical solution"));
     let d = domain("nofix", "launch");
-    let started = std::time::Instant::now();
     let out = Command::new(UAVLOC)
         .args(["launch", "--headless", "--json", "--scenario", path, "--seed", "10", "--domain", &d])
         .output()
@@ -139,8 +142,8 @@ fn a_step_0_without_a_fix_ends_launch_at_once_as_it_ends_simulate() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("step 0: the estimator found no fix") && err.contains("the run cannot go on"), "{err}");
-    assert!(!err.contains("restarting"), "{err}");
-    assert!(started.elapsed() < std::time::Duration::from_secs(10), "took {:?}", started.elapsed());
+    // Ended by the planner's verdict, not by a timeout after restarts.
+    assert!(!err.contains("restarting") && !err.contains("no command within"), "{err}");
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -94,9 +94,6 @@ fn table2_rows_have_the_papers_columns_and_paired_differences() {
             assert!(f(&r["final_crlb_m"]) < formation_final, "{} must beat the formation", r["method"]);
         }
     }
-    assert_eq!(f(&rows[1]["paper"]["final_crlb_m"]), 241.62);
-    assert_eq!(f(&rows[3]["paper"]["mean_rmse_m"]), 605.34);
-    assert_eq!(f(&rows[0]["paper"]["final_crlb_m"]), 324.12);
     // The output states whether the paper's ordering holds, one way or the other.
     let c: Vec<&str> = t["conclusions"].as_array().unwrap().iter().map(|c| c.as_str().unwrap()).collect();
     assert!(c.iter().any(|s| s.contains("The paper's ordering")), "{c:?}");
@@ -146,9 +143,17 @@ fn criteria_are_checked_against_the_quadrature() {
     let rows = t4["rows"].as_array().unwrap();
     let get = |m: &str| rows.iter().find(|r| r["metric"] == m).unwrap_or_else(|| panic!("no {m}"));
     for m in ["crlb", "global_crlb_objective", "rmse", "analytical_vs_quadrature", "mc_vs_quadrature"] {
-        assert!(f(&get(m)["mean_abs_diff_pct"]) >= 0.0, "{m}");
         assert!(f(&get(m)["max_abs_diff_pct"]) >= f(&get(m)["mean_abs_diff_pct"]), "{m}");
     }
+    // Analytical planning follows MC planning (the paper: 1.62 % mean, 3.43 % at most, in the CRLB).
+    for m in ["crlb", "rmse"] {
+        assert!(f(&get(m)["mean_abs_diff_pct"]) < 5.0 && f(&get(m)["max_abs_diff_pct"]) < 10.0, "{m}: {}", get(m));
+    }
+    // The second-order surrogate is within 1 % of the exact global CRLB on every planned step; 200 MC
+    // points scatter around it (not zero: they are a sample), by a few per cent.
+    assert!(f(&get("analytical_vs_quadrature")["max_abs_diff_pct"]) < 1.0, "{}", get("analytical_vs_quadrature"));
+    let mc = f(&get("mc_vs_quadrature")["mean_abs_diff_pct"]);
+    assert!((0.1..15.0).contains(&mc), "MC against the quadrature: {mc} %");
     // The Taylor surrogate is far closer to the exact value than 200 weighted MC points are.
     assert!(
         f(&get("analytical_vs_quadrature")["mean_abs_diff_pct"]) < f(&get("mc_vs_quadrature")["mean_abs_diff_pct"])
@@ -159,10 +164,6 @@ fn criteria_are_checked_against_the_quadrature() {
     let aq: Vec<f64> = rows.iter().map(|r| f(&r["analytical_vs_quadrature"]["mean_abs_diff_pct"])).collect();
     // A second-order approximation: its error grows with the uncertainty scale.
     assert!(aq[0] <= aq[3], "{aq:?}");
-    for r in rows {
-        assert!(f(&r["mean_time_ratio"]) > 1.0, "MC must be slower than the analytical criterion");
-        assert!(f(&r["paper"]["mean_time_ratio"]) > 9.0);
-    }
 }
 
 #[test]
@@ -171,7 +172,6 @@ fn table6_table10_and_sensitivity_report_their_cases() {
     let t6 = experiment("table6")["rows"].as_array().unwrap().clone();
     assert_eq!(t6.len(), 5);
     assert_eq!(f(&t6[0]["single"]["degradation_pct"]), 0.0, "s = 0 is the reference");
-    assert_eq!(f(&t6[4]["paper"]["robustness_gain_pp"]), 20.53);
     let t10 = experiment("table10")["rows"].as_array().unwrap().clone();
     assert_eq!(t10.len(), 3);
     assert!((f(&t10[0]["initial_crlb_m"]) - 1655.58).abs() < 0.01);

@@ -142,9 +142,9 @@ fn a_slow_planner_misses_a_step_and_the_uavs_fly_straight_on() {
         ],
     );
     let missed = check_missed_steps(&run);
+    // 300 ms for a step of 200 ms: missed whatever the load (the other steps' cycles of about a
+    // millisecond are in time on a machine that is not starved; `check_missed_steps` checks any that is not).
     assert!(missed.contains(&2), "step 2 must be missed: {missed:?}");
-    // Steps 0 and 1 had 200 ms for a cycle of about a millisecond.
-    assert!(!missed.contains(&0) && !missed.contains(&1), "{missed:?}");
     let e = emitter(&run);
     assert!(e["late_commands"].as_u64().unwrap() >= 1, "step 2's command came late: {e}");
     assert_eq!(e["steps"].as_u64(), Some(6), "every interval flown: {e}");
@@ -154,12 +154,13 @@ fn a_slow_planner_misses_a_step_and_the_uavs_fly_straight_on() {
     assert_eq!(logged, missed);
     let step2 = events.iter().find(|e| e["event"] == "step" && e["step"] == 2).unwrap();
     assert_eq!(step2["command_missed"], true);
-    // Up to the miss the run is simulate's; from there the world flew on without step 2's plan.
+    // Up to the first miss the run is simulate's; from there the world flew on without that step's plan.
     let sim = json_of(&["simulate", "--json", "--steps", "6"]);
-    for k in 0..=2 {
+    let first = missed[0] as usize;
+    for k in 0..=first {
         assert_eq!(sim["steps"][k]["uavs"], run["steps"][k]["uavs"], "step {k}");
     }
-    for k in 0..2 {
+    for k in 0..first {
         assert_eq!(sim["steps"][k]["headings_rad"], run["steps"][k]["headings_rad"], "step {k}");
     }
     assert_ne!(sim["steps"][3]["uavs"], run["steps"][3]["uavs"], "step 2's plan was not flown");
@@ -188,12 +189,12 @@ fn an_extreme_time_scale_misses_commands_and_completes() {
 #[test]
 fn a_crashed_estimator_is_restarted_and_replayed_to_between_the_steps() {
     let _scenario = common::scenario(module_path!());
-    // ×20: 0.5 s per step. The estimator is killed mid-run; the launcher restarts it (≈ 0.1 s), it says
-    // hello and emitter-sim replays the run to it between two scheduled steps: nothing is missed and the
-    // run is still simulate's.
+    // ×10: 1 s per step. The estimator is killed mid-run; the launcher restarts it (≈ 0.1 s, a tenth of
+    // the interval), it says hello and emitter-sim replays the run to it between two scheduled steps:
+    // nothing is missed and the run is still simulate's.
     let d = domain("crash");
     let dir = scratch("realtime-crash");
-    let mut launch = common::Launch::start(&d, &dir, &["--steps", "8", "--mode", "realtime", "--time-scale", "20"]);
+    let mut launch = common::Launch::start(&d, &dir, &["--steps", "8", "--mode", "realtime", "--time-scale", "10"]);
     launch.wait_for_step(2, Duration::from_secs(30));
     let pid = common::pid_of(&d, "estimator").expect("the launch's estimator");
     common::kill(pid, libc::SIGKILL);

@@ -39,8 +39,8 @@ fn wait(mut child: Child, what: &str) -> (Option<i32>, String, String) {
 fn a_process_of_another_scenario_is_told_to_leave_and_the_set_runs_on() {
     let _scenario = common::scenario(module_path!());
     let d = domain("hand", "other-run");
-    let monitor = start("monitor", &d, &["--steps", "12", "--print-record"]);
-    std::thread::sleep(Duration::from_millis(300));
+    // Supervised, for its `ready` line: its control subscriber exists before the planner says hello.
+    let monitor = common::start_process_keeping_output("monitor", &d, &["--steps", "12"]);
     let (code, _, err) = wait(start("planner", &d, &["--steps", "12", "--seed", "2"]), "the planner of seed 2");
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains(&format!("domain {d} runs another scenario")) && err.contains("the monitor"), "{err}");
@@ -48,9 +48,13 @@ fn a_process_of_another_scenario_is_told_to_leave_and_the_set_runs_on() {
     let estimator = start("estimator", &d, &[]);
     let (code, _, err) = wait(start("emitter-sim", &d, &["--steps", "12", "--min-subscribers", "2"]), "emitter-sim");
     assert_eq!(code, Some(0), "emitter-sim: {err}");
-    let (code, record, err) = wait(monitor, "the monitor");
+    let (code, out, err) = wait(monitor, "the monitor");
     assert_eq!(code, Some(0), "monitor: {err}");
-    let record: Value = serde_json::from_str(&record).unwrap();
+    let record: Value = out
+        .lines()
+        .find_map(|l| l.strip_prefix("record "))
+        .and_then(|r| serde_json::from_str(r).ok())
+        .unwrap_or_else(|| panic!("no record line: {out}"));
     assert_same_steps(&json_of(&["simulate", "--json", "--steps", "12"]), &record, "a set of one scenario");
     for p in [planner, estimator] {
         common::kill(p.id(), libc::SIGTERM);

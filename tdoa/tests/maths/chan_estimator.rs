@@ -43,11 +43,15 @@ proptest! {
         let mut rng = stream(seed, 0, Purpose::MeasurementNoise);
         let d = noisy_range_diffs(&sc.sensors, &sc.target, &mut rng);
         let prior = sc.target + Vector2::new(50.0, 50.0);
-        let Ok(a) = chan(&sc.sensors, &d, Some(prior)) else { return Ok(()) };
         let rot = Rotation2::new(angle);
         let shift = Vector2::new(tx, ty);
         let moved = transformed(&sc.sensors, &rot, shift);
-        let b = chan(&moved, &d, Some(rot * prior + shift)).unwrap();
+        // A failure is equivariant too: the moved scene fails exactly when the original does.
+        let (a, b) = match (chan(&sc.sensors, &d, Some(prior)), chan(&moved, &d, Some(rot * prior + shift))) {
+            (Ok(a), Ok(b)) => (a, b),
+            (Err(_), Err(_)) => return Ok(()),
+            (a, b) => return Err(TestCaseError::fail(format!("one scene failed: {:?} vs {:?}", a.err(), b.err()))),
+        };
         let scale = sc.sensors.positions().iter().map(|w| (w - sc.target).norm()).fold(0.0, f64::max);
         prop_assert!((b.position - (rot * a.position + shift)).norm() <= 1e-7 * scale,
             "{} vs {}", b.position, rot * a.position + shift);

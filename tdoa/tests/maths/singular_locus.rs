@@ -86,10 +86,56 @@ proptest! {
                 }
             }
         }
-        // A point well away from every piece is regular.
-        let d = set.iter().map(|p| p.distance(&sc.target)).fold(f64::INFINITY, f64::min);
-        prop_assert!(d >= 1000.0);
-        prop_assert!(rcond(&sc.sensors, &sc.target) > 1e-12);
+    }
+
+    /// The reported set is complete: every point where the FIM is singular lies on a reported piece. A line
+    /// through the UAVs' centroid is scanned for the zeros of λmin/λmax (each local minimum refined by
+    /// golden-section search); every zero found must be on a piece. With 3 UAVs such a line meets the
+    /// lines of the three baselines; drawn through a point beyond a baseline's ends, it must find a zero there.
+    #[test]
+    fn every_singular_point_on_a_line_is_reported(sc in scene_with(3..=6), angle in 0.0..std::f64::consts::PI, k in 0usize..3, beyond in 0.2..2.0f64) {
+        let set = singular_set(&sc.sensors);
+        let pos = sc.sensors.positions();
+        let c = pos.iter().fold(Vector2::zeros(), |a, w| a + w) / pos.len() as f64;
+        let extent = pos.iter().map(|w| (w - c).norm()).fold(0.0, f64::max);
+        // With 3 UAVs: the line through the centroid and a point beyond the ends of baseline k, where the
+        // FIM is singular; with more, a line at a random angle.
+        let [i, j] = [[0, 1], [1, 2], [2, 0]][k];
+        let dir = if pos.len() == 3 {
+            (pos[j] + (pos[j] - pos[i]) * beyond - c).normalize()
+        } else {
+            Vector2::new(angle.cos(), angle.sin())
+        };
+        let at = |t: f64| c + dir * t;
+        let f = |t: f64| {
+            let p = at(t);
+            if pos.iter().any(|w| (w - p).norm() < 1e-6 * extent) { 1.0 } else { rcond(&sc.sensors, &p) }
+        };
+        let n = 20_000;
+        let ts: Vec<f64> = (0..=n).map(|i| -20.0 * extent + 40.0 * extent * i as f64 / n as f64).collect();
+        let rc: Vec<f64> = ts.iter().map(|t| f(*t)).collect();
+        let mut zeros = 0;
+        for i in 1..n {
+            if !(rc[i] <= rc[i - 1] && rc[i] <= rc[i + 1] && rc[i] < 1e-3) {
+                continue;
+            }
+            // Golden-section search for the minimum on [t_{i-1}, t_{i+1}].
+            let (mut a, mut b) = (ts[i - 1], ts[i + 1]);
+            let g = (5f64.sqrt() - 1.0) / 2.0;
+            for _ in 0..80 {
+                let (x1, x2) = (b - g * (b - a), a + g * (b - a));
+                if f(x1) < f(x2) { b = x2 } else { a = x1 }
+            }
+            let t = 0.5 * (a + b);
+            if f(t) < 1e-9 {
+                zeros += 1;
+                let d = set.iter().map(|piece| piece.distance(&at(t))).fold(f64::INFINITY, f64::min);
+                prop_assert!(d < 1e-4 * extent, "singular at {} (rcond {}), {d} m from every reported piece", at(t), f(t));
+            }
+        }
+        if pos.len() == 3 {
+            prop_assert!(zeros >= 1, "no singular point found on the line at {angle} rad");
+        }
     }
 }
 

@@ -303,18 +303,31 @@ impl Launch {
 
 /// `uavloc process <role> --domain D --supervised --quiet <extra>`, after it printed `ready`.
 pub fn start_process(role: &str, d: &str, extra: &[&str]) -> Child {
-    use std::io::BufRead as _;
+    start_supervised(role, d, extra, Stdio::null())
+}
+
+/// As [`start_process`], its stderr piped too (for what it says at its end).
+pub fn start_process_keeping_output(role: &str, d: &str, extra: &[&str]) -> Child {
+    start_supervised(role, d, extra, Stdio::piped())
+}
+
+fn start_supervised(role: &str, d: &str, extra: &[&str], stderr: Stdio) -> Child {
+    use std::io::Read as _;
     let mut child = Command::new(UAVLOC)
         .args(["process", role, "--domain", d, "--supervised", "--quiet"])
         .args(extra)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
+        .stderr(stderr)
         .spawn()
         .expect("start a process");
-    let mut line = String::new();
-    std::io::BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
-    assert_eq!(line.trim(), "ready", "{role}");
+    // Byte by byte up to the first newline: nothing after it is taken from the pipe.
+    let (mut line, mut byte) = (Vec::new(), [0u8]);
+    let out = child.stdout.as_mut().unwrap();
+    while out.read(&mut byte).unwrap() == 1 && byte[0] != b'\n' {
+        line.push(byte[0]);
+    }
+    assert_eq!(String::from_utf8_lossy(&line).trim(), "ready", "{role}");
     child
 }
 
