@@ -232,7 +232,7 @@ fn bad_time_scales_and_modes_are_refused() {
     let out = uavloc(&["launch", "--mode", "realtime", "--time-scale", "-2", "--domain", &d]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("finite number > 0"));
-    // A valid time scale without --mode realtime (issue 18: it was silently ignored) is refused too, by the
+    // A valid time scale without --mode realtime (it would be silently ignored) is refused too, by the
     // launcher and by the process.
     for args in [
         &["launch", "--headless", "--steps", "2", "--time-scale", "100", "--domain", &d][..],

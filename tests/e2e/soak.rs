@@ -6,9 +6,9 @@
 //!   three times the replay history (4 096 steps), the private resident memory (`RssAnon`) of every
 //!   process sampled at step 5 000 (after the history and the estimator's echoed states are full) and
 //!   [`END_MARGIN`] steps before the end.
-//! - `soak_100k_steps` (`cargo test --release --test e2e soak:: -- --ignored`): the same over 100 000 steps
-//!   (≈ 1 min on 2 cores; the monitor's log grows to ≈ 170 MB on disk, in the test's scratch directory,
-//!   removed at the end).
+//! - `soak_100k_steps` (in `cargo test` too, alone: `cargo test --release --test e2e soak_100k`): the same
+//!   over 100 000 steps (≈ 25 s on 2 cores; the monitor's log grows to ≈ 170 MB on disk, in the test's
+//!   scratch directory, removed at the end).
 //! - `a_crash_after_the_history_wrapped_resumes_from_the_states_the_messages_carry`: 5 000 steps; the estimator, the
 //!   planner, emitter-sim and the monitor are each killed once after step 4 096 — a replay from step 0 is
 //!   impossible then — and the run still equals `uavloc simulate`'s, bit for bit.
@@ -155,10 +155,10 @@ fn soak_flat_memory_and_no_lost_message() {
     soak(14_000, 5_000);
 }
 
+/// 100 000 steps (about 25 s), alone (a scenario of its own).
 #[test]
-#[ignore = "long: 100 000 steps, about two minutes; run with --ignored"]
 fn soak_100k_steps() {
-    let _scenario = common::scenario(module_path!());
+    let _scenario = common::scenario(concat!(module_path!(), "::long"));
     soak(100_000, 5_000);
 }
 
