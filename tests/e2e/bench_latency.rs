@@ -191,6 +191,9 @@ fn bad_bench_flags_exit_2_with_one_line() {
         let err = String::from_utf8_lossy(&out.stderr);
         let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
         assert_eq!(errors.len(), 1, "{args:?}: {err}");
+        // The line names the flag at fault: the last one given (`--rounds` for steps fewer than rounds).
+        let flag = args.iter().rev().find(|a| a.starts_with("--")).unwrap();
+        assert!(errors[0].contains(flag), "{args:?}: {} does not name {flag}", errors[0]);
         assert!(out.stdout.is_empty(), "{args:?}");
     }
 }

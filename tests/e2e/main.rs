@@ -30,6 +30,7 @@ mod paper_experiments;
 mod permissions;
 mod realtime;
 mod record_replay;
+mod reliability_table;
 mod shutdown;
 mod simulate_closed_loop;
 mod soak;

@@ -203,7 +203,7 @@ pub fn assert_nothing_left(domain: &str) {
 }
 
 /// The longest a test waits for a launch to end ([`Launch::finish`]); the longest launch of the suite
-/// (the ignored long kill storm) takes ≈ 80 s.
+/// (the long kill storm) takes ≈ 90 s.
 pub const FINISH_TIMEOUT: Duration = Duration::from_secs(240);
 
 /// A `uavloc launch --headless --json` running in the background, its stderr going to a file.
