@@ -8,9 +8,10 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use estimator::{EmitterModel, Estimator, EstimatorConfig, EstimatorKind};
+use model::Scenario;
 use monitor::recording::{RecordedMessage, read_recording};
 use nalgebra::Vector2;
-use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
+use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use protocol::{Estimate, Measurement};
 use serde::Serialize;
 use serde_json::Value;
@@ -343,7 +344,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             commands.get(&step).filter(|_| planned).map(|c| f64s(&c["headings"], "headings", step)).transpose()?;
         let heading_delta_rad = match (&recorded_headings, &replayed_headings) {
             (Some(a), Some(b)) if a.len() == b.len() => {
-                Some(a.iter().zip(b).map(|(x, y)| planner::wrap_angle(x - y).abs()).fold(0.0, f64::max))
+                Some(a.iter().zip(b).map(|(x, y)| model::wrap_angle(x - y).abs()).fold(0.0, f64::max))
             }
             _ => None,
         };

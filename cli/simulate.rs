@@ -5,8 +5,8 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use model::Scenario;
 use monitor::RunRecord;
-use planner::Scenario;
 
 use crate::error::CliError;
 use crate::output::{Diagnostic, Report, Table};

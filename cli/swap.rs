@@ -370,7 +370,7 @@ mod tests {
 
     #[test]
     fn a_take_over_after_the_last_step_is_refused() {
-        // Issue 16.8: a swap after the last step of a 40-step run said "takes over from step 41".
+        // A swap after the last step of a 40-step run said "takes over from step 41".
         let d = Domain::new("swap-end").unwrap();
         for (role, from, ok) in [
             ("planner", 39, true),

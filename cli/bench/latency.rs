@@ -491,7 +491,7 @@ fn loop_hop_p50(r: &RunResult) -> Option<f64> {
     p.map(|p| p.iter().sum::<f64>() / p.len() as f64)
 }
 
-/// The goals of issue 17 (sections 3 and 4) for the runs measured.
+/// The latency goals (ARCHITECTURE.md, "Budgets") for the runs measured.
 fn goals(runs: &[RunResult], objective: ObjectiveKind) -> Vec<Goal> {
     let mut out = Vec::new();
     let note = if objective == ObjectiveKind::Analytical { "" } else { " (goal stated for the analytical objective)" };

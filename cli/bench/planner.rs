@@ -26,8 +26,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
+use model::Scenario;
+use model::safety::SafetyMode;
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, PlanRequest, SafetyMode, Scenario, SolverKind, plan_step};
+use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use serde::Serialize;
 use tdoa::rng::{Purpose, derive_seed};
 

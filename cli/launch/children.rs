@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use planner::Scenario;
+use model::Scenario;
 use protocol::services::Domain;
 use runtime::flags::to_flags;
 

@@ -18,8 +18,7 @@ impl MonitorProgress {
     /// Takes a (validated) control message into account: a progress report of a monitor instance at least
     /// as new as the one known replaces what was known (a restarted monitor's report counts even when it
     /// is lower; an older instance's is stale). Anything else says nothing about the monitor's progress —
-    /// in particular its replay request (before session 12 it asked from the snapshot step below its
-    /// progress).
+    /// in particular its replay request (it may ask from the snapshot step below its progress).
     pub fn hear(&mut self, c: &Control) {
         if c.kind() == Some(ControlKind::Progress)
             && c.role() == Some("monitor")

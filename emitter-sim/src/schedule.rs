@@ -697,7 +697,7 @@ mod tests {
 
     #[test]
     fn a_requested_replay_that_got_no_answer_is_started_over_by_the_next_retry() {
-        // The long kill storm (session 12): a restarted monitor asked for a replay from the first step it
+        // Found by the long kill storm: a restarted monitor asked for a replay from the first step it
         // lacked while the estimator was down; the replay got no answer and was dropped, and the next
         // retry republished only the step in flight — which the restarted estimator held, waiting for a
         // state only that replay would bring the monitor. The run stalled into the command timeout.
@@ -752,7 +752,7 @@ mod tests {
 
     #[test]
     fn an_expected_monitor_holds_the_window_before_its_first_report() {
-        // The flaky `bench compare` (session 13): the monitor, starved of CPU while the run started, had
+        // Found by a flaky `bench compare`: the monitor, starved of CPU while the run started, had
         // sent no progress yet, emitter-sim ran on without bound, and the monitor's full subscriber
         // buffers dropped the oldest steps' messages (recovered by a replay, but lost the first time).
         let t0 = Instant::now();

@@ -11,8 +11,9 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use model::Scenario;
 use monitor::RunRecord;
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use planner::{ObjectiveKind, SolverKind};
 use rayon::prelude::*;
 use tdoa::rng::{Purpose, derive_seed};
 

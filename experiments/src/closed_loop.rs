@@ -3,9 +3,10 @@
 //! planner's `plan_step`, the monitor's `step_metrics`), so a run through the processes reproduces it.
 //! `uavloc simulate` is one such run; every outer run of `uavloc paper` is another.
 
+use model::Scenario;
 use monitor::{RunRecord, StepRecord, crlb_at, step_metrics};
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
+use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use thiserror::Error;
 
 /// Why a closed-loop run stopped: which stage of which step failed, and why.
@@ -121,7 +122,7 @@ pub fn run_closed_loop(
             record.objective_value = plan.objective_value.is_finite().then(|| plan.objective_value.sqrt());
             record.plan_ms = Some(plan.plan_time_ms);
             // The wire form, as the pipeline's monitor records it (no violation magnitudes).
-            record.active_constraints = planner::active_mask::labels(&plan.active_constraints, plan.headings.len());
+            record.active_constraints = model::active_mask::labels(&plan.active_constraints, plan.headings.len());
             record.criterion_ess = plan.criterion_ess;
             record.safety =
                 plan.safety.map(|r| monitor::StepSafety { certified: Some(r.certified), ..Default::default() });
@@ -160,7 +161,7 @@ mod tests {
     fn closed_loop_nominal_run() {
         use emitter_sim::World;
         use estimator::{EstimateStatus, Estimator};
-        use planner::Scenario;
+        use model::Scenario;
         use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
         let sc = Scenario::default();
         let run = |objective: ObjectiveKind| -> f64 {

@@ -13,7 +13,7 @@
 //! system's prior; the paper does not say). The 4- and 5-node geometries are our choice (the paper's
 //! Figure 14 gives no coordinates): the nominal three plus [20000, 2000] m, plus [32000, 8000] m.
 
-use planner::Scenario;
+use model::Scenario;
 use serde_json::{Value, json};
 use tdoa::global::MonteCarlo;
 use tdoa::montecarlo::rmse;

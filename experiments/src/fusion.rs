@@ -14,8 +14,9 @@
 //! against fused + single. [`consistency`] is the check of the fused estimator: RMSE / PCRLB and the
 //! mean NEES per step against its two-sided 95 % χ² band.
 
+use model::Scenario;
 use monitor::RunRecord;
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use planner::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::dist::mean_chi2_band;
 use tdoa::fusion::EstimatorKind;
@@ -145,7 +146,7 @@ fn terminal_errors(batch: &Batch) -> Vec<f64> {
 pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
     // The waypoint planner, whose standoff chance constraint (c = 0.99 vs 0) this study measures; the
     // certified planner is `uavloc paper safety`'s.
-    let base = Scenario { safety: planner::SafetyMode::Waypoints, ..Scenario::default() };
+    let base = Scenario { safety: model::safety::SafetyMode::Waypoints, ..Scenario::default() };
     let configs = configs();
     let mut rows = Vec::new();
     let mut tables = Vec::new();

@@ -35,7 +35,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-use planner::Scenario;
+use model::Scenario;
 use serde::Serialize;
 use serde_json::{Map, Value, json};
 use thiserror::Error;

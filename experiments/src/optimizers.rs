@@ -2,7 +2,8 @@
 //! single-point, MC and analytical objectives — terminal CRLB and RMSE with CI95, and per solver the
 //! paired difference of each objective to single-point.
 
-use planner::{Scenario, SolverKind};
+use model::Scenario;
+use planner::SolverKind;
 use serde_json::json;
 
 use crate::batch::Engine;

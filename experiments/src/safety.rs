@@ -16,8 +16,10 @@
 //! certified plan (each listed with its tightest limit); the median terminal error, its median ratio to
 //! the PCRLB, and the median planning time.
 
+use model::Scenario;
+use model::safety::SafetyMode;
 use monitor::RunRecord;
-use planner::{ObjectiveKind, SafetyMode, Scenario, SolverKind};
+use planner::{ObjectiveKind, SolverKind};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -76,7 +78,7 @@ pub fn scenario(seed: u64, m: usize) -> Scenario {
         emitter: [0.0, 0.0],
         speed,
         dt: 10.0,
-        sigma: planner::RangeSigma::PerUav(sigma),
+        sigma: model::RangeSigma::PerUav(sigma),
         steps: STEPS,
         delta_alpha,
         l_min,
@@ -422,7 +424,7 @@ mod tests {
             assert!(v <= 0.2 * sc.speed);
             // Every UAV heads at the emitter ± 10° (radians inside the program).
             for (p, h) in sc.uavs.iter().zip(sc.initial_headings()) {
-                let off = planner::wrap_angle(h - (sc.emitter[1] - p[1]).atan2(sc.emitter[0] - p[0]));
+                let off = model::wrap_angle(h - (sc.emitter[1] - p[1]).atan2(sc.emitter[0] - p[0]));
                 assert!(off.abs() <= 10f64.to_radians() + 1e-12, "scenario {m}: {off}");
             }
         }

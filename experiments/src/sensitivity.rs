@@ -13,8 +13,9 @@
 //! Each case reports the terminal CRLB and RMSE per method, the paired differences to single-point
 //! with CI95, and the median effective sample size of the MC criterion (a noisy criterion misleads PSO).
 
-use planner::scenario::TargetMode;
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use model::scenario::TargetMode;
+use planner::{ObjectiveKind, SolverKind};
 use serde_json::json;
 use tdoa::global::McScheme;
 

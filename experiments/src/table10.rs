@@ -4,7 +4,8 @@
 //! paper's alternative geometries are not given: ours are a wide-baseline triangle that surrounds more
 //! of the emitter's bearings, and a moderate asymmetric perturbation of the nominal one.
 
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use planner::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::{Sensors, crlb};
 

@@ -2,7 +2,8 @@
 //! the baseline — mean and terminal CRLB at the truth and RMSE with CI95 over M outer runs, and the
 //! **paired** difference of every method to single-point planning (same run seeds) with its CI95.
 
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use planner::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 
 use crate::batch::{Batch, Engine, Metric};

@@ -8,8 +8,9 @@
 //!   the MC points from the same seed), in metres (`sqrt` of the trace). Beyond the paper, both are also
 //!   compared against the deterministic adaptive Gauss–Legendre quadrature of eq. 51 (`quadrature`).
 
+use model::Scenario;
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use planner::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::global::{MonteCarlo, global_crlb};
 use tdoa::rng::{Purpose, derive_seed};

@@ -6,7 +6,8 @@
 //! time ratio is the median MC evaluation time over the median analytical one (one prepared criterion
 //! per geometry, evaluations timed in a loop).
 
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use planner::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::global::{MonteCarlo, global_crlb};
 use tdoa::rng::{Purpose, derive_seed};

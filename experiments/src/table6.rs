@@ -3,8 +3,9 @@
 //! controlled mode), s ∈ {0, 0.25, 0.5, 0.75, 1}. Per method: terminal RMSE and its degradation relative
 //! to s = 0, the time-averaged RMSE degradation, and the paired difference analytical − single.
 
-use planner::scenario::TargetMode;
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use model::scenario::TargetMode;
+use planner::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 
 use crate::batch::{Engine, Metric};

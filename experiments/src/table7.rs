@@ -4,7 +4,8 @@
 //! CRLB (`tr F⁻¹` at the truth), the PSO optimisation (the whole `plan_step`), and their total (mean and
 //! max over steps), in seconds.
 
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use planner::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::rng::{Purpose, derive_seed};
 use tdoa::{Sensors, crlb};

@@ -259,12 +259,12 @@ impl Session {
                 _ => "takes over",
             };
             let sep = if c.detail().is_empty() { "" } else { ", " };
-            eprintln!(
-                "monitor: a {role} {what} (instance {:#x}{sep}{}), step {}",
-                c.instance,
-                c.detail(),
-                c.header.step
-            );
+            let step = match c.header.step {
+                ControlKind::IN_FLIGHT => "the step in flight".to_string(),
+                k => format!("step {k}"),
+            };
+            let article = if role.starts_with(['a', 'e', 'i', 'o', 'u']) { "an" } else { "a" };
+            eprintln!("monitor: {article} {role} {what} (instance {:#x}{sep}{}), {step}", c.instance, c.detail());
         }
     }
 

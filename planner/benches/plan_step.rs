@@ -5,7 +5,8 @@
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, black_box, criterion_group, criterion_main};
-use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
+use model::Scenario;
+use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use tdoa::{Sensors, crlb};
 
 fn steps(c: &mut Criterion) {

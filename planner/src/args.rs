@@ -4,8 +4,8 @@
 use clap::Args;
 
 use crate::objective::ObjectiveKind;
-use crate::scenario::{Scenario, TargetMode};
 use crate::solver::SolverKind;
+use model::scenario::{Scenario, TargetMode};
 
 /// What `planner --help` shows after the flags.
 pub const AFTER_HELP: &str = "\

@@ -39,8 +39,8 @@
 
 use nalgebra::{Matrix2, Vector2};
 
-use crate::kinematics::{bearing, max_turn, turn_angle, turn_radius, wrap_angle};
-use crate::scenario::Scenario;
+use model::kinematics::{bearing, max_turn, turn_angle, turn_radius, wrap_angle};
+use model::scenario::Scenario;
 
 /// A constraint within this relative distance of its bound is reported as active (binding) even
 /// when it holds — our choice, so that a plan shows which limits shaped it.
@@ -406,7 +406,7 @@ pub(crate) mod tests {
         assert_eq!(paper.approach_bound(z_hat + Vector2::new(5000.0, 0.0), z_hat), 3000.0);
     }
     use crate::fitness::Fitness;
-    use crate::kinematics::next_position;
+    use model::kinematics::next_position;
 
     /// The nominal constraints (L = 500 m, R_min 1000 m, D_min 500 m, L_min 3000 m, Δα 25°), k = 0.
     pub(crate) fn constraints() -> Constraints {

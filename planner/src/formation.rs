@@ -13,7 +13,7 @@
 use nalgebra::Vector2;
 
 use crate::constraints::Constraints;
-use crate::kinematics::{bearing, turn_angle, wrap_angle};
+use model::kinematics::{bearing, turn_angle, wrap_angle};
 
 /// The formation's headings in (−π, π]: the centroid-to-ẑ bearing, clamped per UAV as described above.
 /// `positions` and `headings` are the current ones (same length, at least one UAV).

@@ -28,7 +28,7 @@ use std::f64::consts::{PI, TAU};
 use nalgebra::Vector2;
 
 use crate::constraints::Constraints;
-use crate::kinematics::{bearing, next_position, turn_angle};
+use model::kinematics::{bearing, next_position, turn_angle};
 
 /// Intervals the reachable headings are sampled in (the approach constraint's allowed set is found
 /// from the sign changes between the samples).
@@ -191,7 +191,7 @@ pub fn heading_interval_of(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scenario::Scenario;
+    use model::scenario::Scenario;
     use nalgebra::Matrix2;
 
     fn setup(distance: f64, heading_off: f64) -> (Constraints, Uav, Vector2<f64>) {

@@ -5,8 +5,8 @@
 //! Monte Carlo or analytical global CRLB, or a 25-point cubature) under four motion constraints, with
 //! PSO, GA or ACO_R. The fixed-formation baseline needs no solver.
 //!
-//! - [`scenario`], [`kinematics`], [`active_mask`]: re-exported from `uavloc-model` (shared with the
-//!   world and the monitor);
+//! - the scenario, the kinematics and the constraint names are the shared model's ([`model`], crate
+//!   `uavloc-model`: the world and the monitor use them too);
 //! - [`constraints`]: turn radius, spacing, approach distance, heading cone (eqs. 55–59);
 //! - [`fitness`]: the lexicographic penalised fitness (eq. 78);
 //! - [`objective`]: the criteria, one adapter over `tdoa`'s global CRLB methods;
@@ -22,8 +22,6 @@
 
 pub mod aco;
 pub mod args;
-// The shared model, re-exported under the planner's historical paths.
-pub use model::{active_mask, kinematics, scenario};
 pub mod constraints;
 pub mod fitness;
 pub mod formation;
@@ -46,11 +44,8 @@ pub use fitness::Fitness;
 pub use formation::formation_headings;
 pub use ga::{Ga, GaConfig};
 pub use gradient::{Gradient, GradientConfig};
-pub use kinematics::{bearing, next_position, turn_angle, turn_radius, wrap_angle};
-pub use model::safety::{SafetyMode, SafetyReport};
 pub use objective::{CrlbObjective, ObjectiveKind, PlanObjective};
 pub use pso::{Pso, PsoConfig};
-pub use scenario::{PlannerTarget, RangeSigma, Scenario, ScenarioError, TargetMode};
 pub use shield::EmitterMotion;
 pub use solver::{EarlyStop, SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult, StopRule};
 pub use step::{PlanError, PlanOutput, PlanRequest, plan_step};

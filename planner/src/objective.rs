@@ -336,7 +336,7 @@ mod tests {
         assert_eq!(obj.evaluate(&uavs[..2]), f64::INFINITY);
     }
 
-    /// Issue 7: degenerate geometry never panics and gives the explicit infeasible value `+∞` for every
+    /// Degenerate geometry never panics and gives the explicit infeasible value `+∞` for every
     /// criterion — coincident UAVs; collinear UAVs with the estimate on their line; the estimate on a
     /// baseline extension; a UAV on top of the estimate. (The uncertainty square around ẑ then reaches
     /// the singular locus of F, where tr F⁻¹ is not integrable, so the global criteria are +∞ too.)

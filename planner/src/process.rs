@@ -55,11 +55,11 @@ use runtime::recovery::HISTORY_STEPS;
 use runtime::{Flow, Handler, Join, Node, ProcessError};
 
 use crate::args::{PlannerArgs, check_scenario};
-use crate::scenario::Scenario;
 use crate::staleness::{self, Freshness, HoldTracker};
 use crate::step::{PlanRequest, plan_step};
 use crate::summary::PlannerSummary;
 use crate::wire;
+use model::scenario::Scenario;
 
 /// The role name (node name suffix, `uavloc process planner`).
 pub const ROLE: &str = "planner";

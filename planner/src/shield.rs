@@ -36,8 +36,8 @@ use nalgebra::{Matrix2, Vector2};
 
 use crate::constraints::{Constraints, FEASIBILITY_EPS};
 use crate::fitness::Fitness;
-use crate::kinematics::wrap_angle;
-use crate::scenario::Scenario;
+use model::kinematics::wrap_angle;
+use model::scenario::Scenario;
 
 /// The estimated motion of a constant-velocity emitter, as the fused estimator gives it.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -18,7 +18,7 @@ use crate::fitness::Fitness;
 use crate::ga::Ga;
 use crate::gradient::Gradient;
 use crate::pso::Pso;
-use crate::scenario::Scenario;
+use model::scenario::Scenario;
 
 /// Why a search space was refused.
 #[derive(Debug, Clone, PartialEq, Error)]

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Vector2;
 
-use crate::kinematics::next_position;
+use model::kinematics::next_position;
 
 /// A step whose deadline passed: where the UAVs were and how they headed when it was measured.
 #[derive(Debug, Clone, PartialEq)]

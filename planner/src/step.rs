@@ -47,12 +47,12 @@ use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
 use crate::gradient::Gradient;
 use crate::heading_interval::{HeadingInterval, Uav, heading_interval, heading_interval_of};
-use crate::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use crate::objective::ObjectiveKind;
-use crate::scenario::{Scenario, ScenarioError};
 use crate::shield::{EmitterMotion, Shield, prediction, safety_limits};
 use crate::solver::{SearchSpace, SearchSpaceError, Solver as _, SolverKind};
+use model::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use model::safety::{SafetyMode, SafetyReport};
+use model::scenario::{Scenario, ScenarioError};
 
 /// Why a planning step could not run.
 #[derive(Debug, Error)]
@@ -446,7 +446,7 @@ fn cone_then_reach(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::bearing;
+    use model::kinematics::bearing;
     use tdoa::{Sensors, crlb};
 
     /// A planning situation: scenario, current positions and headings, ẑ and M.

@@ -3,11 +3,11 @@
 use nalgebra::Vector2;
 use protocol::{Command, Estimate, PlanInfo};
 
-use crate::active_mask;
 use crate::objective::ObjectiveKind;
-use crate::scenario::Scenario;
 use crate::solver::SolverKind;
 use crate::step::PlanOutput;
+use model::active_mask;
+use model::scenario::Scenario;
 
 /// The command of `plan`, planned from `estimate` (received at `received_ns`; the command carries its
 /// stamps on and echoes its state) by the planner `instance` with `solver` and `objective`.

@@ -4,7 +4,8 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use planner::{ObjectiveKind, PlanRequest, Scenario, SolverKind, plan_step};
+use model::Scenario;
+use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use tdoa::{Sensors, crlb};
 
 struct Counting;
@@ -30,7 +31,7 @@ static GLOBAL: Counting = Counting;
 #[test]
 fn allocations_per_plan_do_not_grow_with_the_candidates() {
     // The waypoint planner: exactly the same count whatever the candidates.
-    let counts = counts_of(planner::SafetyMode::Waypoints);
+    let counts = counts_of(model::safety::SafetyMode::Waypoints);
     for objective in ["analytical", "single"] {
         let c: Vec<usize> = counts.iter().filter(|s| s.0 == objective).map(|s| s.2).collect();
         assert!(c.windows(2).all(|w| w[0] == w[1]), "{objective}: {counts:?}");
@@ -38,11 +39,11 @@ fn allocations_per_plan_do_not_grow_with_the_candidates() {
     }
     // The certified planner: a few per step (the certifier's pair list, the backup step, the report),
     // and as many as the plan's active constraints, never per candidate (160 to 2 560 evaluations).
-    let counts = counts_of(planner::SafetyMode::Certified);
+    let counts = counts_of(model::safety::SafetyMode::Certified);
     assert!(counts.iter().all(|s| s.2 < 64), "{counts:?}");
 }
 
-fn counts_of(safety: planner::SafetyMode) -> Vec<(&'static str, usize, usize)> {
+fn counts_of(safety: model::safety::SafetyMode) -> Vec<(&'static str, usize, usize)> {
     let mut seen = Vec::new();
     for particles in [10, 40, 160] {
         let mut sc = Scenario { safety, ..Scenario::default() };

@@ -6,14 +6,14 @@
 //!   every heading within Δα of its bearing); plans within 10⁻⁶ of a bound are left out (the binding
 //!   tolerance decides those).
 
+use model::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use nalgebra::Vector2;
 use planner::Constraints;
-use planner::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use proptest::prelude::*;
 
 fn constraints(speed: f64, dt: f64, r_min: f64, d_min: f64, l_min: f64, delta_alpha: f64) -> Constraints {
     // The paper's constraints (no chance bound, no turn-aware standoff).
-    let sc = planner::Scenario {
+    let sc = model::Scenario {
         speed,
         dt,
         r_min,
@@ -21,7 +21,7 @@ fn constraints(speed: f64, dt: f64, r_min: f64, d_min: f64, l_min: f64, delta_al
         l_min,
         delta_alpha,
         standoff_confidence: 0.0,
-        ..planner::Scenario::default()
+        ..model::Scenario::default()
     };
     Constraints::from_scenario(&sc)
 }

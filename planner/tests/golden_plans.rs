@@ -8,13 +8,14 @@
 
 mod problems;
 
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use planner::{ObjectiveKind, SolverKind};
 use problems::{PROBLEMS, plan};
 
 const FILE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/golden_plans.txt");
 
 fn bits_of_all() -> Vec<String> {
-    let sc = Scenario { safety: planner::SafetyMode::Waypoints, ..Scenario::default() };
+    let sc = Scenario { safety: model::safety::SafetyMode::Waypoints, ..Scenario::default() };
     let mut lines = Vec::new();
     for k in 0..PROBLEMS {
         for objective in [ObjectiveKind::Analytical, ObjectiveKind::PosteriorCubature, ObjectiveKind::Single] {

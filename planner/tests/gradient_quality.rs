@@ -6,7 +6,8 @@
 
 mod problems;
 
-use planner::{Fitness, ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use planner::{Fitness, ObjectiveKind, SolverKind};
 use problems::{PROBLEMS, plan};
 
 fn at_most(a: Fitness, b: Fitness) -> bool {
@@ -16,7 +17,7 @@ fn at_most(a: Fitness, b: Fitness) -> bool {
 #[test]
 fn gradient_plans_are_at_least_as_good_as_the_papers_solvers() {
     // Waypoints: the paper's constraints; the gradient plans are strictly better on more than half.
-    compare(&Scenario { safety: planner::SafetyMode::Waypoints, ..Scenario::default() }, 2);
+    compare(&Scenario { safety: model::safety::SafetyMode::Waypoints, ..Scenario::default() }, 2);
     // Certified: the same certificate and order for all; strictly better on more than a fifth (157 of
     // 576 when measured).
     compare(&Scenario::default(), 5);

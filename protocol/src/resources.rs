@@ -160,7 +160,7 @@ pub fn static_config_files(name: &str) -> Result<[std::path::PathBuf; 2], String
 
 /// Removes the services of `domain` left *half-created* — their static config file still has the
 /// owner-read-write permissions iceoryx2 gives it while it writes it (it makes the file read-only when
-/// done) — by a process killed while creating them (kill -9 of a launch and its children, issue 16.2).
+/// done) — by a process killed while creating them (kill -9 of a launch and its children).
 /// Opening such a service fails with `HangsInCreation` for ever, and so does iceoryx2's dead-node
 /// clean-up, which opens the services of the dead nodes. Only for a domain nobody uses (the caller holds
 /// the domain's lock and found no live node); files younger than [`HALF_CREATED_AFTER`] are left alone.

@@ -68,7 +68,7 @@ pub const EMITTER_SNAPSHOTS: usize = 2;
 /// `--monitor-window`). Below the monitor's subscriber buffers
 /// ([`SUBSCRIBER_BUFFER`](protocol::transport::SUBSCRIBER_BUFFER), 64 messages per topic), with room
 /// for replayed copies: a monitor within the window never has a message pushed out of a full buffer. (It
-/// was 128 until session 13: a monitor starved of CPU lost the oldest messages of its full buffers and
+/// was once 128: a monitor starved of CPU lost the oldest messages of its full buffers and
 /// got them back only by a replay.)
 pub const MONITOR_WINDOW: u64 = 48;
 

@@ -132,7 +132,7 @@ fn malformed_flags_are_refused() {
         (&["process", "estimator", "--transport", "tcp"], "--transport"),
         (&["process", "emitter-sim", "--retry-interval-ms", "0"], "retry-interval-ms"),
         (&["process", "emitter-sim", "--monitor-window", "256"], "monitor-window"),
-        // Hours per step (session 17; it used to run as asked). The process first: without the check it
+        // Hours per step (it would run as asked). The process first: without the check it
         // fails at once (nothing to connect to within 0 s), where the launch would run for hours.
         (&["process", "emitter-sim", "--step-delay-ms", "60001", "--connect-timeout-s", "0"], "step-delay-ms"),
         (&["launch", "--step-delay-ms", "36000000"], "step-delay-ms"),
@@ -161,7 +161,7 @@ fn malformed_flags_are_refused() {
             &["crlb", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000", "--target", "5,5", "--sigma", "1e300"],
             "sigma",
         ),
-        // Counts beyond what can be held or computed (session 16; `simulate --steps 10¹¹` would build a
+        // Counts beyond what can be held or computed (`simulate --steps 10¹¹` would build a
         // record of that many steps; the calculators' below).
         (&["simulate", "--steps", "100000000000"], "steps"),
     ];

@@ -63,7 +63,7 @@ fn check_run(run: &Value, steps: u64) {
 #[test]
 fn compare_measures_every_transport_and_wait_mode() {
     // Alone, not beside this module's other launches: six measured runs pinned to the same two cores
-    // as two other pipelines starved the monitor (a flaky sample count, session 11).
+    // as two other pipelines starved the monitor (a flaky sample count).
     let _scenario = common::scenario(concat!(module_path!(), "::compare"));
     let dir = scratch("bench-compare");
     let steps = 150u64;

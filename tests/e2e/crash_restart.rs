@@ -105,8 +105,8 @@ fn kill_together(roles: &[&str], total: u64, kill_at: u64, delay_ms: u64) -> Out
         assert!(emitter["summary"]["replays"].as_u64().unwrap() >= 1, "{tag}: {emitter}");
     }
     // The restarted monitor recorded the steps it lacked from replayed copies, which carry no publish
-    // stamp: it counts their messages as missing (before session 13 the copies were stamped at every send
-    // and the count said 0).
+    // stamp: it counts their messages as missing (copies stamped at every send
+    // would make the count 0).
     if roles.contains(&"monitor") {
         let monitor = processes.iter().rev().find(|p| p["role"] == "monitor").unwrap();
         assert!(monitor["summary"]["missing_messages"].as_u64().unwrap() >= 1, "{tag}: {monitor}");

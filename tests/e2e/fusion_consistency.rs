@@ -1,11 +1,12 @@
-//! The fused estimator (issue 14): Monte Carlo consistency over closed-loop runs of the default scenario
+//! The fused estimator: Monte Carlo consistency over closed-loop runs of the default scenario
 //! through the same library calls as `uavloc simulate`, and the constant-velocity model against a moving
 //! emitter, and the standoff chance constraint against the TRUE emitter. 200 runs of the closed loop
 //! take about a second in release; `uavloc paper fusion` is the full study.
 
 use experiments::fusion::consistency;
 use experiments::{Engine, Settings};
-use planner::{ObjectiveKind, Scenario, SolverKind};
+use model::Scenario;
+use planner::{ObjectiveKind, SolverKind};
 use tdoa::EmitterModel;
 use tdoa::fusion::EstimatorKind;
 
@@ -105,7 +106,7 @@ fn the_standoff_chance_constraint_is_calibrated_on_60_step_runs() {
     let _scenario = crate::common::scenario(module_path!());
     // 200 runs of 60 steps: the UAVs reach the L_min ring at about step 38 and orbit it. The waypoint
     // planner keeps the chance constraint at its waypoints: along the arcs it holds at c = 0.99 …
-    let long = Scenario { steps: 60, safety: planner::SafetyMode::Waypoints, ..Scenario::default() };
+    let long = Scenario { steps: 60, safety: model::safety::SafetyMode::Waypoints, ..Scenario::default() };
     let (inside, depth) = true_violations(&batch(200, &long));
     assert!(inside <= 1.0 - long.standoff_confidence, "c = 0.99: {:.3} % of the pairs inside L_min", 100.0 * inside);
     assert!(depth < 100.0, "c = 0.99: the deepest violation is {depth:.1} m inside L_min");
@@ -115,7 +116,7 @@ fn the_standoff_chance_constraint_is_calibrated_on_60_step_runs() {
     assert!(inside0 > 0.05 && depth0 > 300.0, "c = 0: {:.2} % inside, {depth0:.0} m deep", 100.0 * inside0);
     // The certified planner keeps it along the arcs too, with no more UAV-steps inside than the waypoint
     // planner.
-    let certified = Scenario { safety: planner::SafetyMode::Certified, ..long };
+    let certified = Scenario { safety: model::safety::SafetyMode::Certified, ..long };
     let (inside_c, depth_c) = true_violations(&batch(200, &certified));
     assert!(inside_c <= inside, "certified: {:.3} % inside against {:.3} %", 100.0 * inside_c, 100.0 * inside);
     assert!(depth_c < 100.0, "certified: the deepest violation is {depth_c:.1} m inside L_min");

@@ -1,4 +1,4 @@
-//! The faults an adversarial user found in `uavloc launch` (issue 16), each reproduced here first: two
+//! The faults an adversarial user found in `uavloc launch`, each reproduced here first: two
 //! launches into one domain at the same instant; state directories left by a SIGKILLed launcher.
 
 use crate::common;
@@ -291,7 +291,7 @@ fn interrupted_by(signal: i32, name: &str) {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Issue 16.2: kill -9 of a launch and its children can leave a service of the domain half-created: its
+/// Kill -9 of a launch and its children can leave a service of the domain half-created: its
 /// static config file exists but still has the permissions of a file being written (here: made as such
 /// a kill leaves it, empty and owner-read-write). Before, every later launch in the domain failed within
 /// ≈ 10 ms with `HangsInCreation`, and `process resources --remove-dead` could not remove it. Now the

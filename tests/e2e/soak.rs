@@ -110,13 +110,14 @@ fn soak(steps: u64, first_sample: u64) {
         );
     }
     eprintln!("{table}");
-    // At most 5 %, or 768 KiB (what 5 % of the total RSS allowed before): the allocator's high-water mark
-    // still rises when a loaded machine lets the monitor lag (up to its 48-step window of pending steps),
-    // a bounded amount; a leak of 112 bytes per step would exceed it over these steps.
+    // At most 5 %, or 2 MiB: the allocator's high-water mark still rises when a loaded machine lets the
+    // monitor lag (up to its 48-step window of pending steps), a bounded amount that cannot flake this
+    // check; a leak of 300 bytes per step exceeds it over the 14 000-step run, one of 23 bytes over the
+    // 100 000-step run.
     for r in ROLES {
         let (a, b) = (start[r].1, end[r].1);
-        let allowed = (a as f64 * 0.05).max(768.0 * 1024.0);
-        assert!(b as f64 <= a as f64 + allowed, "{r}: private RSS grew by more than 5 % and 768 KiB:\n{table}");
+        let allowed = (a as f64 * 0.05).max(2.0 * 1024.0 * 1024.0);
+        assert!(b as f64 <= a as f64 + allowed, "{r}: private RSS grew by more than 5 % and 2 MiB:\n{table}");
     }
 
     // Every step recorded, nothing lost, nothing replayed or rejected.

@@ -114,7 +114,7 @@ fn the_planner_is_swapped_from_pso_to_ga_mid_run() {
 
 /// A swap without flags restarts the planner as the launch runs it: the launch's solver and transport,
 /// not the process's defaults (before: a gradient planner on iceoryx2, which could not even reach this
-/// launch's sockets; session 17).
+/// launch's sockets).
 #[test]
 fn a_swap_without_flags_keeps_the_launchs_solver_and_transport() {
     let _scenario = common::scenario(module_path!());

@@ -1,8 +1,9 @@
 //! The 64 planning problems of the planner's regression tests (drawn once, fixed by their seeds): three
 //! UAVs around the emitter's estimate, far from it (approach) or within 1.5 L_min (standoff).
 
+use model::Scenario;
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, PlanOutput, PlanRequest, Scenario, SolverKind, plan_step};
+use planner::{ObjectiveKind, PlanOutput, PlanRequest, SolverKind, plan_step};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
