@@ -38,7 +38,7 @@ pub struct Start {
 pub fn start(checkpoint: Option<&Path>, domain: &Domain, scenario: &Scenario) -> Result<Start, ProcessError> {
     let saved = match checkpoint {
         Some(path) => recovery::load::<Saved>(path, crate::process::ROLE, domain.as_str())
-            .map_err(|e| ProcessError::Input(format!("--checkpoint: {e}")))?,
+            .map_err(|e| ProcessError::input_because("--checkpoint", e))?,
         None => None,
     };
     // A snapshot of another run (another scenario, steps or seed) would fly this run from that one's world.
@@ -57,12 +57,12 @@ pub fn start(checkpoint: Option<&Path>, domain: &Domain, scenario: &Scenario) ->
     let (world, start_step, start_missed) = match oldest {
         Some((snapshot, missed)) => (
             World::restore(scenario, snapshot).map_err(|e| {
-                ProcessError::Input(format!("--checkpoint: a snapshot that does not fit the scenario: {e}"))
+                ProcessError::input_because("--checkpoint: a snapshot that does not fit the scenario", e)
             })?,
             snapshot.step,
             *missed,
         ),
-        None => (World::from_scenario(scenario).map_err(|e| ProcessError::Input(format!("scenario: {e}")))?, 0, false),
+        None => (World::from_scenario(scenario).map_err(|e| ProcessError::input_because("scenario", e))?, 0, false),
     };
     if start_step > scenario.steps as u64 {
         return Err(ProcessError::Input(format!(

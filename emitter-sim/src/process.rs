@@ -148,7 +148,7 @@ impl EmitterNode<'_> {
         let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
         let mut message =
             Measurement::new(k, 0, &uavs, meas.range_diffs.as_slice(), &self.sigmas, self.world.headings())
-                .map_err(|e| ProcessError::Failed(format!("step {k}: measurement: {e}")))?;
+                .map_err(|e| ProcessError::failed_because(format!("step {k}: measurement"), e))?;
         let z = self.world.truth();
         let mut truth = Truth::new(k, 0, [z.x, z.y]).with_previous_command(self.previous);
         if let Some((cmd, received_ns)) = &self.trigger {
@@ -212,7 +212,7 @@ impl EmitterNode<'_> {
             Action::FlyStraight(k) => {
                 // No command in time: fly straight on at the current headings (zero turn).
                 let keep = self.world.headings().to_vec();
-                self.world.apply(&keep).map_err(|e| ProcessError::Failed(format!("step {k}: {e}")))?;
+                self.world.apply(&keep).map_err(|e| ProcessError::failed_because(format!("step {k}"), e))?;
                 self.trigger = None;
                 self.before = None;
                 self.previous = CommandOutcome::Missed;
@@ -255,7 +255,9 @@ impl Handler for EmitterNode<'_> {
                     node.say(format_args!("a {role} joined (instance {:#x}); replaying from step {from}", c.instance))
                 }
                 Ok(None) => {}
-                Err(e) => return Err(ProcessError::Failed(format!("a {role} (instance {:#x}): {e}", c.instance))),
+                Err(e) => {
+                    return Err(ProcessError::failed_because(format!("a {role} (instance {:#x})", c.instance), e));
+                }
             }
         }
         Ok(Flow::Continue)
@@ -271,7 +273,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     args.check().map_err(ProcessError::Input)?;
     let domain = Domain::resolve_named(args.process.node.domain.as_deref()).map_err(ProcessError::Input)?;
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
-        .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
+        .map_err(|e| ProcessError::input_because("--scenario", e))?;
     let pacing = args.pacing(scenario.dt, scenario.steps).map_err(ProcessError::Input)?;
     let Start { world, step: start_step, missed: start_missed, snapshots } =
         checkpoint::start(args.checkpoint.as_deref(), &domain, &scenario)?;

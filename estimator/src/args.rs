@@ -68,7 +68,7 @@ impl EstimatorArgs {
                         () if text.contains("velocity_prior") => "--velocity-prior-sigma",
                         _ => "--interval-s",
                     };
-                    ProcessError::Input(format!("{flag}: {e}"))
+                    ProcessError::input_because(flag, e)
                 })?;
         Ok(EstimatorConfig::new(self.estimator, dynamics))
     }

@@ -200,7 +200,7 @@ impl EstimatorNode<'_> {
         let seq = node.next_seq();
         let estimate = reply
             .to_estimate(m, received_ns, seq, node.instance())
-            .map_err(|e| ProcessError::Failed(format!("step {step}: estimate: {e}")))?;
+            .map_err(|e| ProcessError::failed_because(format!("step {step}: estimate"), e))?;
         // A step estimated again goes out as a copy: no publish stamp, so nobody times it as the step's.
         self.estimates.publish(&estimate, again)?;
         node.summary().published += 1;

@@ -77,13 +77,13 @@ impl MonitorArgs {
     /// Writes the run record to `--record` and the run's files into `--out`.
     pub(crate) fn write_outputs(&self, run: &RunRecord) -> Result<(), ProcessError> {
         if let Some(path) = &self.record {
-            let text = serde_json::to_string_pretty(run).map_err(|e| ProcessError::Failed(e.to_string()))?;
+            let text = serde_json::to_string_pretty(run).map_err(|e| ProcessError::failed_because("--record", e))?;
             std::fs::write(path, text + "\n")
-                .map_err(|e| ProcessError::Failed(format!("--record {}: {e}", path.display())))?;
+                .map_err(|e| ProcessError::failed_because(format!("--record {}", path.display()), e))?;
         }
         if let Some(dir) = &self.out {
             crate::export::write_run(run, dir)
-                .map_err(|e| ProcessError::Failed(format!("--out {}: {e}", dir.display())))?;
+                .map_err(|e| ProcessError::failed_because(format!("--out {}", dir.display()), e))?;
         }
         Ok(())
     }

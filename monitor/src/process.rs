@@ -260,7 +260,7 @@ impl MonitorNode<'_> {
 /// record and the summary.
 pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
-        .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
+        .map_err(|e| ProcessError::input_because("--scenario", e))?;
     args.check_outputs()?;
     let log = EventLog::open(args.log.as_deref(), args.resume)?;
     let external = args.source == runtime::Source::External;

@@ -48,7 +48,7 @@ impl EventLog {
     pub(crate) fn open(path: Option<&Path>, append: bool) -> Result<Self, ProcessError> {
         let Some(p) = path else { return Ok(EventLog { file: None }) };
         // Cannot be opened: a bad flag (exit 2), not worth a restart.
-        let failed = |e: std::io::Error| ProcessError::Input(format!("--log {}: {e}", p.display()));
+        let failed = |e: std::io::Error| ProcessError::input_because(format!("--log {}", p.display()), e);
         if !append {
             File::create(p).map_err(failed)?;
         }
@@ -265,6 +265,19 @@ pub(crate) mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("run.jsonl");
         (dir, path)
+    }
+
+    /// A log that cannot be opened is bad input (exit 2) naming the flag and the file, with the system's
+    /// error kept as the cause.
+    #[test]
+    fn an_unopenable_log_is_bad_input_that_keeps_its_cause() {
+        let path = Path::new("/nonexistent-dir-of-uavloc/run.jsonl");
+        let Err(e) = EventLog::open(Some(path), false) else { panic!("opened {}", path.display()) };
+        assert!(matches!(e, ProcessError::InputBecause { .. }), "{e:?}");
+        assert_eq!(e.code(), 2);
+        assert!(e.to_string().starts_with("--log /nonexistent-dir-of-uavloc/run.jsonl: "), "{e}");
+        let io = std::error::Error::source(&e).and_then(|s| s.downcast_ref::<std::io::Error>()).expect("kept");
+        assert_eq!(io.kind(), std::io::ErrorKind::NotFound);
     }
 
     #[test]

@@ -255,7 +255,7 @@ impl Handler for Planner<'_> {
 /// Runs the planner until SIGINT/SIGTERM, a shutdown or a hand-over.
 pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
-        .map_err(|e| ProcessError::Input(format!("--scenario: {e}")))?;
+        .map_err(|e| ProcessError::input_because("--scenario", e))?;
     check_scenario(&scenario).map_err(ProcessError::Input)?;
     let Some(mut node) = Node::open(ROLE, &args.process.node)? else {
         return Ok(PlannerSummary { node: runtime::NodeSummary::new(ROLE, 0), ..PlannerSummary::default() });
