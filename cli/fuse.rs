@@ -150,7 +150,8 @@ pub struct FuseReport {
 
 /// Fuses the snapshots of the file at `path` (`prior` resolves the first fix's 3-UAV ambiguity).
 pub fn run(path: &Path, prior: Option<Vector2<f64>>) -> Result<FuseReport, CliError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CliError::Input(format!("--fuse {}: {e}", path.display())))?;
+    let text =
+        std::fs::read_to_string(path).map_err(|e| CliError::input_because(format!("--fuse {}", path.display()), e))?;
     fuse(&parse_snapshots(&text)?, prior)
 }
 

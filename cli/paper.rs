@@ -145,7 +145,7 @@ pub fn run(args: &PaperArgs) -> Result<PaperReport, CliError> {
     })?;
     if let Some(dir) = &args.out {
         for r in &mut reports {
-            r.write(dir).map_err(|e| CliError::Failed(format!("--out: {e}")))?;
+            r.write(dir).map_err(|e| CliError::failed_because("--out", e))?;
         }
     }
     Ok(PaperReport { experiment: args.experiment, settings, reports })

@@ -161,7 +161,7 @@ fn measurement_of(json: &Value) -> Result<Measurement, CliError> {
         &f64s(&json["sigmas"], "sigmas", step)?,
         &f64s(&json["headings"], "headings", step)?,
     )
-    .map_err(|e| CliError::Input(format!("step {step}: the recorded measurement: {e}")))
+    .map_err(|e| CliError::input_because(format!("step {step}: the recorded measurement"), e))
 }
 
 fn finite(v: f64) -> Option<f64> {
@@ -246,14 +246,14 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         ))
     })?;
     let mut sc: Scenario = serde_json::from_str(text)
-        .map_err(|e| CliError::Input(format!("{}: the recorded scenario: {e}", args.file.display())))?;
+        .map_err(|e| CliError::input_because(format!("{}: the recorded scenario", args.file.display()), e))?;
     if let Some(kind) = args.estimator {
         sc.estimator = kind;
     }
     if let Some(model) = args.emitter_model {
         sc.emitter_model = model;
     }
-    let dynamics = sc.dynamics().map_err(|e| CliError::Input(format!("--emitter-model: {e}")))?;
+    let dynamics = sc.dynamics().map_err(|e| CliError::input_because("--emitter-model", e))?;
     let measurements = first_per_step(&recording.messages, "/measurement");
     let estimates = first_per_step(&recording.messages, "/estimate");
     let commands = first_per_step(&recording.messages, "/command");
@@ -298,7 +298,8 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
             kinds_used.push(k);
         }
         let reply = estimator::chain::estimate_measurement(&mut estimator, &m);
-        let replayed = reply.to_estimate(&m, 0, 0, 0).map_err(|e| CliError::Failed(format!("step {step}: {e}")))?;
+        let replayed =
+            reply.to_estimate(&m, 0, 0, 0).map_err(|e| CliError::failed_because(format!("step {step}"), e))?;
         let replayed_view = view_of_estimate(&replayed);
         last_replayed = Some(replayed);
         let recorded = estimates.get(&step).map(|e| view_of_json(e, step)).transpose()?;

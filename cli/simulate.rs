@@ -61,8 +61,8 @@ pub struct SimulateArgs {
 pub fn scenario_from(path: Option<&PathBuf>, steps: Option<usize>, seed: Option<u64>) -> Result<Scenario, CliError> {
     // The same rule every process applies (model::load_scenario), so a run agrees on it.
     model::load_scenario(path.map(PathBuf::as_path), steps, seed).map_err(|e| match path {
-        Some(p) => CliError::Input(format!("--scenario {}: {e}", p.display())),
-        None => CliError::Input(format!("scenario: {e}")),
+        Some(p) => CliError::input_because(format!("--scenario {}", p.display()), e),
+        None => CliError::input_because("scenario", e),
     })
 }
 
@@ -91,7 +91,7 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     let (objective, solver) = (args.run.objective, args.run.solver);
     let mut live = match args.live && crate::live::LiveTerminal::available() {
         true => Some((
-            crate::live::LiveTerminal::start().map_err(|e| CliError::Failed(format!("--live: {e}")))?,
+            crate::live::LiveTerminal::start().map_err(|e| CliError::failed_because("--live", e))?,
             {
                 let mut view = crate::live::LiveState::new("simulate", sc.steps as u64, sc.l_min).with_bound(&sc);
                 view.planner = Some(format!("{}/{} (in this process)", solver.name(), objective.name()));
@@ -136,7 +136,7 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     }
     let written = match &args.out {
         Some(dir) => monitor::export::write_run(&run, dir)
-            .map_err(|e| CliError::Failed(format!("--out {}: {e}", dir.display())))?,
+            .map_err(|e| CliError::failed_because(format!("--out {}", dir.display()), e))?,
         None => Vec::new(),
     };
     Ok(SimulateReport { run, written })

@@ -161,7 +161,7 @@ where
     if launch.is_empty() {
         return Ok(user.clone()); // a launch of an older build, or a pipeline started by hand
     }
-    let mine = runtime::flags::to_flags(user).map_err(|e| CliError::Input(format!("{role}: {e}")))?;
+    let mine = runtime::flags::to_flags(user).map_err(|e| CliError::input_because(role.to_string(), e))?;
     parse_flags(role, &merged_flags(launch, &mine, given))
 }
 
@@ -227,9 +227,9 @@ pub fn run(args: &SwapArgs, given: &[String]) -> Result<SwapReport, CliError> {
             runtime::flags::to_flags(&estimator::args::EstimatorArgs { node: node(&a.node), takeover: true, ..a })
         }
     }
-    .map_err(|e| CliError::Input(format!("{role}: {e}")))?;
+    .map_err(|e| CliError::input_because(role.to_string(), e))?;
 
-    let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("cannot find this executable: {e}")))?;
+    let exe = std::env::current_exe().map_err(|e| CliError::failed_because("cannot find this executable", e))?;
     let mut command = std::process::Command::new(exe);
     command.arg("process").arg(role).args(&flags).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::inherit());
     // SAFETY: the closure runs in the forked child before exec and only calls setsid(2), which is
@@ -240,7 +240,7 @@ pub fn run(args: &SwapArgs, given: &[String]) -> Result<SwapReport, CliError> {
             Ok(())
         });
     }
-    let mut child = command.spawn().map_err(|e| CliError::Failed(format!("cannot start the new {role}: {e}")))?;
+    let mut child = command.spawn().map_err(|e| CliError::failed_because(format!("cannot start the new {role}"), e))?;
     let pid = child.id();
     let stdout = child.stdout.take().expect("piped stdout");
     let (tx, rx) = mpsc::channel();

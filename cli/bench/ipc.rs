@@ -196,7 +196,7 @@ fn check(args: &IpcArgs) -> Result<[usize; 2], CliError> {
     // At most a million a row: with both ends blocking, ≈ 50 s.
     crate::args::require_count("--messages", args.messages as usize, 1, 1_000_000)?;
     let cores = match &args.cores {
-        Some(s) => sys::parse_cores(s).map_err(|e| CliError::Input(format!("--cores: {e}")))?,
+        Some(s) => sys::parse_cores(s).map_err(|e| CliError::input_because("--cores", e))?,
         None => sys::allowed_cores().map_err(CliError::Failed)?,
     };
     match cores[..] {
@@ -219,20 +219,20 @@ impl Drop for Echo {
 }
 
 fn spawn_echo(carrier: Carrier, name: &str, max_size: usize, core: usize, wait: IpcWait) -> Result<Echo, CliError> {
-    let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("finding this program: {e}")))?;
+    let exe = std::env::current_exe().map_err(|e| CliError::failed_because("finding this program", e))?;
     let child = Command::new(exe)
         .args(["process", "ipc-echo", "--carrier", carrier.name(), "--name", name])
         .args(["--max-size", &max_size.to_string(), "--core", &core.to_string(), "--wait", wait.name()])
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .spawn()
-        .map_err(|e| CliError::Failed(format!("starting the echo process: {e}")))?;
+        .map_err(|e| CliError::failed_because("starting the echo process", e))?;
     Ok(Echo(child))
 }
 
 /// Times `args.messages` payloads of each size over one transport.
 fn sweep_one(carrier: Carrier, args: &IpcArgs, cores: [usize; 2]) -> Result<Vec<IpcRow>, CliError> {
-    let failed = |e: protocol::TransportError| CliError::Failed(format!("{}: {e}", carrier.name()));
+    let failed = |e: protocol::TransportError| CliError::failed_because(carrier.name(), e);
     let max_size = args.sizes.iter().copied().max().unwrap_or(HEADER);
     let tag = format!("uavloc-ipc-{}-{}", std::process::id(), carrier.name());
     let dir = std::env::temp_dir().join(&tag);
@@ -244,11 +244,11 @@ fn sweep_one(carrier: Carrier, args: &IpcArgs, cores: [usize; 2]) -> Result<Vec<
             (Box::new(sender), echo, Some(node))
         }
         Carrier::Uds => {
-            std::fs::create_dir_all(&dir).map_err(|e| CliError::Failed(format!("{}: {e}", dir.display())))?;
+            std::fs::create_dir_all(&dir).map_err(|e| CliError::failed_because(format!("{}", dir.display()), e))?;
             let path = dir.join("ipc.sock");
             let _ = std::fs::remove_file(&path);
             let listener = std::os::unix::net::UnixListener::bind(&path)
-                .map_err(|e| CliError::Failed(format!("{}: {e}", path.display())))?;
+                .map_err(|e| CliError::failed_because(format!("{}", path.display()), e))?;
             let echo = spawn_echo(carrier, path.to_str().unwrap_or_default(), max_size, cores[1], args.wait)?;
             let sender =
                 sweep::SocketSender::accept(&listener, &path, max_size, args.wait.waiting()).map_err(failed)?;
@@ -304,7 +304,7 @@ pub fn run(args: &IpcArgs) -> Result<IpcReport, CliError> {
     if let Some(dir) = &args.out {
         runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
-    sys::pin_current_process(&cores[..1]).map_err(|e| CliError::Failed(format!("--cores: {e}")))?;
+    sys::pin_current_process(&cores[..1]).map_err(|e| CliError::failed_because("--cores", e))?;
     protocol::transport::quiet_logs();
     let mut rows = sweep_one(Carrier::Iceoryx2, args, cores)?;
     rows.extend(sweep_one(Carrier::Uds, args, cores)?);
@@ -331,7 +331,7 @@ pub fn run(args: &IpcArgs) -> Result<IpcReport, CliError> {
 
 fn write_out(report: &IpcReport, dir: &std::path::Path) -> Result<Vec<PathBuf>, CliError> {
     use monitor::chart::{Series, plot_curves};
-    let fail = |e: String| CliError::Failed(format!("--out {}: {e}", dir.display()));
+    let fail = |e: String| CliError::failed_because(format!("--out {}", dir.display()), e);
     let mut series = Vec::new();
     for t in ["iceoryx2", "uds"] {
         let rows: Vec<&IpcRow> = report.rows.iter().filter(|r| r.transport == t).collect();

@@ -295,7 +295,7 @@ fn unique_domain() -> String {
 /// Checks the shared flags and pins this thread (and so the children it spawns) to the cores.
 fn prepare(flags: &RunFlags) -> Result<Vec<usize>, CliError> {
     crate::args::require_count("--steps", flags.steps, 1, model::scenario::MAX_STEPS)?;
-    let cores = sys::parse_cores(&flags.cores).map_err(|e| CliError::Input(format!("--cores: {e}")))?;
+    let cores = sys::parse_cores(&flags.cores).map_err(|e| CliError::input_because("--cores", e))?;
     if let Some(s) = &flags.scenario
         && !s.is_file()
     {
@@ -304,7 +304,7 @@ fn prepare(flags: &RunFlags) -> Result<Vec<usize>, CliError> {
     if let Some(dir) = &flags.out {
         runtime::output::check_out_dir("--out", dir).map_err(CliError::Input)?;
     }
-    sys::pin_current_process(&cores).map_err(|e| CliError::Failed(format!("--cores: {e}")))?;
+    sys::pin_current_process(&cores).map_err(|e| CliError::failed_because("--cores", e))?;
     Ok(cores)
 }
 
@@ -345,11 +345,11 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
     let text = std::fs::read_to_string(&stamps_file);
     let _ = std::fs::remove_file(&stamps_file);
     let report = report?;
-    let text = text.map_err(|e| CliError::Failed(format!("the monitor's stamps file: {e}")))?;
+    let text = text.map_err(|e| CliError::failed_because("the monitor's stamps file", e))?;
     if let Some(dir) = &flags.out {
         // The raw stamps of the run (of its last round), beside the histograms made from them.
         let file = dir.join(format!("{}-{}-stamps.csv", config.transport.name(), config.wait.name()));
-        std::fs::write(&file, &text).map_err(|e| CliError::Failed(format!("--out {}: {e}", file.display())))?;
+        std::fs::write(&file, &text).map_err(|e| CliError::failed_because(format!("--out {}", file.display()), e))?;
     }
     let rows = parse_stamps(&text).map_err(CliError::Failed)?;
     Ok(result(config, &report, &rows))
@@ -397,7 +397,7 @@ fn result(config: &RunConfig, report: &LaunchReport, rows: &[StepStamps]) -> Run
 /// Writes the histograms of `runs` as CSV, the end-to-end (and, for one run, every series') distribution
 /// plots and `summary.json` into `dir`.
 fn write_out(dir: &Path, runs: &[RunResult], summary: &impl Serialize) -> Result<Vec<PathBuf>, CliError> {
-    let fail = |p: &Path, e: String| CliError::Failed(format!("--out {}: {e}", p.display()));
+    let fail = |p: &Path, e: String| CliError::failed_because(format!("--out {}", p.display()), e);
     let mut written = Vec::new();
     for r in runs {
         for (name, h) in &r.histograms {

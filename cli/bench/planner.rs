@@ -317,7 +317,7 @@ fn parse_list<T: std::str::FromStr<Err = String> + PartialEq + Copy>(
     }
     let mut out = Vec::new();
     for v in values {
-        let k: T = v.trim().parse().map_err(|e| CliError::Input(format!("{flag}: {e}")))?;
+        let k: T = v.trim().parse().map_err(|e| CliError::input_because(flag.to_string(), e))?;
         if !out.contains(&k) {
             out.push(k);
         }
@@ -347,7 +347,7 @@ pub fn collect_inputs_of_runs(
             run_sc.seed = derive_seed(sc.seed, runs, Purpose::OuterRun);
         }
         let failed = |what: String, e: &dyn std::fmt::Display| {
-            CliError::Failed(format!("input run {runs} (seed {}): {what}: {e}", run_sc.seed))
+            CliError::failed_because(format!("input run {runs} (seed {}): {what}", run_sc.seed), e.to_string())
         };
         let mut world = emitter_sim::World::from_scenario(&run_sc).map_err(|e| failed("world".into(), &e))?;
         let dynamics = run_sc.dynamics().map_err(|e| failed("estimator".into(), &e))?;
@@ -470,7 +470,7 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
     let label = combo_label;
     let plan = |i: usize, c: Combo| {
         plan_step(black_box(&inputs[i].request(scenario_of(c.2), c.0, c.1)))
-            .map_err(|e| CliError::Failed(format!("{} at input {i} (step {}): {e}", label(c), inputs[i].step)))
+            .map_err(|e| CliError::failed_because(format!("{} at input {i} (step {})", label(c), inputs[i].step), e))
     };
     for &c in &combos {
         black_box(plan(0, c)?);
@@ -817,7 +817,7 @@ mod tests {
 
     fn input_error(a: &PlannerBenchArgs) -> String {
         match run(a) {
-            Err(CliError::Input(m)) => m,
+            Err(e @ (CliError::Input(_) | CliError::InputBecause { .. })) => e.to_string(),
             other => panic!("expected an input error, got {other:?}"),
         }
     }

@@ -70,7 +70,7 @@ pub(super) fn child_flags(
             ..emitter_args(args)
         }),
     };
-    flags.map_err(|e| CliError::Input(format!("{role}: {e}")))
+    flags.map_err(|e| CliError::input_because(format!("{role}"), e))
 }
 
 /// emitter-sim's flags in this launch, but its node (domain, link) and checkpoint file.
@@ -124,8 +124,7 @@ pub(super) fn start_and_run(
         return sup.wait_for_the_end(grace, &mut |_| {});
     }
     // The live view: the monitor's log as it grows, the children as the supervisor sees them; `q` stops.
-    let mut terminal =
-        crate::live::LiveTerminal::start().map_err(|e| CliError::Failed(format!("the live view: {e}")))?;
+    let mut terminal = crate::live::LiveTerminal::start().map_err(|e| CliError::failed_because("the live view", e))?;
     let title = format!("launch {domain} ({})", args.source);
     let mut view = crate::live::LiveState::new(title, sc.steps as u64, sc.l_min).with_bound(sc);
     let mut tail = crate::live::LogTail::new(log);

@@ -155,7 +155,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let leftovers = resources::list(&domain).map_err(CliError::Failed)?;
 
     let record = sup.record.take().ok_or_else(|| CliError::Failed("the monitor sent no run record".into()))?;
-    let mut run = record.map_err(|e| CliError::Failed(format!("the monitor's run record: {e}")))?;
+    let mut run = record.map_err(|e| CliError::failed_because("the monitor's run record", e))?;
     // The scenario as loaded here, like `simulate` (the record's copy went through TOML-style degree
     // conversions on the way).
     run.scenario = sc;

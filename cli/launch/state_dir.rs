@@ -12,7 +12,7 @@ use protocol::services::Domain;
 use crate::error::CliError;
 
 fn failed(what: &Path, e: std::io::Error) -> CliError {
-    CliError::Failed(format!("the launch's state directory {}: {e}", what.display()))
+    CliError::failed_because(format!("the launch's state directory {}", what.display()), e)
 }
 
 /// `$TMPDIR/uavloc-<uid>`, created with mode 0700 if missing; refused if it is not this user's 0700
@@ -247,9 +247,9 @@ impl StateDir {
     pub(super) fn copy_scenario(&self, file: &Path, loaded: &model::Scenario) -> Result<PathBuf, CliError> {
         let copy = self.path("scenario.toml");
         std::fs::copy(file, &copy)
-            .map_err(|e| CliError::Input(format!("--scenario {}: cannot copy it: {e}", file.display())))?;
+            .map_err(|e| CliError::input_because(format!("--scenario {}: cannot copy it", file.display()), e))?;
         let again = model::load_scenario(Some(&copy), Some(loaded.steps), Some(loaded.seed))
-            .map_err(|e| CliError::Input(format!("--scenario {}: {e}", file.display())))?;
+            .map_err(|e| CliError::input_because(format!("--scenario {}", file.display()), e))?;
         if again.fingerprint() != loaded.fingerprint() {
             return Err(CliError::Input(format!(
                 "--scenario {}: the file changed while the launch started; start it again",

@@ -135,7 +135,7 @@ impl Supervisor {
 
     /// Starts `uavloc process <role> <flags> --supervised` with stdout piped to a reader thread.
     pub(super) fn spawn(&mut self, role: Role, flags: Vec<String>) -> Result<(), CliError> {
-        let exe = std::env::current_exe().map_err(|e| CliError::Failed(format!("cannot find this executable: {e}")))?;
+        let exe = std::env::current_exe().map_err(|e| CliError::failed_because("cannot find this executable", e))?;
         let mut command = std::process::Command::new(exe);
         command
             .arg("process")
@@ -160,7 +160,7 @@ impl Supervisor {
                 Ok(())
             });
         }
-        let mut child = command.spawn().map_err(|e| CliError::Failed(format!("cannot start the {role}: {e}")))?;
+        let mut child = command.spawn().map_err(|e| CliError::failed_because(format!("cannot start the {role}"), e))?;
         let stdout = child.stdout.take().expect("piped stdout");
         let index = self.procs.len();
         let tx = self.tx.clone();
