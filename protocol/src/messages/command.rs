@@ -61,6 +61,13 @@ pub struct Command {
 
 impl_message!(Command, MessageKind::Command, 4, "uavloc::Command/v4");
 
+impl_per_uav!(Command {
+    /// Headings in use.
+    headings: f64,
+    /// Waypoints in use.
+    waypoints: [f64; 2],
+});
+
 /// The estimator's state after step `step` as an [`Estimate`] carries it — the estimate the step is
 /// planned from ([`Estimate::plan_from`]: the fix, or a failed step's standing estimate) and the fused
 /// posterior beyond the position — echoed in the [`Command`] planned from it. With it an estimator
@@ -241,26 +248,6 @@ impl Command {
         Ok(Command::new(estimate.header.step, seq, planner_instance, plan)?
             .carrying(estimate, received_ns)
             .with_state_of(estimate))
-    }
-
-    /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
-    pub fn len(&self) -> usize {
-        used(self.count)
-    }
-
-    /// Whether no UAV is in use (never true for a valid message).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// Headings in use.
-    pub fn headings(&self) -> &[f64] {
-        &self.headings[..self.len()]
-    }
-
-    /// Waypoints in use.
-    pub fn waypoints(&self) -> &[[f64; 2]] {
-        &self.waypoints[..self.len()]
     }
 
     /// Sets the solver name.

@@ -173,6 +173,13 @@ pub struct Estimate {
 
 impl_message!(Estimate, MessageKind::Estimate, 4, "uavloc::Estimate/v4");
 
+impl_per_uav!(Estimate {
+    /// UAV positions in use.
+    uavs: [f64; 2],
+    /// Headings in use.
+    headings: f64,
+});
+
 impl Estimate {
     /// An estimate for `uavs.len()` UAVs (`headings` one per UAV).
     pub fn new(
@@ -254,26 +261,6 @@ impl Estimate {
             EstimateStatus::Failed if !self.position.iter().all(|v| v.is_finite()) => None,
             _ => Some((self.position, self.covariance)),
         }
-    }
-
-    /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
-    pub fn len(&self) -> usize {
-        used(self.count)
-    }
-
-    /// Whether no UAV is in use (never true for a valid message).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// UAV positions in use.
-    pub fn uavs(&self) -> &[[f64; 2]] {
-        &self.uavs[..self.len()]
-    }
-
-    /// Headings in use.
-    pub fn headings(&self) -> &[f64] {
-        &self.headings[..self.len()]
     }
 
     /// The decoded status (`None` for an unknown wire value).

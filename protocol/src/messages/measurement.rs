@@ -25,6 +25,15 @@ pub struct Measurement {
 
 impl_message!(Measurement, MessageKind::Measurement, 1, "uavloc::Measurement/v1");
 
+impl_per_uav!(Measurement {
+    /// UAV positions in use.
+    uavs: [f64; 2],
+    /// Range sigmas in use.
+    sigmas: f64,
+    /// Headings in use.
+    headings: f64,
+});
+
 impl Measurement {
     /// A measurement of `uavs.len()` UAVs; `diffs` must have one entry fewer, `sigmas` and `headings` one
     /// per UAV. Content (finiteness, σ > 0) is checked by [`validate`](Self::validate), not here.
@@ -56,33 +65,8 @@ impl Measurement {
         Ok(m)
     }
 
-    /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
-    pub fn len(&self) -> usize {
-        used(self.count)
-    }
-
-    /// Whether no UAV is in use (never true for a valid message).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// UAV positions in use.
-    pub fn uavs(&self) -> &[[f64; 2]] {
-        &self.uavs[..self.len()]
-    }
-
     /// Range differences in use (`count − 1` of them).
     pub fn diffs(&self) -> &[f64] {
         &self.diffs[..self.len().saturating_sub(1)]
-    }
-
-    /// Range sigmas in use.
-    pub fn sigmas(&self) -> &[f64] {
-        &self.sigmas[..self.len()]
-    }
-
-    /// Headings in use.
-    pub fn headings(&self) -> &[f64] {
-        &self.headings[..self.len()]
     }
 }

@@ -417,6 +417,31 @@ impl fmt::Debug for Name16 {
     }
 }
 
+/// The per-UAV arrays of a message, each used up to `count` ([`used`]): `len`, `is_empty` and one
+/// accessor per array, from one definition.
+macro_rules! impl_per_uav {
+    ($ty:ident { $( $(#[$doc:meta])* $field:ident: $elem:ty ),* $(,)? }) => {
+        impl $ty {
+            /// Number of UAVs in use (clamped to [`MAX_UAVS`]).
+            pub fn len(&self) -> usize {
+                used(self.count)
+            }
+
+            /// Whether no UAV is in use (never true for a valid message).
+            pub fn is_empty(&self) -> bool {
+                self.len() == 0
+            }
+
+            $(
+                $(#[$doc])*
+                pub fn $field(&self) -> &[$elem] {
+                    &self.$field[..self.len()]
+                }
+            )*
+        }
+    };
+}
+
 /// An enum carried on the wire as an integer, from one definition: the enum (`#[repr]` of the wire
 /// integer), its decoder (`None` for a value no variant has), its stable lower-case names and the list
 /// of its variants in wire order.
