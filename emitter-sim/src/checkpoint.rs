@@ -37,7 +37,7 @@ pub struct Start {
 /// fit the scenario, is refused (exit 2).
 pub fn start(checkpoint: Option<&Path>, domain: &Domain, scenario: &Scenario) -> Result<Start, ProcessError> {
     let saved = match checkpoint {
-        Some(path) => recovery::load::<Saved>(path, crate::process::ROLE, domain.as_str())
+        Some(path) => recovery::load::<Saved>(path, crate::ROLE, domain.as_str())
             .map_err(|e| ProcessError::input_because("--checkpoint", e))?,
         None => None,
     };
@@ -76,7 +76,7 @@ pub fn start(checkpoint: Option<&Path>, domain: &Domain, scenario: &Scenario) ->
 /// Writes the `snapshots` of the run of scenario `fingerprint` to `path`.
 pub fn save(path: &Path, domain: &Domain, fingerprint: &str, snapshots: &[(Snapshot, bool)]) -> Result<(), String> {
     let saved = Saved { scenario: fingerprint.to_string(), snapshots: snapshots.to_vec() };
-    recovery::save(path, crate::process::ROLE, domain.as_str(), &saved)
+    recovery::save(path, crate::ROLE, domain.as_str(), &saved)
 }
 
 #[cfg(test)]
@@ -130,9 +130,11 @@ mod tests {
         save(&path, &domain, &short.fingerprint(), &set).unwrap();
         let e = start(Some(&path), &domain, &short).err().unwrap();
         assert!(matches!(&e, ProcessError::Input(m) if m.contains("beyond the run")), "{e}");
-        // Another domain's file: refused.
+        // Another domain's file: refused as bad input, the loader's reason kept as the cause.
         let e = start(Some(&path), &Domain::new("elsewhere").unwrap(), &sc).err().unwrap();
-        assert!(matches!(e, ProcessError::Input(_)));
+        assert!(matches!(&e, ProcessError::InputBecause { context, .. } if context == "--checkpoint"), "{e:?}");
+        assert_eq!(e.code(), 2);
+        assert!(std::error::Error::source(&e).is_some());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -12,6 +12,9 @@
 //!
 //! Units: metres, seconds, radians.
 
+/// The role name (node name suffix, `uavloc process emitter-sim`).
+pub const ROLE: &str = "emitter-sim";
+
 pub mod args;
 pub mod backpressure;
 pub mod checkpoint;

@@ -54,8 +54,7 @@ use crate::schedule::{Action, Config, Other, Pacing, Schedule};
 use crate::summary::EmitterSummary;
 use crate::{Snapshot, World};
 
-/// The role name (node name suffix, `uavloc process emitter-sim`).
-pub const ROLE: &str = "emitter-sim";
+pub use crate::ROLE;
 
 /// Exit code when SIGINT/SIGTERM stopped the run before its end.
 pub use runtime::EXIT_INTERRUPTED;

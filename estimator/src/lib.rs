@@ -22,6 +22,9 @@
 //!
 //! Units: metres (positions), m² (covariance), m/s (velocity).
 
+/// The role name (node name suffix, `uavloc process estimator`).
+pub const ROLE: &str = "estimator";
+
 pub mod args;
 pub mod chain;
 pub mod process;

@@ -57,8 +57,7 @@ use crate::summary::EstimatorSummary;
 /// How often an estimator started with --takeover looks whether the running estimator is still there.
 const LOOK_FOR_PREDECESSOR: std::time::Duration = std::time::Duration::from_millis(200);
 
-/// The role name (node name suffix, `uavloc process estimator`).
-pub const ROLE: &str = "estimator";
+pub use crate::ROLE;
 
 /// The estimator's handler: its ports, its state and the bookkeeping of a swap.
 struct EstimatorNode<'a> {

@@ -20,10 +20,7 @@ mod tests {
     #[test]
     fn the_summary_keeps_its_flat_keys() {
         // The launcher reads `rejected` and `handed_over_at` from every summary line, whatever the role.
-        let mut s = EstimatorSummary {
-            node: runtime::NodeSummary::new(crate::process::ROLE, 7),
-            ..EstimatorSummary::default()
-        };
+        let mut s = EstimatorSummary { node: runtime::NodeSummary::new(crate::ROLE, 7), ..EstimatorSummary::default() };
         s.node.rejected = 2;
         s.node.handed_over_at = Some(9);
         s.failed = 1;

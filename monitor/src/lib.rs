@@ -8,6 +8,9 @@
 //! [`latency`]: its log, stamp file and latency statistics), [`front_end`] tells whether an external
 //! front end is still there, and [`recording`] writes the run as MCAP.
 
+/// The role name (node name suffix, `uavloc process monitor`).
+pub const ROLE: &str = "monitor";
+
 pub mod along_arcs;
 pub mod args;
 pub mod assemble;

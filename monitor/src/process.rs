@@ -62,8 +62,7 @@ use crate::session::Session;
 use crate::stamps::StampsCsv;
 use crate::summary::MonitorSummary;
 
-/// The role name (node name suffix, `uavloc process monitor`).
-pub const ROLE: &str = "monitor";
+pub use crate::ROLE;
 
 /// Exit code when SIGINT/SIGTERM stopped the monitor before the last step.
 pub use runtime::EXIT_INTERRUPTED;

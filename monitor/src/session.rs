@@ -99,7 +99,7 @@ impl Session {
             log,
             samples: LatencySamples::default(),
             planner: None,
-            summary: MonitorSummary { role: crate::process::ROLE, ..MonitorSummary::default() },
+            summary: MonitorSummary { role: crate::ROLE, ..MonitorSummary::default() },
             quiet,
             received: HashMap::new(),
             stamps: None,

@@ -20,6 +20,9 @@
 //!
 //! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
 
+/// The role name (node name suffix, `uavloc process planner`).
+pub const ROLE: &str = "planner";
+
 pub mod aco;
 pub mod args;
 pub mod constraints;

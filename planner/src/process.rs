@@ -61,8 +61,7 @@ use crate::summary::PlannerSummary;
 use crate::wire;
 use model::scenario::Scenario;
 
-/// The role name (node name suffix, `uavloc process planner`).
-pub const ROLE: &str = "planner";
+pub use crate::ROLE;
 
 /// The planner's handler: its ports, the scenario, and the bookkeeping of a swap and of the staleness
 /// deadline (no state of the run: see the module docs).
