@@ -26,6 +26,7 @@ pub const ROLE: &str = "planner";
 pub mod aco;
 pub mod args;
 pub mod constraints;
+pub mod factory;
 pub mod fitness;
 pub mod formation;
 pub mod ga;

@@ -13,12 +13,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
-use crate::aco::Aco;
 use crate::fitness::Fitness;
-use crate::ga::Ga;
-use crate::gradient::Gradient;
-use crate::pso::Pso;
-use model::scenario::Scenario;
 
 /// Why a search space was refused.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -247,17 +242,6 @@ impl SolverKind {
             SolverKind::Ga => "ga",
             SolverKind::Aco => "aco",
             SolverKind::Gradient => "gradient",
-        }
-    }
-
-    /// The solver with the scenario's settings for it.
-    pub fn build(self, sc: &Scenario) -> Box<dyn Solver> {
-        let stop = sc.early_stop;
-        match self {
-            SolverKind::Pso => Box::new(Pso { config: sc.pso, stop }),
-            SolverKind::Ga => Box::new(Ga { config: sc.ga, stop }),
-            SolverKind::Aco => Box::new(Aco { config: sc.aco, stop }),
-            SolverKind::Gradient => Box::new(Gradient { config: sc.gradient }),
         }
     }
 }
