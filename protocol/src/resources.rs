@@ -102,17 +102,25 @@ pub fn remove_leftovers(domain: &Domain) -> Result<Vec<String>, String> {
 pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {
     let config = Config::global_config();
     let mut dead = Vec::new();
+    // Every node iceoryx2 lists (alive, dead or not readable): the unlisted sweep leaves them alone.
+    let mut listed = Vec::new();
     Node::<ipc::Service>::list(config, |state| {
         // A node whose owner died before it wrote its details (killed during its creation) belongs to no
         // domain that can be read, and to no live process: it is removed too.
-        if let NodeState::Dead(view) = state
-            && view.details().as_ref().is_none_or(|d| in_domain(d.name().as_str(), domain))
-        {
-            dead.push(view);
+        match state {
+            NodeState::Dead(view) => {
+                listed.push(view.id().value().to_string());
+                if view.details().as_ref().is_none_or(|d| in_domain(d.name().as_str(), domain)) {
+                    dead.push(view)
+                }
+            }
+            NodeState::Alive(view) => listed.push(view.id().value().to_string()),
+            NodeState::Inaccessible(id) | NodeState::Undefined(id) => listed.push(id.value().to_string()),
         }
         CallbackProgression::Continue
     })
     .map_err(|e| format!("listing iceoryx2 nodes: {e:?}"))?;
+    let node_dir = std::path::PathBuf::from(config.global.node_dir().to_string());
     let mut removed = 0;
     for view in dead {
         let id = view.id().value();
@@ -122,7 +130,7 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {
             // iceoryx2's clean-up stops at: its directory is removed instead, and the run goes on — one
             // dead node is never a reason to give up the domain.
             Err(e) => {
-                let dir = std::path::PathBuf::from(config.global.node_dir().to_string()).join(id.to_string());
+                let dir = node_dir.join(id.to_string());
                 match std::fs::remove_dir_all(&dir) {
                     Ok(()) => removed += 1,
                     Err(io) if io.kind() == std::io::ErrorKind::NotFound => removed += 1,
@@ -135,8 +143,38 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {
             }
         }
     }
-    Ok(removed)
+    Ok(removed + remove_unlisted_node_dirs(&node_dir, domain, &listed))
 }
+
+/// Removes the node directories of `domain` that iceoryx2 does not list at all — a node killed after it
+/// wrote its details but before its liveness token, which leaves `iox2_node.details` without it — when
+/// they are older than [`UNLISTED_NODE_AFTER`] (a node being created now is left alone) and not in
+/// `listed` (the nodes iceoryx2 lists, which its own clean-up handles). Returns how many.
+fn remove_unlisted_node_dirs(node_dir: &std::path::Path, domain: &Domain, listed: &[String]) -> usize {
+    let prefix = format!("{}/", domain.as_str());
+    let mut removed = 0;
+    for entry in std::fs::read_dir(node_dir).into_iter().flatten().flatten() {
+        let dir = entry.path();
+        let Some(id) = dir.file_name().and_then(|n| n.to_str()).map(str::to_string) else { continue };
+        if listed.contains(&id) {
+            continue;
+        }
+        let Ok(details) = std::fs::read(dir.join("iox2_node.details")) else { continue };
+        let ours = details.windows(prefix.len()).any(|w| w == prefix.as_bytes());
+        let old = entry
+            .metadata()
+            .and_then(|m| m.modified())
+            .is_ok_and(|t| t.elapsed().is_ok_and(|a| a >= UNLISTED_NODE_AFTER));
+        if ours && old && std::fs::remove_dir_all(&dir).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
+/// How old an unlisted node directory must be to count as left by a node killed in its creation (creating
+/// a node takes microseconds to a few milliseconds).
+pub const UNLISTED_NODE_AFTER: Duration = Duration::from_millis(200);
 
 /// How long a service may be in creation before it counts as left half-created (creating one takes
 /// microseconds; a creator killed mid-way never finishes it).
@@ -195,5 +233,34 @@ mod tests {
         assert!(in_domain("run-1/estimator", &d));
         assert!(!in_domain("run-12/estimator", &d));
         assert!(!in_domain("run-1", &d));
+    }
+}
+
+#[cfg(test)]
+mod unlisted_tests {
+    use super::*;
+
+    /// A node directory of the domain holding only its details, older than the guard, is removed; a
+    /// young one (a node being created), another domain's and a live node's are not.
+    #[test]
+    fn a_node_killed_before_its_liveness_token_is_removed() {
+        let root = std::env::temp_dir().join(format!("uavloc-nodes-test-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let domain = Domain::new("lab-dead").unwrap();
+        let make = |id: &str, name: &str, age_s: u64| {
+            let dir = root.join(id);
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join("iox2_node.details"), format!("name = \"{name}\"")).unwrap();
+            let t = std::time::SystemTime::now() - Duration::from_secs(age_s);
+            std::fs::File::open(&dir).unwrap().set_modified(t).unwrap();
+        };
+        make("1", "lab-dead/estimator", 10);
+        make("2", "lab-dead/planner", 0);
+        make("3", "other/estimator", 10);
+        make("4", "lab-dead/monitor", 10);
+        assert_eq!(remove_unlisted_node_dirs(&root, &domain, &["4".to_string()]), 1);
+        assert!(!root.join("1").exists());
+        assert!(root.join("2").exists() && root.join("3").exists() && root.join("4").exists());
+        std::fs::remove_dir_all(&root).unwrap();
     }
 }
