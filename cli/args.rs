@@ -247,11 +247,11 @@ pub struct RunChoice {
     /// Planning objective: single | mc | analytical | cubature | posterior | posterior-cubature |
     /// formation (the fixed-formation baseline).
     #[arg(long, default_value = "analytical")]
-    pub objective: planner::ObjectiveKind,
+    pub objective: planning::ObjectiveKind,
     /// Solver: gradient (ours: each UAV's own constraints settled exactly, then projected quasi-Newton
     /// on the criterion; deterministic) | pso | ga | aco (the paper's). Ignored by the formation baseline.
     #[arg(long, default_value = "gradient")]
-    pub solver: planner::SolverKind,
+    pub solver: planning::SolverKind,
     /// Number of planning steps (default: the scenario's, 24 for the paper).
     #[arg(long, value_name = "N")]
     pub steps: Option<usize>,
@@ -262,7 +262,7 @@ pub struct RunChoice {
     /// The estimator: fused (the posterior of every measurement so far) or snapshot (the paper's Chan
     /// per step); default: the scenario's `estimator` (fused).
     #[arg(long, value_name = "KIND")]
-    pub estimator: Option<estimator::EstimatorKind>,
+    pub estimator: Option<estimation::EstimatorKind>,
 }
 
 impl RunChoice {

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use estimator::{EstimateStatus, Estimator, EstimatorConfig};
+use estimation::{EstimateStatus, Estimator, EstimatorConfig};
 use nalgebra::Vector2;
 use serde::Serialize;
 use tdoa::{Dynamics, NoiseModel, RangeDiffs, SPEED_OF_LIGHT};

@@ -7,12 +7,12 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use estimator::{EmitterModel, Estimator, EstimatorConfig, EstimatorKind};
+use estimation::{EmitterModel, Estimator, EstimatorConfig, EstimatorKind};
 use model::Scenario;
-use monitor::recording::{RecordedMessage, read_recording};
 use nalgebra::Vector2;
-use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use protocol::{Estimate, Measurement};
+use record::recording::{RecordedMessage, read_recording};
 use serde::Serialize;
 use serde_json::Value;
 

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use model::Scenario;
-use monitor::RunRecord;
+use record::RunRecord;
 
 use crate::error::CliError;
 use crate::output::{Diagnostic, Report, Table};
@@ -79,12 +79,12 @@ pub struct SimulateReport {
 pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     let sc = args.run.scenario()?;
     let record = [("--record", args.record.as_deref())];
-    runtime::output::check_outputs(&record, ("--out", args.out.as_deref(), &monitor::export::RUN_FILES))
+    runtime::output::check_outputs(&record, ("--out", args.out.as_deref(), &record::export::RUN_FILES))
         .map_err(CliError::Input)?;
     let mut recorder = match &args.record {
         Some(file) => {
-            let metadata = monitor::recording::run_metadata(&sc, "simulate", "simulator");
-            Some(monitor::recording::Recorder::create(file, metadata, false).map_err(CliError::Failed)?)
+            let metadata = record::recording::run_metadata(&sc, "simulate", "simulator");
+            Some(record::recording::Recorder::create(file, metadata, false).map_err(CliError::Failed)?)
         }
         None => None,
     };
@@ -111,7 +111,7 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    let run = experiments::closed_loop::run_closed_loop(&sc, objective, solver, |record, trace| {
+    let run = closed_loop::run_closed_loop(&sc, objective, solver, |record, trace| {
         bar.inc(1);
         if let Some(r) = &mut recorder {
             record_step(r, record, trace, objective, solver);
@@ -135,7 +135,7 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
         r.finish().map_err(CliError::Failed)?;
     }
     let written = match &args.out {
-        Some(dir) => monitor::export::write_run(&run, dir)
+        Some(dir) => record::export::write_run(&run, dir)
             .map_err(|e| CliError::failed_because(format!("--out {}", dir.display()), e))?,
         None => Vec::new(),
     };
@@ -145,11 +145,11 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
 /// Records the messages of one step of the closed loop, as the pipeline's processes would publish them
 /// (sequence numbers = the step; no latency stamps: nothing travelled).
 fn record_step(
-    r: &mut monitor::recording::Recorder,
-    record: &monitor::StepRecord,
-    trace: &experiments::closed_loop::StepTrace<'_>,
-    objective: planner::ObjectiveKind,
-    solver: planner::SolverKind,
+    r: &mut record::recording::Recorder,
+    record: &record::StepRecord,
+    trace: &closed_loop::StepTrace<'_>,
+    objective: planning::ObjectiveKind,
+    solver: planning::SolverKind,
 ) {
     use protocol::{Command, CommandOutcome, Measurement, Truth};
     let k = record.step;
@@ -248,7 +248,7 @@ impl Report for SimulateReport {
                 self.run.rejected_snapshots
             )));
         }
-        out.extend(monitor::safety_warnings(&self.run).into_iter().map(Diagnostic::Warning));
+        out.extend(record::safety_warnings(&self.run).into_iter().map(Diagnostic::Warning));
         out
     }
 }

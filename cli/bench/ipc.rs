@@ -330,7 +330,7 @@ pub fn run(args: &IpcArgs) -> Result<IpcReport, CliError> {
 }
 
 fn write_out(report: &IpcReport, dir: &std::path::Path) -> Result<Vec<PathBuf>, CliError> {
-    use monitor::chart::{Series, plot_curves};
+    use record::chart::{Series, plot_curves};
     let fail = |e: String| CliError::failed_because(format!("--out {}", dir.display()), e);
     let mut series = Vec::new();
     for t in ["iceoryx2", "uds"] {

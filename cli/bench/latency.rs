@@ -25,7 +25,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use clap::Args;
-use planner::ObjectiveKind;
+use planning::ObjectiveKind;
 use protocol::{TransportKind, WaitMode};
 use runtime::LinkArgs;
 use serde::Serialize;
@@ -80,7 +80,7 @@ pub struct RunFlags {
     pub objective: ObjectiveKind,
     /// Solver: gradient (the default of `launch`) | pso | ga | aco.
     #[arg(long, default_value = "gradient")]
-    pub solver: planner::SolverKind,
+    pub solver: planning::SolverKind,
     /// Scenario TOML file (default: the paper's nominal case).
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,

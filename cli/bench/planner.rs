@@ -3,7 +3,7 @@
 //!
 //! 1. **Inputs.** The closed loop of `uavloc simulate` runs in-process with the reference combination
 //!    (analytical × PSO) and keeps, for every planned step, the exact inputs of
-//!    [`planner::plan_step`]: UAV positions and headings, the estimate ẑ and its covariance M (or the
+//!    [`planning::plan_step`]: UAV positions and headings, the estimate ẑ and its covariance M (or the
 //!    controlled target), the run seed and the step index. One run has the scenario's `steps` planned
 //!    steps (24 for the paper), so `--steps N` takes the steps of as many runs as needed: run 0 with the
 //!    scenario's seed (its inputs are exactly those of `uavloc simulate --objective analytical`), run
@@ -29,7 +29,7 @@ use clap::Args;
 use model::Scenario;
 use model::safety::SafetyMode;
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use serde::Serialize;
 use tdoa::rng::{Purpose, derive_seed};
 
@@ -286,7 +286,7 @@ pub struct PlanInput {
     pub run_seed: u64,
     pub step: u64,
     /// The emitter's estimated motion (a constant-velocity model), as the closed loop plans with it.
-    pub motion: Option<planner::EmitterMotion>,
+    pub motion: Option<planning::EmitterMotion>,
 }
 
 impl PlanInput {
@@ -327,7 +327,7 @@ fn parse_list<T: std::str::FromStr<Err = String> + PartialEq + Copy>(
 
 /// The planner inputs of the first `count` planned steps of consecutive closed-loop runs of `sc`
 /// (analytical × PSO): run 0 with `sc.seed`, run r ≥ 1 with `derive_seed(sc.seed, r, OuterRun)`.
-/// The loop is `experiments::closed_loop::run_closed_loop`'s without the monitor's metrics.
+/// The loop is `closed_loop::run_closed_loop`'s without the monitor's metrics.
 pub fn collect_inputs(sc: &Scenario, count: usize) -> Result<(Vec<PlanInput>, usize), CliError> {
     collect_inputs_of_runs(sc, count, sc.steps)
 }
@@ -349,10 +349,10 @@ pub fn collect_inputs_of_runs(
         let failed = |what: String, e: &dyn std::fmt::Display| {
             CliError::failed_because(format!("input run {runs} (seed {}): {what}", run_sc.seed), e.to_string())
         };
-        let mut world = emitter_sim::World::from_scenario(&run_sc).map_err(|e| failed("world".into(), &e))?;
+        let mut world = model::world::World::from_scenario(&run_sc).map_err(|e| failed("world".into(), &e))?;
         let dynamics = run_sc.dynamics().map_err(|e| failed("estimator".into(), &e))?;
         let mut estimator =
-            estimator::Estimator::with_config(estimator::EstimatorConfig::new(run_sc.estimator, dynamics));
+            estimation::Estimator::with_config(estimation::EstimatorConfig::new(run_sc.estimator, dynamics));
         let before = inputs.len();
         for k in 0..run_sc.steps as u64 {
             if inputs.len() == count {
@@ -374,7 +374,7 @@ pub fn collect_inputs_of_runs(
                 motion: est
                     .posterior
                     .and_then(|p| p.velocity())
-                    .map(|(velocity, velocity_cov)| planner::EmitterMotion { velocity, velocity_cov }),
+                    .map(|(velocity, velocity_cov)| planning::EmitterMotion { velocity, velocity_cov }),
             };
             let plan = plan_step(&input.request(&run_sc, objective, solver))
                 .map_err(|e| failed(format!("step {k}: plan"), &e))?;
@@ -565,7 +565,7 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
 }
 
 /// Every solver's plans against PSO's for the same objective and inputs (see [`Quality`]).
-pub fn quality(combos: &[Combo], fitness: &[Vec<planner::Fitness>], inputs: &[PlanInput]) -> Vec<Quality> {
+pub fn quality(combos: &[Combo], fitness: &[Vec<planning::Fitness>], inputs: &[PlanInput]) -> Vec<Quality> {
     let mut out = Vec::new();
     for (j, &(o, s, m)) in combos.iter().enumerate() {
         let Some(r) = combos.iter().position(|&c| c == (o, SolverKind::Pso, m)) else { continue };
@@ -921,8 +921,7 @@ mod tests {
         let sc = Scenario { steps: 4, ..Scenario::default() };
         let (inputs, runs) = collect_inputs(&sc, 10).unwrap();
         assert_eq!((inputs.len(), runs), (10, 3));
-        let run =
-            experiments::closed_loop::run_closed_loop(&sc, REFERENCE.0, REFERENCE.1, |_, _| {}).expect("closed loop");
+        let run = closed_loop::run_closed_loop(&sc, REFERENCE.0, REFERENCE.1, |_, _| {}).expect("closed loop");
         for (k, input) in inputs[..4].iter().enumerate() {
             let rec = &run.steps[k];
             assert_eq!((input.run_seed, input.step), (sc.seed, k as u64));
@@ -931,7 +930,7 @@ mod tests {
             assert_eq!([input.estimate.x, input.estimate.y], rec.estimate, "step {k}");
             assert_eq!(crate::output::rows(&input.covariance), rec.estimate_cov, "step {k}");
             let expected = if k == 0 {
-                emitter_sim::World::from_scenario(&sc).unwrap().headings().to_vec()
+                model::world::World::from_scenario(&sc).unwrap().headings().to_vec()
             } else {
                 run.steps[k - 1].headings_rad.clone()
             };

@@ -2,13 +2,13 @@
 //! of each series, µs on a log axis, over the percentile on a log scale of 1/(1 − q), so that the tail
 //! (99 %, 99.9 %, 99.99 %) gets as much room as the body.
 //!
-//! Drawn with [`monitor::plot_curves`] (format from the extension, `.svg` or `.png`, embedded font). Its x
+//! Drawn with [`record::plot_curves`] (format from the extension, `.svg` or `.png`, embedded font). Its x
 //! axis is linear, so the x coordinate is the number of "nines", log10(1/(1 − q)) ([`nines`]): 0 = 0 %,
 //! 1 = 90 %, 2 = 99 %, 3 = 99.9 %, 4 = 99.99 %; the axis label spells that out.
 
 use std::path::Path;
 
-use monitor::Series;
+use record::Series;
 
 use super::histogram::LatencyHistogram;
 
@@ -41,7 +41,7 @@ pub fn percentile_label(nines: f64) -> String {
 
 /// The x axis label: what the "nines" coordinate means.
 const X_LABEL: &str = "percentile, as nines: 0 = 0%, 1 = 90%, 2 = 99%, 3 = 99.9%, 4 = 99.99%";
-/// The y axis label (`monitor::plot_curves` adds ", log scale").
+/// The y axis label (`record::plot_curves` adds ", log scale").
 const Y_LABEL: &str = "latency (µs)";
 
 /// Plots the latency by percentile of each histogram of `series` (legend label, histogram) into `path`
@@ -66,7 +66,7 @@ pub fn plot_latency_distributions(
             Series::new(label.clone(), x, y)
         })
         .collect();
-    monitor::plot_curves(title, X_LABEL, Y_LABEL, &curves, true, path).map_err(|e| e.to_string())
+    record::plot_curves(title, X_LABEL, Y_LABEL, &curves, true, path).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
@@ -137,7 +137,7 @@ mod tests {
         assert!(!svg.contains("nothing here") && !svg.contains("(no data)"));
         let png_path = dir.join("latency.PNG");
         plot_latency_distributions(&png_path, "Hop latency", &series).unwrap();
-        let png = monitor::png::read(&png_path).unwrap();
+        let png = record::png::read(&png_path).unwrap();
         assert!(png.width > 100 && png.height > 100);
 
         // Nothing to draw: still a figure, marked.
@@ -147,7 +147,7 @@ mod tests {
             assert!(std::fs::read_to_string(&path).unwrap().contains("(no data)"));
             let path = dir.join(format!("{name}.png"));
             plot_latency_distributions(&path, "Idle", &series).unwrap();
-            monitor::png::read(&path).unwrap();
+            record::png::read(&path).unwrap();
         }
 
         // Odd data: one sample, zeros only (nothing on a log axis), saturated samples.

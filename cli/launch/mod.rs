@@ -66,7 +66,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     emitter.check().and_then(|()| emitter.pacing(sc.dt, sc.steps)).map_err(CliError::Input)?;
     let files =
         [("--record", args.record.as_deref()), ("--log", args.log.as_deref()), ("--stamps", args.stamps.as_deref())];
-    runtime::output::check_outputs(&files, ("--out", args.out.as_deref(), &monitor::export::RUN_FILES))
+    runtime::output::check_outputs(&files, ("--out", args.out.as_deref(), &record::export::RUN_FILES))
         .map_err(CliError::Input)?;
     if args.link.transport == protocol::TransportKind::Uds {
         protocol::transport::uds::check_socket_dir().map_err(CliError::Input)?;

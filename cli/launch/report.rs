@@ -2,8 +2,8 @@
 
 use std::collections::BTreeMap;
 
-use monitor::RunRecord;
 use protocol::resources::DomainResources;
+use record::RunRecord;
 use serde::Serialize;
 
 use crate::output::{Diagnostic, Report, Table};
@@ -155,7 +155,7 @@ impl Report for LaunchReport {
                 self.missed_commands
             )));
         }
-        out.extend(monitor::safety_warnings(&self.run).into_iter().map(Diagnostic::Warning));
+        out.extend(record::safety_warnings(&self.run).into_iter().map(Diagnostic::Warning));
         let n = self.run.steps.iter().filter(|s| s.estimate_status != "ok").count();
         if n > 0 {
             out.push(Diagnostic::Warning(format!(

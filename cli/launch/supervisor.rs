@@ -9,9 +9,9 @@ use std::process::{Child, Stdio};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant};
 
-use monitor::RunRecord;
 use protocol::resources;
 use protocol::services::Domain;
+use record::RunRecord;
 use runtime::SupervisorLine;
 
 use super::role::{RestartDecision, Role, describe};

@@ -1,7 +1,7 @@
 //! What the live view shows, as plain data: fed step by step from `StepRecord`s (`simulate --live`) or
 //! from the monitor's JSON-lines log events (`launch`), which carry the same records.
 
-use monitor::StepRecord;
+use record::StepRecord;
 use serde_json::Value;
 
 /// One process of a launch, as the launcher sees it.
@@ -61,7 +61,7 @@ pub struct LiveState {
     pub last_uncertified: Option<u64>,
     /// The posterior CRLB as the steps come in (the records' `pcrlb_m` is computed only at the end of a
     /// run); see [`LiveState::with_bound`].
-    bound: Option<monitor::RunningBound>,
+    bound: Option<record::RunningBound>,
 }
 
 impl LiveState {
@@ -71,9 +71,9 @@ impl LiveState {
     }
 
     /// The same view computing the PCRLB series as the steps come in, with the scenario's σ and emitter
-    /// model ([`monitor::RunningBound`]; without it the series is what the records carry).
+    /// model ([`record::RunningBound`]; without it the series is what the records carry).
     pub fn with_bound(mut self, scenario: &model::Scenario) -> Self {
-        self.bound = Some(monitor::RunningBound::new(scenario));
+        self.bound = Some(record::RunningBound::new(scenario));
         self
     }
 
@@ -232,16 +232,16 @@ mod tests {
         let mut s = LiveState::new("t", 3, 3000.0);
         assert!(s.safety_line().contains("not certified by design"), "{}", s.safety_line());
         let mut r = crate::live::state::tests::record_of(0);
-        r.safety = Some(monitor::StepSafety { certified: Some(true), ..Default::default() });
+        r.safety = Some(record::StepSafety { certified: Some(true), ..Default::default() });
         s.apply_step(&r);
         assert_eq!(s.safety_line(), "safety: certified");
         r.step = 1;
-        r.safety = Some(monitor::StepSafety { certified: Some(false), ..Default::default() });
+        r.safety = Some(record::StepSafety { certified: Some(false), ..Default::default() });
         s.apply_step(&r);
         assert!(s.safety_line().starts_with("safety: NOT CERTIFIED"), "{}", s.safety_line());
         assert!(s.safety_line().ends_with("1 step(s) without a certified plan, last step 1"), "{}", s.safety_line());
         r.step = 2;
-        r.safety = Some(monitor::StepSafety { certified: Some(true), ..Default::default() });
+        r.safety = Some(record::StepSafety { certified: Some(true), ..Default::default() });
         s.apply_step(&r);
         assert!(s.safety_line().starts_with("safety: certified; 1 step(s)"), "{}", s.safety_line());
         assert_eq!(s.uncertified, 1);

@@ -8,7 +8,7 @@ use protocol::services::Domain;
 use runtime::ProcessError;
 use runtime::recovery::{self, EMITTER_SNAPSHOTS};
 
-use crate::{Snapshot, World};
+use model::world::{Snapshot, World};
 
 /// What emitter-sim writes to its `--checkpoint` file: the last world snapshots (oldest first), each with
 /// whether the command of the step before it was missed.

@@ -52,7 +52,7 @@ use crate::args::EmitterSimArgs;
 use crate::checkpoint::{self, Start};
 use crate::schedule::{Action, Config, Other, Pacing, Schedule};
 use crate::summary::EmitterSummary;
-use crate::{Snapshot, World};
+use model::world::{Snapshot, World};
 
 pub use crate::ROLE;
 

@@ -4,7 +4,7 @@
 use clap::Args;
 use tdoa::Dynamics;
 
-use crate::{EmitterModel, EstimatorConfig, EstimatorKind};
+use estimation::{EmitterModel, EstimatorConfig, EstimatorKind};
 use runtime::ProcessError;
 
 /// What `estimator --help` shows after the flags.

@@ -21,7 +21,7 @@ use protocol::{EchoedState, Estimate, Fix, Measurement, PosteriorExtra, StateEch
 use runtime::recovery::StateStore;
 use tdoa::{NoiseModel, Posterior, RangeDiffs};
 
-use crate::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig};
+use estimation::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig};
 
 /// The wire form of the fused posterior beyond the position.
 pub fn extra_of(posterior: Option<&Posterior>, rejected_run: u8) -> PosteriorExtra {
@@ -259,7 +259,7 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply
 }
 
 /// The wire form of the library estimator's output.
-pub fn reply_of(out: &crate::EstimateOut) -> Reply {
+pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
     let (position, covariance) = tdoa::estimate_to_arrays(&out.position, &out.covariance);
     let fix = match out.status {
         EstimateStatus::Ok => Fix::Ok { position, covariance },
@@ -282,7 +282,7 @@ mod tests {
     use tdoa::Dynamics;
 
     use super::*;
-    use crate::EstimatorKind;
+    use estimation::EstimatorKind;
 
     /// Noisy-free measurements of a fixed emitter by three UAVs flying east, one per step.
     fn measurement(step: u64) -> Measurement {

@@ -1,4 +1,4 @@
-//! The `estimator` process: receive a [`Measurement`] → [`crate::Estimator::estimate`] → publish an [`Estimate`].
+//! The `estimator` process: receive a [`Measurement`] → [`estimation::Estimator::estimate`] → publish an [`Estimate`].
 //!
 //! A handler on the node runtime ([`runtime::node`]: one event loop over the measurement and control
 //! topics in a `WaitSet`, optionally busy-polling for `--spin-us` first). It needs no scenario: the UAV
@@ -7,7 +7,7 @@
 //! forward ([`Estimate::from_measurement`]).
 //!
 //! - A step-0 measurement starts a new run (or the run replayed from its start): the estimator forgets its
-//!   prior (as `uavloc simulate` starts with a fresh [`crate::Estimator`]).
+//!   prior (as `uavloc simulate` starts with a fresh [`estimation::Estimator`]).
 //! - The estimate of step k goes on from the state after step k − 1, which the messages carry
 //!   ([`crate::chain`]): the estimator reads the command topic (without waking for it) for the states the
 //!   commands echo. A step whose predecessor's state it has not seen is held (`out_of_chain`) while it
@@ -30,7 +30,7 @@
 //!
 //! An estimator started with `--takeover` joins a running pipeline without a replay: it listens to the
 //! running estimator's estimates too, and the first usable one (ok or ambiguous, step k) *is* that
-//! estimator's state after step k ([`crate::Estimator::resume`]). It then announces [`ControlKind::TakeOver`]
+//! estimator's state after step k ([`estimation::Estimator::resume`]). It then announces [`ControlKind::TakeOver`]
 //! from step k + 1 (and prints `takeover {"from_step": k + 1}` when supervised); the running estimator
 //! estimates every step before k + 1 and exits (exit 0, `handed_over_at` in its summary); the new one
 //! estimates from k + 1 on — exactly what the old one would have. If the running estimator dies before
@@ -49,10 +49,10 @@ use protocol::{
 use runtime::recovery::{Ask, StateRequests};
 use runtime::{Flow, Handler, Join, Node, ProcessError};
 
-use crate::EstimatorConfig;
 use crate::args::EstimatorArgs;
 use crate::chain::{Answer, StepEstimator};
 use crate::summary::EstimatorSummary;
+use estimation::EstimatorConfig;
 
 /// How often an estimator started with --takeover looks whether the running estimator is still there.
 const LOOK_FOR_PREDECESSOR: std::time::Duration = std::time::Duration::from_millis(200);

@@ -12,14 +12,14 @@ use std::time::Duration;
 
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use model::Scenario;
-use monitor::RunRecord;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use rayon::prelude::*;
+use record::RunRecord;
 use tdoa::rng::{Purpose, derive_seed};
 
-use crate::closed_loop::run_closed_loop;
 use crate::stats::{Summary, summarize};
 use crate::{ExperimentError, Settings};
+use closed_loop::run_closed_loop;
 
 /// The per-step metric of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,7 +32,7 @@ pub enum Metric {
 
 impl Metric {
     /// The value of `step` of a run (NaN when not available).
-    fn of(self, s: &monitor::StepRecord) -> f64 {
+    fn of(self, s: &record::StepRecord) -> f64 {
         match self {
             Metric::Crlb => s.crlb_true_m.unwrap_or(f64::NAN),
             Metric::Rmse => s.rmse_m.unwrap_or(f64::NAN),

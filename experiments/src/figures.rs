@@ -4,9 +4,9 @@
 
 use std::path::Path;
 
-use monitor::RunRecord;
-use monitor::chart::{BarGroup, Series, plot_bars, plot_curves};
-use monitor::plot::{PlotError, plot_trajectories};
+use record::RunRecord;
+use record::chart::{BarGroup, Series, plot_bars, plot_curves};
+use record::plot::{PlotError, plot_trajectories};
 
 use crate::stats::Summary;
 

@@ -15,8 +15,8 @@
 //! mean NEES per step against its two-sided 95 % χ² band.
 
 use model::Scenario;
-use monitor::RunRecord;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
+use record::RunRecord;
 use serde_json::{Value, json};
 use tdoa::dist::mean_chi2_band;
 use tdoa::fusion::EstimatorKind;
@@ -109,7 +109,7 @@ impl Consistency {
     }
 }
 
-fn per_step(runs: &[RunRecord], f: impl Fn(&monitor::StepRecord) -> Option<f64>) -> Vec<f64> {
+fn per_step(runs: &[RunRecord], f: impl Fn(&record::StepRecord) -> Option<f64>) -> Vec<f64> {
     let steps = runs.iter().map(|r| r.steps.len()).min().unwrap_or(0);
     (0..steps)
         .map(|k| {

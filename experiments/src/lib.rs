@@ -2,7 +2,7 @@
 //!
 //! Every table and figure of the paper's numerical results (Sensors 2026, 26, 5393, Tables 2–10,
 //! Figures 4–17) as a function of a few [`Settings`] (M outer runs, R inner resamples, K MC samples,
-//! the seed), over the same in-process closed loop as `uavloc simulate` ([`closed_loop`]). No IPC.
+//! the seed), over the same in-process closed loop as `uavloc simulate` (crate `uavloc-closed-loop`). No IPC.
 //!
 //! Each experiment returns an [`ExperimentReport`]: the settings it used (stated by the paper or our
 //! documented choice), one JSON row per method with the paper's columns as snake_case keys with units,
@@ -14,7 +14,6 @@
 //! Outer runs are parallel ([`batch`]) and reproducible for a seed regardless of the thread count.
 
 pub mod batch;
-pub mod closed_loop;
 pub mod figures;
 pub mod fixed_geometry;
 pub mod fusion;

@@ -3,7 +3,7 @@
 //! paired difference of each objective to single-point.
 
 use model::Scenario;
-use planner::SolverKind;
+use planning::SolverKind;
 use serde_json::json;
 
 use crate::batch::Engine;

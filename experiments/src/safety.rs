@@ -18,21 +18,21 @@
 
 use model::Scenario;
 use model::safety::SafetyMode;
-use monitor::RunRecord;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use record::RunRecord;
 use serde_json::{Value, json};
 use tdoa::fusion::EstimatorKind;
 use tdoa::rng::{Purpose, derive_seed};
 
 use crate::batch::Engine;
-use crate::closed_loop::run_closed_loop;
 use crate::figures::{Figure, line_series};
 use crate::grid::{Grid, cell};
 use crate::stats::median;
 use crate::{ExperimentError, ExperimentReport, settings_json};
+use closed_loop::run_closed_loop;
 
 /// Steps of every run.
 pub const STEPS: usize = 120;

@@ -15,12 +15,12 @@
 
 use model::Scenario;
 use model::scenario::TargetMode;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use serde_json::json;
 use tdoa::global::McScheme;
 
 use crate::batch::Engine;
-use monitor::chart::BarGroup;
+use record::chart::BarGroup;
 
 use crate::figures::Figure;
 use crate::grid::{Grid, cell};

@@ -5,7 +5,7 @@
 //! of the emitter's bearings, and a moderate asymmetric perturbation of the nominal one.
 
 use model::Scenario;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::{Sensors, crlb};
 

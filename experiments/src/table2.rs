@@ -3,7 +3,7 @@
 //! **paired** difference of every method to single-point planning (same run seeds) with its CI95.
 
 use model::Scenario;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 
 use crate::batch::{Batch, Engine, Metric};

@@ -10,7 +10,7 @@
 
 use model::Scenario;
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::global::{MonteCarlo, global_crlb};
 use tdoa::rng::{Purpose, derive_seed};
@@ -39,7 +39,7 @@ pub fn abs_stats(d: &[f64]) -> [f64; 3] {
 /// The uncertainty the planner used at `step` of `run` (chan mode): ẑ and M of the step's estimate,
 /// the eq. 36 side from the mean distance of the step's UAVs to ẑ — with M scaled by `scale²` (and
 /// the side following σ_t = scale·sqrt(λ_max M)); `scale` = 1 is exactly the planner's.
-pub fn planner_uncertainty(sc: &Scenario, run: &monitor::RunRecord, step: usize, scale: f64) -> Option<Uncertainty> {
+pub fn planner_uncertainty(sc: &Scenario, run: &record::RunRecord, step: usize, scale: f64) -> Option<Uncertainty> {
     let s = &run.steps[step];
     let z = Vector2::new(s.estimate[0], s.estimate[1]);
     let c = s.estimate_cov;

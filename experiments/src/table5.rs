@@ -7,7 +7,7 @@
 //! per geometry, evaluations timed in a loop).
 
 use model::Scenario;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::global::{MonteCarlo, global_crlb};
 use tdoa::rng::{Purpose, derive_seed};

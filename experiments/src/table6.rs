@@ -5,7 +5,7 @@
 
 use model::Scenario;
 use model::scenario::TargetMode;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 
 use crate::batch::{Engine, Metric};

@@ -5,17 +5,17 @@
 //! max over steps), in seconds.
 
 use model::Scenario;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::rng::{Purpose, derive_seed};
 use tdoa::{Sensors, crlb};
 
 use crate::batch::Engine;
-use crate::closed_loop::run_closed_loop;
 use crate::figures::{Figure, value_group};
 use crate::grid::{Grid, cell};
 use crate::stats::{median, median_seconds_per_call};
 use crate::{ExperimentError, ExperimentReport, paper, settings_json};
+use closed_loop::run_closed_loop;
 
 /// Runs timed per method.
 pub const TIMING_RUNS: usize = 5;

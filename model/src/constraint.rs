@@ -1,5 +1,5 @@
 //! The four motion constraints by name, and one active (violated or binding) instance of a plan: what
-//! a plan reports and a command carries ([`crate::active_mask`]). The checks are in `uavloc-planner`.
+//! a plan reports and a command carries ([`crate::active_mask`]). The checks are in `uavloc-planning`.
 
 use std::fmt;
 

@@ -10,7 +10,8 @@
 //! - [`constraint`]: the four motion constraints by name and one active instance;
 //! - [`active_mask`]: the active constraints as the wire bitmask of a `protocol::Command`;
 //! - [`arc`]: the arc a UAV flies over one interval and certified minimum distances along it;
-//! - [`safety`]: the safety certificate of a plan (spacing and standoff along the arcs, a backup for ever).
+//! - [`safety`]: the safety certificate of a plan (spacing and standoff along the arcs, a backup for ever);
+//! - [`world`]: the simulated world of a run (the truth, its noisy TDOA, the UAVs flown).
 //!
 //! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
 
@@ -21,6 +22,7 @@ pub mod kinematics;
 pub mod safety;
 pub mod scenario;
 pub mod solver_config;
+pub mod world;
 
 pub use constraint::{ActiveConstraint, ConstraintKind};
 pub use kinematics::{bearing, next_position, turn_angle, turn_radius, wrap_angle};

@@ -180,7 +180,7 @@ pub struct Scenario {
     pub emitter_velocity: [f64; 2],
     /// Confidence c of the standoff chance constraint `P(|w − z| < L_min) ≤ 1 − c` under N(ẑ, M), in
     /// [0, 1) — our choice 0.99; 0 is the paper's constraint `|w − ẑ| ≥ L_min` (see
-    /// `planner::constraints`).
+    /// `planning::constraints`).
     pub standoff_confidence: f64,
     /// How spacing and standoff are kept: `certified` (every plan certified along the flown arcs, with
     /// a backup manoeuvre for ever; see `model::safety`) or `waypoints` (the paper's constraints at the

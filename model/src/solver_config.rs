@@ -1,6 +1,6 @@
 //! The solvers' settings as the scenario carries them (`[pso]`, `[ga]`, `[aco]`, `[gradient]`, `[early_stop]`): plain
 //! data, so that every process can read a scenario without the planner. The solvers themselves are in
-//! `uavloc-planner`.
+//! `uavloc-planning`.
 
 /// PSO sizes (paper Table 1/3: 40 particles × 15 iterations) and the velocity clamp.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

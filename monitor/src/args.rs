@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 use runtime::ProcessError;
 
-use crate::record::RunRecord;
+use record::record::RunRecord;
 
 /// What `monitor --help` shows after the flags.
 pub const AFTER_HELP: &str = "\
@@ -70,7 +70,7 @@ impl MonitorArgs {
             ("--mcap", self.mcap.as_deref()),
             ("--record", self.record.as_deref()),
         ];
-        runtime::output::check_outputs(&files, ("--out", self.out.as_deref(), &crate::export::RUN_FILES))
+        runtime::output::check_outputs(&files, ("--out", self.out.as_deref(), &record::export::RUN_FILES))
             .map_err(ProcessError::Input)
     }
 
@@ -82,7 +82,7 @@ impl MonitorArgs {
                 .map_err(|e| ProcessError::failed_because(format!("--record {}", path.display()), e))?;
         }
         if let Some(dir) = &self.out {
-            crate::export::write_run(run, dir)
+            record::export::write_run(run, dir)
                 .map_err(|e| ProcessError::failed_because(format!("--out {}", dir.display()), e))?;
         }
         Ok(())

@@ -47,8 +47,8 @@ use nalgebra::Vector2;
 use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Measurement, Stamps, Truth};
 use tdoa::{NoiseModel, Sensors};
 
-use crate::metrics::{crlb_at, step_metrics};
-use crate::record::{PlannerRef, RunRecord, StepRecord, StepSafety};
+use record::metrics::{crlb_at, step_metrics};
+use record::record::{PlannerRef, RunRecord, StepRecord, StepSafety};
 
 /// The `active_constraints` entry of a step whose command was missed (see the module docs).
 pub const COMMAND_MISSED: &str = "command_missed";

@@ -34,7 +34,7 @@
 //! complete without one and the truth-based fields stay absent ([`crate::assemble`]); no replay is asked
 //! for (nobody could answer). A front end that leaves the measurement topic before the last step ends the
 //! run after [`FRONT_END_GRACE`] unless one comes back (exit code 3). With `--mcap FILE` every valid
-//! message is recorded ([`crate::recording`]).
+//! message is recorded ([`record::recording`]).
 //!
 //! It exits 0 after the last step, or 130 on SIGINT/SIGTERM or a [`ControlKind::Shutdown`] before it
 //! (writing the partial record).
@@ -54,13 +54,13 @@ use serde_json::json;
 
 use crate::args::MonitorArgs;
 use crate::front_end::{FRONT_END_GRACE, FrontEnd, FrontEndWatch};
-use crate::record::RunRecord;
-use crate::recording::{Recordable, Recorder};
 use crate::runlog::EventLog;
 use crate::runlog::{read_log, resume};
 use crate::session::Session;
 use crate::stamps::StampsCsv;
 use crate::summary::MonitorSummary;
+use record::record::RunRecord;
+use record::recording::{Recordable, Recorder};
 
 pub use crate::ROLE;
 
@@ -273,7 +273,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let stamps = args.stamps.as_deref().map(|p| StampsCsv::create(p, resumed)).transpose()?;
     let recorder = match &args.mcap {
         Some(path) => {
-            let metadata = crate::recording::run_metadata(&scenario, domain.as_str(), args.source.name());
+            let metadata = record::recording::run_metadata(&scenario, domain.as_str(), args.source.name());
             Some(Recorder::create(path, metadata, resumed.is_some()).map_err(ProcessError::Failed)?)
         }
         None => None,
@@ -348,7 +348,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
             )));
         }
     }
-    crate::metrics::annotate(&mut run);
+    record::metrics::annotate(&mut run);
     let mut summary = MonitorSummary {
         complete: session.assembler.is_done(),
         steps: run.steps.len() as u64,

@@ -31,8 +31,8 @@ use protocol::{StateEcho, now_ns};
 use serde_json::json;
 
 use crate::assemble::Assembler;
-use crate::record::StepRecord;
 use model::Scenario;
+use record::record::StepRecord;
 use runtime::ProcessError;
 use runtime::recovery::StateStore;
 
@@ -302,7 +302,7 @@ pub(crate) mod tests {
         let (dir, path) = scratch_log("read-log");
         let mut log = EventLog::open(Some(&path), false).unwrap();
         for (k, crlb) in [(0u64, 10.0), (1, f64::INFINITY), (2, 11.0)] {
-            let record = crate::record::tests::record(k, crlb);
+            let record = record::StepRecord { step: k, crlb_true_m: Some(crlb), ..Default::default() };
             log.write("step", json!({"step": k, "record": record}));
         }
         log.flush();
@@ -326,7 +326,7 @@ pub(crate) mod tests {
         };
         let empty = StateEcho { step: 1, kind: StateEcho::EMPTY, ..StateEcho::default() };
         for (k, e) in [(0u64, Some(echo(0))), (1, Some(empty)), (2, None), (3, Some(echo(3)))] {
-            let record = crate::record::tests::record(k, 10.0);
+            let record = record::StepRecord { step: k, crlb_true_m: Some(10.0), ..Default::default() };
             log.write("step", json!({"step": k, "record": record, "state": e.map(|e| state_to_hex(&e))}));
         }
         log.flush();

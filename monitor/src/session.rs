@@ -14,12 +14,12 @@ use serde_json::json;
 
 use crate::assemble::{Assembler, CompletedStep, PlannerInfo};
 use crate::latency::LatencySamples;
-use crate::record::StepRecord;
-use crate::recording::{Recordable, Recorder};
 use crate::runlog::EventLog;
 use crate::stamps::StampsCsv;
 use crate::status::status_line;
 use crate::summary::MonitorSummary;
+use record::record::StepRecord;
+use record::recording::{Recordable, Recorder};
 
 /// The monitor gives the CPU away between two steps it records while fewer than this many steps are
 /// waiting behind them; further behind (a CPU hog beside it takes whole time slices for each yield) it

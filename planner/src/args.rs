@@ -3,9 +3,9 @@
 
 use clap::Args;
 
-use crate::objective::ObjectiveKind;
-use crate::solver::SolverKind;
 use model::scenario::{Scenario, TargetMode};
+use planning::objective::ObjectiveKind;
+use planning::solver::SolverKind;
 
 /// What `planner --help` shows after the flags.
 pub const AFTER_HELP: &str = "\

@@ -56,10 +56,10 @@ use runtime::{Flow, Handler, Join, Node, ProcessError};
 
 use crate::args::{PlannerArgs, check_scenario};
 use crate::staleness::{self, Freshness, HoldTracker};
-use crate::step::{PlanRequest, plan_step};
 use crate::summary::PlannerSummary;
 use crate::wire;
 use model::scenario::Scenario;
+use planning::step::{PlanRequest, plan_step};
 
 pub use crate::ROLE;
 

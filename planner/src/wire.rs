@@ -3,11 +3,11 @@
 use nalgebra::Vector2;
 use protocol::{Command, Estimate, PlanInfo};
 
-use crate::objective::ObjectiveKind;
-use crate::solver::SolverKind;
-use crate::step::PlanOutput;
 use model::active_mask;
 use model::scenario::Scenario;
+use planning::objective::ObjectiveKind;
+use planning::solver::SolverKind;
+use planning::step::PlanOutput;
 
 /// The command of `plan`, planned from `estimate` (received at `received_ns`; the command carries its
 /// stamps on and echoes its state) by the planner `instance` with `solver` and `objective`.
@@ -37,8 +37,8 @@ pub fn safety_flags(plan: &PlanOutput) -> u32 {
 
 /// The emitter's estimated motion an estimate carries (a fused constant-velocity estimate), as
 /// `uavloc simulate` takes it from the estimator's posterior; `None` otherwise.
-pub fn motion_of(est: &Estimate) -> Option<crate::shield::EmitterMotion> {
-    (est.estimator == 1 && est.model == 1).then(|| crate::shield::EmitterMotion {
+pub fn motion_of(est: &Estimate) -> Option<planning::shield::EmitterMotion> {
+    (est.estimator == 1 && est.model == 1).then(|| planning::shield::EmitterMotion {
         velocity: Vector2::new(est.velocity[0], est.velocity[1]),
         velocity_cov: tdoa::estimate_from_arrays(&[0.0; 2], &est.velocity_cov).1,
     })

@@ -124,7 +124,7 @@ fn compare_measures_every_transport_and_wait_mode() {
         }
     }
     assert!(std::fs::read_to_string(dir.join("end_to_end.svg")).unwrap().contains("uds spin"));
-    let png = monitor::png::read(&dir.join("end_to_end.png")).unwrap();
+    let png = record::png::read(&dir.join("end_to_end.png")).unwrap();
     assert!(png.width > 100 && png.height > 100);
     let summary: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["runs"].as_array().unwrap().len(), 6);

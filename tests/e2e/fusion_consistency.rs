@@ -6,18 +6,18 @@
 use experiments::fusion::consistency;
 use experiments::{Engine, Settings};
 use model::Scenario;
-use planner::{ObjectiveKind, SolverKind};
+use planning::{ObjectiveKind, SolverKind};
 use tdoa::EmitterModel;
 use tdoa::fusion::EstimatorKind;
 
-fn batch(runs: usize, scenario: &Scenario) -> Vec<monitor::RunRecord> {
+fn batch(runs: usize, scenario: &Scenario) -> Vec<record::RunRecord> {
     let engine = Engine::new(Settings { runs, resamples: 1, ..Settings::default() });
     engine.batch("fusion test", scenario, ObjectiveKind::Analytical, SolverKind::Pso).unwrap().runs.clone()
 }
 
 /// The criteria on `runs` runs: RMSE within `ratio` × PCRLB at every step from step 5, mean NEES
 /// in the 95 % band at ≥ `nees_share` of those steps, terminal RMSE ≤ `terminal_max`.
-fn assert_consistent(label: &str, runs: &[monitor::RunRecord], ratio: (f64, f64), nees_share: f64, terminal_max: f64) {
+fn assert_consistent(label: &str, runs: &[record::RunRecord], ratio: (f64, f64), nees_share: f64, terminal_max: f64) {
     let c = consistency(runs);
     for (k, r) in c.ratio().iter().enumerate().skip(5) {
         assert!(
@@ -92,7 +92,7 @@ fn constant_velocity_model_tracks_a_moving_emitter_and_the_static_model_shows_it
 }
 
 /// Fraction of (UAV, step) pairs inside `L_min` of the TRUE emitter, and the deepest one (m inside).
-fn true_violations(runs: &[monitor::RunRecord]) -> (f64, f64) {
+fn true_violations(runs: &[record::RunRecord]) -> (f64, f64) {
     let pairs: u64 = runs.iter().map(|r| r.true_standoff_violations.unwrap()).sum();
     let total: usize = runs.iter().map(|r| r.steps.len() * r.scenario.uav_count()).sum();
     let l_min = runs[0].scenario.l_min;

@@ -228,7 +228,7 @@ fn out_writes_tables_and_figures() {
     for (fig, label) in [("table9-crlb-rmse", "3-node CRLB"), ("table9-ratio", "3 nodes")] {
         let svg = std::fs::read_to_string(dir.join(format!("{fig}.svg"))).unwrap();
         assert!(svg.contains("<svg") && svg.contains(label), "{fig}");
-        let png = monitor::png::read(&dir.join(format!("{fig}.png"))).unwrap();
+        let png = record::png::read(&dir.join(format!("{fig}.png"))).unwrap();
         assert!(png.width > 100 && png.height > 100);
     }
     let _ = std::fs::remove_dir_all(&dir);

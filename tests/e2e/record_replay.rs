@@ -68,7 +68,7 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
     let out = uavloc(&["simulate", "--steps", &steps, "--record", sim_file.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let fields = |file: &Path, topic: &str, keys: &[&str]| -> Vec<Value> {
-        let r = monitor::recording::read_recording(file).unwrap();
+        let r = record::recording::read_recording(file).unwrap();
         let mut seen = std::collections::BTreeMap::new();
         for m in r.messages.iter().filter(|m| m.topic == topic) {
             let picked: Vec<Value> = keys.iter().map(|k| m.json[*k].clone()).collect();
@@ -125,7 +125,7 @@ fn a_monitor_killed_mid_run_still_leaves_a_whole_recording() {
     kill(pid_of(&d, "monitor").expect("the monitor"), libc::SIGKILL);
     let run = launch.finish_json();
     assert_eq!(run["restarts"], 1);
-    let recording = monitor::recording::read_recording(&file).expect("a whole recording");
+    let recording = record::recording::read_recording(&file).expect("a whole recording");
     for topic in ["/measurement", "/estimate", "/truth"] {
         let mut seen: Vec<u64> =
             recording.messages.iter().filter(|m| m.topic == topic).map(|m| m.json["step"].as_u64().unwrap()).collect();
@@ -212,7 +212,7 @@ fn a_recording_of_a_swapped_estimator_replays_each_step_with_its_own_estimator()
 #[test]
 fn a_recording_with_a_step_missing_or_without_its_scenario_is_refused() {
     let _scenario = common::scenario(module_path!());
-    use monitor::recording::{Recorder, run_metadata};
+    use record::recording::{Recorder, run_metadata};
     let dir = scratch("record-gaps");
     let uavs = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
     let m =

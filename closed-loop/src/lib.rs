@@ -1,12 +1,15 @@
-//! The paper's closed loop in one process — emitter → Chan → planner → move — step by step, with the
-//! same library calls the processes make (emitter-sim's `World`, the estimator's `Estimator`, the
-//! planner's `plan_step`, the monitor's `step_metrics`), so a run through the processes reproduces it.
-//! `uavloc simulate` is one such run; every outer run of `uavloc paper` is another.
+//! # uavloc-closed-loop — the pipeline's closed loop in one process
+//!
+//! Emitter → estimator → planner → move, step by step, with the same library calls the processes make
+//! (the world's [`model::world::World`], the estimator's [`estimation::Estimator`], the planner's
+//! [`planning::plan_step`], the record's [`record::step_metrics`]), so a run through the processes
+//! reproduces it bit for bit. `uavloc simulate` is one such run; every outer run of `uavloc paper` is
+//! another. No IPC.
 
 use model::Scenario;
-use monitor::{RunRecord, StepRecord, crlb_at, step_metrics};
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+use record::{RunRecord, StepRecord, crlb_at, step_metrics};
 use thiserror::Error;
 
 /// Why a closed-loop run stopped: which stage of which step failed, and why.
@@ -41,9 +44,9 @@ pub struct StepTrace<'a> {
     /// The range noise σ per UAV, metres.
     pub sigmas: &'a [f64],
     /// The estimator's output for the step.
-    pub estimate: &'a estimator::EstimateOut,
+    pub estimate: &'a estimation::EstimateOut,
     /// The plan of the step (`None` on the last step).
-    pub plan: Option<&'a planner::PlanOutput>,
+    pub plan: Option<&'a planning::PlanOutput>,
 }
 
 /// The closed loop for `scenario` (its `steps` and `seed`), planning with `objective` × `solver`.
@@ -56,10 +59,10 @@ pub fn run_closed_loop(
     mut on_step: impl FnMut(&StepRecord, &StepTrace<'_>),
 ) -> Result<RunRecord, LoopError> {
     let failed = |stage: String, e: &dyn std::fmt::Display| LoopError { stage, message: e.to_string() };
-    let mut world = emitter_sim::World::from_scenario(scenario).map_err(|e| failed("world".into(), &e))?;
+    let mut world = model::world::World::from_scenario(scenario).map_err(|e| failed("world".into(), &e))?;
     let dynamics = scenario.dynamics().map_err(|e| failed("estimator".into(), &e))?;
     let mut estimator =
-        estimator::Estimator::with_config(estimator::EstimatorConfig::new(scenario.estimator, dynamics));
+        estimation::Estimator::with_config(estimation::EstimatorConfig::new(scenario.estimator, dynamics));
     let start = world.truth();
     let mut steps = Vec::with_capacity(scenario.steps + 1);
     for k in 0..=scenario.steps as u64 {
@@ -114,7 +117,7 @@ pub fn run_closed_loop(
                 solver,
                 run_seed: scenario.seed,
                 step: k,
-                motion: velocity.map(|(velocity, velocity_cov)| planner::EmitterMotion { velocity, velocity_cov }),
+                motion: velocity.map(|(velocity, velocity_cov)| planning::EmitterMotion { velocity, velocity_cov }),
             })
             .map_err(|e| failed(format!("step {k}: plan"), &e))?;
             world.apply(&plan.headings).map_err(|e| failed(format!("step {k}: move"), &e))?;
@@ -125,7 +128,7 @@ pub fn run_closed_loop(
             record.active_constraints = model::active_mask::labels(&plan.active_constraints, plan.headings.len());
             record.criterion_ess = plan.criterion_ess;
             record.safety =
-                plan.safety.map(|r| monitor::StepSafety { certified: Some(r.certified), ..Default::default() });
+                plan.safety.map(|r| record::StepSafety { certified: Some(r.certified), ..Default::default() });
             Some(plan)
         } else {
             None
@@ -149,7 +152,7 @@ pub fn run_closed_loop(
         scenario.estimator.name(),
         steps,
     );
-    monitor::annotate(&mut run);
+    record::annotate(&mut run);
     Ok(run)
 }
 
@@ -159,10 +162,10 @@ mod tests {
     /// on the analytical global CRLB ends with a smaller CRLB at the truth than the fixed formation.
     #[test]
     fn closed_loop_nominal_run() {
-        use emitter_sim::World;
-        use estimator::{EstimateStatus, Estimator};
+        use estimation::{EstimateStatus, Estimator};
         use model::Scenario;
-        use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+        use model::world::World;
+        use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
         let sc = Scenario::default();
         let run = |objective: ObjectiveKind| -> f64 {
             let mut w = World::from_scenario(&sc).unwrap();

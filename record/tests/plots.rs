@@ -1,5 +1,5 @@
 //! Plots and exports of a run record: files written, their shape and content, robustness to missing or
-//! non-finite values, empty records and bad paths; and the generic charts (`monitor::chart`: curves
+//! non-finite values, empty records and bad paths; and the generic charts (`record::chart`: curves
 //! with bands, grouped bars) — texts, element counts, colours, sizes, bad values, mismatched inputs.
 //!
 //! Set `UAVLOC_PLOT_CHECK_DIR=/some/dir` to keep a rendered set of figures for a visual check.
@@ -7,9 +7,9 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use monitor::export::RUN_FILES;
-use monitor::png::Raster;
-use monitor::{
+use record::export::RUN_FILES;
+use record::png::Raster;
+use record::{
     BarGroup, ExportError, Metric, PlotError, RunRecord, Series, StepRecord, plot_bars, plot_comparison, plot_curves,
     plot_metrics, plot_trajectories, write_run, write_steps_csv, write_trajectory_csv,
 };
@@ -139,7 +139,7 @@ fn check_png(path: &Path) -> Raster {
     let width = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
     let height = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
     assert_eq!((width, height), (WIDTH, HEIGHT), "{}", path.display());
-    let img = monitor::png::read(path).unwrap();
+    let img = record::png::read(path).unwrap();
     assert_eq!(img.dimensions(), (WIDTH, HEIGHT));
     let first = img.pixel(0, 0);
     assert!(img.pixels().any(|(_, _, p)| p != first), "{}: a single colour", path.display());
@@ -286,8 +286,8 @@ fn comparison_labels_each_run() {
     done(&dir);
 }
 
-fn step_safety(certified: bool) -> monitor::StepSafety {
-    monitor::StepSafety {
+fn step_safety(certified: bool) -> record::StepSafety {
+    record::StepSafety {
         certified: Some(certified),
         min_pair_m: Some(812.5),
         standoff_margin_m: Some(40.0),

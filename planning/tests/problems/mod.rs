@@ -3,7 +3,7 @@
 
 use model::Scenario;
 use nalgebra::{Matrix2, Vector2};
-use planner::{ObjectiveKind, PlanOutput, PlanRequest, SolverKind, plan_step};
+use planning::{ObjectiveKind, PlanOutput, PlanRequest, SolverKind, plan_step};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

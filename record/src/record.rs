@@ -7,7 +7,7 @@ use model::Scenario;
 use serde::{Deserialize, Serialize};
 
 /// One planning step. Step 0 is the initial geometry; the last step has no plan.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct StepRecord {
     /// Planning step index.
     pub step: u64,

@@ -8,7 +8,7 @@
 
 use model::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use nalgebra::Vector2;
-use planner::Constraints;
+use planning::Constraints;
 use proptest::prelude::*;
 
 fn constraints(speed: f64, dt: f64, r_min: f64, d_min: f64, l_min: f64, delta_alpha: f64) -> Constraints {
@@ -51,7 +51,7 @@ proptest! {
         let heading = alpha + delta + std::f64::consts::TAU * f64::from(k);
         let next = next_position(p, heading, heading, 50.0, 10.0);
         let report = c.check(&[p], &[heading], e, &[heading], &[next]);
-        let cone = report.active.iter().find(|a| a.kind == planner::ConstraintKind::HeadingCone);
+        let cone = report.active.iter().find(|a| a.kind == planning::ConstraintKind::HeadingCone);
         let off = wrap_angle(delta).abs();
         prop_assume!((off - delta_alpha).abs() > 1e-6);
         if off > delta_alpha {

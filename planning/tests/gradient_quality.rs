@@ -7,7 +7,7 @@
 mod problems;
 
 use model::Scenario;
-use planner::{Fitness, ObjectiveKind, SolverKind};
+use planning::{Fitness, ObjectiveKind, SolverKind};
 use problems::{PROBLEMS, plan};
 
 fn at_most(a: Fitness, b: Fitness) -> bool {

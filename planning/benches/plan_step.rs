@@ -1,12 +1,12 @@
 //! One planning step (PSO 40 particles × 15 iterations, early stop as configured) with each objective,
 //! 3 UAVs, at the paper's nominal start with ẑ = truth and M = F⁻¹(truth).
-//! Run: `cargo bench -p uavloc-planner --features criterion --bench plan_step`.
+//! Run: `cargo bench -p uavloc-planning --features criterion --bench plan_step`.
 
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, black_box, criterion_group, criterion_main};
 use model::Scenario;
-use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use tdoa::{Sensors, crlb};
 
 fn steps(c: &mut Criterion) {

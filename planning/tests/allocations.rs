@@ -5,7 +5,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use model::Scenario;
-use planner::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use tdoa::{Sensors, crlb};
 
 struct Counting;

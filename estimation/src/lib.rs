@@ -1,0 +1,608 @@
+//! # uavloc-estimation — the run's estimator: sequential fusion, or Chan per snapshot
+//!
+//! [`Estimator`] turns each step's TDOA snapshot into the estimate the planner and the user see. Two
+//! kinds ([`EstimatorKind`], scenario key `estimator`):
+//!
+//! - `fused` (default): the posterior of the emitter's state given **every** snapshot so far
+//!   ([`tdoa::fusion`]: an iterated EKF on the raw range differences, χ²-gated), started from Chan's fix
+//!   of the first snapshot that has one. When that fix is ambiguous (three UAVs, two physical roots, no
+//!   prior), both roots are carried to the next snapshot, fused into each, and the root with the smaller
+//!   innovation is kept (the first snapshots together decide; a process that takes over from the
+//!   published estimate in between continues with the root reported). A snapshot whose innovation
+//!   fails the gate is not fused and is reported as [`EstimateStatus::Rejected`] (the posterior is then the prediction). Emitter models
+//!   `static` and `constant_velocity` ([`tdoa::motion`]).
+//! - `snapshot` (the paper, Section 2, eqs. 10–30): Chan's fix of each snapshot alone; the previous
+//!   estimate is the prior that resolves the two-root ambiguity of the three-UAV case.
+//!
+//! When a step cannot be estimated the previous estimate is kept and reported as
+//! [`EstimateStatus::Failed`]. The output never holds a NaN.
+//!
+//! Pure functions over plain data, no IPC: the estimator process (crate `uavloc-estimator`) and the
+//! in-process closed loop (crate `uavloc-closed-loop`) both run an [`Estimator`].
+//!
+//! Units: metres (positions), m² (covariance), m/s (velocity).
+
+use nalgebra::{Matrix2, Vector2};
+use tdoa::fusion::{self, DEFAULT_GATE_PROBABILITY, Outcome, Posterior};
+use tdoa::{Dynamics, NoiseModel, RangeDiffs, Sensors, TdoaError, chan};
+use thiserror::Error;
+
+pub use tdoa::EmitterModel;
+pub use tdoa::fusion::EstimatorKind;
+
+/// The fused estimator restarts from Chan's fix of the current snapshot after this many snapshots
+/// rejected in a row by its χ² gate: the posterior has lost the emitter (a wrong root, a jump), and
+/// gating alone would keep it lost forever.
+pub const REJECTED_RUN_RESTART: u8 = 3;
+
+/// How an estimate came about.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EstimateStatus {
+    /// Chan gave a unique solution (or the prior resolved the ambiguity); fused: the snapshot was fused.
+    Ok,
+    /// Two physically valid solutions and no prior to choose: `position` is the first candidate.
+    Ambiguous,
+    /// Fused only: the snapshot failed the χ² gate and was not fused; the estimate is the prediction.
+    Rejected {
+        /// The snapshot's normalised innovation squared.
+        nis: f64,
+        /// The gate it exceeded, `χ²_{N−1}(p_gate)`.
+        threshold: f64,
+    },
+    /// The step could not be estimated; `position` and `covariance` are the previous estimate.
+    Failed {
+        /// Why.
+        reason: String,
+    },
+}
+
+impl EstimateStatus {
+    /// `ok`, `ambiguous`, `rejected` or `failed`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            EstimateStatus::Ok => "ok",
+            EstimateStatus::Ambiguous => "ambiguous",
+            EstimateStatus::Rejected { .. } => "rejected",
+            EstimateStatus::Failed { .. } => "failed",
+        }
+    }
+}
+
+/// One estimate of the emitter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimateOut {
+    /// ẑ, metres.
+    pub position: Vector2<f64>,
+    /// Its covariance M, m² (snapshot: Chan's first-order covariance, `F⁻¹(ẑ)` for three UAVs; fused:
+    /// the posterior's position block).
+    pub covariance: Matrix2<f64>,
+    /// How it came about.
+    pub status: EstimateStatus,
+    /// The physically valid solutions of this step's Chan solve (two when ambiguous or resolved by the
+    /// prior; empty when Chan was not run or failed).
+    pub candidates: Vec<Vector2<f64>>,
+    /// Fused: the whole posterior after this step (velocity and cross-covariances included).
+    pub posterior: Option<Posterior>,
+    /// Fused: the snapshot's normalised innovation squared at the prediction (`None` for a Chan fix).
+    pub nis: Option<f64>,
+    /// Fused: snapshots rejected in a row up to this one (0 after a fused one or a restart).
+    pub rejected_run: u8,
+}
+
+/// Why no estimate at all could be given.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum EstimatorError {
+    /// The step failed and there is no previous estimate to fall back on.
+    #[error("no estimate: {0} (and no previous estimate to keep)")]
+    NoEstimate(#[source] TdoaError),
+}
+
+/// What an [`Estimator`] is: its kind, the motion model and the gate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatorConfig {
+    /// Fused or snapshot.
+    pub kind: EstimatorKind,
+    /// The emitter's motion model (fused only).
+    pub dynamics: Dynamics,
+    /// The χ² gate `χ²_m(p_gate)` (fused only) for m range differences, index m, with the default
+    /// [`DEFAULT_GATE_PROBABILITY`]: computed once here, because the quantile is an iterative inversion
+    /// (≈ 1.4 µs) and every fused snapshot needs its gate.
+    gates: [f64; tdoa::MAX_UAVS],
+}
+
+impl EstimatorConfig {
+    /// The paper's per-step Chan.
+    pub fn snapshot() -> Self {
+        Self::new(EstimatorKind::Snapshot, Dynamics::fixed())
+    }
+
+    /// Fusion under `dynamics` with the default gate.
+    pub fn fused(dynamics: Dynamics) -> Self {
+        Self::new(EstimatorKind::Fused, dynamics)
+    }
+
+    /// `kind` under `dynamics` with the default gate.
+    pub fn new(kind: EstimatorKind, dynamics: Dynamics) -> Self {
+        let mut gates = [f64::INFINITY; tdoa::MAX_UAVS];
+        for (m, gate) in gates.iter_mut().enumerate().skip(1) {
+            *gate = fusion::gate_threshold(m, DEFAULT_GATE_PROBABILITY);
+        }
+        Self { kind, dynamics, gates }
+    }
+
+    /// The gate of a snapshot of `m` range differences (`+∞`, no gate, outside 1..MAX_UAVS).
+    pub fn gate(&self, m: usize) -> f64 {
+        self.gates.get(m).copied().unwrap_or(f64::INFINITY)
+    }
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        Self::fused(Dynamics::fixed())
+    }
+}
+
+/// The estimator of one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Estimator {
+    config: EstimatorConfig,
+    prior: Option<Vector2<f64>>,
+    previous: Option<(Vector2<f64>, Matrix2<f64>)>,
+    posterior: Option<Posterior>,
+    /// Fused, after an ambiguous start: the posterior of Chan's other root, until the next snapshot
+    /// decides between the two.
+    alternative: Option<Posterior>,
+    /// Fused: snapshots rejected in a row.
+    rejected_run: u8,
+    last_step: Option<u64>,
+}
+
+impl Default for Estimator {
+    fn default() -> Self {
+        Self::snapshot()
+    }
+}
+
+impl Estimator {
+    /// A fresh estimator of `config`.
+    pub fn with_config(config: EstimatorConfig) -> Self {
+        Self {
+            config,
+            prior: None,
+            previous: None,
+            posterior: None,
+            alternative: None,
+            rejected_run: 0,
+            last_step: None,
+        }
+    }
+
+    /// A fresh snapshot (paper) estimator with no prior: the first three-UAV solve may be ambiguous.
+    pub fn snapshot() -> Self {
+        Self::with_config(EstimatorConfig::snapshot())
+    }
+
+    /// A fresh snapshot estimator (the paper's; kept name).
+    pub fn new() -> Self {
+        Self::snapshot()
+    }
+
+    /// A snapshot estimator whose first solve uses `prior` (metres) to resolve the three-UAV ambiguity.
+    pub fn with_prior(prior: Vector2<f64>) -> Self {
+        let mut e = Self::snapshot();
+        e.prior = prior.iter().all(|v| v.is_finite()).then_some(prior);
+        e
+    }
+
+    /// An estimator of `config` that continues after its estimate of step `step` (e.g. one taking over
+    /// from another process, or rebuilt from a published estimate): position, covariance and, fused,
+    /// the whole posterior. The same state as the estimator that produced them.
+    pub fn resume(
+        config: EstimatorConfig,
+        step: u64,
+        position: Vector2<f64>,
+        covariance: Matrix2<f64>,
+        posterior: Option<Posterior>,
+    ) -> Self {
+        let posterior = if config.kind == EstimatorKind::Fused { posterior } else { None };
+        Self {
+            config,
+            prior: None,
+            previous: Some((position, covariance)),
+            posterior,
+            alternative: None,
+            rejected_run: 0,
+            last_step: Some(step),
+        }
+    }
+
+    /// This estimator with `n` snapshots rejected in a row behind it (the state of an estimate's
+    /// `rejected_run`).
+    pub fn with_rejected_run(mut self, n: u8) -> Self {
+        self.rejected_run = n;
+        self
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &EstimatorConfig {
+        &self.config
+    }
+
+    /// The prior of the next Chan solve: the previous estimate, else the initial prior.
+    pub fn prior(&self) -> Option<Vector2<f64>> {
+        self.previous.map(|(p, _)| p).or(self.prior)
+    }
+
+    /// The previous estimate and its covariance.
+    pub fn previous(&self) -> Option<(Vector2<f64>, Matrix2<f64>)> {
+        self.previous
+    }
+
+    /// Fused: the posterior after the last step.
+    pub fn posterior(&self) -> Option<Posterior> {
+        self.posterior
+    }
+
+    /// Fused: snapshots rejected in a row.
+    pub fn rejected_run(&self) -> u8 {
+        self.rejected_run
+    }
+
+    /// The last step estimated.
+    pub fn last_step(&self) -> Option<u64> {
+        self.last_step
+    }
+
+    /// Estimates the emitter at `step` from range differences `d` (`d_i = r_i − r_0`, metres) measured
+    /// by UAVs at `uavs` (metres, index 0 the reference) with range noise `noise`. Steps are snapshot
+    /// intervals: the constant-velocity model predicts over `step − last step` of them.
+    ///
+    /// On failure the previous estimate is returned with [`EstimateStatus::Failed`]; only when there is
+    /// none is the result an error.
+    pub fn estimate(
+        &mut self,
+        step: u64,
+        uavs: &[Vector2<f64>],
+        d: &RangeDiffs,
+        noise: &NoiseModel,
+    ) -> Result<EstimateOut, EstimatorError> {
+        let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
+        let dynamics = self.config.dynamics;
+        let result = match (self.config.kind, self.posterior, self.alternative.take()) {
+            (EstimatorKind::Fused, Some(post), Some(other)) => {
+                self.resolve(&post.predict(&dynamics, elapsed), &other.predict(&dynamics, elapsed), uavs, d, noise)
+            }
+            (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), uavs, d, noise),
+            _ => self.solve(uavs, d, noise).map(|(out, other)| {
+                self.alternative = other;
+                out
+            }),
+        };
+        self.last_step = Some(step);
+        // Too many rejections in a row: the posterior has lost the emitter; start again from Chan (its
+        // ambiguity resolved by the lost posterior's position, then by the next snapshot as at the start).
+        let result = match result {
+            Ok(out) if matches!(out.status, EstimateStatus::Rejected { .. }) => {
+                self.rejected_run = self.rejected_run.saturating_add(1);
+                if self.rejected_run >= REJECTED_RUN_RESTART {
+                    self.prior = Some(out.position);
+                    self.previous = None;
+                    match self.solve(uavs, d, noise) {
+                        Ok((fresh, other)) => {
+                            self.alternative = other;
+                            self.rejected_run = 0;
+                            Ok(fresh)
+                        }
+                        Err(_) => Ok(out),
+                    }
+                } else {
+                    Ok(out)
+                }
+            }
+            Ok(out) if out.posterior.is_some() => {
+                self.rejected_run = 0;
+                Ok(out)
+            }
+            other => other,
+        }
+        .map(|mut out| {
+            out.rejected_run = self.rejected_run;
+            out
+        });
+        match result {
+            Ok(out) => {
+                self.previous = Some((out.position, out.covariance));
+                if out.posterior.is_some() {
+                    self.posterior = out.posterior;
+                }
+                Ok(out)
+            }
+            Err(e) => {
+                // Fused: the state moves on as predicted (unchanged for a static emitter).
+                if let Some(post) = self.posterior {
+                    self.posterior = Some(post.predict(&self.config.dynamics, elapsed));
+                }
+                match self.previous {
+                    Some((position, covariance)) => Ok(EstimateOut {
+                        position,
+                        covariance,
+                        status: EstimateStatus::Failed { reason: e.to_string() },
+                        candidates: Vec::new(),
+                        posterior: None,
+                        nis: None,
+                        rejected_run: self.rejected_run,
+                    }),
+                    None => Err(EstimatorError::NoEstimate(e)),
+                }
+            }
+        }
+    }
+
+    fn sensors(uavs: &[Vector2<f64>], noise: &NoiseModel) -> Result<Sensors, TdoaError> {
+        let pts: Vec<[f64; 2]> = uavs.iter().map(|p| [p.x, p.y]).collect();
+        Sensors::new(&pts, noise.clone())
+    }
+
+    fn fuse(
+        &self,
+        predicted: &Posterior,
+        uavs: &[Vector2<f64>],
+        d: &RangeDiffs,
+        noise: &NoiseModel,
+    ) -> Result<EstimateOut, TdoaError> {
+        let sensors = Self::sensors(uavs, noise)?;
+        let gate = self.config.gate(sensors.len() - 1);
+        let up = fusion::fuse(predicted, &sensors, d, gate)?;
+        let (status, nis) = match up.outcome {
+            Outcome::Fused { nis, .. } => (EstimateStatus::Ok, nis),
+            Outcome::Rejected { nis, threshold } => (EstimateStatus::Rejected { nis, threshold }, nis),
+        };
+        let post = up.posterior;
+        Ok(EstimateOut {
+            position: post.position(),
+            covariance: post.position_cov(),
+            status,
+            candidates: Vec::new(),
+            posterior: Some(post),
+            nis: Some(nis),
+            rejected_run: 0,
+        })
+    }
+
+    /// After an ambiguous start: fuses the snapshot into both roots' posteriors and keeps the one whose
+    /// innovation is smaller (the likelier root given both snapshots). The status is that of the
+    /// update of the root kept.
+    fn resolve(
+        &self,
+        first: &Posterior,
+        other: &Posterior,
+        uavs: &[Vector2<f64>],
+        d: &RangeDiffs,
+        noise: &NoiseModel,
+    ) -> Result<EstimateOut, TdoaError> {
+        let nis = |o: &EstimateOut| match o.status {
+            EstimateStatus::Rejected { nis, .. } => nis,
+            _ => o.nis.unwrap_or(f64::INFINITY),
+        };
+        match (self.fuse(first, uavs, d, noise), self.fuse(other, uavs, d, noise)) {
+            (Ok(a), Ok(b)) => Ok(if nis(&b) < nis(&a) { b } else { a }),
+            (Ok(a), Err(_)) => Ok(a),
+            (Err(_), Ok(b)) => Ok(b),
+            (Err(e), Err(_)) => Err(e),
+        }
+    }
+
+    /// Chan's fix; fused and ambiguous, also the posterior of the other root.
+    fn solve(
+        &self,
+        uavs: &[Vector2<f64>],
+        d: &RangeDiffs,
+        noise: &NoiseModel,
+    ) -> Result<(EstimateOut, Option<Posterior>), TdoaError> {
+        let sensors = Self::sensors(uavs, noise)?;
+        let sol = chan(&sensors, d, self.prior())?;
+        let finite = sol.position.iter().chain(sol.covariance.iter()).all(|v| v.is_finite());
+        if !finite {
+            return Err(TdoaError::Degenerate("Chan returned a non-finite estimate or covariance".into()));
+        }
+        let status = if sol.ambiguous { EstimateStatus::Ambiguous } else { EstimateStatus::Ok };
+        let (posterior, other) = match self.config.kind {
+            EstimatorKind::Fused => {
+                let other = match (sol.ambiguous, sol.candidates.as_slice()) {
+                    (true, [_, second]) => tdoa::crlb(&sensors, second).ok().and_then(|c| {
+                        let alt = tdoa::ChanSolution { position: *second, covariance: c.bound, ..sol.clone() };
+                        Posterior::from_chan(&alt, &self.config.dynamics).ok()
+                    }),
+                    _ => None,
+                };
+                (Some(Posterior::from_chan(&sol, &self.config.dynamics)?), other)
+            }
+            EstimatorKind::Snapshot => (None, None),
+        };
+        let out = EstimateOut {
+            position: sol.position,
+            covariance: sol.covariance,
+            status,
+            candidates: sol.candidates,
+            posterior,
+            nis: None,
+            rejected_run: 0,
+        };
+        Ok((out, other))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noise(n: usize) -> NoiseModel {
+        NoiseModel::uniform(n, 28.7712).unwrap()
+    }
+
+    fn diffs(uavs: &[Vector2<f64>], z: Vector2<f64>) -> RangeDiffs {
+        let r: Vec<f64> = uavs.iter().map(|w| (z - w).norm()).collect();
+        RangeDiffs::from_slice(&r[1..].iter().map(|ri| ri - r[0]).collect::<Vec<_>>()).unwrap()
+    }
+
+    fn nominal() -> Vec<Vector2<f64>> {
+        vec![Vector2::new(1500.0, 500.0), Vector2::new(10000.0, 1500.0), Vector2::new(5000.0, 8500.0)]
+    }
+
+    #[test]
+    fn noise_free_three_and_four_uavs() {
+        let z = Vector2::new(25000.0, 15000.0);
+        let uavs = nominal();
+        let mut est = Estimator::with_prior(Vector2::new(20000.0, 20000.0));
+        let out = est.estimate(0, &uavs, &diffs(&uavs, z), &noise(3)).unwrap();
+        assert!((out.position - z).norm() < 1e-6, "{}", (out.position - z).norm());
+        assert_eq!(out.status, EstimateStatus::Ok);
+        assert!(out.covariance.iter().all(|v| v.is_finite()));
+        let mut uavs4 = uavs.clone();
+        uavs4.push(Vector2::new(0.0, 9000.0));
+        let out = Estimator::new().estimate(0, &uavs4, &diffs(&uavs4, z), &noise(4)).unwrap();
+        assert!((out.position - z).norm() < 1e-6, "{}", (out.position - z).norm());
+        assert_eq!(out.status, EstimateStatus::Ok);
+    }
+
+    /// A noise-free 3-UAV case where both roots are physical.
+    fn ambiguous_case() -> (Vec<Vector2<f64>>, Vector2<f64>, Vector2<f64>) {
+        let uavs = vec![Vector2::new(0.0, 0.0), Vector2::new(4000.0, 0.0), Vector2::new(0.0, 4000.0)];
+        let sensors = Sensors::new(&[[0.0, 0.0], [4000.0, 0.0], [0.0, 4000.0]], noise(3)).unwrap();
+        for i in -20..=20 {
+            for j in -20..=20 {
+                let z = Vector2::new(1000.0 * i as f64 + 137.0, 1000.0 * j as f64 + 71.0);
+                if let Ok(sol) = chan(&sensors, &diffs(&uavs, z), None)
+                    && sol.ambiguous
+                    && sol.candidates.len() == 2
+                {
+                    let other =
+                        if (sol.candidates[0] - z).norm() < 1e-3 { sol.candidates[1] } else { sol.candidates[0] };
+                    if (other - z).norm() > 1000.0 {
+                        return (uavs, z, other);
+                    }
+                }
+            }
+        }
+        panic!("no ambiguous geometry found");
+    }
+
+    #[test]
+    fn prior_resolves_the_three_uav_ambiguity() {
+        let (uavs, z, other) = ambiguous_case();
+        let d = diffs(&uavs, z);
+        // No prior: ambiguous, both roots offered.
+        let out = Estimator::new().estimate(0, &uavs, &d, &noise(3)).unwrap();
+        assert_eq!(out.status, EstimateStatus::Ambiguous);
+        assert_eq!(out.candidates.len(), 2);
+        assert!(out.candidates.iter().any(|c| (c - z).norm() < 1e-6));
+        // A prior near the truth picks the truth; one near the other root picks that root.
+        let near = |p: Vector2<f64>| p + Vector2::new(150.0, -90.0);
+        let out = Estimator::with_prior(near(z)).estimate(0, &uavs, &d, &noise(3)).unwrap();
+        assert_eq!(out.status, EstimateStatus::Ok);
+        assert!((out.position - z).norm() < 1e-6);
+        let out = Estimator::with_prior(near(other)).estimate(0, &uavs, &d, &noise(3)).unwrap();
+        assert!((out.position - other).norm() < 1e-6);
+        // The previous estimate is the prior of the next solve.
+        let mut est = Estimator::with_prior(near(z));
+        est.estimate(0, &uavs, &d, &noise(3)).unwrap();
+        let again = est.estimate(0, &uavs, &d, &noise(3)).unwrap();
+        assert_eq!(again.status, EstimateStatus::Ok);
+        assert!((again.position - z).norm() < 1e-6);
+    }
+
+    #[test]
+    fn fused_start_resolves_the_ambiguity_with_the_next_snapshot() {
+        let (uavs, z, other) = ambiguous_case();
+        let d = diffs(&uavs, z);
+        // A second geometry, noise-free: it agrees with the truth, not with the other root.
+        let moved: Vec<Vector2<f64>> = uavs.iter().map(|p| p + Vector2::new(500.0, 300.0)).collect();
+        let d2 = diffs(&moved, z);
+        let mut est = Estimator::with_config(EstimatorConfig::fused(Dynamics::fixed()));
+        let first = est.estimate(0, &uavs, &d, &noise(3)).unwrap();
+        assert_eq!(first.status, EstimateStatus::Ambiguous);
+        assert!(est.alternative.is_some());
+        let second = est.estimate(1, &moved, &d2, &noise(3)).unwrap();
+        assert!((second.position - z).norm() < 1e-3, "picked {:?}, truth {z:?}, other {other:?}", second.position);
+        assert_eq!(second.status, EstimateStatus::Ok);
+        assert!(est.alternative.is_none());
+    }
+
+    #[test]
+    fn a_lost_posterior_restarts_from_chan_after_three_rejections() {
+        // A posterior 5 km off with a tight covariance (e.g. a jump of the emitter): noise-free snapshots
+        // of the truth are rejected twice, the third rejection in a row restarts from Chan (4 UAVs: unique).
+        let z = Vector2::new(25000.0, 15000.0);
+        let mut uavs = nominal();
+        uavs.push(Vector2::new(0.0, 9000.0));
+        let wrong = z + Vector2::new(5000.0, -3000.0);
+        let post = tdoa::Posterior::new(
+            EmitterModel::Static,
+            nalgebra::Vector4::new(wrong.x, wrong.y, 0.0, 0.0),
+            nalgebra::Matrix4::identity() * 100.0,
+        )
+        .unwrap();
+        let mut est = Estimator::resume(
+            EstimatorConfig::fused(Dynamics::fixed()),
+            0,
+            wrong,
+            Matrix2::identity() * 100.0,
+            Some(post),
+        );
+        let d = diffs(&uavs, z);
+        for k in 1..=2u8 {
+            let out = est.estimate(u64::from(k), &uavs, &d, &noise(4)).unwrap();
+            assert!(matches!(out.status, EstimateStatus::Rejected { .. }), "{:?}", out.status);
+            assert_eq!(out.rejected_run, k);
+            assert_eq!(out.position, wrong, "a rejected snapshot leaves the posterior");
+        }
+        let restart = est.estimate(3, &uavs, &d, &noise(4)).unwrap();
+        assert_eq!(restart.status, EstimateStatus::Ok);
+        assert_eq!(restart.rejected_run, 0);
+        assert!((restart.position - z).norm() < 1e-6);
+        // And it fuses from there.
+        let next = est.estimate(4, &uavs, &d, &noise(4)).unwrap();
+        assert_eq!((next.status, next.rejected_run), (EstimateStatus::Ok, 0));
+        assert!((next.position - z).norm() < 1e-6);
+        // The count rides the state: an estimator resumed with 2 rejections behind it restarts at the next.
+        let mut resumed = Estimator::resume(
+            EstimatorConfig::fused(Dynamics::fixed()),
+            0,
+            wrong,
+            Matrix2::identity() * 100.0,
+            Some(post),
+        )
+        .with_rejected_run(2);
+        assert_eq!(resumed.estimate(1, &uavs, &d, &noise(4)).unwrap().rejected_run, 0);
+    }
+
+    #[test]
+    fn failure_keeps_the_previous_estimate() {
+        let z = Vector2::new(25000.0, 15000.0);
+        let uavs = nominal();
+        let mut est = Estimator::new();
+        let first = est.estimate(0, &uavs, &diffs(&uavs, z), &noise(3)).unwrap();
+        // Collinear UAVs: Chan cannot solve.
+        let line = vec![Vector2::new(0.0, 0.0), Vector2::new(1000.0, 0.0), Vector2::new(2000.0, 0.0)];
+        let out = est.estimate(1, &line, &diffs(&line, z), &noise(3)).unwrap();
+        assert!(matches!(out.status, EstimateStatus::Failed { ref reason } if !reason.is_empty()));
+        assert_eq!(out.position, first.position);
+        assert_eq!(out.covariance, first.covariance);
+        assert!(out.position.iter().chain(out.covariance.iter()).all(|v| v.is_finite()));
+        // Coincident UAVs and a wrong count fail the same way.
+        let twin = vec![uavs[0], uavs[0], uavs[2]];
+        assert!(matches!(
+            est.estimate(2, &twin, &diffs(&uavs, z), &noise(3)).unwrap().status,
+            EstimateStatus::Failed { .. }
+        ));
+        assert!(matches!(
+            est.estimate(0, &uavs[..2], &diffs(&uavs, z), &noise(3)).unwrap().status,
+            EstimateStatus::Failed { .. }
+        ));
+        // With no previous estimate the failure is an error.
+        assert!(matches!(
+            Estimator::new().estimate(0, &line, &diffs(&line, z), &noise(3)),
+            Err(EstimatorError::NoEstimate(_))
+        ));
+    }
+}

@@ -1,0 +1,322 @@
+//! The simulated world of one run: the truth (the emitter, the UAVs' positions and headings), the range
+//! noise, the speed and interval, the run seed and the step counter.
+//!
+//! Each step [`World`] produces one noisy TDOA measurement ([`World::measure`], noise from the stream
+//! `(seed, step, MeasurementNoise)`, so a measurement is a pure function of the world's state) and then
+//! moves the UAVs along the commanded headings ([`World::apply`], the planner's circular-arc kinematics,
+//! eq. 54). The world enforces physics only: it flies whatever finite heading it is given; the planner's
+//! constraints are the planner's business. The emitter-sim process and the in-process closed loop both
+//! run one.
+//!
+//! Units: metres, seconds, radians.
+
+use crate::kinematics::{next_position, wrap_angle};
+use crate::scenario::{Scenario, ScenarioError};
+use nalgebra::Vector2;
+use tdoa::montecarlo::noisy_range_diffs;
+use tdoa::rng::{Purpose, stream};
+use tdoa::{NoiseModel, RangeDiffs, Sensors, TdoaError};
+use thiserror::Error;
+
+/// Why the world refused an input.
+#[derive(Debug, Error)]
+pub enum WorldError {
+    /// The scenario is invalid.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// Not one heading per UAV.
+    #[error("headings: expected {expected} values (one per UAV), got {got}")]
+    HeadingCount {
+        /// UAV count.
+        expected: usize,
+        /// Headings given.
+        got: usize,
+    },
+    /// A heading is NaN or infinite.
+    #[error("heading of UAV {uav} is not a finite number ({value})")]
+    HeadingNotFinite {
+        /// The UAV.
+        uav: usize,
+        /// Its heading.
+        value: f64,
+    },
+    /// The current UAV geometry cannot measure (e.g. two UAVs coincide).
+    #[error("cannot measure: {0}")]
+    Geometry(#[from] TdoaError),
+}
+
+/// One TDOA measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measurement {
+    /// The step it belongs to.
+    pub step: u64,
+    /// UAV positions when it was taken, metres (index 0 the reference).
+    pub uavs: Vec<Vector2<f64>>,
+    /// Noisy range differences `d̂_i = (r_i + e_i) − (r_0 + e_0)`, metres.
+    pub range_diffs: RangeDiffs,
+}
+
+/// The moving part of a [`World`] (everything else comes from the scenario): what emitter-sim checkpoints.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Snapshot {
+    /// The step about to be measured.
+    pub step: u64,
+    /// UAV positions, metres.
+    pub positions: Vec<[f64; 2]>,
+    /// UAV headings, radians.
+    pub headings: Vec<f64>,
+}
+
+/// The simulated world of one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct World {
+    emitter: Vector2<f64>,
+    velocity: Vector2<f64>,
+    positions: Vec<Vector2<f64>>,
+    headings: Vec<f64>,
+    noise: NoiseModel,
+    speed: f64,
+    dt: f64,
+    seed: u64,
+    step: u64,
+}
+
+impl World {
+    /// The world at step 0 of `scenario` (validated), seeded with `scenario.seed`.
+    pub fn from_scenario(scenario: &Scenario) -> Result<Self, WorldError> {
+        scenario.validate()?;
+        Ok(Self {
+            emitter: scenario.emitter_position(),
+            velocity: Vector2::new(scenario.emitter_velocity[0], scenario.emitter_velocity[1]),
+            positions: scenario.uav_positions(),
+            headings: scenario.initial_headings().into_iter().map(wrap_angle).collect(),
+            noise: scenario.noise_model()?,
+            speed: scenario.speed,
+            dt: scenario.dt,
+            seed: scenario.seed,
+            step: 0,
+        })
+    }
+
+    /// The true emitter position at the current step, metres: the scenario's `emitter` moved by
+    /// `emitter_velocity · step · dt` (constant velocity; fixed by default).
+    pub fn truth(&self) -> Vector2<f64> {
+        self.truth_at(self.step)
+    }
+
+    /// The true emitter position at `step`, metres.
+    pub fn truth_at(&self, step: u64) -> Vector2<f64> {
+        self.emitter + self.velocity * (step as f64 * self.dt)
+    }
+
+    /// Current UAV positions, metres.
+    pub fn positions(&self) -> &[Vector2<f64>] {
+        &self.positions
+    }
+
+    /// Current headings, radians in (−π, π].
+    pub fn headings(&self) -> &[f64] {
+        &self.headings
+    }
+
+    /// The current step (0 before the first [`World::apply`]).
+    pub fn step(&self) -> u64 {
+        self.step
+    }
+
+    /// The run seed.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// The range noise model.
+    pub fn noise(&self) -> &NoiseModel {
+        &self.noise
+    }
+
+    /// The current sensing geometry.
+    pub fn sensors(&self) -> Result<Sensors, TdoaError> {
+        let pts: Vec<[f64; 2]> = self.positions.iter().map(|p| [p.x, p.y]).collect();
+        Sensors::new(&pts, self.noise.clone())
+    }
+
+    /// The noisy measurement of the current step, drawn from the stream
+    /// `(seed, step, Purpose::MeasurementNoise)`: calling it twice gives the same measurement.
+    pub fn measure(&self) -> Result<Measurement, WorldError> {
+        let sensors = self.sensors()?;
+        let mut rng = stream(self.seed, self.step, Purpose::MeasurementNoise);
+        let range_diffs = noisy_range_diffs(&sensors, &self.truth(), &mut rng);
+        Ok(Measurement { step: self.step, uavs: self.positions.clone(), range_diffs })
+    }
+
+    /// The world's moving part (see [`Snapshot`]).
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            step: self.step,
+            positions: self.positions.iter().map(|p| [p.x, p.y]).collect(),
+            headings: self.headings.clone(),
+        }
+    }
+
+    /// The world of `scenario` (validated) at the state of `snapshot` — the world that took the snapshot,
+    /// bit for bit. Refuses a snapshot with another UAV count or non-finite numbers.
+    pub fn restore(scenario: &Scenario, snapshot: &Snapshot) -> Result<Self, WorldError> {
+        let mut world = Self::from_scenario(scenario)?;
+        let n = world.positions.len();
+        if snapshot.positions.len() != n || snapshot.headings.len() != n {
+            return Err(WorldError::HeadingCount { expected: n, got: snapshot.headings.len() });
+        }
+        if let Some((uav, &value)) = snapshot.headings.iter().enumerate().find(|(_, h)| !h.is_finite()) {
+            return Err(WorldError::HeadingNotFinite { uav, value });
+        }
+        if let Some(&value) = snapshot.positions.iter().flatten().find(|v| !v.is_finite()) {
+            return Err(WorldError::Geometry(TdoaError::NotFinite { what: "a snapshot's UAV position".into(), value }));
+        }
+        world.positions = snapshot.positions.iter().map(|p| Vector2::new(p[0], p[1])).collect();
+        world.headings = snapshot.headings.clone();
+        world.step = snapshot.step;
+        Ok(world)
+    }
+
+    /// Flies every UAV for one interval along the circular arc to its commanded heading (radians) and
+    /// advances the step. Refuses (leaving the world unchanged) a wrong count or a non-finite heading.
+    pub fn apply(&mut self, headings: &[f64]) -> Result<(), WorldError> {
+        if headings.len() != self.positions.len() {
+            return Err(WorldError::HeadingCount { expected: self.positions.len(), got: headings.len() });
+        }
+        if let Some((uav, &value)) = headings.iter().enumerate().find(|(_, h)| !h.is_finite()) {
+            return Err(WorldError::HeadingNotFinite { uav, value });
+        }
+        for ((p, psi), &phi) in self.positions.iter_mut().zip(self.headings.iter_mut()).zip(headings) {
+            *p = next_position(*p, *psi, phi, self.speed, self.dt);
+            *psi = wrap_angle(phi);
+        }
+        self.step += 1;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn world() -> World {
+        World::from_scenario(&Scenario::default()).unwrap()
+    }
+
+    #[test]
+    fn starts_at_the_scenario() {
+        let w = world();
+        let sc = Scenario::default();
+        assert_eq!(w.truth(), sc.emitter_position());
+        assert_eq!(w.positions(), sc.uav_positions().as_slice());
+        assert_eq!(w.headings(), sc.initial_headings().as_slice());
+        assert_eq!((w.step(), w.seed()), (0, sc.seed));
+    }
+
+    #[test]
+    fn a_restored_snapshot_is_the_same_world() {
+        let mut w = world();
+        for k in 0..5 {
+            w.apply(&[0.1 * k as f64, -0.2, 1.0]).unwrap();
+        }
+        let back = World::restore(&Scenario::default(), &w.snapshot()).unwrap();
+        assert_eq!(back, w);
+        assert_eq!(back.measure().unwrap(), w.measure().unwrap());
+        let mut bad = w.snapshot();
+        bad.headings.pop();
+        assert!(World::restore(&Scenario::default(), &bad).is_err());
+        bad = w.snapshot();
+        bad.positions[1][0] = f64::NAN;
+        assert!(World::restore(&Scenario::default(), &bad).is_err());
+    }
+
+    #[test]
+    fn invalid_scenario_is_refused() {
+        let sc = Scenario { speed: -1.0, ..Scenario::default() };
+        assert!(matches!(World::from_scenario(&sc), Err(WorldError::Scenario(_))));
+    }
+
+    #[test]
+    fn measurement_is_deterministic_and_noisy() {
+        let w = world();
+        let a = w.measure().unwrap();
+        let b = w.measure().unwrap();
+        assert_eq!(a, b);
+        assert_eq!(World::from_scenario(&Scenario::default()).unwrap().measure().unwrap(), a);
+        let exact = w.sensors().unwrap().range_differences(&w.truth());
+        let sigma = 28.7712;
+        for (m, e) in a.range_diffs.as_slice().iter().zip(exact.as_slice()) {
+            assert!(m != e && (m - e).abs() < 8.0 * sigma * std::f64::consts::SQRT_2, "{m} vs {e}");
+        }
+        // Another seed, another draw.
+        let other = World::from_scenario(&Scenario { seed: 2, ..Scenario::default() }).unwrap();
+        assert_ne!(other.measure().unwrap().range_diffs, a.range_diffs);
+    }
+
+    #[test]
+    fn noise_has_the_model_covariance() {
+        // Over many steps (each its own stream), the errors of d̂ have covariance Q (eq. 19).
+        let mut w = world();
+        let exact = w.sensors().unwrap().range_differences(&w.truth());
+        let n = 4000;
+        let mut sum = [[0.0; 2]; 2];
+        for k in 0..n {
+            w.step = k;
+            let d = w.measure().unwrap().range_diffs;
+            let e: Vec<f64> = d.as_slice().iter().zip(exact.as_slice()).map(|(a, b)| a - b).collect();
+            for i in 0..2 {
+                for j in 0..2 {
+                    sum[i][j] += e[i] * e[j] / n as f64;
+                }
+            }
+        }
+        let q = w.noise().q();
+        for i in 0..2 {
+            for j in 0..2 {
+                assert!((sum[i][j] - q[(i, j)]).abs() < 0.1 * q[(0, 0)], "{i}{j}: {} vs {}", sum[i][j], q[(i, j)]);
+            }
+        }
+    }
+
+    #[test]
+    fn apply_moves_along_arcs_and_advances() {
+        let mut w = world();
+        let start = w.positions().to_vec();
+        let straight = w.headings().to_vec();
+        w.apply(&straight).unwrap();
+        assert_eq!(w.step(), 1);
+        for (p, q) in start.iter().zip(w.positions()) {
+            assert!(((q - p).norm() - 500.0).abs() < 1e-9);
+        }
+        let m1 = w.measure().unwrap();
+        assert_eq!(m1.step, 1);
+        assert_eq!(m1.uavs, w.positions());
+        // A turn: the world follows the planner's kinematics exactly and stores the wrapped heading.
+        let before = w.positions().to_vec();
+        let psi = w.headings().to_vec();
+        let cmd = [psi[0] + 0.3, psi[1] - 0.2 + std::f64::consts::TAU, psi[2]];
+        w.apply(&cmd).unwrap();
+        for i in 0..3 {
+            assert_eq!(w.positions()[i], next_position(before[i], psi[i], cmd[i], 50.0, 10.0));
+            assert_eq!(w.headings()[i], wrap_angle(cmd[i]));
+        }
+    }
+
+    #[test]
+    fn bad_headings_are_refused_and_change_nothing() {
+        let mut w = world();
+        let before = w.clone();
+        assert!(matches!(w.apply(&[0.0, 0.0]), Err(WorldError::HeadingCount { expected: 3, got: 2 })));
+        assert!(matches!(w.apply(&[0.0, f64::NAN, 0.0]), Err(WorldError::HeadingNotFinite { uav: 1, .. })));
+        assert!(matches!(w.apply(&[0.0, 0.0, f64::INFINITY]), Err(WorldError::HeadingNotFinite { uav: 2, .. })));
+        assert_eq!(w, before);
+    }
+
+    #[test]
+    fn coincident_uavs_cannot_measure() {
+        let mut w = world();
+        w.positions[2] = w.positions[1];
+        assert!(matches!(w.measure(), Err(WorldError::Geometry(TdoaError::CoincidentUavs { .. }))));
+    }
+}

@@ -1,0 +1,47 @@
+//! # uavloc-planning — the step-by-step heading planner of uavloc
+//!
+//! Pure functions over plain data (paper Sections 3.1, 3.5–3.6, 4.3, 5.4): at every step each UAV
+//! chooses a new heading; the headings minimise a CRLB criterion of the next waypoints (single-point,
+//! Monte Carlo or analytical global CRLB, or a 25-point cubature) under four motion constraints, with
+//! PSO, GA or ACO_R. The fixed-formation baseline needs no solver. No IPC: the planner process
+//! (crate `uavloc-planner`) and the in-process closed loop (crate `uavloc-closed-loop`) both call
+//! [`plan_step`].
+//!
+//! - the scenario, the kinematics, the constraint names and the safety certificate are the shared
+//!   model's (crate `uavloc-model`);
+//! - [`constraints`]: turn radius, spacing, approach distance, heading cone (eqs. 55–59);
+//! - [`fitness`]: the lexicographic penalised fitness (eq. 78);
+//! - [`objective`]: the criteria, one adapter over `tdoa`'s global CRLB methods;
+//! - [`formation`]: the traditional fixed-formation baseline;
+//! - [`solver`], [`pso`], [`ga`], [`aco`], [`gradient`]: one solver trait, the paper's three solvers and
+//!   a deterministic gradient solver; [`factory`] builds one by name;
+//! - [`shield`]: the safety certificate as the planner's first ranking (`safety = "certified"`);
+//! - [`step`]: one planning step, [`plan_step`].
+//!
+//! Units: metres, seconds, radians (degrees only in TOML keys ending in `_deg`).
+
+pub mod aco;
+pub mod constraints;
+pub mod factory;
+pub mod fitness;
+pub mod formation;
+pub mod ga;
+pub mod gradient;
+pub mod heading_interval;
+pub mod objective;
+pub mod pso;
+pub mod shield;
+pub mod solver;
+pub mod step;
+
+pub use aco::{Aco, AcoConfig};
+pub use constraints::{ActiveConstraint, ConstraintKind, ConstraintReport, Constraints};
+pub use fitness::Fitness;
+pub use formation::formation_headings;
+pub use ga::{Ga, GaConfig};
+pub use gradient::{Gradient, GradientConfig};
+pub use objective::{CrlbObjective, ObjectiveKind, PlanObjective};
+pub use pso::{Pso, PsoConfig};
+pub use shield::EmitterMotion;
+pub use solver::{EarlyStop, SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult, StopRule};
+pub use step::{PlanError, PlanOutput, PlanRequest, plan_step};
