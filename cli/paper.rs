@@ -141,7 +141,7 @@ pub fn run(args: &PaperArgs) -> Result<PaperReport, CliError> {
     };
     let mut reports = args.experiment.run(&settings).map_err(|e| match e {
         experiments::ExperimentError::Input(m) => CliError::Input(m),
-        other => CliError::Failed(other.to_string()),
+        other => CliError::failed_because("uavloc paper", other),
     })?;
     if let Some(dir) = &args.out {
         for r in &mut reports {

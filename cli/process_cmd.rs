@@ -61,8 +61,9 @@ pub fn run_process(args: &ProcessArgs) -> ExitCode {
         ProcessRole::IpcEcho(a) => crate::bench::ipc::run_echo(a),
         ProcessRole::Resources(a) => {
             protocol::transport::quiet_logs();
-            let listed =
-                Domain::resolve(a.domain.as_deref()).map_err(|e| CliError::Input(e.to_string())).and_then(|domain| {
+            let listed = Domain::resolve(a.domain.as_deref())
+                .map_err(|e| CliError::input_because("--domain", e))
+                .and_then(|domain| {
                     if a.remove_dead {
                         let half = resources::remove_leftovers(&domain).map_err(CliError::Failed)?;
                         if !half.is_empty() {

@@ -238,7 +238,7 @@ fn in_order_used(names: impl Iterator<Item = &'static str>) -> String {
 
 /// Runs `uavloc replay`.
 pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
-    let recording = read_recording(&args.file).map_err(|e| CliError::Input(e.to_string()))?;
+    let recording = read_recording(&args.file).map_err(|e| CliError::input_because("the recording", e))?;
     let text = recording.metadata.get("scenario").ok_or_else(|| {
         CliError::Input(format!(
             "{}: not a uavloc recording (no `uavloc` metadata with the scenario)",

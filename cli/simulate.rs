@@ -124,7 +124,7 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
             }
         }
     })
-    .map_err(|e| CliError::Failed(e.to_string()))?;
+    .map_err(|e| CliError::failed_because("the closed loop", e))?;
     bar.finish_and_clear();
     if let Some((mut terminal, mut view, _)) = live {
         view.note = "the run is over: q closes the view".into();

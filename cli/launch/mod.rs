@@ -34,7 +34,8 @@ use supervisor::{STOP_GRACE, Supervisor, TICK};
 fn launch_domain(flag: Option<&str>, source: runtime::Source) -> Result<Domain, CliError> {
     let named = flag.is_some() || std::env::var(DOMAIN_ENV).is_ok_and(|v| !v.is_empty());
     if source == runtime::Source::Simulator && !named {
-        return Domain::new(&format!("uavloc-{}", std::process::id())).map_err(|e| CliError::Failed(e.to_string()));
+        return Domain::new(&format!("uavloc-{}", std::process::id()))
+            .map_err(|e| CliError::failed_because("the run's own domain", e));
     }
     // As every process resolves it (an error names the flag or the variable).
     Domain::resolve_named(flag).map_err(CliError::Input)

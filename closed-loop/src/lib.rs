@@ -14,12 +14,24 @@ use thiserror::Error;
 
 /// Why a closed-loop run stopped: which stage of which step failed, and why.
 #[derive(Debug, Error)]
-#[error("{stage}: {message}")]
+#[error("{stage}: {source}")]
 pub struct LoopError {
-    /// `world`, or `step k: measurement|estimate|geometry|plan|move`.
+    /// `world`, `estimator`, or `step k: measurement|estimate|geometry|plan|move`.
     pub stage: String,
-    /// The underlying error.
-    pub message: String,
+    /// The underlying error (the world's, the estimator's, the planner's).
+    #[source]
+    pub source: Box<dyn std::error::Error + Send + Sync>,
+}
+
+/// The [`LoopError`] of `stage` (of step `step`, when there is one) for an error of that stage.
+fn failed<E: std::error::Error + Send + Sync + 'static>(
+    step: Option<u64>,
+    stage: &'static str,
+) -> impl FnOnce(E) -> LoopError {
+    move |e| LoopError {
+        stage: step.map_or_else(|| stage.to_string(), |k| format!("step {k}: {stage}")),
+        source: Box::new(e),
+    }
 }
 
 fn pair(v: &Vector2<f64>) -> [f64; 2] {
@@ -58,22 +70,20 @@ pub fn run_closed_loop(
     solver: SolverKind,
     mut on_step: impl FnMut(&StepRecord, &StepTrace<'_>),
 ) -> Result<RunRecord, LoopError> {
-    let failed = |stage: String, e: &dyn std::fmt::Display| LoopError { stage, message: e.to_string() };
-    let mut world = model::world::World::from_scenario(scenario).map_err(|e| failed("world".into(), &e))?;
-    let dynamics = scenario.dynamics().map_err(|e| failed("estimator".into(), &e))?;
+    let mut world = model::world::World::from_scenario(scenario).map_err(failed(None, "world"))?;
+    let dynamics = scenario.dynamics().map_err(failed(None, "estimator"))?;
     let mut estimator =
         estimation::Estimator::with_config(estimation::EstimatorConfig::new(scenario.estimator, dynamics));
     let start = world.truth();
     let mut steps = Vec::with_capacity(scenario.steps + 1);
     for k in 0..=scenario.steps as u64 {
         let truth = world.truth();
-        let meas = world.measure().map_err(|e| failed(format!("step {k}: measurement"), &e))?;
-        let est = estimator
-            .estimate(k, &meas.uavs, &meas.range_diffs, world.noise())
-            .map_err(|e| failed(format!("step {k}: estimate"), &e))?;
+        let meas = world.measure().map_err(failed(Some(k), "measurement"))?;
+        let est =
+            estimator.estimate(k, &meas.uavs, &meas.range_diffs, world.noise()).map_err(failed(Some(k), "estimate"))?;
         let status = est.status.name();
         let velocity = est.posterior.and_then(|p| p.velocity());
-        let sensors = world.sensors().map_err(|e| failed(format!("step {k}: geometry"), &e))?;
+        let sensors = world.sensors().map_err(failed(Some(k), "geometry"))?;
         let metrics = step_metrics(&sensors, &truth, scenario.rmse_resamples, scenario.seed, k, Some(est.position));
         // The planner sees the live estimate, or in controlled mode the truth plus a fixed error.
         let target = scenario.controlled_target(truth);
@@ -119,8 +129,8 @@ pub fn run_closed_loop(
                 step: k,
                 motion: velocity.map(|(velocity, velocity_cov)| planning::EmitterMotion { velocity, velocity_cov }),
             })
-            .map_err(|e| failed(format!("step {k}: plan"), &e))?;
-            world.apply(&plan.headings).map_err(|e| failed(format!("step {k}: move"), &e))?;
+            .map_err(failed(Some(k), "plan"))?;
+            world.apply(&plan.headings).map_err(failed(Some(k), "move"))?;
             record.headings_rad = plan.headings.clone();
             record.objective_value = plan.objective_value.is_finite().then(|| plan.objective_value.sqrt());
             record.plan_ms = Some(plan.plan_time_ms);

@@ -170,7 +170,7 @@ impl Engine {
                 let run = run_closed_loop(&run_sc, objective, solver, |_, _| {}).map_err(|e| ExperimentError::Run {
                     config: format!("{label} {}/{}", objective.name(), solver.name()),
                     run: m,
-                    message: e.to_string(),
+                    source: e,
                 });
                 bar.inc(1);
                 run

@@ -55,14 +55,28 @@ pub enum ExperimentError {
     #[error("{0}")]
     Input(String),
     /// One outer run of one configuration failed.
-    #[error("{config}, outer run {run}: {message}")]
-    Run { config: String, run: usize, message: String },
+    #[error("{config}, outer run {run}: {source}")]
+    Run {
+        /// The configuration (experiment, objective, solver).
+        config: String,
+        /// The outer run.
+        run: usize,
+        /// Why the closed loop stopped.
+        #[source]
+        source: closed_loop::LoopError,
+    },
     /// A worker thread panicked while holding the batch cache.
     #[error("internal error: the batch cache was poisoned by a panicking worker")]
     Poisoned,
     /// Writing `--out` failed.
-    #[error("{}: {message}", path.display())]
-    Write { path: PathBuf, message: String },
+    #[error("{}: {source}", path.display())]
+    Write {
+        /// The file or directory.
+        path: PathBuf,
+        /// Why it could not be written.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }
 
 /// The knobs of every experiment.
@@ -286,24 +300,23 @@ impl ExperimentReport {
     /// Writes `<experiment>.md`, one CSV per table (`<table name>.csv`) and every figure as SVG and PNG
     /// into `dir` (created if missing); records the paths in `files`.
     pub fn write(&mut self, dir: &Path) -> Result<(), ExperimentError> {
-        let werr = |path: &Path, e: &dyn fmt::Display| ExperimentError::Write {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        };
-        std::fs::create_dir_all(dir).map_err(|e| werr(dir, &e))?;
+        fn werr(path: &Path, e: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> ExperimentError {
+            ExperimentError::Write { path: path.to_path_buf(), source: e.into() }
+        }
+        std::fs::create_dir_all(dir).map_err(|e| werr(dir, e))?;
         let mut files = Vec::new();
         let md = dir.join(format!("{}.md", self.experiment));
-        std::fs::write(&md, self.markdown()).map_err(|e| werr(&md, &e))?;
+        std::fs::write(&md, self.markdown()).map_err(|e| werr(&md, e))?;
         files.push(md);
         for t in &self.tables {
             let csv = dir.join(format!("{}.csv", t.name));
-            std::fs::write(&csv, t.csv()).map_err(|e| werr(&csv, &e))?;
+            std::fs::write(&csv, t.csv()).map_err(|e| werr(&csv, e))?;
             files.push(csv);
         }
         for f in &self.figures {
             for ext in ["svg", "png"] {
                 let path = dir.join(format!("{}-{}.{ext}", self.experiment, f.name()));
-                f.draw(&path).map_err(|e| werr(&path, &e))?;
+                f.draw(&path).map_err(|e| werr(&path, e))?;
                 files.push(path);
             }
         }

@@ -103,7 +103,7 @@ pub struct Outcome {
 }
 
 /// Flies scenario `sc` with the planner `mode`.
-pub fn fly(sc: &Scenario, mode: SafetyMode) -> Result<Outcome, String> {
+pub fn fly(sc: &Scenario, mode: SafetyMode) -> Result<Outcome, closed_loop::LoopError> {
     let sc = Scenario { safety: mode, ..sc.clone() };
     let mut uncertified = Vec::new();
     let run = run_closed_loop(&sc, ObjectiveKind::Analytical, SolverKind::Gradient, |rec, trace| {
@@ -116,8 +116,7 @@ pub fn fly(sc: &Scenario, mode: SafetyMode) -> Result<Outcome, String> {
             });
             uncertified.push((rec.step, why));
         }
-    })
-    .map_err(|e| e.to_string())?;
+    })?;
     Ok(Outcome { run, uncertified })
 }
 
@@ -199,8 +198,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
         .into_par_iter()
         .map(|k| {
             let sc = scenario(s.seed, k);
-            let err =
-                |mode: &str, e: String| ExperimentError::Run { config: format!("safety {mode}"), run: k, message: e };
+            let err = |mode: &str, e| ExperimentError::Run { config: format!("safety {mode}"), run: k, source: e };
             let today = fly(&sc, SafetyMode::Waypoints).map_err(|e| err("waypoints", e))?;
             bar.inc(1);
             let safe = fly(&sc, SafetyMode::Certified).map_err(|e| err("certified", e))?;

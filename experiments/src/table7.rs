@@ -34,7 +34,7 @@ fn timings(engine: &Engine, sc: &Scenario, method: ObjectiveKind) -> Result<Vec<
         let run = run_closed_loop(&run_sc, method, SolverKind::Pso, |_, _| {}).map_err(|e| ExperimentError::Run {
             config: format!("table7 {}", method.name()),
             run: m,
-            message: e.to_string(),
+            source: e,
         })?;
         for s in run.steps.iter().filter(|s| s.plan_ms.is_some()) {
             let Ok(sensors) = Sensors::new(&s.uavs, noise.clone()) else { continue };

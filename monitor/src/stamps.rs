@@ -45,7 +45,8 @@ impl StampsCsv {
             Some(next) => stamps_kept(&std::fs::read_to_string(path).unwrap_or_default(), next),
             None => format!("{STAMPS_HEADER}\n"),
         };
-        let mut out = File::create(path).map_err(|e| ProcessError::Input(msg(e)))?;
+        let mut out =
+            File::create(path).map_err(|e| ProcessError::input_because(format!("--stamps {}", path.display()), e))?;
         out.write_all(start.as_bytes()).map_err(|e| ProcessError::Unrecoverable(msg(e)))?;
         Ok(StampsCsv { out: LineFile::new(out, path, "--stamps", "") })
     }

@@ -559,7 +559,7 @@ impl Node {
         // handler may use the node meanwhile.
         let control = Rc::clone(&self.control);
         let waitset = protocol::transport::waitset()?;
-        let attach_failed = |e| ProcessError::Failed(format!("attaching to the WaitSet: {e:?}"));
+        let attach_failed = |e| ProcessError::failed_because("attaching to the WaitSet", e);
         let mut guards = Vec::with_capacity(inputs.len() + 2);
         for input in inputs {
             guards.push(waitset.attach_notification(*input).map_err(attach_failed)?);

@@ -52,7 +52,6 @@
 //! ports on the thread that uses them.
 
 pub mod iox;
-pub mod sweep;
 pub mod uds;
 
 use core::fmt;
@@ -129,7 +128,8 @@ pub enum TransportError {
     Environment(String),
 }
 
-pub(crate) fn failed(op: &'static str, service: &str, e: impl fmt::Debug) -> TransportError {
+/// A transport operation `op` on `service` that failed with `e` (its debug form is the detail).
+pub fn failed(op: &'static str, service: &str, e: impl fmt::Debug) -> TransportError {
     TransportError::Failed { op, service: service.to_owned(), detail: format!("{e:?}") }
 }
 

@@ -23,8 +23,8 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
-use super::{IpcNode, TransportError, failed};
-use crate::messages::{cpu_ns, now_ns};
+use protocol::messages::{cpu_ns, now_ns};
+use protocol::transport::{IpcNode, TransportError, failed};
 
 /// Bytes of a payload's header (sequence number, send time).
 pub const HEADER: usize = 16;
@@ -171,7 +171,7 @@ pub struct IoxSender {
 impl IoxSender {
     /// Creates the sending end of sweep `name`, waiting for acknowledgements as `waiting` says.
     pub fn create(node: &IpcNode, name: &str, max_size: usize, waiting: Waiting) -> Result<Self, TransportError> {
-        let (data_name, ack_name) = (crate::services::sweep_data(name), crate::services::sweep_ack(name));
+        let (data_name, ack_name) = (protocol::services::sweep_data(name), protocol::services::sweep_ack(name));
         let data = sweep_service::<[u8]>(node, &data_name)?
             .open_or_create()
             .map_err(|e| failed("opening pub/sub service", &data_name, e))?
@@ -237,7 +237,7 @@ impl IoxReceiver {
     /// Creates the receiving end of sweep `name` (waiting for payloads as `waiting` says) and says it is
     /// there (an ack numbered [`STOP`]).
     pub fn create(node: &IpcNode, name: &str, waiting: Waiting) -> Result<Self, TransportError> {
-        let (data_name, ack_name) = (crate::services::sweep_data(name), crate::services::sweep_ack(name));
+        let (data_name, ack_name) = (protocol::services::sweep_data(name), protocol::services::sweep_ack(name));
         let data = sweep_service::<[u8]>(node, &data_name)?
             .open_or_create()
             .map_err(|e| failed("opening pub/sub service", &data_name, e))?
