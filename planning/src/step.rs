@@ -30,7 +30,11 @@
 //!    the cone, or the one heading that keeps it closest to the cone), then [`Gradient`] minimises the
 //!    tiered fitness of step 4 over the product of those boxes (the criterion, with the spacing as a
 //!    constraint; a second search over every reachable heading when the spacing cannot hold there). The
-//!    tiers being the same, its plans rank by the same order as the two searches';
+//!    tiers being the same, its plans rank by the same order as the two searches'. With
+//!    `safety = "certified"`, when the local search ends without a certified plan, PSO searches every
+//!    reachable heading too (seeded `(run_seed, step, StandoffSolver)`, started from the local best) and
+//!    the better of the two is kept: the plan with the largest minimum margin, or a certified one the
+//!    local search missed;
 //! 6. the chosen headings (wrapped into (−π, π]), the waypoints they lead to, the criterion there and
 //!    the violated or binding constraints are returned with the iteration and evaluation counts and
 //!    the wall-clock planning time.
@@ -274,7 +278,26 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             let formation = formation_headings(pos, psi, z, &constraints);
             (psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect(), 0, 0)
         } else if req.solver == SolverKind::Gradient {
-            gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&|i, phi| shield.own_deficit(i, phi)))?
+            let (best, iterations, evaluations) = gradient_search(
+                &constraints,
+                pos,
+                psi,
+                z,
+                sc,
+                &mut safe,
+                3,
+                Some(&|i, phi| shield.own_deficit(i, phi)),
+            )?;
+            if safe(&best).tiers()[..3].iter().all(|t| *t == 0.0) {
+                (best, iterations, evaluations + 1)
+            } else {
+                // No certified plan found by the local search: the shield's ranking of uncertified plans
+                // (the largest minimum margin) has corners a local search misses, so a global one over
+                // every reachable heading, started from the local search's best.
+                let (global, more_iterations, more_evaluations) = reach_search(req, &constraints, &mut safe, &best)?;
+                let chosen = if safe(&global) < safe(&best) { global } else { best };
+                (chosen, iterations + more_iterations, evaluations + more_evaluations + 3)
+            }
         } else {
             cone_then_reach(req, &constraints, &mut safe)?
         };
@@ -431,16 +454,43 @@ fn cone_then_reach(
     if cone.fitness.tiers()[..3].iter().all(|t| *t == 0.0) {
         return Ok((cone.best, cone.iterations, cone.evaluations));
     }
-    let start_point = psi.iter().zip(&cone.best).map(|(p, b)| p + turn_angle(*p, *b).clamp(-theta, theta)).collect();
+    let reach = reach_with(&*solver, req, constraints, safe, &cone.best)?;
+    let (iterations, evaluations) = (cone.iterations + reach.iterations, cone.evaluations + reach.evaluations);
+    let best = if reach.fitness < cone.fitness { reach.best } else { cone.best };
+    Ok((best, iterations, evaluations))
+}
+
+/// `solver` over every reachable heading `ψ_i ± L/R_min` (seeded by `derive_seed(run_seed, step,
+/// StandoffSolver)`), started from `from` moved into reach.
+fn reach_with(
+    solver: &dyn crate::solver::Solver,
+    req: &PlanRequest<'_>,
+    constraints: &Constraints,
+    safe: &mut dyn FnMut(&[f64]) -> Fitness,
+    from: &[f64],
+) -> Result<crate::solver::SolverResult, PlanError> {
+    let (psi, theta) = (req.headings, constraints.max_turn());
+    let start_point = psi.iter().zip(from).map(|(p, b)| p + turn_angle(*p, *b).clamp(-theta, theta)).collect();
     let space = SearchSpace::new(
         psi.iter().map(|p| p - theta).collect(),
         psi.iter().map(|p| p + theta).collect(),
         start_point,
     )?;
-    let reach = solver.minimize(safe, &space, derive_seed(req.run_seed, req.step, Purpose::StandoffSolver));
-    let (iterations, evaluations) = (cone.iterations + reach.iterations, cone.evaluations + reach.evaluations);
-    let best = if reach.fitness < cone.fitness { reach.best } else { cone.best };
-    Ok((best, iterations, evaluations))
+    Ok(solver.minimize(safe, &space, derive_seed(req.run_seed, req.step, Purpose::StandoffSolver)))
+}
+
+/// The certified gradient planner's global fallback: PSO over every reachable heading (see
+/// [`reach_with`]) when the local search found no certified plan. Returns its best plan, iterations and
+/// evaluations.
+fn reach_search(
+    req: &PlanRequest<'_>,
+    constraints: &Constraints,
+    safe: &mut dyn FnMut(&[f64]) -> Fitness,
+    from: &[f64],
+) -> Result<(Vec<f64>, usize, usize), PlanError> {
+    let pso = SolverKind::Pso.build(req.scenario);
+    let r = reach_with(&*pso, req, constraints, safe, from)?;
+    Ok((r.best, r.iterations, r.evaluations))
 }
 
 #[cfg(test)]
@@ -571,6 +621,38 @@ mod tests {
             case.psi.push(wrap_angle(a + std::f64::consts::FRAC_PI_2));
         }
         case
+    }
+
+    #[test]
+    fn where_the_local_search_finds_no_certified_plan_the_global_one_does_at_least_as_well() {
+        // Three UAVs 1 km inside the standoff ring, all flying at ẑ: no plan of this step is certified.
+        // The local search's best (as plan_step's first stage finds it) against plan_step's answer.
+        let mut case = orbiting();
+        let r = case.sc.l_min - 1000.0;
+        for i in 0..3 {
+            let a = 2.0 * std::f64::consts::PI * i as f64 / 3.0;
+            case.pos[i] = case.z + Vector2::new(a.cos(), a.sin()) * r;
+            case.psi[i] = wrap_angle(a + std::f64::consts::PI);
+        }
+        let req = case.request(ObjectiveKind::Analytical, SolverKind::Gradient);
+        let (sc, pos, psi, z) = (&case.sc, &case.pos[..], &case.psi[..], case.z);
+        let constraints = Constraints::from_scenario(sc).with_covariance(case.m).for_step(pos, z);
+        let shield = Shield::new(pos, psi, safety_limits(sc), prediction(sc, z, &case.m, None), &constraints, z);
+        let mut safe = |phi: &[f64]| shield.fitness(phi, || 0.0);
+        let own = |i: usize, phi: f64| shield.own_deficit(i, phi);
+        let (local, _, local_evaluations) =
+            gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&own)).unwrap();
+        let local_report = shield.check(&local);
+        assert!(!local_report.certified, "the state was meant to be uncertifiable: {local_report:?}");
+        let out = plan_step(&req).unwrap();
+        let report = out.safety.unwrap();
+        assert!(!report.certified);
+        // The global search ran (at least a swarm of 40 more evaluations; PSO stops early) and its plan is
+        // at least as good in the shield's ranking as the local one.
+        assert!(out.evaluations >= local_evaluations + 40, "{} vs {local_evaluations}", out.evaluations);
+        let (fit_out, fit_local) = (safe(&out.headings), safe(&local));
+        assert!(fit_out <= fit_local, "{fit_out:?} vs {fit_local:?}");
+        assert!(report.deficit() <= local_report.deficit(), "{} vs {}", report.deficit(), local_report.deficit());
     }
 
     #[test]
