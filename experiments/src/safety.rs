@@ -98,8 +98,22 @@ pub fn scenario(seed: u64, m: usize) -> Scenario {
 pub struct Outcome {
     /// The run's record.
     pub run: RunRecord,
-    /// The steps without a certified plan, with the tightest limit's name.
-    pub uncertified: Vec<(u64, String)>,
+    /// The steps without a certified plan.
+    pub uncertified: Vec<Uncertified>,
+}
+
+/// One step without a certified plan, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Uncertified {
+    /// The step.
+    pub step: u64,
+    /// The tightest limit's name and UAV(s).
+    pub tightest: String,
+    /// `sqrt(λ_max)` of the estimate's covariance at the step, metres: an estimate this uncertain may
+    /// leave no standoff that can be certified.
+    pub estimate_sigma_m: f64,
+    /// The backup circles' smallest standoff margin, metres (negative: short of the bound).
+    pub backup_standoff_margin_m: Option<f64>,
 }
 
 /// Flies scenario `sc` with the planner `mode`.
@@ -114,7 +128,14 @@ pub fn fly(sc: &Scenario, mode: SafetyMode) -> Result<Outcome, closed_loop::Loop
                 let other = t.other.map_or(String::new(), |o| format!("–{o}"));
                 format!("{:?} UAV {}{other}", t.limit, t.uav)
             });
-            uncertified.push((rec.step, why));
+            let c = rec.estimate_cov;
+            let cov = nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
+            uncertified.push(Uncertified {
+                step: rec.step,
+                tightest: why,
+                estimate_sigma_m: model::safety::sqrt_lambda_max(&cov),
+                backup_standoff_margin_m: s.backup_standoff_margin_m,
+            });
         }
     })?;
     Ok(Outcome { run, uncertified })
@@ -137,6 +158,12 @@ fn summary(outcomes: &[Outcome]) -> Value {
         .fold(0.0, f64::max);
     let uncertified: usize = outcomes.iter().map(|o| o.uncertified.len()).sum();
     let uncertified_runs = outcomes.iter().filter(|o| !o.uncertified.is_empty()).count();
+    // Steps whose estimate is more uncertain than L_min itself: `L_min + k·σ` then reaches across the
+    // swarm's whole neighbourhood, and no backup circle can be certified until the fixes tighten.
+    let uncertified_wide: usize = outcomes
+        .iter()
+        .map(|o| o.uncertified.iter().filter(|u| u.estimate_sigma_m > o.run.scenario.l_min).count())
+        .sum();
     let terminal: Vec<f64> =
         outcomes.iter().filter_map(|o| o.run.steps.last().and_then(|s| s.estimate_error_m)).collect();
     let ratio: Vec<f64> = outcomes
@@ -159,6 +186,7 @@ fn summary(outcomes: &[Outcome]) -> Value {
         "deepest_inside_l_min_fraction": deepest,
         "uncertified_steps": uncertified,
         "runs_with_uncertified_steps": uncertified_runs,
+        "uncertified_steps_estimate_sigma_above_l_min": uncertified_wide,
         "terminal_error_m_median": median(&terminal),
         "terminal_error_over_pcrlb_median": median(&ratio),
         "terminal_error_over_pcrlb_rms": ratio_rms,
@@ -246,7 +274,15 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
         .iter()
         .enumerate()
         .flat_map(|(k, o)| {
-            o.uncertified.iter().map(move |(step, why)| json!({"scenario": k, "step": step, "tightest": why}))
+            o.uncertified.iter().map(move |u| {
+                json!({
+                    "scenario": k,
+                    "step": u.step,
+                    "tightest": u.tightest,
+                    "estimate_sigma_m": u.estimate_sigma_m,
+                    "backup_standoff_margin_m": u.backup_standoff_margin_m,
+                })
+            })
         })
         .collect();
     let cost = b["terminal_error_m_median"].as_f64().zip(a["terminal_error_m_median"].as_f64()).map(|(x, y)| x / y);
@@ -259,13 +295,14 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             cell(a["deepest_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 1),
         ),
         format!(
-            "Certified: {} of {m} runs with a pair below D_min (closest {} × D_min); {} % of UAV-steps inside L_min, the deepest {} %; {} steps without a certified plan in {} runs.",
+            "Certified: {} of {m} runs with a pair below D_min (closest {} × D_min); {} % of UAV-steps inside L_min, the deepest {} %; {} steps without a certified plan in {} runs ({} of them with an estimate whose σ exceeds L_min).",
             b["runs_with_pair_below_d_min"],
             cell(b["min_pair_over_d_min"].as_f64(), 3),
             cell(b["uav_steps_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 2),
             cell(b["deepest_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 1),
             b["uncertified_steps"],
             b["runs_with_uncertified_steps"],
+            b["uncertified_steps_estimate_sigma_above_l_min"],
         ),
         format!(
             "What safety costs: median terminal error {} m certified vs {} m waypoints (ratio {}); error / PCRLB median {} vs {}, root mean square {} vs {} (≈ 1 for an efficient estimator).",
