@@ -327,7 +327,7 @@ fn parse_list<T: std::str::FromStr<Err = String> + PartialEq + Copy>(
 
 /// The planner inputs of the first `count` planned steps of consecutive closed-loop runs of `sc`
 /// (analytical × PSO): run 0 with `sc.seed`, run r ≥ 1 with `derive_seed(sc.seed, r, OuterRun)`.
-/// The loop is `closed_loop::run_closed_loop`'s without the monitor's metrics.
+/// Each input is what `closed_loop::run_closed_loop` gave `plan_step` (its [`closed_loop::StepTrace`]).
 pub fn collect_inputs(sc: &Scenario, count: usize) -> Result<(Vec<PlanInput>, usize), CliError> {
     collect_inputs_of_runs(sc, count, sc.steps)
 }
@@ -346,41 +346,23 @@ pub fn collect_inputs_of_runs(
         if runs > 0 {
             run_sc.seed = derive_seed(sc.seed, runs, Purpose::OuterRun);
         }
-        let failed = |what: String, e: &dyn std::fmt::Display| {
-            CliError::failed_because(format!("input run {runs} (seed {}): {what}", run_sc.seed), e.to_string())
-        };
-        let mut world = model::world::World::from_scenario(&run_sc).map_err(|e| failed("world".into(), &e))?;
-        let dynamics = run_sc.dynamics().map_err(|e| failed("estimator".into(), &e))?;
-        let mut estimator =
-            estimation::Estimator::with_config(estimation::EstimatorConfig::new(run_sc.estimator, dynamics));
         let before = inputs.len();
-        for k in 0..run_sc.steps as u64 {
-            if inputs.len() == count {
-                break;
+        let seed = run_sc.seed;
+        closed_loop::run_closed_loop(&run_sc, objective, solver, |rec, trace| {
+            if trace.plan.is_some() && inputs.len() < count {
+                let (estimate, covariance) = trace.target;
+                inputs.push(PlanInput {
+                    positions: rec.uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect(),
+                    headings: trace.measured_headings.to_vec(),
+                    estimate,
+                    covariance,
+                    run_seed: seed,
+                    step: rec.step,
+                    motion: trace.motion,
+                });
             }
-            let meas = world.measure().map_err(|e| failed(format!("step {k}: measurement"), &e))?;
-            let est = estimator
-                .estimate(k, &meas.uavs, &meas.range_diffs, world.noise())
-                .map_err(|e| failed(format!("step {k}: estimate"), &e))?;
-            let target = run_sc.controlled_target(world.truth());
-            let (estimate, covariance) = target.map_or((est.position, est.covariance), |t| (t.estimate, t.covariance));
-            let input = PlanInput {
-                positions: world.positions().to_vec(),
-                headings: world.headings().to_vec(),
-                estimate,
-                covariance,
-                run_seed: run_sc.seed,
-                step: k,
-                motion: est
-                    .posterior
-                    .and_then(|p| p.velocity())
-                    .map(|(velocity, velocity_cov)| planning::EmitterMotion { velocity, velocity_cov }),
-            };
-            let plan = plan_step(&input.request(&run_sc, objective, solver))
-                .map_err(|e| failed(format!("step {k}: plan"), &e))?;
-            world.apply(&plan.headings).map_err(|e| failed(format!("step {k}: move"), &e))?;
-            inputs.push(input);
-        }
+        })
+        .map_err(|e| CliError::failed_because(format!("input run {runs} (seed {seed})"), e))?;
         runs += 1;
         if inputs.len() == before {
             return Err(CliError::Input("scenario: a run has no planned steps".into()));

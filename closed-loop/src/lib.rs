@@ -59,6 +59,11 @@ pub struct StepTrace<'a> {
     pub estimate: &'a estimation::EstimateOut,
     /// The plan of the step (`None` on the last step).
     pub plan: Option<&'a planning::PlanOutput>,
+    /// What the planner planned from: ẑ (metres) and its covariance (m²) — the live estimate, or in
+    /// controlled mode the truth plus the fixed error.
+    pub target: (Vector2<f64>, Matrix2<f64>),
+    /// The emitter's estimated motion the planner was given (fused constant-velocity only).
+    pub motion: Option<planning::EmitterMotion>,
 }
 
 /// The closed loop for `scenario` (its `steps` and `seed`), planning with `objective` × `solver`.
@@ -83,6 +88,7 @@ pub fn run_closed_loop(
             estimator.estimate(k, &meas.uavs, &meas.range_diffs, world.noise()).map_err(failed(Some(k), "estimate"))?;
         let status = est.status.name();
         let velocity = est.posterior.and_then(|p| p.velocity());
+        let motion = velocity.map(|(velocity, velocity_cov)| planning::EmitterMotion { velocity, velocity_cov });
         let sensors = world.sensors().map_err(failed(Some(k), "geometry"))?;
         let metrics = step_metrics(&sensors, &truth, scenario.rmse_resamples, scenario.seed, k, Some(est.position));
         // The planner sees the live estimate, or in controlled mode the truth plus a fixed error.
@@ -127,7 +133,7 @@ pub fn run_closed_loop(
                 solver,
                 run_seed: scenario.seed,
                 step: k,
-                motion: velocity.map(|(velocity, velocity_cov)| planning::EmitterMotion { velocity, velocity_cov }),
+                motion,
             })
             .map_err(failed(Some(k), "plan"))?;
             world.apply(&plan.headings).map_err(failed(Some(k), "move"))?;
@@ -150,6 +156,8 @@ pub fn run_closed_loop(
             sigmas: world.noise().sigmas(),
             estimate: &est,
             plan: plan.as_ref(),
+            target: (z_hat, m),
+            motion,
         };
         on_step(&record, &trace);
         steps.push(record);
