@@ -1,6 +1,7 @@
-//! `uavloc simulate`: the paper's closed loop in one process — emitter → Chan → planner → move — step by
-//! step, with the same library calls the processes make (emitter-sim's `World`, estimator's `Estimator`,
-//! planner's `plan_step`, monitor's `step_metrics`), so a run through the processes can reproduce it.
+//! `uavloc simulate`: the pipeline's closed loop in one process — emitter → estimator → planner → move —
+//! step by step ([`closed_loop::run_closed_loop`]: the same library calls the processes make — the
+//! world's `World`, the estimator's `Estimator`, the planner's `plan_step`, the record's
+//! `step_metrics`), so a run through the processes reproduces it.
 
 use std::path::PathBuf;
 
