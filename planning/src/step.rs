@@ -53,7 +53,7 @@ use crate::gradient::Gradient;
 use crate::heading_interval::{HeadingInterval, Uav, heading_interval, heading_interval_of};
 use crate::objective::ObjectiveKind;
 use crate::shield::{EmitterMotion, Shield, prediction, safety_limits};
-use crate::solver::{SearchSpace, SearchSpaceError, Solver as _, SolverKind};
+use crate::solver::{SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult};
 use model::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use model::safety::{SafetyMode, SafetyReport};
 use model::scenario::{Scenario, ScenarioError};
@@ -179,7 +179,7 @@ fn standoff_tiers(by_kind: [f64; 4]) -> [f64; TIERS] {
 /// own heading boxes ([`heading_interval`]), searched for the criterion by [`Gradient`] from the current
 /// headings moved into the boxes, their centre and their corners; when the spacing (the one coupling
 /// constraint) is violated there, a second search over every reachable heading from that plan. Returns
-/// the headings, iterations and evaluations.
+/// the better plan with its fitness, and the iterations and evaluations of both searches.
 #[allow(clippy::too_many_arguments)]
 fn gradient_search(
     constraints: &Constraints,
@@ -190,7 +190,7 @@ fn gradient_search(
     tiered: &mut dyn FnMut(&[f64]) -> Fitness,
     hard_tiers: usize,
     own: Option<&dyn Fn(usize, f64) -> f64>,
-) -> Result<(Vec<f64>, usize, usize), PlanError> {
+) -> Result<SolverResult, PlanError> {
     let n = pos.len();
     let solver = Gradient { config: sc.gradient };
     let boxes: Vec<HeadingInterval> = (0..n)
@@ -208,7 +208,7 @@ fn gradient_search(
     // The solver's own starts: the current headings moved into the boxes, their centre, their corners.
     let first = solver.minimize(tiered, &SearchSpace::new(lo, hi, moved)?, 0);
     if first.fitness.tiers()[..hard_tiers].iter().all(|t| *t == 0.0) {
-        return Ok((first.best, first.iterations, first.evaluations));
+        return Ok(first);
     }
     // The spacing is violated: every reachable heading, from that plan and from straight on.
     let theta = constraints.max_turn();
@@ -223,9 +223,21 @@ fn gradient_search(
         (0..n).map(|i| psi[i] + turn_angle(psi[i], bearing(pos[i], z)).clamp(-theta, theta)).collect();
     let backup: Vec<f64> = psi.iter().map(|p| p - model::safety::backup_turn(theta)).collect();
     let second = solver.minimize_from(tiered, &reach, &[first.best.clone(), psi.to_vec(), centre, backup]);
+    Ok(better_of(first, second))
+}
+
+/// The better of two searches' results (the first on a tie), with the iterations and evaluations of
+/// both.
+fn better_of(first: SolverResult, second: SolverResult) -> SolverResult {
     let (iterations, evaluations) = (first.iterations + second.iterations, first.evaluations + second.evaluations);
-    let best = if second.fitness < first.fitness { second.best } else { first.best };
-    Ok((best, iterations, evaluations))
+    let best = if second.fitness < first.fitness { second } else { first };
+    SolverResult { iterations, evaluations, ..best }
+}
+
+/// Whether a certified search's fitness is certified: its first three tiers (the certificate's, see
+/// `crate::shield`) are zero.
+fn is_certified(fitness: &Fitness) -> bool {
+    fitness.tiers()[..3].iter().all(|t| *t == 0.0)
 }
 
 /// Plans one step; see the module docs.
@@ -272,13 +284,15 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
                 objective.evaluate(&next[..n])
             })
         };
-        let (mut chosen, iterations, evaluations) = if !req.objective.is_optimised() {
+        let found = if !req.objective.is_optimised() {
             // The formation's headings, each moved into reach (the turn radius is never traded).
             let theta = constraints.max_turn();
             let formation = formation_headings(pos, psi, z, &constraints);
-            (psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect(), 0, 0)
+            let best: Vec<f64> =
+                psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect();
+            SolverResult { fitness: safe(&best), best, iterations: 0, evaluations: 0 }
         } else if req.solver == SolverKind::Gradient {
-            let (best, iterations, evaluations) = gradient_search(
+            let local = gradient_search(
                 &constraints,
                 pos,
                 psi,
@@ -288,28 +302,26 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
                 3,
                 Some(&|i, phi| shield.own_deficit(i, phi)),
             )?;
-            if safe(&best).tiers()[..3].iter().all(|t| *t == 0.0) {
-                (best, iterations, evaluations + 1)
+            if is_certified(&local.fitness) {
+                local
             } else {
                 // No certified plan found by the local search: the shield's ranking of uncertified plans
-                // (the largest minimum margin) has corners a local search misses, so a global one over
-                // every reachable heading, started from the local search's best.
-                let (global, more_iterations, more_evaluations) = reach_search(req, &constraints, &mut safe, &best)?;
-                let chosen = if safe(&global) < safe(&best) { global } else { best };
-                (chosen, iterations + more_iterations, evaluations + more_evaluations + 3)
+                // (the largest minimum margin) has corners a local search misses, so a global one (PSO)
+                // over every reachable heading, started from the local search's best.
+                let global = reach_with(&*SolverKind::Pso.build(sc), req, &constraints, &mut safe, &local.best)?;
+                better_of(local, global)
             }
         } else {
             cone_then_reach(req, &constraints, &mut safe)?
         };
+        let SolverResult { best: mut chosen, mut fitness, iterations, evaluations } = found;
         // The backup step: certified whenever the previous plan was (see `crate::shield`).
         let backup = shield.backup();
-        let (fit_chosen, fit_backup) = (safe(&chosen), safe(&backup));
-        let fitness = if fit_backup < fit_chosen {
+        let fit_backup = safe(&backup);
+        if fit_backup < fitness {
             chosen = backup;
-            fit_backup
-        } else {
-            fit_chosen
-        };
+            fitness = fit_backup;
+        }
         let next = waypoints_of(pos, psi, &chosen, sc);
         let waypoints = next[..n].to_vec();
         let report = constraints.check(pos, psi, z, &chosen, &waypoints);
@@ -336,7 +348,8 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             let by_kind = constraints.violations_by_kind(pos, psi, z, phi, &next[..n]);
             Fitness::tiered(standoff_tiers(by_kind), objective.evaluate(&next[..n]))
         };
-        gradient_search(&constraints, pos, psi, z, sc, &mut tiered, 1, None)?
+        let r = gradient_search(&constraints, pos, psi, z, sc, &mut tiered, 1, None)?;
+        (r.best, r.iterations, r.evaluations)
     } else if req.objective.is_optimised() {
         let space = cone_space(&constraints, pos, psi, z, None)?;
         let solver = req.solver.build(sc);
@@ -437,12 +450,12 @@ fn cone_space(
 /// space, where the turn radius holds); when
 /// their best plan is not certified, every reachable heading `ψ_i ± L/R_min` (seeded by
 /// `derive_seed(run_seed, step, StandoffSolver)`, started from the cone search's best moved into
-/// reach). Returns the better plan, iterations and evaluations.
+/// reach). Returns the better plan with its fitness, and the iterations and evaluations of both.
 fn cone_then_reach(
     req: &PlanRequest<'_>,
     constraints: &Constraints,
     safe: &mut dyn FnMut(&[f64]) -> Fitness,
-) -> Result<(Vec<f64>, usize, usize), PlanError> {
+) -> Result<SolverResult, PlanError> {
     let (pos, psi, z, sc) = (req.positions, req.headings, req.estimate, req.scenario);
     let theta = constraints.max_turn();
     let solver = req.solver.build(sc);
@@ -451,24 +464,22 @@ fn cone_then_reach(
         &cone_space(constraints, pos, psi, z, Some(theta))?,
         derive_seed(req.run_seed, req.step, Purpose::Solver),
     );
-    if cone.fitness.tiers()[..3].iter().all(|t| *t == 0.0) {
-        return Ok((cone.best, cone.iterations, cone.evaluations));
+    if is_certified(&cone.fitness) {
+        return Ok(cone);
     }
     let reach = reach_with(&*solver, req, constraints, safe, &cone.best)?;
-    let (iterations, evaluations) = (cone.iterations + reach.iterations, cone.evaluations + reach.evaluations);
-    let best = if reach.fitness < cone.fitness { reach.best } else { cone.best };
-    Ok((best, iterations, evaluations))
+    Ok(better_of(cone, reach))
 }
 
 /// `solver` over every reachable heading `ψ_i ± L/R_min` (seeded by `derive_seed(run_seed, step,
 /// StandoffSolver)`), started from `from` moved into reach.
 fn reach_with(
-    solver: &dyn crate::solver::Solver,
+    solver: &dyn Solver,
     req: &PlanRequest<'_>,
     constraints: &Constraints,
     safe: &mut dyn FnMut(&[f64]) -> Fitness,
     from: &[f64],
-) -> Result<crate::solver::SolverResult, PlanError> {
+) -> Result<SolverResult, PlanError> {
     let (psi, theta) = (req.headings, constraints.max_turn());
     let start_point = psi.iter().zip(from).map(|(p, b)| p + turn_angle(*p, *b).clamp(-theta, theta)).collect();
     let space = SearchSpace::new(
@@ -477,20 +488,6 @@ fn reach_with(
         start_point,
     )?;
     Ok(solver.minimize(safe, &space, derive_seed(req.run_seed, req.step, Purpose::StandoffSolver)))
-}
-
-/// The certified gradient planner's global fallback: PSO over every reachable heading (see
-/// [`reach_with`]) when the local search found no certified plan. Returns its best plan, iterations and
-/// evaluations.
-fn reach_search(
-    req: &PlanRequest<'_>,
-    constraints: &Constraints,
-    safe: &mut dyn FnMut(&[f64]) -> Fitness,
-    from: &[f64],
-) -> Result<(Vec<f64>, usize, usize), PlanError> {
-    let pso = SolverKind::Pso.build(req.scenario);
-    let r = reach_with(&*pso, req, constraints, safe, from)?;
-    Ok((r.best, r.iterations, r.evaluations))
 }
 
 #[cfg(test)]
@@ -640,8 +637,8 @@ mod tests {
         let shield = Shield::new(pos, psi, safety_limits(sc), prediction(sc, z, &case.m, None), &constraints, z);
         let mut safe = |phi: &[f64]| shield.fitness(phi, || 0.0);
         let own = |i: usize, phi: f64| shield.own_deficit(i, phi);
-        let (local, _, local_evaluations) =
-            gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&own)).unwrap();
+        let found = gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&own)).unwrap();
+        let (local, local_evaluations) = (found.best, found.evaluations);
         let local_report = shield.check(&local);
         assert!(!local_report.certified, "the state was meant to be uncertifiable: {local_report:?}");
         let out = plan_step(&req).unwrap();
