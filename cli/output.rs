@@ -101,9 +101,7 @@ pub fn matrix(m: [[f64; 2]; 2]) -> String {
 }
 
 /// A nalgebra 2×2 matrix as nested rows, the JSON form of every matrix.
-pub fn rows(m: &nalgebra::Matrix2<f64>) -> [[f64; 2]; 2] {
-    [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]]
-}
+pub use tdoa::matrix_to_rows as rows;
 
 #[cfg(test)]
 mod tests {

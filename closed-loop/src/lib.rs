@@ -38,10 +38,6 @@ fn pair(v: &Vector2<f64>) -> [f64; 2] {
     [v.x, v.y]
 }
 
-fn rows(m: &Matrix2<f64>) -> [[f64; 2]; 2] {
-    [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]]
-}
-
 /// What a step carried besides its record — what the pipeline's messages of the step would carry (the
 /// measurement's range differences and σ, the estimator's whole output, the plan), for `simulate
 /// --record`.
@@ -99,10 +95,10 @@ pub fn run_closed_loop(
             uavs: meas.uavs.iter().map(pair).collect(),
             headings_rad: world.headings().to_vec(),
             estimate: pair(&est.position),
-            estimate_cov: rows(&est.covariance),
+            estimate_cov: tdoa::matrix_to_rows(&est.covariance),
             estimate_status: status.to_string(),
             estimate_velocity: velocity.map(|(v, _)| pair(&v)),
-            estimate_velocity_cov: velocity.map(|(_, c)| rows(&c)),
+            estimate_velocity_cov: velocity.map(|(_, c)| tdoa::matrix_to_rows(&c)),
             truth: Some(pair(&truth)),
             estimate_error_m: None,
             nees: None,

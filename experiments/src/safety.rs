@@ -128,12 +128,10 @@ pub fn fly(sc: &Scenario, mode: SafetyMode) -> Result<Outcome, closed_loop::Loop
                 let other = t.other.map_or(String::new(), |o| format!("–{o}"));
                 format!("{:?} UAV {}{other}", t.limit, t.uav)
             });
-            let c = rec.estimate_cov;
-            let cov = nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
             uncertified.push(Uncertified {
                 step: rec.step,
                 tightest: why,
-                estimate_sigma_m: model::safety::sqrt_lambda_max(&cov),
+                estimate_sigma_m: model::safety::sqrt_lambda_max(&trace.estimate.covariance),
                 backup_standoff_margin_m: s.backup_standoff_margin_m,
             });
         }

@@ -9,7 +9,7 @@
 //!   compared against the deterministic adaptive Gauss–Legendre quadrature of eq. 51 (`quadrature`).
 
 use model::Scenario;
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::Vector2;
 use planning::{ObjectiveKind, SolverKind};
 use serde_json::{Value, json};
 use tdoa::global::{MonteCarlo, global_crlb};
@@ -43,7 +43,7 @@ pub fn planner_uncertainty(sc: &Scenario, run: &record::RunRecord, step: usize, 
     let s = &run.steps[step];
     let z = Vector2::new(s.estimate[0], s.estimate[1]);
     let c = s.estimate_cov;
-    let m = Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]) * (scale * scale);
+    let m = tdoa::matrix_from_rows(&c) * (scale * scale);
     let r_avg = s.uavs.iter().map(|u| (Vector2::new(u[0], u[1]) - z).norm()).sum::<f64>() / s.uavs.len() as f64;
     Uncertainty::with_eq36_side(z, m, r_avg, sc.kappa).ok()
 }

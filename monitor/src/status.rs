@@ -30,7 +30,7 @@ pub(crate) fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> Str
         .map_or("-".to_string(), |p| format!("{}/{} #{:x}", p.solver, p.objective, p.instance >> 32));
     // The 95 % ellipse of the reported covariance: semi-axes sqrt(χ²₂(0.95) λ) = sqrt(5.991 λ).
     let c = &r.estimate_cov;
-    let (lo, hi) = tdoa::fim::sym_eigenvalues(&nalgebra::Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]));
+    let (lo, hi) = tdoa::fim::sym_eigenvalues(&tdoa::matrix_from_rows(c));
     // χ²₂(0.95) = −2 ln 0.05 (the 2-dof quantile has this closed form).
     let k95 = -2.0 * 0.05f64.ln();
     // Without a truth the closest UAV is the one closest to the estimate.

@@ -14,7 +14,7 @@
 
 use model::arc::{Arc, moving_point_min_distance_within, pair_min_distance_within};
 use model::safety::EmitterPrediction;
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::Vector2;
 
 use crate::record::RunRecord;
 
@@ -45,10 +45,6 @@ fn report_pair_min(a: &Arc, b: &Arc, d_min: f64) -> f64 {
 
 fn v2(p: [f64; 2]) -> Vector2<f64> {
     Vector2::new(p[0], p[1])
-}
-
-fn m2(m: [[f64; 2]; 2]) -> Matrix2<f64> {
-    Matrix2::new(m[0][0], m[0][1], m[1][0], m[1][1])
 }
 
 /// Fills every interval's [`StepSafety`](crate::StepSafety) margins and the run's totals (see the module docs).
@@ -105,9 +101,11 @@ pub fn annotate_along_arcs(run: &mut RunRecord) {
         // The standoff margin to the estimate, as the planner's certificate predicts it.
         let est = v2(here.estimate);
         safety.standoff_margin_m = (sc.l_min > 0.0 && est.iter().all(|v| v.is_finite())).then(|| {
-            let cov = m2(here.estimate_cov);
+            let cov = tdoa::matrix_from_rows(&here.estimate_cov);
             let e = match (here.estimate_velocity, here.estimate_velocity_cov) {
-                (Some(v), Some(vc)) => EmitterPrediction::moving(est, &cov, v2(v), &m2(vc), sc.process_noise_accel),
+                (Some(v), Some(vc)) => {
+                    EmitterPrediction::moving(est, &cov, v2(v), &tdoa::matrix_from_rows(&vc), sc.process_noise_accel)
+                }
                 _ => EmitterPrediction::fixed(est, &cov),
             };
             let bound = sc.l_min + k * e.sigma_bound(sc.dt);

@@ -397,7 +397,7 @@ const ELLIPSE_COLOR: RGBColor = RGBColor(0x9a, 0x40, 0xc0);
 /// The 95 % confidence ellipse `{ẑ + sqrt(χ²₂(0.95)) M^{1/2} u : |u| = 1}` of an estimate (72 points,
 /// closed), or `None` for a covariance that is not positive definite or numbers that are not finite.
 pub fn ellipse95(center: [f64; 2], cov: [[f64; 2]; 2]) -> Option<Vec<(f64, f64)>> {
-    let m = nalgebra::Matrix2::new(cov[0][0], cov[0][1], cov[1][0], cov[1][1]);
+    let m = tdoa::matrix_from_rows(&cov);
     if center.iter().chain(m.iter()).any(|v| !v.is_finite()) {
         return None;
     }
@@ -750,7 +750,7 @@ mod tests {
         // Points on the ellipse have Mahalanobis distance² = χ²₂(0.95) = 5.991; draws inside it are 95 %.
         let cov = [[4.0e4, 1.5e4], [1.5e4, 1.0e4]];
         let e = ellipse95([100.0, -50.0], cov).unwrap();
-        let inv = nalgebra::Matrix2::new(cov[0][0], cov[0][1], cov[1][0], cov[1][1]).try_inverse().unwrap();
+        let inv = tdoa::matrix_from_rows(&cov).try_inverse().unwrap();
         for (x, y) in &e {
             let d = nalgebra::Vector2::new(x - 100.0, y + 50.0);
             assert!((d.dot(&(inv * d)) - 5.991_464_547_107_979).abs() < 1e-6);

@@ -30,7 +30,9 @@ pub use global::{GlobalCrlb, GlobalReport, GlobalValue, Method, global_crlb};
 pub use motion::{Dynamics, EmitterModel};
 pub use pcrlb::InformationBound;
 pub use singular::{SingularReport, singular_report};
-pub use support::{DEFAULT_KAPPA, Uncertainty, eq36_side, estimate_from_arrays, estimate_to_arrays};
+pub use support::{
+    DEFAULT_KAPPA, Uncertainty, eq36_side, estimate_from_arrays, estimate_to_arrays, matrix_from_rows, matrix_to_rows,
+};
 
 /// Largest number of UAVs supported (fixed-capacity messages carry up to this many).
 pub const MAX_UAVS: usize = 8;

@@ -12,14 +12,23 @@ use crate::geometry::check_finite;
 /// ẑ and M from their plain-array form — how messages carry them: `[x, y]` in metres and
 /// the row-major `[[m00, m01], [m10, m11]]` in m².
 pub fn estimate_from_arrays(position: &[f64; 2], covariance: &[[f64; 2]; 2]) -> (Vector2<f64>, Matrix2<f64>) {
-    let c = covariance;
-    (Vector2::new(position[0], position[1]), Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]))
+    (Vector2::new(position[0], position[1]), matrix_from_rows(covariance))
+}
+
+/// A 2×2 matrix from its rows `[[m00, m01], [m10, m11]]` (the inverse of [`matrix_to_rows`]).
+pub fn matrix_from_rows(m: &[[f64; 2]; 2]) -> Matrix2<f64> {
+    Matrix2::new(m[0][0], m[0][1], m[1][0], m[1][1])
 }
 
 /// The plain-array form of ẑ and M (the inverse of [`estimate_from_arrays`]).
 pub fn estimate_to_arrays(position: &Vector2<f64>, covariance: &Matrix2<f64>) -> ([f64; 2], [[f64; 2]; 2]) {
-    let m = covariance;
-    ([position.x, position.y], [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]])
+    ([position.x, position.y], matrix_to_rows(covariance))
+}
+
+/// A 2×2 matrix as its rows `[[m00, m01], [m10, m11]]`, the plain-array form of every matrix in
+/// messages and records.
+pub fn matrix_to_rows(m: &Matrix2<f64>) -> [[f64; 2]; 2] {
+    [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]]
 }
 
 /// Our choice for the paper's unstated κ of eq. 36 (`A = min(A_max, A_min + κ r_avg)`):
