@@ -172,40 +172,29 @@ pub fn run_closed_loop(
 
 #[cfg(test)]
 mod tests {
-    /// Measure → estimate → plan → move for the nominal 24 steps: every plan is feasible, and planning
-    /// on the analytical global CRLB ends with a smaller CRLB at the truth than the fixed formation.
+    use super::run_closed_loop;
+    use estimation::{EstimateStatus, EstimatorKind};
+    use model::Scenario;
+    use planning::{ObjectiveKind, SolverKind};
+
+    /// Measure → estimate → plan → move for the nominal 24 steps with the paper's per-step Chan: every
+    /// estimate is unambiguous, every plan feasible, and planning on the analytical global CRLB ends
+    /// with a smaller CRLB at the truth than the fixed formation.
     #[test]
     fn closed_loop_nominal_run() {
-        use estimation::{EstimateStatus, Estimator};
-        use model::Scenario;
-        use model::world::World;
-        use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
-        let sc = Scenario::default();
+        let sc = Scenario { estimator: EstimatorKind::Snapshot, ..Scenario::default() };
         let run = |objective: ObjectiveKind| -> f64 {
-            let mut w = World::from_scenario(&sc).unwrap();
-            let mut est = Estimator::new();
-            for k in 0..sc.steps as u64 {
-                let m = w.measure().unwrap();
-                let e = est.estimate(k, &m.uavs, &m.range_diffs, w.noise()).unwrap();
-                assert_eq!(e.status, EstimateStatus::Ok, "{objective} step {k}");
-                let out = plan_step(&PlanRequest {
-                    positions: w.positions(),
-                    headings: w.headings(),
-                    estimate: e.position,
-                    covariance: e.covariance,
-                    scenario: &sc,
-                    objective,
-                    solver: SolverKind::Pso,
-                    run_seed: sc.seed,
-                    step: k,
-                    motion: None,
-                })
-                .unwrap();
-                assert!(out.fitness.is_feasible(), "{objective} step {k}: {:?}", out.active_constraints);
-                w.apply(&out.headings).unwrap();
-            }
-            assert_eq!(w.step(), sc.steps as u64);
-            tdoa::crlb(&w.sensors().unwrap(), &w.truth()).unwrap().crlb_m
+            let mut planned = 0;
+            let run = run_closed_loop(&sc, objective, SolverKind::Pso, |rec, trace| {
+                assert_eq!(trace.estimate.status, EstimateStatus::Ok, "{objective} step {}", rec.step);
+                if let Some(plan) = trace.plan {
+                    planned += 1;
+                    assert!(plan.fitness.is_feasible(), "{objective} step {}: {:?}", rec.step, plan.active_constraints);
+                }
+            })
+            .unwrap();
+            assert_eq!(planned, sc.steps);
+            run.steps.last().and_then(|s| s.crlb_true_m).unwrap()
         };
         let formation = run(ObjectiveKind::Formation);
         let analytical = run(ObjectiveKind::Analytical);
