@@ -125,6 +125,8 @@ pub struct FusedLine {
     pub estimate: [f64; 2],
     /// Its covariance, m².
     pub cov: [[f64; 2]; 2],
+    /// The UAVs whose arrival was dropped as an outlier (a late, multipath arrival; the rest fused).
+    pub outliers: Vec<usize>,
 }
 
 /// `uavloc locate --fuse` output.
@@ -144,6 +146,8 @@ pub struct FuseReport {
     pub rejected_snapshots: usize,
     /// Snapshots that could not be used (e.g. collinear UAVs before the start).
     pub failed: usize,
+    /// Arrivals dropped as outliers (their snapshots fused without them).
+    pub outlier_arrivals: usize,
     /// The estimate after each snapshot.
     pub steps: Vec<FusedLine>,
 }
@@ -165,7 +169,7 @@ pub fn fuse(snapshots: &[Snapshot], prior: Option<Vector2<f64>>) -> Result<FuseR
     };
     // A prior only picks Chan's root: the resumed estimator holds no posterior, so the first fix starts it.
     let mut steps = Vec::with_capacity(snapshots.len());
-    let (mut fused, mut rejected, mut failed) = (0, 0, 0);
+    let (mut fused, mut rejected, mut failed, mut outliers) = (0, 0, 0, 0);
     let mut last = None;
     for (k, s) in snapshots.iter().enumerate() {
         let noise = NoiseModel::from_range_sigmas(&s.sigmas).map_err(|e| bad(s.line, e))?;
@@ -175,14 +179,16 @@ pub fn fuse(snapshots: &[Snapshot], prior: Option<Vector2<f64>>) -> Result<FuseR
                 match out.status {
                     EstimateStatus::Ok | EstimateStatus::Ambiguous => fused += 1,
                     EstimateStatus::Rejected { .. } => rejected += 1,
-                    EstimateStatus::Failed { .. } => failed += 1,
+                    EstimateStatus::Failed { .. } | EstimateStatus::Predicted => failed += 1,
                 }
                 let line = FusedLine {
                     line: s.line,
                     status: out.status.name().to_string(),
                     estimate: [out.position.x, out.position.y],
                     cov: rows(&out.covariance),
+                    outliers: (0..s.uavs.len()).filter(|i| out.outliers & (1u8 << i) != 0).collect(),
                 };
+                outliers += line.outliers.len();
                 if !matches!(out.status, EstimateStatus::Failed { .. }) {
                     last = Some((line.estimate, line.cov));
                 }
@@ -207,6 +213,7 @@ pub fn fuse(snapshots: &[Snapshot], prior: Option<Vector2<f64>>) -> Result<FuseR
         fused,
         rejected_snapshots: rejected,
         failed,
+        outlier_arrivals: outliers,
         steps,
     })
 }
@@ -257,7 +264,7 @@ mod tests {
     }
 
     #[test]
-    fn noise_free_snapshots_fuse_to_the_truth_and_a_wild_one_is_rejected() {
+    fn noise_free_snapshots_fuse_to_the_truth_and_a_late_arrival_is_dropped_a_wild_snapshot_rejected() {
         let z = [25_000.0, 15_000.0];
         let mut text = String::from("x0,y0,x1,y1,x2,y2,d1,d2,sigma\n");
         for k in 0..6 {
@@ -265,13 +272,18 @@ mod tests {
             text += &line(&[[1500.0 + t, 500.0], [10_000.0 + t, 1500.0 + t], [5000.0, 8500.0 + t]], z, [0.0, 0.0]);
             text += "\n";
         }
+        // UAV1's arrival 3 km late (a reflection): dropped, the other two fused.
         text += &line(&[[5000.0, 500.0], [13_000.0, 4500.0], [5000.0, 11_500.0]], z, [3000.0, 0.0]);
         text += "\n";
+        // UAV1 3 km early, UAV2 2 km late: no single late arrival explains it; the snapshot is rejected.
+        text += &line(&[[5000.0, 500.0], [13_000.0, 4500.0], [5000.0, 11_500.0]], z, [-3000.0, 2000.0]);
+        text += "\n";
         let snaps = parse_snapshots(&text).unwrap();
-        assert_eq!(snaps.len(), 7);
+        assert_eq!(snaps.len(), 8);
         let r = fuse(&snaps, Some(Vector2::new(20_000.0, 20_000.0))).unwrap();
         assert!((r.x - z[0]).hypot(r.y - z[1]) < 1e-3, "{r:?}");
-        assert_eq!((r.fused, r.rejected_snapshots, r.failed), (6, 1, 0));
+        assert_eq!((r.fused, r.rejected_snapshots, r.failed, r.outlier_arrivals), (7, 1, 0, 1));
+        assert_eq!(r.steps[6].outliers, vec![1]);
         assert_eq!(r.steps.last().unwrap().status, "rejected");
         // The covariance shrank with every fused snapshot.
         let tr: Vec<f64> = r.steps.iter().map(|s| s.cov[0][0] + s.cov[1][1]).collect();

@@ -39,7 +39,12 @@ Experiments:
                500–2000 m, 30–80 m/s, every other emitter moving), 120 steps each: pair approaches
                below D_min and UAV-steps inside L_min of the TRUE emitter along the arcs flown, steps
                without a certified plan (listed), terminal error and error/PCRLB (not part of `all`)
-  all          everything above but fusion and safety, sharing runs
+  receiver     beyond the paper: the estimator on bursts as a real receiver gives them — arrivals lost
+               (0.1, 0.3), a silent emitter (0.3), multipath outliers (0.05, 0.15 per arrival, 200–1000 m
+               late), GNSS (5, 20 m) and clock (10, 30 ns) errors, per step and per flight — for 3 and 5
+               UAVs, beside a receiver-blind estimator on the same runs: RMSE / PCRLB of the arrivals
+               received, NEES, outliers identified, steps commanded (not part of `all`)
+  all          everything above but fusion, safety and receiver, sharing runs
 
 Defaults are the paper's: M = 200 outer runs, R = 30 inner TDOA-noise resamples per RMSE point, K = 200
 MC target samples, PSO 40 × 15, the nominal scenario of Table 1 (scenarios/nominal.toml). Settings the
@@ -57,6 +62,7 @@ Examples:
   uavloc paper all --quick
   uavloc paper table6 --runs 50 --json
   uavloc paper safety --runs 200 --out results/safety/
+  uavloc paper receiver --quick --out results/receiver/
   uavloc paper all --out results/      # Markdown + CSV per table, SVG + PNG per figure
 
 JSON (--json): {\"experiment\", \"title\", \"settings\", \"rows\", \"conclusions\"}; for `all`,
@@ -69,7 +75,7 @@ Timing: `all` with the defaults takes a few minutes on 2 cores; --quick (M = 20)
 #[derive(Args, Debug, Clone, PartialEq)]
 pub struct PaperArgs {
     /// Which experiment: table2 | table4 | table5 | table6 | table7 | table8 | table9 | table10 |
-    /// optimizers | sensitivity | fusion | safety | all.
+    /// optimizers | sensitivity | fusion | safety | receiver | all.
     pub experiment: ExperimentKind,
     /// Outer Monte Carlo runs M (default 200, the paper's; 20 with --quick).
     #[arg(long, value_name = "M")]

@@ -150,18 +150,53 @@ fn pairs(v: &Value, what: &str, step: u64) -> Result<Vec<[f64; 2]>, CliError> {
         .collect()
 }
 
-/// The measurement a recorded JSON describes (the wire message, number for number).
+/// The measurement a recorded JSON describes (the wire message, number for number): the arrivals of the
+/// UAVs heard, or — a recording of an older layout — the range differences to UAV0.
 fn measurement_of(json: &Value) -> Result<Measurement, CliError> {
     let step = json["step"].as_u64().ok_or_else(|| CliError::Input("a recorded measurement without a step".into()))?;
-    Measurement::new(
-        step,
-        json["seq"].as_u64().unwrap_or(0),
-        &pairs(&json["uavs"], "UAV positions", step)?,
-        &f64s(&json["diffs"], "range differences", step)?,
-        &f64s(&json["sigmas"], "sigmas", step)?,
-        &f64s(&json["headings"], "headings", step)?,
-    )
-    .map_err(|e| CliError::input_because(format!("step {step}: the recorded measurement"), e))
+    let seq = json["seq"].as_u64().unwrap_or(0);
+    let uavs = pairs(&json["uavs"], "UAV positions", step)?;
+    let sigmas = f64s(&json["sigmas"], "sigmas", step)?;
+    let headings = f64s(&json["headings"], "headings", step)?;
+    let bad = |e| CliError::input_because(format!("step {step}: the recorded measurement"), e);
+    if json.get("arrivals").is_none() {
+        let diffs = f64s(&json["diffs"], "range differences", step)?;
+        return Measurement::new(step, seq, &uavs, &diffs, &sigmas, &headings).map_err(bad);
+    }
+    let arrivals: Vec<f64> = f64s(&json["arrivals"], "arrivals", step)?;
+    let mut heard = 0u8;
+    for i in json["heard"].as_array().into_iter().flatten() {
+        match i.as_u64() {
+            Some(i) if (i as usize) < uavs.len() => heard |= 1u8 << i,
+            _ => return Err(CliError::Input(format!("step {step}: the recorded heard list names no UAV: {i}"))),
+        }
+    }
+    let arrivals: Vec<f64> = arrivals.iter().map(|a| if a.is_nan() { 0.0 } else { *a }).collect();
+    let mut m = if json["silent"].as_bool() == Some(true) {
+        Measurement::silent(step, seq, &uavs, &sigmas, &headings)
+    } else {
+        Measurement::heard(step, seq, &uavs, heard, &arrivals, &sigmas, &headings)
+    }
+    .map_err(bad)?;
+    let n = m.len();
+    for (key, field) in [
+        ("position_sigmas", &mut m.position_sigmas),
+        ("position_bias_sigmas", &mut m.position_bias_sigmas),
+        ("clock_sigmas_ns", &mut m.clock_sigmas_ns),
+        ("clock_bias_sigmas_ns", &mut m.clock_bias_sigmas_ns),
+    ] {
+        if json.get(key).is_some() {
+            let v = f64s(&json[key], key, step)?;
+            if v.len() != n {
+                return Err(CliError::Input(format!(
+                    "step {step}: the recorded {key} has {} values, not {n}",
+                    v.len()
+                )));
+            }
+            field[..n].copy_from_slice(&v);
+        }
+    }
+    Ok(m)
 }
 
 fn finite(v: f64) -> Option<f64> {

@@ -115,7 +115,7 @@ pub fn run(args: &SimulateArgs) -> Result<SimulateReport, CliError> {
     let run = closed_loop::run_closed_loop(&sc, objective, solver, |record, trace| {
         bar.inc(1);
         if let Some(r) = &mut recorder {
-            record_step(r, record, trace, objective, solver);
+            record_step(r, record, trace, (objective, solver), &sc);
         }
         if let Some((terminal, view, skip)) = &mut live {
             view.apply_step(record);
@@ -149,16 +149,23 @@ fn record_step(
     r: &mut record::recording::Recorder,
     record: &record::StepRecord,
     trace: &closed_loop::StepTrace<'_>,
-    objective: planning::ObjectiveKind,
-    solver: planning::SolverKind,
+    (objective, solver): (planning::ObjectiveKind, planning::SolverKind),
+    sc: &model::Scenario,
 ) {
-    use protocol::{Command, CommandOutcome, Measurement, Truth};
+    use protocol::{Command, CommandOutcome, Truth};
     let k = record.step;
     let now = protocol::now_ns();
     let previous = if k == 0 { CommandOutcome::None } else { CommandOutcome::Flown };
     r.record(&Truth::new(k, k, trace.truth).with_previous_command(previous), now);
-    let uavs = &record.uavs;
-    let Ok(m) = Measurement::new(k, k, uavs, trace.range_diffs, trace.sigmas, trace.measured_headings) else { return };
+    let wire = emitter_sim::process::wire_measurement(
+        k,
+        trace.measurement,
+        &sc.range_sigmas(),
+        trace.measured_headings,
+        &sc.receiver,
+    );
+    let Ok(mut m) = wire else { return };
+    m.header.seq = k;
     r.record(&m, now);
     let reply = estimator::chain::reply_of(trace.estimate);
     let estimate = reply.to_estimate(&m, now, k, 0).ok();

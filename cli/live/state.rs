@@ -107,7 +107,9 @@ impl LiveState {
         let at = r.truth.unwrap_or(r.estimate);
         let z = nalgebra::Vector2::new(at[0], at[1]);
         let pcrlb = match &mut self.bound {
-            Some(b) if z.iter().all(|v| v.is_finite()) => b.add(r.step, &r.uavs, r.range_sigmas_m.as_deref(), &z),
+            Some(b) if z.iter().all(|v| v.is_finite()) => {
+                b.add(r.step, &r.uavs, r.range_sigmas_m.as_deref(), r.receiver.as_ref().map(|x| x.heard.as_slice()), &z)
+            }
             Some(_) => None,
             None => r.pcrlb_m.or(r.pcrlb_at_estimate_m),
         };

@@ -47,10 +47,9 @@ pub struct StepTrace<'a> {
     pub truth: [f64; 2],
     /// The UAV headings at the measurement, radians.
     pub measured_headings: &'a [f64],
-    /// The measured range differences d_i = r_i − r_0, metres.
-    pub range_diffs: &'a [f64],
-    /// The range noise σ per UAV, metres.
-    pub sigmas: &'a [f64],
+    /// The world's measurement: the burst as the receivers gave it (who heard it, the arrivals, the
+    /// stated σ, a silent emitter, the reflections).
+    pub measurement: &'a model::world::Measurement,
     /// The estimator's output for the step.
     pub estimate: &'a estimation::EstimateOut,
     /// The plan of the step (`None` on the last step).
@@ -62,6 +61,19 @@ pub struct StepTrace<'a> {
     pub motion: Option<planning::EmitterMotion>,
 }
 
+/// What the estimator makes of the receivers' bursts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ReceiverView {
+    /// Every burst as the receivers give it: any two or more arrivals, the stated σ (GNSS and clock
+    /// errors included), the scenario's outlier policy — the pipeline's estimator.
+    #[default]
+    Stated,
+    /// A receiver-blind estimator, for comparison: a step counts only when every UAV heard the burst
+    /// (a step with a lost arrival is lost whole, as with range differences to UAV0), the range σ only
+    /// (no GNSS or clock errors in the noise), and a burst that fails the gate is rejected whole.
+    CompleteOnly,
+}
+
 /// The closed loop for `scenario` (its `steps` and `seed`), planning with `objective` × `solver`.
 /// Step 0 is the initial geometry; the last step is measured but not planned. `on_step` is called after
 /// every recorded step (for progress, or to record the step's messages).
@@ -69,33 +81,69 @@ pub fn run_closed_loop(
     scenario: &Scenario,
     objective: ObjectiveKind,
     solver: SolverKind,
+    on_step: impl FnMut(&StepRecord, &StepTrace<'_>),
+) -> Result<RunRecord, LoopError> {
+    run_closed_loop_with(scenario, objective, solver, ReceiverView::Stated, on_step)
+}
+
+/// [`run_closed_loop`] with the estimator seeing the bursts as `view` says.
+pub fn run_closed_loop_with(
+    scenario: &Scenario,
+    objective: ObjectiveKind,
+    solver: SolverKind,
+    view: ReceiverView,
     mut on_step: impl FnMut(&StepRecord, &StepTrace<'_>),
 ) -> Result<RunRecord, LoopError> {
     let mut world = model::world::World::from_scenario(scenario).map_err(failed(None, "world"))?;
     let dynamics = scenario.dynamics().map_err(failed(None, "estimator"))?;
-    let mut estimator =
-        estimation::Estimator::with_config(estimation::EstimatorConfig::new(scenario.estimator, dynamics));
+    let outliers = match view {
+        ReceiverView::Stated => scenario.outliers,
+        ReceiverView::CompleteOnly => tdoa::arrivals::OutlierPolicy::Snapshot,
+    };
+    let mut estimator = estimation::Estimator::with_config(
+        estimation::EstimatorConfig::new(scenario.estimator, dynamics).with_outliers(outliers),
+    );
+    // The σ the receivers state, recorded where it is not the scenario's (as the pipeline's monitor does).
+    let (stated_sigmas, _) = world.stated_sigmas();
+    let stated = (stated_sigmas != scenario.range_sigmas()).then_some(stated_sigmas);
+    // The planner plans for the noise the receivers state (as the pipeline's planner does).
+    let planned_for = planning::scenario_with_sigmas(scenario, stated.as_deref());
+    let plan_scenario = planned_for.as_ref().unwrap_or(scenario);
     let start = world.truth();
     let mut steps = Vec::with_capacity(scenario.steps + 1);
     for k in 0..=scenario.steps as u64 {
         let truth = world.truth();
         let meas = world.measure().map_err(failed(Some(k), "measurement"))?;
-        let est =
-            estimator.estimate(k, &meas.uavs, &meas.range_diffs, world.noise()).map_err(failed(Some(k), "estimate"))?;
+        let seen = match view {
+            ReceiverView::Stated => meas.arrivals,
+            ReceiverView::CompleteOnly => {
+                complete_only(&meas.arrivals, world.noise().sigmas()).map_err(failed(Some(k), "measurement"))?
+            }
+        };
+        // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): the swarm
+        // holds course and tries the next burst, for at most FIRST_FIX_STEPS steps (what the pipeline's
+        // planner does with such an estimate).
+        let (est, awaiting_fix) = match estimator.estimate_burst(k, &seen) {
+            Ok(est) => (est, false),
+            Err(e) if k + 1 < planning::FIRST_FIX_STEPS => (no_fix_yet(&seen, e.to_string()), true),
+            Err(e) => return Err(failed(Some(k), "estimate")(e)),
+        };
         let status = est.status.name();
         let velocity = est.posterior.and_then(|p| p.velocity());
         let motion = velocity.map(|(velocity, velocity_cov)| planning::EmitterMotion { velocity, velocity_cov });
-        let sensors = world.sensors().map_err(failed(Some(k), "geometry"))?;
+        // The geometry as reported, with the range σ (what the pipeline's monitor has).
+        let reported: Vec<[f64; 2]> = meas.uavs.iter().map(pair).collect();
+        let sensors = tdoa::Sensors::new(&reported, world.noise().clone()).map_err(failed(Some(k), "geometry"))?;
         let metrics = step_metrics(&sensors, &truth, scenario.rmse_resamples, scenario.seed, k, Some(est.position));
         // The planner sees the live estimate, or in controlled mode the truth plus a fixed error.
         let target = scenario.controlled_target(truth);
-        let (z_hat, m) = target.map_or((est.position, est.covariance), |t| (t.estimate, t.covariance));
+        let (z_hat, m) = target.map_or((est.position, est.total_covariance()), |t| (t.estimate, t.covariance));
         let mut record = StepRecord {
             step: k,
             uavs: meas.uavs.iter().map(pair).collect(),
             headings_rad: world.headings().to_vec(),
             estimate: pair(&est.position),
-            estimate_cov: tdoa::matrix_to_rows(&est.covariance),
+            estimate_cov: tdoa::matrix_to_rows(&est.total_covariance()),
             estimate_status: status.to_string(),
             estimate_velocity: velocity.map(|(v, _)| pair(&v)),
             estimate_velocity_cov: velocity.map(|(_, c)| tdoa::matrix_to_rows(&c)),
@@ -113,18 +161,33 @@ pub fn run_closed_loop(
             active_constraints: Vec::new(),
             planner: None,
             criterion_ess: None,
-            range_sigmas_m: None,
+            range_sigmas_m: stated.clone(),
             estimator: Some(scenario.estimator.name().to_string()),
             safety: None,
+            receiver: record::StepReceiver::from_masks(
+                meas.uavs.len(),
+                meas.arrivals.heard_mask(),
+                est.outliers,
+                Some(meas.silent),
+                Some(meas.multipath),
+            )
+            .unless_complete(meas.uavs.len()),
         };
         let measured_headings = world.headings().to_vec();
-        let plan = if k < scenario.steps as u64 {
+        let plan = if k < scenario.steps as u64 && awaiting_fix {
+            // A hold: every UAV keeps its heading; recorded as the pipeline's monitor records a hold.
+            let headings = world.headings().to_vec();
+            world.apply(&headings).map_err(failed(Some(k), "move"))?;
+            record.active_constraints = vec![HOLD_LABEL.to_string()];
+            None
+        } else if k < scenario.steps as u64 {
             let plan = plan_step(&PlanRequest {
-                positions: world.positions(),
+                // Where the UAVs report they are (the pipeline plans from the same).
+                positions: &meas.uavs,
                 headings: world.headings(),
                 estimate: z_hat,
                 covariance: m,
-                scenario,
+                scenario: plan_scenario,
                 objective,
                 solver,
                 run_seed: scenario.seed,
@@ -148,8 +211,7 @@ pub fn run_closed_loop(
         let trace = StepTrace {
             truth: pair(&truth),
             measured_headings: &measured_headings,
-            range_diffs: meas.range_diffs.as_slice(),
-            sigmas: world.noise().sigmas(),
+            measurement: &meas,
             estimate: &est,
             plan: plan.as_ref(),
             target: (z_hat, m),
@@ -168,6 +230,37 @@ pub fn run_closed_loop(
     );
     record::annotate(&mut run);
     Ok(run)
+}
+
+/// The record label of a step held because there was no estimate to plan from (the monitor's label of a
+/// hold command).
+pub const HOLD_LABEL: &str = "estimate_stale";
+
+/// The estimator's output for a step without a first fix yet: no position (NaN), status `failed`.
+fn no_fix_yet(a: &tdoa::Arrivals, reason: String) -> estimation::EstimateOut {
+    estimation::EstimateOut {
+        position: Vector2::repeat(f64::NAN),
+        covariance: Matrix2::repeat(f64::NAN),
+        status: estimation::EstimateStatus::Failed { reason },
+        candidates: Vec::new(),
+        posterior: None,
+        nis: None,
+        rejected_run: 0,
+        confirmed: 0,
+        heard: a.heard_mask(),
+        outliers: 0,
+        bias_cov: Matrix2::zeros(),
+    }
+}
+
+/// The burst as a receiver-blind estimator sees it ([`ReceiverView::CompleteOnly`]): nothing unless every
+/// UAV heard it, with the range σ `range_sigmas` only.
+fn complete_only(a: &tdoa::Arrivals, range_sigmas: &[f64]) -> Result<tdoa::Arrivals, tdoa::TdoaError> {
+    let n = a.len();
+    let pts: Vec<[f64; 2]> = a.positions().iter().map(pair).collect();
+    let arrivals: Vec<f64> = (0..n).map(|i| a.arrival(i).unwrap_or(0.0)).collect();
+    let heard = if a.heard_count() == n { a.heard_mask() } else { 0 };
+    tdoa::Arrivals::new(&pts, &arrivals, heard, range_sigmas, &vec![0.0; n])
 }
 
 #[cfg(test)]

@@ -144,10 +144,8 @@ impl EmitterNode<'_> {
         let meas = self.world.measure().map_err(|e| {
             ProcessError::Unrecoverable(format!("step {k}: measurement: {e}; the run cannot go on (exit code 3)"))
         })?;
-        let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
-        let mut message =
-            Measurement::new(k, 0, &uavs, meas.range_diffs.as_slice(), &self.sigmas, self.world.headings())
-                .map_err(|e| ProcessError::failed_because(format!("step {k}: measurement"), e))?;
+        let mut message = wire_measurement(k, &meas, &self.sigmas, self.world.headings(), self.world.receiver())
+            .map_err(|e| ProcessError::failed_because(format!("step {k}: measurement"), e))?;
         let z = self.world.truth();
         let mut truth = Truth::new(k, 0, [z.x, z.y]).with_previous_command(self.previous);
         if let Some((cmd, received_ns)) = &self.trigger {
@@ -357,4 +355,29 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &EmitterSimArgs) -> ExitCode {
     runtime::exit_with(ROLE, args.process.node.supervised, run(args))
+}
+
+/// The wire form of the world's measurement `meas` of step `k`: the arrivals heard, a silent step's flag,
+/// the range σ `sigmas` and the receiver model's GNSS and clock σ.
+pub fn wire_measurement(
+    k: u64,
+    meas: &model::world::Measurement,
+    sigmas: &[f64],
+    headings: &[f64],
+    receiver: &model::ReceiverModel,
+) -> Result<Measurement, protocol::ProtocolError> {
+    let uavs: Vec<[f64; 2]> = meas.uavs.iter().map(|p| [p.x, p.y]).collect();
+    let arrivals: Vec<f64> = (0..uavs.len()).map(|i| meas.arrivals.arrival(i).unwrap_or(0.0)).collect();
+    let mut m = if meas.silent {
+        Measurement::silent(k, 0, &uavs, sigmas, headings)?
+    } else {
+        Measurement::heard(k, 0, &uavs, meas.arrivals.heard_mask(), &arrivals, sigmas, headings)?
+    };
+    if !receiver.is_perfect() {
+        m = m.with_sensor_errors(
+            [receiver.gnss_sigma_m, receiver.gnss_bias_sigma_m],
+            [receiver.clock_sigma_ns, receiver.clock_bias_sigma_ns],
+        );
+    }
+    Ok(m)
 }

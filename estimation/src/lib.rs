@@ -24,7 +24,10 @@
 
 use nalgebra::{Matrix2, Vector2};
 use tdoa::fusion::{self, DEFAULT_GATE_PROBABILITY, Outcome, Posterior};
-use tdoa::{Dynamics, NoiseModel, RangeDiffs, Sensors, TdoaError, chan};
+use tdoa::{Arrivals, Dynamics, NoiseModel, RangeDiffs, TdoaError};
+
+pub mod outliers;
+pub use outliers::OutlierPolicy;
 use thiserror::Error;
 
 pub use tdoa::EmitterModel;
@@ -34,6 +37,12 @@ pub use tdoa::fusion::EstimatorKind;
 /// rejected in a row by its χ² gate: the posterior has lost the emitter (a wrong root, a jump), and
 /// gating alone would keep it lost forever.
 pub const REJECTED_RUN_RESTART: u8 = 3;
+
+/// A fused track is provisional until it has fused this many bursts whole (no arrival dropped): until
+/// then a burst that fails the gate is rejected whole, never made to fit by dropping arrivals — a first
+/// fix that a reflection corrupted (three UAVs leave no redundancy to see it) is not kept alive by the
+/// subsets that happen to agree with it, and is restarted after [`REJECTED_RUN_RESTART`] rejections.
+pub const CONFIRM_BURSTS: u8 = 3;
 
 /// How an estimate came about.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,6 +58,9 @@ pub enum EstimateStatus {
         /// The gate it exceeded, `χ²_{N−1}(p_gate)`.
         threshold: f64,
     },
+    /// Fused only: no burst heard by two UAVs at this step (the emitter silent, or the arrivals lost);
+    /// the estimate is the posterior predicted to this step.
+    Predicted,
     /// The step could not be estimated; `position` and `covariance` are the previous estimate.
     Failed {
         /// Why.
@@ -63,6 +75,7 @@ impl EstimateStatus {
             EstimateStatus::Ok => "ok",
             EstimateStatus::Ambiguous => "ambiguous",
             EstimateStatus::Rejected { .. } => "rejected",
+            EstimateStatus::Predicted => "predicted",
             EstimateStatus::Failed { .. } => "failed",
         }
     }
@@ -87,6 +100,23 @@ pub struct EstimateOut {
     pub nis: Option<f64>,
     /// Fused: snapshots rejected in a row up to this one (0 after a fused one or a restart).
     pub rejected_run: u8,
+    /// Fused: bursts fused whole since the track started, up to this one (see [`CONFIRM_BURSTS`]).
+    pub confirmed: u8,
+    /// The UAVs whose arrival the step held (bit i: UAV i).
+    pub heard: u8,
+    /// The arrivals dropped as outliers (bit i: UAV i; see [`outliers`]).
+    pub outliers: u8,
+    /// The consider covariance of the persistent GNSS and clock errors at `position`, m² (zero without
+    /// them; see [`tdoa::arrivals`]): not part of the fused state, added to it wherever the uncertainty
+    /// of the emitter is used ([`EstimateOut::total_covariance`]).
+    pub bias_cov: Matrix2<f64>,
+}
+
+impl EstimateOut {
+    /// `covariance + bias_cov`: the uncertainty of the position, persistent errors included, m².
+    pub fn total_covariance(&self) -> Matrix2<f64> {
+        self.covariance + self.bias_cov
+    }
 }
 
 /// Why no estimate at all could be given.
@@ -95,6 +125,13 @@ pub enum EstimatorError {
     /// The step failed and there is no previous estimate to fall back on.
     #[error("no estimate: {0} (and no previous estimate to keep)")]
     NoEstimate(#[source] TdoaError),
+    /// No estimate yet because no burst so far reached three UAVs (a silent emitter, lost arrivals):
+    /// not a failure of the geometry — the next burst may give the first fix.
+    #[error("no fix yet: this step's burst reached {heard} UAV(s), a first fix needs three")]
+    NoFixYet {
+        /// UAVs that heard this step's burst.
+        heard: usize,
+    },
 }
 
 /// What an [`Estimator`] is: its kind, the motion model and the gate.
@@ -108,6 +145,8 @@ pub struct EstimatorConfig {
     /// [`DEFAULT_GATE_PROBABILITY`]: computed once here, because the quantile is an iterative inversion
     /// (≈ 1.4 µs) and every fused snapshot needs its gate.
     gates: [f64; tdoa::MAX_UAVS],
+    /// What a burst that fails the gate costs: itself, or its outlying arrivals ([`OutlierPolicy`]).
+    pub outliers: OutlierPolicy,
 }
 
 impl EstimatorConfig {
@@ -127,7 +166,13 @@ impl EstimatorConfig {
         for (m, gate) in gates.iter_mut().enumerate().skip(1) {
             *gate = fusion::gate_threshold(m, DEFAULT_GATE_PROBABILITY);
         }
-        Self { kind, dynamics, gates }
+        Self { kind, dynamics, gates, outliers: OutlierPolicy::default() }
+    }
+
+    /// This configuration with the outlier policy `outliers`.
+    pub fn with_outliers(mut self, outliers: OutlierPolicy) -> Self {
+        self.outliers = outliers;
+        self
     }
 
     /// The gate of a snapshot of `m` range differences (`+∞`, no gate, outside 1..MAX_UAVS).
@@ -154,6 +199,8 @@ pub struct Estimator {
     alternative: Option<Posterior>,
     /// Fused: snapshots rejected in a row.
     rejected_run: u8,
+    /// Fused: bursts fused whole since the track started (saturating at [`CONFIRM_BURSTS`]).
+    confirmed: u8,
     last_step: Option<u64>,
 }
 
@@ -173,6 +220,7 @@ impl Estimator {
             posterior: None,
             alternative: None,
             rejected_run: 0,
+            confirmed: 0,
             last_step: None,
         }
     }
@@ -212,6 +260,7 @@ impl Estimator {
             posterior,
             alternative: None,
             rejected_run: 0,
+            confirmed: 0,
             last_step: Some(step),
         }
     }
@@ -221,6 +270,18 @@ impl Estimator {
     pub fn with_rejected_run(mut self, n: u8) -> Self {
         self.rejected_run = n;
         self
+    }
+
+    /// This estimator with `n` bursts fused whole behind its track (the state of an estimate's
+    /// `confirmed`).
+    pub fn with_confirmed(mut self, n: u8) -> Self {
+        self.confirmed = n.min(CONFIRM_BURSTS);
+        self
+    }
+
+    /// Fused: bursts fused whole since the track started (saturating at [`CONFIRM_BURSTS`]).
+    pub fn confirmed(&self) -> u8 {
+        self.confirmed
     }
 
     /// The configuration.
@@ -254,11 +315,8 @@ impl Estimator {
     }
 
     /// Estimates the emitter at `step` from range differences `d` (`d_i = r_i − r_0`, metres) measured
-    /// by UAVs at `uavs` (metres, index 0 the reference) with range noise `noise`. Steps are snapshot
-    /// intervals: the constant-velocity model predicts over `step − last step` of them.
-    ///
-    /// On failure the previous estimate is returned with [`EstimateStatus::Failed`]; only when there is
-    /// none is the result an error.
+    /// by UAVs at `uavs` (metres, index 0 the reference) with range noise `noise`: a burst every UAV
+    /// heard ([`estimate_burst`](Self::estimate_burst) of [`Arrivals::all`]).
     pub fn estimate(
         &mut self,
         step: u64,
@@ -266,14 +324,37 @@ impl Estimator {
         d: &RangeDiffs,
         noise: &NoiseModel,
     ) -> Result<EstimateOut, EstimatorError> {
+        let pts: Vec<[f64; 2]> = uavs.iter().map(|p| [p.x, p.y]).collect();
+        match Arrivals::all(&pts, d, noise) {
+            Ok(a) => self.estimate_burst(step, &a),
+            Err(e) => self.failed(step, e),
+        }
+    }
+
+    /// Estimates the emitter at `step` from the burst `a`: the arrivals of the UAVs that heard it (any
+    /// two or more; fewer, and the estimate is the posterior predicted to this step, status
+    /// [`EstimateStatus::Predicted`]). Steps are snapshot intervals: the constant-velocity model
+    /// predicts over `step − last step` of them. Outlying arrivals are dropped per the configured
+    /// [`OutlierPolicy`].
+    ///
+    /// On failure the previous estimate is returned with [`EstimateStatus::Failed`]; only when there is
+    /// none is the result an error.
+    pub fn estimate_burst(&mut self, step: u64, a: &Arrivals) -> Result<EstimateOut, EstimatorError> {
+        if a.heard_count() < 2 {
+            return self.silent(step, a);
+        }
+        if a.heard_count() < 3 && self.posterior.is_none() && self.previous.is_none() {
+            // Two arrivals and nothing to fuse them into: wait for a burst that gives a first fix.
+            return self.silent(step, a);
+        }
         let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
         let dynamics = self.config.dynamics;
         let result = match (self.config.kind, self.posterior, self.alternative.take()) {
             (EstimatorKind::Fused, Some(post), Some(other)) => {
-                self.resolve(&post.predict(&dynamics, elapsed), &other.predict(&dynamics, elapsed), uavs, d, noise)
+                self.resolve(&post.predict(&dynamics, elapsed), &other.predict(&dynamics, elapsed), a)
             }
-            (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), uavs, d, noise),
-            _ => self.solve(uavs, d, noise).map(|(out, other)| {
+            (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), a),
+            _ => self.solve(a).map(|(out, other)| {
                 self.alternative = other;
                 out
             }),
@@ -287,10 +368,11 @@ impl Estimator {
                 if self.rejected_run >= REJECTED_RUN_RESTART {
                     self.prior = Some(out.position);
                     self.previous = None;
-                    match self.solve(uavs, d, noise) {
+                    match self.solve(a) {
                         Ok((fresh, other)) => {
                             self.alternative = other;
                             self.rejected_run = 0;
+                            self.confirmed = 0;
                             Ok(fresh)
                         }
                         Err(_) => Ok(out),
@@ -301,12 +383,21 @@ impl Estimator {
             }
             Ok(out) if out.posterior.is_some() => {
                 self.rejected_run = 0;
+                // A fused burst with nothing dropped confirms the track; a new Chan fix starts one.
+                if out.nis.is_none() {
+                    self.confirmed = 0;
+                } else if out.outliers == 0 {
+                    self.confirmed = self.confirmed.saturating_add(1).min(CONFIRM_BURSTS);
+                }
                 Ok(out)
             }
             other => other,
         }
         .map(|mut out| {
             out.rejected_run = self.rejected_run;
+            out.confirmed = self.confirmed;
+            out.heard = a.heard_mask();
+            out.bias_cov = a.bias_covariance(&out.position).unwrap_or_else(Matrix2::zeros);
             out
         });
         match result {
@@ -322,42 +413,84 @@ impl Estimator {
                 if let Some(post) = self.posterior {
                     self.posterior = Some(post.predict(&self.config.dynamics, elapsed));
                 }
-                match self.previous {
-                    Some((position, covariance)) => Ok(EstimateOut {
-                        position,
-                        covariance,
-                        status: EstimateStatus::Failed { reason: e.to_string() },
-                        candidates: Vec::new(),
-                        posterior: None,
-                        nis: None,
-                        rejected_run: self.rejected_run,
-                    }),
-                    None => Err(EstimatorError::NoEstimate(e)),
-                }
+                self.keep_previous(e.to_string(), a.heard_mask()).ok_or(EstimatorError::NoEstimate(e))
             }
         }
     }
 
-    fn sensors(uavs: &[Vector2<f64>], noise: &NoiseModel) -> Result<Sensors, TdoaError> {
-        let pts: Vec<[f64; 2]> = uavs.iter().map(|p| [p.x, p.y]).collect();
-        Sensors::new(&pts, noise.clone())
+    /// The previous estimate, reported as failed for `reason`; `None` when there is none.
+    fn keep_previous(&self, reason: String, heard: u8) -> Option<EstimateOut> {
+        let (position, covariance) = self.previous?;
+        Some(EstimateOut {
+            position,
+            covariance,
+            status: EstimateStatus::Failed { reason },
+            candidates: Vec::new(),
+            posterior: None,
+            nis: None,
+            rejected_run: self.rejected_run,
+            confirmed: self.confirmed,
+            heard,
+            outliers: 0,
+            bias_cov: Matrix2::zeros(),
+        })
     }
 
-    fn fuse(
-        &self,
-        predicted: &Posterior,
-        uavs: &[Vector2<f64>],
-        d: &RangeDiffs,
-        noise: &NoiseModel,
-    ) -> Result<EstimateOut, TdoaError> {
-        let sensors = Self::sensors(uavs, noise)?;
-        let gate = self.config.gate(sensors.len() - 1);
-        let up = fusion::fuse(predicted, &sensors, d, gate)?;
-        let (status, nis) = match up.outcome {
+    /// A step whose input could not even be formed into a burst (e.g. a bad geometry).
+    fn failed(&mut self, step: u64, e: TdoaError) -> Result<EstimateOut, EstimatorError> {
+        let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
+        self.last_step = Some(step);
+        if let Some(post) = self.posterior {
+            self.posterior = Some(post.predict(&self.config.dynamics, elapsed));
+        }
+        self.keep_previous(e.to_string(), 0).ok_or(EstimatorError::NoEstimate(e))
+    }
+
+    /// A step without a burst heard by two UAVs: the fused posterior predicted to it (status
+    /// `predicted`; a pending second root is predicted with it); without a posterior, the previous
+    /// estimate kept (status `failed`).
+    fn silent(&mut self, step: u64, a: &Arrivals) -> Result<EstimateOut, EstimatorError> {
+        let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
+        self.last_step = Some(step);
+        let dynamics = self.config.dynamics;
+        self.alternative = self.alternative.map(|o| o.predict(&dynamics, elapsed));
+        match (self.config.kind, self.posterior) {
+            (EstimatorKind::Fused, Some(post)) => {
+                let pred = post.predict(&dynamics, elapsed);
+                self.posterior = Some(pred);
+                self.previous = Some((pred.position(), pred.position_cov()));
+                Ok(EstimateOut {
+                    position: pred.position(),
+                    covariance: pred.position_cov(),
+                    status: EstimateStatus::Predicted,
+                    candidates: Vec::new(),
+                    posterior: Some(pred),
+                    nis: None,
+                    rejected_run: self.rejected_run,
+                    confirmed: self.confirmed,
+                    heard: a.heard_mask(),
+                    outliers: 0,
+                    bias_cov: a.bias_covariance(&pred.position()).unwrap_or_else(Matrix2::zeros),
+                })
+            }
+            _ => {
+                let reason =
+                    format!("no burst heard by enough UAVs ({} heard) and no posterior to predict", a.heard_count());
+                self.keep_previous(reason, a.heard_mask()).ok_or(EstimatorError::NoFixYet { heard: a.heard_count() })
+            }
+        }
+    }
+
+    fn fuse(&self, predicted: &Posterior, a: &Arrivals) -> Result<EstimateOut, TdoaError> {
+        let config = self.config;
+        // A provisional track drops no arrival (see CONFIRM_BURSTS).
+        let policy = if self.confirmed >= CONFIRM_BURSTS { config.outliers } else { OutlierPolicy::Snapshot };
+        let up = outliers::fuse_burst(predicted, a, |m| config.gate(m), policy)?;
+        let (status, nis) = match up.update.outcome {
             Outcome::Fused { nis, .. } => (EstimateStatus::Ok, nis),
             Outcome::Rejected { nis, threshold } => (EstimateStatus::Rejected { nis, threshold }, nis),
         };
-        let post = up.posterior;
+        let post = up.update.posterior;
         Ok(EstimateOut {
             position: post.position(),
             covariance: post.position_cov(),
@@ -366,41 +499,33 @@ impl Estimator {
             posterior: Some(post),
             nis: Some(nis),
             rejected_run: 0,
+            confirmed: 0,
+            heard: a.heard_mask(),
+            outliers: up.dropped,
+            bias_cov: Matrix2::zeros(),
         })
     }
 
     /// After an ambiguous start: fuses the snapshot into both roots' posteriors and keeps the one whose
     /// innovation is smaller (the likelier root given both snapshots). The status is that of the
     /// update of the root kept.
-    fn resolve(
-        &self,
-        first: &Posterior,
-        other: &Posterior,
-        uavs: &[Vector2<f64>],
-        d: &RangeDiffs,
-        noise: &NoiseModel,
-    ) -> Result<EstimateOut, TdoaError> {
+    fn resolve(&self, first: &Posterior, other: &Posterior, a: &Arrivals) -> Result<EstimateOut, TdoaError> {
         let nis = |o: &EstimateOut| match o.status {
             EstimateStatus::Rejected { nis, .. } => nis,
             _ => o.nis.unwrap_or(f64::INFINITY),
         };
-        match (self.fuse(first, uavs, d, noise), self.fuse(other, uavs, d, noise)) {
-            (Ok(a), Ok(b)) => Ok(if nis(&b) < nis(&a) { b } else { a }),
-            (Ok(a), Err(_)) => Ok(a),
-            (Err(_), Ok(b)) => Ok(b),
+        match (self.fuse(first, a), self.fuse(other, a)) {
+            (Ok(x), Ok(y)) => Ok(if nis(&y) < nis(&x) { y } else { x }),
+            (Ok(x), Err(_)) => Ok(x),
+            (Err(_), Ok(y)) => Ok(y),
             (Err(e), Err(_)) => Err(e),
         }
     }
 
     /// Chan's fix; fused and ambiguous, also the posterior of the other root.
-    fn solve(
-        &self,
-        uavs: &[Vector2<f64>],
-        d: &RangeDiffs,
-        noise: &NoiseModel,
-    ) -> Result<(EstimateOut, Option<Posterior>), TdoaError> {
-        let sensors = Self::sensors(uavs, noise)?;
-        let sol = chan(&sensors, d, self.prior())?;
+    fn solve(&self, a: &Arrivals) -> Result<(EstimateOut, Option<Posterior>), TdoaError> {
+        let config = self.config;
+        let (sol, heard, dropped) = outliers::chan_burst(a, self.prior(), |m| config.gate(m), config.outliers)?;
         let finite = sol.position.iter().chain(sol.covariance.iter()).all(|v| v.is_finite());
         if !finite {
             return Err(TdoaError::Degenerate("Chan returned a non-finite estimate or covariance".into()));
@@ -409,7 +534,7 @@ impl Estimator {
         let (posterior, other) = match self.config.kind {
             EstimatorKind::Fused => {
                 let other = match (sol.ambiguous, sol.candidates.as_slice()) {
-                    (true, [_, second]) => tdoa::crlb(&sensors, second).ok().and_then(|c| {
+                    (true, [_, second]) => tdoa::crlb(&heard.sensors, second).ok().and_then(|c| {
                         let alt = tdoa::ChanSolution { position: *second, covariance: c.bound, ..sol.clone() };
                         Posterior::from_chan(&alt, &self.config.dynamics).ok()
                     }),
@@ -427,6 +552,10 @@ impl Estimator {
             posterior,
             nis: None,
             rejected_run: 0,
+            confirmed: 0,
+            heard: a.heard_mask(),
+            outliers: dropped,
+            bias_cov: Matrix2::zeros(),
         };
         Ok((out, other))
     }
@@ -435,6 +564,7 @@ impl Estimator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tdoa::{Sensors, chan};
 
     fn noise(n: usize) -> NoiseModel {
         NoiseModel::uniform(n, 28.7712).unwrap()

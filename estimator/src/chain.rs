@@ -16,17 +16,18 @@
 
 use std::collections::BTreeMap;
 
-use nalgebra::{Matrix4, Vector2, Vector4};
+use nalgebra::{Matrix4, Vector4};
 use protocol::{EchoedState, Estimate, Fix, Measurement, PosteriorExtra, StateEcho};
 use runtime::recovery::StateStore;
-use tdoa::{NoiseModel, Posterior, RangeDiffs};
+use tdoa::{Arrivals, Posterior};
 
 use estimation::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig};
 
 /// The wire form of the fused posterior beyond the position.
-pub fn extra_of(posterior: Option<&Posterior>, rejected_run: u8) -> PosteriorExtra {
+pub fn extra_of(posterior: Option<&Posterior>, rejected_run: u8, confirmed: u8) -> PosteriorExtra {
     let Some(p) = posterior else { return PosteriorExtra::default() };
-    let mut extra = PosteriorExtra { estimator: 1, model: p.model().code(), rejected_run, ..PosteriorExtra::default() };
+    let mut extra =
+        PosteriorExtra { estimator: 1, model: p.model().code(), rejected_run, confirmed, ..PosteriorExtra::default() };
     if p.model() == EmitterModel::ConstantVelocity {
         let (m, c) = (p.mean(), p.cov());
         extra.velocity = [m[2], m[3]];
@@ -76,7 +77,9 @@ impl Chain {
             EchoedState::State { step, estimate: (position, covariance), extra } => {
                 let (z, m) = tdoa::estimate_from_arrays(&position, &covariance);
                 let posterior = posterior_of(&position, &covariance, &extra);
-                let estimator = Estimator::resume(config, step, z, m, posterior).with_rejected_run(extra.rejected_run);
+                let estimator = Estimator::resume(config, step, z, m, posterior)
+                    .with_rejected_run(extra.rejected_run)
+                    .with_confirmed(extra.confirmed);
                 Self { estimator, last_step: Some(step) }
             }
             EchoedState::Empty { step } => Self { last_step: Some(step), ..Self::fresh(config) },
@@ -127,6 +130,10 @@ pub struct Reply {
     pub extra: PosteriorExtra,
     /// Failed: the standing estimate (position, covariance), if any.
     pub standing: Option<([f64; 2], [[f64; 2]; 2])>,
+    /// The arrivals dropped as outliers (bit i: UAV i).
+    pub outliers: u8,
+    /// The persistent errors' consider covariance at the estimate, m².
+    pub bias_cov: [[f64; 2]; 2],
 }
 
 impl Reply {
@@ -141,7 +148,8 @@ impl Reply {
     ) -> Result<Estimate, protocol::ProtocolError> {
         Ok(Estimate::from_measurement(m, received_ns, seq, instance, self.fix)?
             .with_extra(&self.extra)
-            .with_standing(self.standing))
+            .with_standing(self.standing)
+            .with_receiver(self.outliers, self.bias_cov))
     }
 }
 
@@ -242,20 +250,28 @@ impl StepEstimator {
 /// The estimate of one measurement as it goes on the wire (`Fix::Failed` when the step could not be
 /// estimated; it then carries the standing estimate the library keeps, if any).
 pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply {
-    let uavs: Vec<Vector2<f64>> = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
-    let outcome = match (NoiseModel::from_range_sigmas(m.sigmas()), RangeDiffs::from_slice(m.diffs())) {
-        (Ok(noise), Ok(diffs)) => estimator.estimate(m.header.step, &uavs, &diffs, &noise).ok(),
-        _ => None,
+    let outcome = match arrivals_of(m) {
+        Ok(a) => estimator.estimate_burst(m.header.step, &a).ok(),
+        Err(_) => None,
     };
     match outcome {
         Some(out) => reply_of(&out),
         // The standing estimate and the posterior beyond it: the state the next step goes on from.
         None => Reply {
             fix: Fix::Failed,
-            extra: extra_of(estimator.posterior().as_ref(), estimator.rejected_run()),
+            extra: extra_of(estimator.posterior().as_ref(), estimator.rejected_run(), estimator.confirmed()),
             standing: estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c)),
+            outliers: 0,
+            bias_cov: [[0.0; 2]; 2],
         },
     }
+}
+
+/// The burst a measurement carries, with the stated σ of each arrival (range noise, GNSS and clock,
+/// see [`Measurement::stated_sigmas`]).
+pub fn arrivals_of(m: &Measurement) -> Result<Arrivals, tdoa::TdoaError> {
+    let (sigmas, bias) = m.stated_sigmas();
+    Arrivals::new(m.uavs(), m.arrivals(), m.heard, &sigmas, &bias)
 }
 
 /// The wire form of the library estimator's output.
@@ -265,20 +281,30 @@ pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
         EstimateStatus::Ok => Fix::Ok { position, covariance },
         EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
         EstimateStatus::Rejected { .. } => Fix::Rejected { position, covariance },
+        EstimateStatus::Predicted => Fix::Predicted { position, covariance },
         EstimateStatus::Failed { .. } => {
             // The library returned its previous estimate: the standing one.
             return Reply {
                 fix: Fix::Failed,
-                extra: extra_of(out.posterior.as_ref(), out.rejected_run),
+                extra: extra_of(out.posterior.as_ref(), out.rejected_run, out.confirmed),
                 standing: Some((position, covariance)),
+                outliers: 0,
+                bias_cov: [[0.0; 2]; 2],
             };
         }
     };
-    Reply { fix, extra: extra_of(out.posterior.as_ref(), out.rejected_run), standing: None }
+    Reply {
+        fix,
+        extra: extra_of(out.posterior.as_ref(), out.rejected_run, out.confirmed),
+        standing: None,
+        outliers: out.outliers,
+        bias_cov: tdoa::matrix_to_rows(&out.bias_cov),
+    }
 }
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Vector2;
     use tdoa::Dynamics;
 
     use super::*;

@@ -7,8 +7,10 @@ without emitter-sim (`uavloc launch --source external --domain D --steps N`), an
 
   1. opens D/measurement and D/command (and their companion event services, whose notifications wake
      the uavloc processes up) and waits until the estimator, the planner and the monitor are there;
-  2. for k = 0..N: measures the range differences of the true emitter from the UAVs (Gaussian range noise
-     sigma per UAV, UAV 0 the reference), publishes the Measurement of step k, and — except after the
+  2. for k = 0..N: times the burst of the true emitter at each UAV (an arrival as a range, Gaussian range
+     noise sigma per UAV, a common offset the receivers do not know), publishes the Measurement of step
+     k — with --loss / --silence / --multipath, as a real receiver gives it: some arrivals lost, no burst
+     at all, an arrival late by a reflection — and — except after the
      last step — waits for the Command of step k and flies it: each UAV goes to the command's waypoint
      with the command's heading (the planner computed where the heading leads after one interval);
   3. prints a JSON summary on stdout: the steps published, the commands flown, the true emitter, the
@@ -16,6 +18,10 @@ without emitter-sim (`uavloc launch --source external --domain D --steps N`), an
 
 The world is a scenario TOML of uavloc (default: scenarios/nominal.toml, the scenario `uavloc launch` runs
 by default): `uavs`, `headings_deg` (omitted: each UAV heads at the emitter), `emitter`, `sigma`.
+
+--loss P drops each arrival with probability P, --silence P makes the emitter silent at a step with
+probability P (the step is still published, with every UAV's position, and still commanded),
+--multipath P delays each arrival by a reflection of 200-1000 m with probability P.
 
 --inject-bad publishes three malformed measurements before step 1 (a NaN range difference, a UAV count
 of 2, a sequence number that steps back); uavloc's processes reject and count them, and the run goes on.
@@ -160,22 +166,37 @@ class Link:
             self.listener.timed_wait(iox2.Duration.from_secs_f64(min(left, 0.1)))
 
 
-def measure(step, seq, uavs, headings, emitter, sigmas, rng):
-    """The Measurement of step k: d_i = (r_i + n_i) - (r_0 + n_0), n_i ~ N(0, sigma_i^2), i = 1..N-1."""
+def measure(step, seq, uavs, headings, emitter, sigmas, rng, impair=None):
+    """The Measurement of step k: arrival a_i = r_i + n_i + offset, n_i ~ N(0, sigma_i^2), with an offset
+    (the burst's unknown emission time) the receivers share. `impair` = (loss, silence, multipath)
+    probabilities; returns the message and what happened: (silent, heard UAVs, reflected UAVs)."""
+    loss, silence, multipath = impair or (0.0, 0.0, 0.0)
     n = len(uavs)
+    offset = rng.uniform(0.0, 1.0e5)
     ranges = [math.hypot(u[0] - emitter[0], u[1] - emitter[1]) + rng.gauss(0.0, s) for u, s in zip(uavs, sigmas)]
     m = msg.Measurement()
     m.header.version = msg.MEASUREMENT_VERSION
     m.header.step = step
     m.header.seq = seq
     m.count = n
+    silent = silence > 0.0 and rng.random() < silence
+    heard, reflected = [], []
     for i in range(n):
         m.uavs[i][0], m.uavs[i][1] = uavs[i]
         m.sigmas[i] = sigmas[i]
         m.headings[i] = headings[i]
-    for i in range(1, n):
-        m.diffs[i - 1] = ranges[i] - ranges[0]
-    return m
+        if silent or (loss > 0.0 and rng.random() < loss):
+            continue
+        a = ranges[i] + offset
+        if multipath > 0.0 and rng.random() < multipath:
+            a += rng.uniform(200.0, 1000.0)
+            reflected.append(i)
+        m.arrivals[i] = a
+        m.heard |= 1 << i
+        heard.append(i)
+    if silent:
+        m.flags = msg.FLAG_SILENT
+    return m, (silent, heard, reflected)
 
 
 def fly(command, n):
@@ -189,10 +210,11 @@ def fly(command, n):
 
 
 def bad_measurements(good, seq, last_accepted_seq):
-    """Three malformed copies of `good`: a NaN range difference, 2 UAVs, a sequence number that steps back."""
+    """Three malformed copies of `good`: a NaN arrival, 2 UAVs, a sequence number that steps back."""
     out = []
     nan = msg.Measurement.from_buffer_copy(good)
-    nan.diffs[0] = float("nan")
+    nan.heard |= 1
+    nan.arrivals[0] = float("nan")
     nan.header.seq = seq
     out.append(("nan", nan))
     two = msg.Measurement.from_buffer_copy(good)
@@ -221,7 +243,14 @@ def main():
     p.add_argument("--step-delay-s", type=float, default=0.0, help="wait this long before each measurement")
     p.add_argument("--remeasure", type=int, help="publish step K again, with fresh noise, after its first copy")
     p.add_argument("--seq-start", type=int, help="the first sequence number (default: the monotonic clock)")
+    p.add_argument("--loss", type=float, default=0.0, help="probability that one UAV's arrival is lost")
+    p.add_argument("--silence", type=float, default=0.0, help="probability that the emitter is silent at a step")
+    p.add_argument("--multipath", type=float, default=0.0,
+                   help="probability that an arrival is late by a reflection (200-1000 m)")
     args = p.parse_args()
+    for name in ("loss", "silence", "multipath"):
+        if not 0.0 <= getattr(args, name) < 1.0:
+            p.error(f"--{name} must be a probability in [0, 1)")
     if args.steps < 0:
         p.error("--steps must be >= 0")
     if args.seq_start is not None and not 0 <= args.seq_start < 2**64:
@@ -242,11 +271,17 @@ def main():
     # Sequence numbers start at the monotonic clock: a restarted front end numbers above its predecessor.
     seq = time.monotonic_ns() if args.seq_start is None else args.seq_start
     flown, held, bad_sent = 0, 0, []
+    impair = (args.loss, args.silence, args.multipath)
+    silent_steps, lost, reflected_total, partial_steps = 0, 0, 0, 0
     trigger = (0, 0)
     last_accepted = None
     for k in range(args.steps + 1):
         time.sleep(args.step_delay_s)
-        m = measure(k, seq, uavs, headings, emitter, sigmas, rng)
+        m, (silent, heard, reflected) = measure(k, seq, uavs, headings, emitter, sigmas, rng, impair)
+        silent_steps += silent
+        lost += 0 if silent else len(uavs) - len(heard)
+        partial_steps += (not silent) and len(heard) < len(uavs)
+        reflected_total += len(reflected)
         m.header.stamps.trigger_command_published_ns, m.header.stamps.trigger_command_received_ns = trigger
         if args.inject_bad and k == 1:
             for kind, bad in bad_measurements(m, seq, last_accepted):
@@ -258,7 +293,7 @@ def main():
         last_accepted = seq
         seq = min(seq + 1, 2**64 - 1)
         if args.remeasure == k:
-            again = measure(k, seq, uavs, headings, emitter, sigmas, rng)
+            again, _ = measure(k, seq, uavs, headings, emitter, sigmas, rng)
             again.header.stamps.trigger_command_published_ns, again.header.stamps.trigger_command_received_ns = trigger
             link.publish(again)
             bad_sent.append("remeasured")
@@ -279,6 +314,10 @@ def main():
         "truth": emitter,
         "uavs": uavs,
         "bad_sent": bad_sent,
+        "silent_steps": silent_steps,
+        "partial_steps": partial_steps,
+        "arrivals_lost": lost,
+        "arrivals_reflected": reflected_total,
     }))
 
 

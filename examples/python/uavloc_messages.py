@@ -10,7 +10,7 @@ import ctypes
 MAX_UAVS = 8
 MIN_UAVS = 3
 
-MEASUREMENT_VERSION = 1
+MEASUREMENT_VERSION = 2
 COMMAND_VERSION = 4
 CONTROL_VERSION = 4
 
@@ -71,22 +71,37 @@ class Name16(ctypes.Structure):
         return bytes(self.bytes).rstrip(b"\0").decode("ascii", "replace")
 
 
+# Measurement.flags
+FLAG_SILENT = 1
+
+
 class Measurement(ctypes.Structure):
-    """front end -> estimator, planner, monitor: one TDOA snapshot of step k (metres, radians)."""
+    """front end -> estimator, planner, monitor: the burst of step k as the receivers give it.
+
+    arrivals[i] = c * (t_i - t_epoch) in metres for any common epoch, read for the UAVs whose bit is set
+    in `heard` (any subset, any of them the reference); a step heard by fewer than two UAVs, or a silent
+    one (flags = FLAG_SILENT, heard = 0), still carries every UAV's position and heading.
+    """
 
     _fields_ = [
         ("header", Header),
         ("count", ctypes.c_uint32),
-        ("reserved", ctypes.c_uint32),
+        ("heard", ctypes.c_uint8),
+        ("flags", ctypes.c_uint8),
+        ("reserved", ctypes.c_uint8 * 2),
         ("uavs", (ctypes.c_double * 2) * MAX_UAVS),
-        ("diffs", ctypes.c_double * (MAX_UAVS - 1)),
+        ("arrivals", ctypes.c_double * MAX_UAVS),
         ("sigmas", ctypes.c_double * MAX_UAVS),
         ("headings", ctypes.c_double * MAX_UAVS),
+        ("position_sigmas", ctypes.c_double * MAX_UAVS),
+        ("position_bias_sigmas", ctypes.c_double * MAX_UAVS),
+        ("clock_sigmas_ns", ctypes.c_double * MAX_UAVS),
+        ("clock_bias_sigmas_ns", ctypes.c_double * MAX_UAVS),
     ]
 
     @staticmethod
     def type_name() -> str:
-        return "uavloc::Measurement/v1"
+        return "uavloc::Measurement/v2"
 
 
 class StateEcho(ctypes.Structure):
@@ -98,7 +113,8 @@ class StateEcho(ctypes.Structure):
         ("estimator", ctypes.c_uint8),
         ("model", ctypes.c_uint8),
         ("rejected_run", ctypes.c_uint8),
-        ("reserved", ctypes.c_uint32),
+        ("confirmed", ctypes.c_uint8),
+        ("reserved", ctypes.c_uint8 * 3),
         ("position", ctypes.c_double * 2),
         ("covariance", (ctypes.c_double * 2) * 2),
         ("velocity", ctypes.c_double * 2),
@@ -132,7 +148,7 @@ class Command(ctypes.Structure):
 
 
 # Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/e2e/wire_layout.rs).
-SIZES = {Measurement: 408, Command: 504}
+SIZES = {Measurement: 672, Command: 504}
 
 
 def check_layout() -> None:

@@ -20,6 +20,7 @@ pub mod fusion;
 pub mod grid;
 pub mod optimizers;
 pub mod paper;
+pub mod receiver;
 pub mod safety;
 pub mod sensitivity;
 pub mod stats;
@@ -149,6 +150,7 @@ pub enum ExperimentKind {
     Sensitivity,
     Fusion,
     Safety,
+    Receiver,
     All,
 }
 
@@ -182,6 +184,7 @@ impl ExperimentKind {
             ExperimentKind::Sensitivity => "sensitivity",
             ExperimentKind::Fusion => "fusion",
             ExperimentKind::Safety => "safety",
+            ExperimentKind::Receiver => "receiver",
             ExperimentKind::All => "all",
         }
     }
@@ -201,6 +204,7 @@ impl ExperimentKind {
             ExperimentKind::Sensitivity => sensitivity::run(engine),
             ExperimentKind::Fusion => fusion::run(engine),
             ExperimentKind::Safety => safety::run(engine),
+            ExperimentKind::Receiver => receiver::run(engine),
             ExperimentKind::All => Err(ExperimentError::Input("`all` is not a single experiment".into())),
         }
     }
@@ -235,10 +239,10 @@ impl fmt::Display for ExperimentKind {
 impl FromStr for ExperimentKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::EACH.into_iter().chain([Self::Fusion, Self::Safety, Self::All]).find(|k| k.name() == s).ok_or_else(|| {
+        Self::EACH.into_iter().chain([Self::Fusion, Self::Safety, Self::Receiver, Self::All]).find(|k| k.name() == s).ok_or_else(|| {
             format!(
                 "unknown experiment '{s}' (expected one of: table2, table4, table5, table6, table7, table8, table9, \
-                 table10, optimizers, sensitivity, fusion, safety, all)"
+                 table10, optimizers, sensitivity, fusion, safety, receiver, all)"
             )
         })
     }

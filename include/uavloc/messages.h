@@ -26,14 +26,14 @@ extern "C" {
 #define UAVLOC_MIN_UAVS 3
 
 /* Layout versions (the header's `version` must equal the type's). */
-#define UAVLOC_MEASUREMENT_VERSION 1u
-#define UAVLOC_ESTIMATE_VERSION 4u
+#define UAVLOC_MEASUREMENT_VERSION 2u
+#define UAVLOC_ESTIMATE_VERSION 5u
 #define UAVLOC_COMMAND_VERSION 4u
 #define UAVLOC_TRUTH_VERSION 2u
 #define UAVLOC_CONTROL_VERSION 5u
 
-#define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v1"
-#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v4"
+#define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v2"
+#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v5"
 #define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v4"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
@@ -64,15 +64,27 @@ typedef struct uavloc_name16 {
     uint8_t bytes[16];
 } uavloc_name16;
 
-/* front end (emitter-sim) -> estimator, planner, monitor: one TDOA snapshot of step k. */
+/* uavloc_measurement.flags */
+#define UAVLOC_MEASUREMENT_FLAG_SILENT 1u   /* the emitter was silent: heard must be 0 */
+
+/* front end (emitter-sim) -> estimator, planner, monitor: the burst of step k as the receivers give it.
+ * arrivals[i] = c * (t_i - t_epoch) for any common epoch (only differences are used), read for the UAVs
+ * whose bit is set in heard; any subset, any of them the reference. Fewer than two heard (or silent):
+ * the estimate is predicted and the swarm still commanded. */
 typedef struct uavloc_measurement {
     uavloc_header header;
     uint32_t count;                           /* UAVs N, 3..=8 */
-    uint32_t reserved;
-    double uavs[UAVLOC_MAX_UAVS][2];          /* UAV positions at the measurement, m (x, y); UAV 0 = reference */
-    double diffs[UAVLOC_MAX_UAVS - 1];        /* range differences d_i = r_i - r_0, i = 1..N-1, m */
+    uint8_t heard;                            /* bit i: UAV i's arrival is in arrivals[i] */
+    uint8_t flags;                            /* UAVLOC_MEASUREMENT_FLAG_* */
+    uint8_t reserved[2];
+    double uavs[UAVLOC_MAX_UAVS][2];          /* UAV positions as reported at the burst, m (x, y) */
+    double arrivals[UAVLOC_MAX_UAVS];         /* arrivals as ranges with a common unknown offset, m */
     double sigmas[UAVLOC_MAX_UAVS];           /* range noise sigma per UAV, m (> 0) */
     double headings[UAVLOC_MAX_UAVS];         /* UAV headings at the measurement, rad */
+    double position_sigmas[UAVLOC_MAX_UAVS];  /* GNSS sigma per axis, new every step, m (>= 0) */
+    double position_bias_sigmas[UAVLOC_MAX_UAVS]; /* GNSS bias sigma per axis, for the flight, m (>= 0) */
+    double clock_sigmas_ns[UAVLOC_MAX_UAVS];  /* clock sigma, new every step, ns (>= 0) */
+    double clock_bias_sigmas_ns[UAVLOC_MAX_UAVS]; /* clock bias sigma, for the flight, ns (>= 0) */
 } uavloc_measurement;
 
 /* Estimate status (uavloc_estimate.status). */
@@ -80,6 +92,7 @@ typedef struct uavloc_measurement {
 #define UAVLOC_STATUS_AMBIGUOUS 1u
 #define UAVLOC_STATUS_FAILED 2u
 #define UAVLOC_STATUS_REJECTED 3u
+#define UAVLOC_STATUS_PREDICTED 4u   /* no burst heard by two UAVs: the posterior predicted */
 
 /* estimator -> planner, monitor: the emitter estimate of step k and the geometry it was computed for. */
 typedef struct uavloc_estimate {
@@ -90,6 +103,10 @@ typedef struct uavloc_estimate {
     uint8_t estimator;                /* 0 snapshot (Chan), 1 fused */
     uint8_t model;                    /* 0 static, 1 constant velocity */
     uint8_t rejected_run;             /* fused: snapshots rejected in a row */
+    uint8_t heard;                    /* bit i: UAV i's arrival was in the measurement */
+    uint8_t outliers;                 /* bit i: UAV i's arrival dropped as an outlier */
+    uint8_t confirmed;                /* fused: bursts fused whole since the track started (saturating) */
+    uint8_t reserved[5];
     double position[2];               /* m; failed: the standing estimate, or NaN */
     double covariance[2][2];          /* m^2, row-major */
     double uavs[UAVLOC_MAX_UAVS][2];  /* m */
@@ -97,7 +114,8 @@ typedef struct uavloc_estimate {
     double velocity[2];               /* m/s (constant velocity; else 0) */
     double cross_cov[2][2];           /* position-velocity covariance, m^2/s */
     double velocity_cov[2][2];        /* m^2/s^2 */
-    double sigmas[UAVLOC_MAX_UAVS];   /* m: range noise of the measurement it was made from; all 0: not stated */
+    double sigmas[UAVLOC_MAX_UAVS];   /* m: stated sigma (range, GNSS, clock) of the measurement; all 0: not stated */
+    double bias_cov[2][2];            /* m^2: the persistent GNSS/clock errors' covariance, added to covariance */
 } uavloc_estimate;
 
 /* uavloc_command.flags */
@@ -117,7 +135,8 @@ typedef struct uavloc_state_echo {
     uint8_t estimator;                  /* as uavloc_estimate */
     uint8_t model;
     uint8_t rejected_run;
-    uint32_t reserved;                  /* 0 */
+    uint8_t confirmed;                  /* as uavloc_estimate (0: a provisional track) */
+    uint8_t reserved[3];                /* 0 */
     double position[2];                 /* m */
     double covariance[2][2];            /* m^2 */
     double velocity[2];                 /* m/s */

@@ -19,6 +19,7 @@ pub mod active_mask;
 pub mod arc;
 pub mod constraint;
 pub mod kinematics;
+pub mod receiver;
 pub mod safety;
 pub mod scenario;
 pub mod solver_config;
@@ -26,5 +27,6 @@ pub mod world;
 
 pub use constraint::{ActiveConstraint, ConstraintKind};
 pub use kinematics::{bearing, next_position, turn_angle, turn_radius, wrap_angle};
+pub use receiver::ReceiverModel;
 pub use scenario::{PlannerTarget, RangeSigma, Scenario, ScenarioError, TargetMode, load_scenario};
 pub use solver_config::{AcoConfig, EarlyStop, GaConfig, PsoConfig};

@@ -16,6 +16,7 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix2, Vector2};
+use tdoa::arrivals::OutlierPolicy;
 use tdoa::fusion::EstimatorKind;
 use tdoa::geometry::COINCIDENCE_TOLERANCE_M;
 use tdoa::global::McScheme;
@@ -23,6 +24,7 @@ use tdoa::{DEFAULT_KAPPA, Dynamics, EmitterModel, MAX_EXTENT_M, MAX_UAVS, NoiseM
 use thiserror::Error;
 
 use crate::kinematics::bearing;
+use crate::receiver::ReceiverModel;
 use crate::safety::SafetyMode;
 use crate::solver_config::{AcoConfig, EarlyStop, GaConfig, GradientConfig, PsoConfig};
 
@@ -190,6 +192,12 @@ pub struct Scenario {
     /// Horizon of the backup's standoff from a *moving* emitter, seconds (a static emitter is kept for
     /// ever). Our choice: 120 s.
     pub safety_horizon_s: f64,
+    /// The receivers: lost arrivals, a silent emitter, multipath, GNSS and clock errors (`[receiver]`,
+    /// every key 0 by default: the paper's perfect receiver; see `model::receiver`).
+    pub receiver: ReceiverModel,
+    /// What the fused estimator does with a burst that fails its χ² gate: `arrival` (default; drop the
+    /// outlying arrivals, fuse the rest) or `snapshot` (reject the whole burst).
+    pub outliers: OutlierPolicy,
     /// Early stopping shared by the solvers (`[early_stop]`).
     pub early_stop: EarlyStop,
     /// PSO settings (`[pso]`).
@@ -233,6 +241,8 @@ impl Default for Scenario {
             standoff_confidence: 0.99,
             safety: SafetyMode::Certified,
             safety_horizon_s: 120.0,
+            receiver: ReceiverModel::default(),
+            outliers: OutlierPolicy::default(),
             early_stop: EarlyStop::default(),
             pso: PsoConfig::default(),
             ga: GaConfig::default(),
@@ -434,6 +444,7 @@ impl Scenario {
                 ),
             ));
         }
+        self.receiver.validate().map_err(|(key, reason)| invalid(&key, reason))?;
         non_negative("early_stop.tolerance", self.early_stop.tolerance)?;
         count("pso.particles", self.pso.particles, 1, MAX_COUNT)?;
         count("pso.iterations", self.pso.iterations, 1, MAX_COUNT)?;

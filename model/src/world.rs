@@ -11,11 +11,10 @@
 //! Units: metres, seconds, radians.
 
 use crate::kinematics::{next_position, wrap_angle};
+use crate::receiver::{FlightBias, ReceiverModel, receive};
 use crate::scenario::{Scenario, ScenarioError};
 use nalgebra::Vector2;
-use tdoa::montecarlo::noisy_range_diffs;
-use tdoa::rng::{Purpose, stream};
-use tdoa::{NoiseModel, RangeDiffs, Sensors, TdoaError};
+use tdoa::{Arrivals, NoiseModel, RangeDiffs, Sensors, TdoaError};
 use thiserror::Error;
 
 /// Why the world refused an input.
@@ -45,15 +44,28 @@ pub enum WorldError {
     Geometry(#[from] TdoaError),
 }
 
-/// One TDOA measurement.
+/// One step's TDOA measurement as the receivers give it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Measurement {
     /// The step it belongs to.
     pub step: u64,
-    /// UAV positions when it was taken, metres (index 0 the reference).
+    /// UAV positions as the UAVs report them (the truth plus any GNSS error), metres.
     pub uavs: Vec<Vector2<f64>>,
-    /// Noisy range differences `d̂_i = (r_i + e_i) − (r_0 + e_0)`, metres.
-    pub range_diffs: RangeDiffs,
+    /// The burst: who heard it, the arrivals, the stated σ (see [`tdoa::arrivals`]). With a perfect
+    /// receiver every UAV hears it and the differences to UAV0 are `d̂_i = (r_i + e_i) − (r_0 + e_0)`.
+    pub arrivals: Arrivals,
+    /// The emitter did not transmit at this step.
+    pub silent: bool,
+    /// The arrivals that came by a reflection (the truth; bit i: UAV i).
+    pub multipath: u8,
+}
+
+impl Measurement {
+    /// The range differences to UAV0 when every UAV heard the burst (a perfect receiver's step).
+    pub fn range_diffs(&self) -> Option<RangeDiffs> {
+        let h = self.arrivals.heard().ok()??;
+        (h.uavs.len() == self.uavs.len()).then_some(h.diffs)
+    }
 }
 
 /// The moving part of a [`World`] (everything else comes from the scenario): what emitter-sim checkpoints.
@@ -75,6 +87,8 @@ pub struct World {
     positions: Vec<Vector2<f64>>,
     headings: Vec<f64>,
     noise: NoiseModel,
+    receiver: ReceiverModel,
+    bias: FlightBias,
     speed: f64,
     dt: f64,
     seed: u64,
@@ -91,6 +105,8 @@ impl World {
             positions: scenario.uav_positions(),
             headings: scenario.initial_headings().into_iter().map(wrap_angle).collect(),
             noise: scenario.noise_model()?,
+            receiver: scenario.receiver,
+            bias: FlightBias::draw(&scenario.receiver, scenario.seed),
             speed: scenario.speed,
             dt: scenario.dt,
             seed: scenario.seed,
@@ -140,13 +156,44 @@ impl World {
         Sensors::new(&pts, self.noise.clone())
     }
 
-    /// The noisy measurement of the current step, drawn from the stream
-    /// `(seed, step, Purpose::MeasurementNoise)`: calling it twice gives the same measurement.
+    /// The receiver model.
+    pub fn receiver(&self) -> &ReceiverModel {
+        &self.receiver
+    }
+
+    /// The σ each UAV states for its arrivals: the range noise with every sensor error, and its
+    /// persistent part (see [`tdoa::arrivals`]), metres.
+    pub fn stated_sigmas(&self) -> (Vec<f64>, Vec<f64>) {
+        let e = self.receiver.sensor_errors();
+        let eff = self.noise.sigmas().iter().map(|s| e.effective_sigma(*s)).collect();
+        (eff, vec![e.bias_variance().sqrt(); self.positions.len()])
+    }
+
+    /// The measurement of the current step, drawn from the streams `(seed, step, MeasurementNoise)` and
+    /// `(seed, step, Receiver)` (see [`crate::receiver`]): calling it twice gives the same measurement.
     pub fn measure(&self) -> Result<Measurement, WorldError> {
-        let sensors = self.sensors()?;
-        let mut rng = stream(self.seed, self.step, Purpose::MeasurementNoise);
-        let range_diffs = noisy_range_diffs(&sensors, &self.truth(), &mut rng);
-        Ok(Measurement { step: self.step, uavs: self.positions.clone(), range_diffs })
+        // The true geometry must be able to measure (two UAVs may not coincide).
+        self.sensors()?;
+        let b = receive(
+            &self.receiver,
+            &self.bias,
+            self.seed,
+            self.step,
+            &self.positions,
+            &self.truth(),
+            self.noise.sigmas(),
+        );
+        let n = self.positions.len();
+        let reported: Vec<[f64; 2]> = b.reported[..n].iter().map(|p| [p.x, p.y]).collect();
+        let (sigmas, bias) = self.stated_sigmas();
+        let arrivals = Arrivals::new(&reported, &b.arrivals[..n], b.heard, &sigmas, &bias)?;
+        Ok(Measurement {
+            step: self.step,
+            uavs: b.reported[..n].to_vec(),
+            arrivals,
+            silent: b.silent,
+            multipath: b.multipath,
+        })
     }
 
     /// The world's moving part (see [`Snapshot`]).
@@ -246,12 +293,12 @@ mod tests {
         assert_eq!(World::from_scenario(&Scenario::default()).unwrap().measure().unwrap(), a);
         let exact = w.sensors().unwrap().range_differences(&w.truth());
         let sigma = 28.7712;
-        for (m, e) in a.range_diffs.as_slice().iter().zip(exact.as_slice()) {
+        for (m, e) in a.range_diffs().unwrap().as_slice().iter().zip(exact.as_slice()) {
             assert!(m != e && (m - e).abs() < 8.0 * sigma * std::f64::consts::SQRT_2, "{m} vs {e}");
         }
         // Another seed, another draw.
         let other = World::from_scenario(&Scenario { seed: 2, ..Scenario::default() }).unwrap();
-        assert_ne!(other.measure().unwrap().range_diffs, a.range_diffs);
+        assert_ne!(other.measure().unwrap().range_diffs(), a.range_diffs());
     }
 
     #[test]
@@ -263,7 +310,7 @@ mod tests {
         let mut sum = [[0.0; 2]; 2];
         for k in 0..n {
             w.step = k;
-            let d = w.measure().unwrap().range_diffs;
+            let d = w.measure().unwrap().range_diffs().unwrap();
             let e: Vec<f64> = d.as_slice().iter().zip(exact.as_slice()).map(|(a, b)| a - b).collect();
             for i in 0..2 {
                 for j in 0..2 {

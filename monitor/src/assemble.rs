@@ -48,7 +48,7 @@ use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Mea
 use tdoa::{NoiseModel, Sensors};
 
 use record::metrics::{crlb_at, step_metrics};
-use record::record::{PlannerRef, RunRecord, StepRecord, StepSafety};
+use record::record::{PlannerRef, RunRecord, StepReceiver, StepRecord, StepSafety};
 
 /// The `active_constraints` entry of a step whose command was missed (see the module docs).
 pub const COMMAND_MISSED: &str = "command_missed";
@@ -368,9 +368,14 @@ impl Assembler {
             active_constraints: if missed { vec![COMMAND_MISSED.to_string()] } else { Vec::new() },
             planner: None,
             criterion_ess: None,
-            range_sigmas_m: (m.sigmas() != self.scenario.range_sigmas().as_slice()).then(|| m.sigmas().to_vec()),
+            range_sigmas_m: {
+                let stated = m.stated_sigmas().0;
+                (stated != self.scenario.range_sigmas()).then_some(stated)
+            },
             estimator: Some(if e.estimator == 1 { "fused" } else { "snapshot" }.to_string()),
             safety: None,
+            receiver: StepReceiver::from_masks(m.len(), m.heard, e.outliers, Some(m.is_silent()), None)
+                .unless_complete(m.len()),
         };
         let mut planner = None;
         let chain = c.map_or(e.header.stamps, |c| c.header.stamps);

@@ -154,12 +154,19 @@ impl Planner<'_> {
             )));
         }
         let Some((position, covariance)) = est.plan_from() else {
-            // A failed estimate with no earlier one to stand (the first fixes found no physical solution):
-            // the same measurements give the same answer to any restart — the run cannot go on, as
-            // `uavloc simulate` of the scenario says at once.
+            if step + 1 < planning::FIRST_FIX_STEPS {
+                // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): hold
+                // course and try the next burst, as `uavloc simulate` does.
+                let hold = self.hold(step, &points(est.uavs()), est.headings(), node.instance())?;
+                return Ok(Some(hold.with_state_of(est)));
+            }
+            // No fix in the first FIRST_FIX_STEPS steps: the run cannot go on, as `uavloc simulate` of the
+            // scenario says at the same step.
             return Err(ProcessError::Unrecoverable(format!(
-                "step {step}: the estimator found no fix and has no earlier estimate to plan from (no emitter \
-                 position fits the range differences: too much noise for this geometry?) — the run cannot go on"
+                "step {step}: the estimator found no fix in the first {} steps and has no estimate to plan from \
+                 (no emitter position fits the range differences: too much noise for this geometry, or no burst \
+                 heard?) — the run cannot go on",
+                planning::FIRST_FIX_STEPS
             )));
         };
         let args = self.args;

@@ -141,15 +141,11 @@ impl HoldTracker {
     }
 }
 
-/// A fingerprint of a measurement's content (UAV positions, range differences, noise, headings; bit
-/// exact): a replay carries the content of the first publication, so it has the same fingerprint.
+/// A fingerprint of a measurement's content ([`protocol::measurement_digest`]: UAV positions, arrivals,
+/// noise, headings; bit exact): a replay carries the content of the first publication, so it has the
+/// same fingerprint.
 pub fn fingerprint(m: &protocol::Measurement) -> u64 {
-    use std::hash::{Hash, Hasher};
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    for v in m.uavs().iter().flatten().chain(m.diffs()).chain(m.sigmas()).chain(m.headings()) {
-        v.to_bits().hash(&mut h);
-    }
-    h.finish()
+    protocol::measurement_digest(m)
 }
 
 /// The headings and waypoints of a hold: every UAV keeps its heading and flies straight on for one

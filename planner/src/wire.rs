@@ -97,15 +97,7 @@ pub fn hold_command(
     Ok(hold)
 }
 
-/// `scenario` with the range σ an estimate states ([`protocol::Estimate::range_sigmas`]) — `None` when it
-/// states none or the scenario's already are those (no copy on the hot path of a simulated run).
-pub fn scenario_with_sigmas(scenario: &Scenario, sigmas: Option<&[f64]>) -> Option<Scenario> {
-    let sigmas = sigmas?;
-    if sigmas.len() != scenario.uavs.len() || scenario.range_sigmas() == sigmas {
-        return None;
-    }
-    Some(Scenario { sigma: model::RangeSigma::PerUav(sigmas.to_vec()), ..scenario.clone() })
-}
+pub use planning::scenario_with_sigmas;
 
 #[cfg(test)]
 mod tests {

@@ -34,6 +34,23 @@ pub mod shield;
 pub mod solver;
 pub mod step;
 
+/// Steps a run may wait for its first fix: while no step so far has given an estimate (a silent emitter,
+/// lost arrivals, a burst with no physical solution), the swarm holds course — every UAV keeps its
+/// heading — and the next burst is tried; a run with no fix in its first `FIRST_FIX_STEPS` steps cannot
+/// go on (the geometry or the noise leaves no fix). Shared by the pipeline's planner and the in-process
+/// closed loop, so both hold and give up at the same step.
+pub const FIRST_FIX_STEPS: u64 = 20;
+
+/// `scenario` with the range σ an estimate states (`protocol::Estimate::range_sigmas`) — `None` when it
+/// states none or the scenario's already are those (no copy on the hot path of a simulated run).
+pub fn scenario_with_sigmas(scenario: &model::Scenario, sigmas: Option<&[f64]>) -> Option<model::Scenario> {
+    let sigmas = sigmas?;
+    if sigmas.len() != scenario.uavs.len() || scenario.range_sigmas() == sigmas {
+        return None;
+    }
+    Some(model::Scenario { sigma: model::RangeSigma::PerUav(sigmas.to_vec()), ..scenario.clone() })
+}
+
 pub use aco::{Aco, AcoConfig};
 pub use constraints::{ActiveConstraint, ConstraintKind, ConstraintReport, Constraints};
 pub use fitness::Fitness;

@@ -29,9 +29,13 @@ fn used_floats<T: Message>(msg: &T) -> Option<Vec<f64>> {
     if let Some(m) = any.downcast_ref::<Measurement>() {
         let n = n_of(m.count)?;
         let mut v: Vec<f64> = m.uavs[..n].iter().flatten().copied().collect();
-        v.extend(&m.diffs[..n - 1]);
+        v.extend((0..n).filter(|&i| m.heard & (1u8 << i) != 0).map(|i| m.arrivals[i]));
         v.extend(&m.sigmas[..n]);
         v.extend(&m.headings[..n]);
+        v.extend(&m.position_sigmas[..n]);
+        v.extend(&m.position_bias_sigmas[..n]);
+        v.extend(&m.clock_sigmas_ns[..n]);
+        v.extend(&m.clock_bias_sigmas_ns[..n]);
         Some(v)
     } else if let Some(e) = any.downcast_ref::<Estimate>() {
         let n = n_of(e.count)?;
@@ -41,6 +45,7 @@ fn used_floats<T: Message>(msg: &T) -> Option<Vec<f64>> {
             v.extend(&e.position);
             v.extend(e.covariance.iter().flatten());
         }
+        v.extend(e.bias_cov.iter().flatten());
         Some(v)
     } else if let Some(c) = any.downcast_ref::<Command>() {
         let n = n_of(c.count)?;
@@ -77,7 +82,7 @@ fn check_arbitrary<T: Message>(msg: &T, last: Option<u64>) -> Result<(), TestCas
         let any = msg as &dyn core::any::Any;
         if let Some(m) = any.downcast_ref::<Measurement>() {
             prop_assert!(m.sigmas().iter().all(|&s| s > 0.0));
-            prop_assert_eq!(m.diffs().len() + 1, m.uavs().len());
+            prop_assert_eq!(m.arrivals().len(), m.uavs().len());
         }
         if let Some(e) = any.downcast_ref::<Estimate>() {
             let status = e.status();
@@ -123,10 +128,15 @@ fn poison<T: Message>(msg: &mut T, index: usize, bad: f64) {
     let any = msg as &mut dyn core::any::Any;
     let mut slots: Vec<&mut f64> = if let Some(m) = any.downcast_mut::<Measurement>() {
         let n = m.count as usize;
+        let heard = m.heard;
         let mut v: Vec<&mut f64> = m.uavs[..n].iter_mut().flatten().collect();
-        v.extend(&mut m.diffs[..n - 1]);
+        v.extend(m.arrivals[..n].iter_mut().enumerate().filter(|(i, _)| heard & (1u8 << i) != 0).map(|(_, a)| a));
         v.extend(&mut m.sigmas[..n]);
         v.extend(&mut m.headings[..n]);
+        v.extend(&mut m.position_sigmas[..n]);
+        v.extend(&mut m.position_bias_sigmas[..n]);
+        v.extend(&mut m.clock_sigmas_ns[..n]);
+        v.extend(&mut m.clock_bias_sigmas_ns[..n]);
         v
     } else if let Some(e) = any.downcast_mut::<Estimate>() {
         let n = e.count as usize;
@@ -137,6 +147,7 @@ fn poison<T: Message>(msg: &mut T, index: usize, bad: f64) {
             v.extend(&mut e.position);
             v.extend(e.covariance.iter_mut().flatten());
         }
+        v.extend(e.bias_cov.iter_mut().flatten());
         v
     } else if let Some(c) = any.downcast_mut::<Command>() {
         let n = c.count as usize;
@@ -170,7 +181,7 @@ fn check_poisoned<T: Message>(
     let is_truth = (&msg as &dyn core::any::Any).is::<Truth>();
     match msg.validate(last) {
         Err(Rejection::NotFinite { .. }) => {}
-        Err(Rejection::UnknownStatus { .. }) if is_estimate && status > 2 => {}
+        Err(Rejection::UnknownStatus { .. }) if is_estimate && EstimateStatus::from_u8(status).is_none() => {}
         Err(Rejection::UnknownKind { field: "previous_command", .. }) if is_truth && status > 2 => {}
         other => prop_assert!(false, "poisoned message gave {other:?}: {msg:?}"),
     }
@@ -222,7 +233,7 @@ proptest! {
         c in bytes_of::<Command>(),
         t in bytes_of::<Truth>(),
         count in 0u32..12,
-        status in 0u8..4,
+        status in 0u8..6,
         last in any::<Option<u64>>(),
     ) {
         let mut m = Measurement::from_bytes(&m).unwrap();
@@ -246,7 +257,7 @@ proptest! {
         c in bytes_of::<Command>(),
         t in bytes_of::<Truth>(),
         count in 3u32..=8,
-        status in 0u8..4,
+        status in 0u8..6,
         index in any::<usize>(),
         bad in bad_float(),
         last in any::<Option<u64>>(),

@@ -99,8 +99,9 @@ impl SourceLock {
     }
 }
 
-/// The digest of a measurement's data — count, positions, range differences, σ and headings of the
-/// used entries, bit for bit (FNV-1a, 64 bits); the header (step, seq, stamps) is not part of it.
+/// The digest of a measurement's data — count, heard mask, flags, positions, arrivals, every σ and the
+/// headings of the used entries, bit for bit (FNV-1a, 64 bits); the header (step, seq, stamps) is not
+/// part of it.
 pub fn measurement_digest(m: &Measurement) -> u64 {
     let n = (m.count as usize).min(crate::MAX_UAVS);
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
@@ -111,14 +112,17 @@ pub fn measurement_digest(m: &Measurement) -> u64 {
         }
     };
     eat(u64::from(m.count));
+    eat(u64::from(m.heard) | u64::from(m.flags) << 8);
     for i in 0..n {
         eat(m.uavs[i][0].to_bits());
         eat(m.uavs[i][1].to_bits());
         eat(m.sigmas[i].to_bits());
         eat(m.headings[i].to_bits());
-    }
-    for d in &m.diffs[..n.saturating_sub(1)] {
-        eat(d.to_bits());
+        eat(m.arrivals[i].to_bits());
+        eat(m.position_sigmas[i].to_bits());
+        eat(m.position_bias_sigmas[i].to_bits());
+        eat(m.clock_sigmas_ns[i].to_bits());
+        eat(m.clock_bias_sigmas_ns[i].to_bits());
     }
     h
 }
@@ -248,7 +252,7 @@ mod tests {
         let mut counter = RejectionCounter::new();
         let mut lock = SourceLock::default();
         let mut bad = measurement(0, 10);
-        bad.diffs[0] = f64::NAN;
+        bad.arrivals[1] = f64::NAN;
         assert!(lock.check(&mut counter, &bad, 7, |_| true).is_err());
         assert_eq!(lock.source(), None);
         assert_eq!(lock.check(&mut counter, &measurement(0, 11), 1, |_| true), Ok(Admitted::First));
@@ -269,11 +273,11 @@ mod tests {
         assert_eq!(digests.check(&mut counter, &replay), Ok(()));
         // Unused entries are not data.
         let mut padded = first;
-        padded.diffs[5] = 1.0;
+        padded.arrivals[7] = 1.0;
         padded.uavs[7] = [f64::NAN, 3.0];
         assert_eq!(digests.check(&mut counter, &padded), Ok(()));
         let mut other = first;
-        other.diffs[1] += 0.5;
+        other.arrivals[2] += 0.5;
         assert_eq!(digests.check(&mut counter, &other), Err(Rejection::Conflict { step: 5 }));
         assert_eq!(counter.count(MessageKind::Measurement, "conflict"), 1);
         // −0 and +0 differ bit for bit: a copy is the same measurement only when it is bit-identical.
@@ -292,7 +296,7 @@ mod tests {
         assert_eq!(digests.steps.len(), StepDigests::WINDOW);
         // Step 0 is forgotten: a different copy of it is not compared.
         let mut old = measurement(0, 1);
-        old.diffs[0] = 1.0;
+        old.arrivals[1] = 1.0;
         assert_eq!(digests.check(&mut counter, &old), Ok(()));
     }
 }

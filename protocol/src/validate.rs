@@ -29,7 +29,7 @@ use core::fmt;
 use thiserror::Error;
 
 use crate::messages::{
-    Command, Control, ControlKind, Estimate, EstimateStatus, Measurement, Message, MessageKind, Truth,
+    Command, Control, ControlKind, Estimate, EstimateStatus, FLAG_SILENT, Measurement, Message, MessageKind, Truth,
 };
 use crate::{MAX_UAVS, MIN_UAVS};
 
@@ -65,7 +65,7 @@ pub enum Rejection {
     /// The covariance is not symmetric positive definite.
     #[error("covariance is not symmetric positive definite")]
     NotPositiveDefinite,
-    /// The estimate status is not 0, 1, 2 or 3.
+    /// The estimate status is not one of [`EstimateStatus`].
     #[error("unknown estimate status {status}")]
     UnknownStatus {
         /// The wire value.
@@ -119,11 +119,18 @@ pub enum Rejection {
         /// The wire value.
         kind: u32,
     },
+    /// A field out of its range: a negative GNSS or clock σ, a heard mask with bits beyond the swarm,
+    /// an unknown flag, or a silent step that claims arrivals.
+    #[error("{field} out of range")]
+    BadField {
+        /// Which field.
+        field: &'static str,
+    },
 }
 
 impl Rejection {
     /// All kind strings, in [`kind_index`](Self::kind_index) order.
-    pub const KINDS: [&'static str; 12] = [
+    pub const KINDS: [&'static str; 13] = [
         "bad_version",
         "bad_count",
         "not_finite",
@@ -136,6 +143,7 @@ impl Rejection {
         "other_run",
         "second_source",
         "conflict",
+        "bad_field",
     ];
 
     /// Stable snake_case name of the reason (for logs and counters).
@@ -158,6 +166,7 @@ impl Rejection {
             Rejection::OtherRun { .. } => 9,
             Rejection::SecondSource { .. } => 10,
             Rejection::Conflict { .. } => 11,
+            Rejection::BadField { .. } => 12,
         }
     }
 }
@@ -202,11 +211,32 @@ impl Measurement {
         check_version(Self::VERSION, self.header.version)?;
         let n = check_count(self.count)?;
         check_finite("uavs", self.uavs[..n].iter().flatten())?;
-        check_finite("diffs", &self.diffs[..n - 1])?;
+        let heard = (0..n).filter(|&i| self.heard & (1u8 << i) != 0).map(|i| &self.arrivals[i]);
+        check_finite("arrivals", heard)?;
         check_finite("sigmas", &self.sigmas[..n])?;
         check_finite("headings", &self.headings[..n])?;
+        let sensor_sigmas = [
+            ("position_sigmas", &self.position_sigmas),
+            ("position_bias_sigmas", &self.position_bias_sigmas),
+            ("clock_sigmas_ns", &self.clock_sigmas_ns),
+            ("clock_bias_sigmas_ns", &self.clock_bias_sigmas_ns),
+        ];
+        // Every used float is checked for finiteness before any range check.
+        for (field, v) in sensor_sigmas {
+            check_finite(field, &v[..n])?;
+        }
         if let Some(index) = self.sigmas[..n].iter().position(|&s| s <= 0.0) {
             return Err(Rejection::NonPositiveSigma { index });
+        }
+        for (field, v) in sensor_sigmas {
+            if v[..n].iter().any(|s| *s < 0.0) {
+                return Err(Rejection::BadField { field });
+            }
+        }
+        // Bits beyond the swarm, unknown flags, or a silent step that says it heard something.
+        let beyond = n < 8 && self.heard >> n != 0;
+        if beyond || self.flags & !FLAG_SILENT != 0 || (self.is_silent() && self.heard != 0) {
+            return Err(Rejection::BadField { field: "heard/flags" });
         }
         check_seq(self.header.seq, last_seq)
     }
@@ -220,6 +250,7 @@ impl Estimate {
         let status = EstimateStatus::from_u8(self.status).ok_or(Rejection::UnknownStatus { status: self.status })?;
         check_finite("uavs", self.uavs[..n].iter().flatten())?;
         check_finite("headings", &self.headings[..n])?;
+        check_finite("bias_cov", self.bias_cov.iter().flatten())?;
         // A failed estimate carries the standing estimate, or none (all NaN).
         if status != EstimateStatus::Failed || self.position.iter().any(|v| v.is_finite()) {
             ESTIMATE_FIELDS.check_estimate(&self.position, &self.covariance)?;
@@ -579,18 +610,18 @@ mod tests {
     fn ignores_unused_entries() {
         let mut m = measurement();
         m.uavs[7] = [f64::NAN; 2];
-        m.diffs[6] = f64::INFINITY;
+        m.arrivals[6] = f64::INFINITY;
         m.sigmas[5] = -1.0;
         m.headings[4] = f64::NAN;
-        m.reserved = 77;
+        m.reserved = [7, 7];
         assert_eq!(m.validate(None), Ok(()));
     }
 
     #[test]
     fn rejects_bad_version() {
         let mut m = measurement();
-        m.header.version = 2;
-        assert_eq!(m.validate(None), Err(Rejection::BadVersion { expected: 1, got: 2 }));
+        m.header.version = 1;
+        assert_eq!(m.validate(None), Err(Rejection::BadVersion { expected: 2, got: 1 }));
         let mut e = estimate();
         e.header.version = 0;
         assert_eq!(e.validate(None).unwrap_err().kind(), "bad_version");
@@ -614,7 +645,7 @@ mod tests {
             let mut c = command();
             c.count = count;
             assert_eq!(c.validate(None), Err(Rejection::BadCount { count }));
-            assert!(m.len() <= MAX_UAVS && m.diffs().len() < MAX_UAVS, "accessors clamp");
+            assert!(m.len() <= MAX_UAVS && m.arrivals().len() <= MAX_UAVS, "accessors clamp");
         }
     }
 
@@ -623,7 +654,7 @@ mod tests {
         for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
             let cases = [
                 ("uavs", with(measurement(), |m| m.uavs[3][1] = bad).validate(None)),
-                ("diffs", with(measurement(), |m| m.diffs[2] = bad).validate(None)),
+                ("arrivals", with(measurement(), |m| m.arrivals[2] = bad).validate(None)),
                 ("sigmas", with(measurement(), |m| m.sigmas[0] = bad).validate(None)),
                 ("headings", with(measurement(), |m| m.headings[1] = bad).validate(None)),
                 ("uavs", with(estimate(), |e| e.uavs[0][0] = bad).validate(None)),
@@ -703,7 +734,7 @@ mod tests {
 
     #[test]
     fn rejects_unknown_status() {
-        for status in [4u8, 5, 128, 255] {
+        for status in [5u8, 6, 128, 255] {
             let e = with(estimate(), |e| e.status = status);
             assert_eq!(e.validate(None), Err(Rejection::UnknownStatus { status }));
             assert_eq!(e.fix(), None);
@@ -744,6 +775,7 @@ mod tests {
             estimator: 1,
             model: 1,
             rejected_run: 2,
+            confirmed: 3,
             velocity: [1.0, -2.0],
             cross_cov: [[0.1, 0.2], [0.3, 0.4]],
             velocity_cov: [[5.0, 0.5], [0.5, 6.0]],

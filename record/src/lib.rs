@@ -28,4 +28,4 @@ pub use chart::{BarGroup, Series, plot_bars, plot_curves};
 pub use export::{ExportError, write_run, write_steps_csv, write_trajectory_csv};
 pub use metrics::{RunningBound, StepMetrics, annotate, crlb_at, step_metrics};
 pub use plot::{Metric, PlotError, PlotFormat, plot_comparison, plot_metrics, plot_trajectories};
-pub use record::{RunRecord, StepRecord, StepSafety};
+pub use record::{ReceiverTotals, RunRecord, StepReceiver, StepRecord, StepSafety};

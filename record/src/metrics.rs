@@ -66,17 +66,74 @@ impl RunningBound {
     /// The bound (m) after the snapshot of `step` from UAVs at `uavs`, its information taken at `z` under
     /// the scenario's σ or the snapshot's own (`sigmas`: what an external front end stated); `None` while
     /// the information is singular.
-    pub fn add(&mut self, step: u64, uavs: &[[f64; 2]], sigmas: Option<&[f64]>, z: &Vector2<f64>) -> Option<f64> {
+    /// With `heard` (the UAVs whose arrival the step held), only their information counts: none when
+    /// fewer than two heard the burst.
+    pub fn add(
+        &mut self,
+        step: u64,
+        uavs: &[[f64; 2]],
+        sigmas: Option<&[f64]>,
+        heard: Option<&[usize]>,
+        z: &Vector2<f64>,
+    ) -> Option<f64> {
         let own = sigmas.and_then(|s| tdoa::NoiseModel::from_range_sigmas(s).ok());
-        let fim = own
-            .or_else(|| self.noise.clone())
-            .and_then(|noise| Sensors::new(uavs, noise).ok())
-            .and_then(|s| tdoa::fim(&s, z));
+        let noise = own.or_else(|| self.noise.clone());
+        let fim = match heard {
+            None => noise.and_then(|noise| Sensors::new(uavs, noise).ok()).and_then(|s| tdoa::fim(&s, z)),
+            Some(heard) => noise.and_then(|noise| {
+                let pts: Vec<[f64; 2]> = heard.iter().filter_map(|&i| uavs.get(i).copied()).collect();
+                let sig: Vec<f64> = heard.iter().filter_map(|&i| noise.sigmas().get(i).copied()).collect();
+                let sensors = Sensors::heard(&pts, tdoa::NoiseModel::heard(&sig).ok()?).ok()?;
+                tdoa::fim(&sensors, z)
+            }),
+        };
         let elapsed = self.last_step.map_or(1, |l| step.saturating_sub(l).max(1));
         self.last_step = Some(step);
         let b = self.bound.add(fim, elapsed);
         b.is_finite().then_some(b)
     }
+}
+
+/// The UAVs a step's information comes from: the arrivals received (`None`: every UAV).
+fn heard_of(s: &crate::StepRecord) -> Option<&[usize]> {
+    s.receiver.as_ref().map(|r| r.heard.as_slice())
+}
+
+/// The run's receiver totals; `None` when every step was complete.
+fn receiver_totals(run: &crate::RunRecord) -> Option<crate::ReceiverTotals> {
+    if run.steps.iter().all(|s| s.receiver.is_none()) {
+        return None;
+    }
+    let n = run.steps.iter().map(|s| s.uavs.len()).max().unwrap_or(0);
+    let truth = run.steps.iter().all(|s| s.truth.is_some());
+    let mut t = crate::ReceiverTotals { outliers_by_uav: vec![0; n], ..Default::default() };
+    let (mut multipath, mut found, mut good) = (0u64, 0u64, 0u64);
+    for s in &run.steps {
+        let Some(r) = &s.receiver else { continue };
+        if r.silent == Some(true) {
+            t.silent_steps += 1;
+        } else {
+            t.arrivals_lost += s.uavs.len().saturating_sub(r.heard.len()) as u64;
+        }
+        if r.heard.len() < 2 {
+            t.steps_without_fix += 1;
+        }
+        for &i in &r.outliers {
+            if let Some(c) = t.outliers_by_uav.get_mut(i) {
+                *c += 1;
+            }
+        }
+        let reflected = r.multipath.as_deref().unwrap_or(&[]);
+        multipath += reflected.len() as u64;
+        found += r.outliers.iter().filter(|i| reflected.contains(i)).count() as u64;
+        good += r.outliers.iter().filter(|i| !reflected.contains(i)).count() as u64;
+    }
+    if truth {
+        t.multipath_arrivals = Some(multipath);
+        t.multipath_dropped = Some(found);
+        t.good_arrivals_dropped = Some(good);
+    }
+    Some(t)
 }
 
 /// Fills in what needs the whole run: per step `pcrlb_at_estimate_m` (the same recursion as `pcrlb_m`,
@@ -95,7 +152,7 @@ pub fn annotate(run: &mut crate::RunRecord) {
     for s in &mut run.steps {
         let est = Vector2::new(s.estimate[0], s.estimate[1]);
         s.pcrlb_at_estimate_m = if est.iter().all(|v| v.is_finite()) {
-            along_estimates.add(s.step, &s.uavs, s.range_sigmas_m.as_deref(), &est)
+            along_estimates.add(s.step, &s.uavs, s.range_sigmas_m.as_deref(), heard_of(s), &est)
         } else {
             None
         };
@@ -115,10 +172,11 @@ pub fn annotate(run: &mut crate::RunRecord) {
         );
         s.estimate_error_m = est.iter().all(|v| v.is_finite()).then(|| (est - z).norm());
         s.nees = tdoa::nees(&est, &cov, &z);
-        s.pcrlb_m = at_truth.add(s.step, &s.uavs, s.range_sigmas_m.as_deref(), &z);
+        s.pcrlb_m = at_truth.add(s.step, &s.uavs, s.range_sigmas_m.as_deref(), heard_of(s), &z);
         let min = s.uavs.iter().map(|w| (w[0] - z.x).hypot(w[1] - z.y)).fold(f64::INFINITY, f64::min);
         s.min_true_distance_m = min.is_finite().then_some(min);
     }
+    run.receiver = receiver_totals(run);
     // The violations of D_min and L_min, counted along the arcs flown.
     crate::along_arcs::annotate_along_arcs(run);
 }

@@ -16,9 +16,12 @@ pub struct StepRecord {
     /// Headings chosen at this step for the next interval, radians (current headings on the last step,
     /// and on a step whose command was missed: the UAVs kept them).
     pub headings_rad: Vec<f64>,
-    /// The estimator's ẑ at this step, metres.
+    /// The estimator's ẑ at this step, metres (`null`s before the first fix: written as JSON null, read
+    /// back as NaN).
+    #[serde(deserialize_with = "nulls_as_nan")]
     pub estimate: [f64; 2],
-    /// The covariance M of ẑ, m² (`[[xx, xy], [yx, yy]]`).
+    /// The covariance M of ẑ, m² (`[[xx, xy], [yx, yy]]`; `null`s before the first fix).
+    #[serde(deserialize_with = "rows_nulls_as_nan")]
     pub estimate_cov: [[f64; 2]; 2],
     /// `ok`, `ambiguous`, `rejected` (fused: the snapshot failed the χ² gate and was not fused; ẑ is
     /// the prediction) or `failed` (on failure ẑ is the previous estimate).
@@ -96,6 +99,60 @@ pub struct StepRecord {
     /// along the arcs the UAVs flew ([`crate::annotate`]; absent on the last step).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub safety: Option<StepSafety>,
+    /// What the receivers gave at this step: who heard the burst, which arrivals the estimator dropped
+    /// as outliers, a silent emitter (absent when every UAV heard it and nothing was dropped).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub receiver: Option<StepReceiver>,
+}
+
+/// One step's burst as the receivers gave it and the estimator used it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StepReceiver {
+    /// The UAVs whose arrival the step held.
+    pub heard: Vec<usize>,
+    /// The arrivals the estimator dropped as outliers.
+    pub outliers: Vec<usize>,
+    /// The emitter did not transmit (`null`: not known, e.g. an external front end's step heard by
+    /// fewer than two UAVs).
+    pub silent: Option<bool>,
+    /// The arrivals that truly came by a reflection (`null` without a truth).
+    pub multipath: Option<Vec<usize>>,
+}
+
+impl StepReceiver {
+    /// From the masks (bit i: UAV i) of a swarm of `n` UAVs.
+    pub fn from_masks(n: usize, heard: u8, outliers: u8, silent: Option<bool>, multipath: Option<u8>) -> Self {
+        let list = |m: u8| (0..n).filter(|i| m & (1u8 << i) != 0).collect::<Vec<_>>();
+        Self { heard: list(heard), outliers: list(outliers), silent, multipath: multipath.map(list) }
+    }
+
+    /// `None` for a complete burst with nothing dropped (and no reflection): today's perfect step.
+    pub fn unless_complete(self, n: usize) -> Option<Self> {
+        let complete = self.heard.len() == n
+            && self.outliers.is_empty()
+            && self.silent != Some(true)
+            && self.multipath.as_ref().is_none_or(|m| m.is_empty());
+        (!complete).then_some(self)
+    }
+}
+
+/// A run's receiver totals ([`crate::annotate`], from the steps' [`StepReceiver`]).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ReceiverTotals {
+    /// Arrivals not received (a UAV that did not hear a burst that was sent; silent steps excluded).
+    pub arrivals_lost: u64,
+    /// Steps the emitter was silent.
+    pub silent_steps: u64,
+    /// Steps with fewer than two arrivals (silent or lost): the estimate was predicted.
+    pub steps_without_fix: u64,
+    /// Arrivals dropped as outliers, per UAV.
+    pub outliers_by_uav: Vec<u64>,
+    /// Arrivals that truly came by a reflection (`null` without a truth).
+    pub multipath_arrivals: Option<u64>,
+    /// Of those, the ones the estimator dropped (`null` without a truth).
+    pub multipath_dropped: Option<u64>,
+    /// Good arrivals (no reflection) the estimator dropped (`null` without a truth).
+    pub good_arrivals_dropped: Option<u64>,
 }
 
 /// The safety of one interval (from a step to the next), along the arcs the UAVs flew.
@@ -115,6 +172,18 @@ pub struct StepSafety {
     /// The smallest distance of a UAV to the TRUE emitter along the arcs, metres (`null` without a
     /// truth).
     pub min_true_distance_m: Option<f64>,
+}
+
+/// A pair that serde_json wrote with `null`s for NaN (no estimate yet), read back as NaN.
+fn nulls_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+    let v = <[Option<f64>; 2]>::deserialize(d)?;
+    Ok(v.map(|x| x.unwrap_or(f64::NAN)))
+}
+
+/// [`nulls_as_nan`] for a 2 × 2 matrix.
+fn rows_nulls_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[[f64; 2]; 2], D::Error> {
+    let v = <[[Option<f64>; 2]; 2]>::deserialize(d)?;
+    Ok(v.map(|r| r.map(|x| x.unwrap_or(f64::NAN))))
 }
 
 /// A present `f64` that serde_json wrote as `null` because it was not finite (only `+∞` is possible
@@ -172,6 +241,10 @@ pub struct RunRecord {
     /// without a truth).
     #[serde(default)]
     pub min_true_distance_m: Option<f64>,
+    /// The receivers' totals: arrivals lost, silent steps, outliers by UAV (absent when every step was
+    /// complete).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub receiver: Option<ReceiverTotals>,
     /// Step 0 (initial geometry) to the final step.
     pub steps: Vec<StepRecord>,
 }
@@ -200,6 +273,7 @@ impl RunRecord {
             uncertified_steps: 0,
             min_pair_m: None,
             min_true_distance_m: None,
+            receiver: None,
             steps,
         }
     }
@@ -242,6 +316,7 @@ pub(crate) mod tests {
             range_sigmas_m: None,
             estimator: None,
             safety: None,
+            receiver: None,
         }
     }
 

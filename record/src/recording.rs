@@ -100,12 +100,20 @@ impl Recordable for Measurement {
     fn to_json(&self) -> Value {
         with_header(
             self,
-            json!({"count": self.count, "uavs": self.uavs(), "diffs": self.diffs(), "sigmas": self.sigmas(),
-                   "headings": self.headings()}),
+            json!({"count": self.count, "uavs": self.uavs(),
+                   "heard": (0..self.len()).filter(|&i| self.has_heard(i)).collect::<Vec<_>>(),
+                   "silent": self.is_silent(),
+                   "arrivals": (0..self.len()).map(|i| self.has_heard(i).then(|| self.arrivals[i])).collect::<Vec<_>>(),
+                   "sigmas": self.sigmas(), "headings": self.headings(),
+                   "position_sigmas": self.position_sigmas(), "position_bias_sigmas": self.position_bias_sigmas(),
+                   "clock_sigmas_ns": self.clock_sigmas_ns(), "clock_bias_sigmas_ns": self.clock_bias_sigmas_ns()}),
         )
     }
     fn schema_properties() -> Value {
-        json!({"count": integer(), "uavs": points(), "diffs": numbers(), "sigmas": numbers(), "headings": numbers()})
+        json!({"count": integer(), "uavs": points(), "heard": {"type": "array", "items": integer()},
+               "silent": {"type": "boolean"}, "arrivals": {"type": "array", "items": {"type": ["number", "null"]}},
+               "sigmas": numbers(), "headings": numbers(), "position_sigmas": numbers(),
+               "position_bias_sigmas": numbers(), "clock_sigmas_ns": numbers(), "clock_bias_sigmas_ns": numbers()})
     }
 }
 
@@ -119,6 +127,9 @@ impl Recordable for Estimate {
                 "estimator": if self.estimator == 1 { "fused" } else { "snapshot" },
                 "model": if self.model == 1 { "constant_velocity" } else { "static" },
                 "rejected_run": self.rejected_run,
+                "heard": (0..self.len()).filter(|&i| self.heard & (1u8 << i) != 0).collect::<Vec<_>>(),
+                "outliers": (0..self.len()).filter(|&i| self.outliers & (1u8 << i) != 0).collect::<Vec<_>>(),
+                "bias_cov": self.bias_cov,
                 "position": self.position, "covariance": self.covariance,
                 "uavs": self.uavs(), "headings": self.headings(),
                 "velocity": self.velocity, "cross_cov": self.cross_cov, "velocity_cov": self.velocity_cov,
@@ -128,7 +139,8 @@ impl Recordable for Estimate {
     fn schema_properties() -> Value {
         json!({
             "instance": integer(), "count": integer(), "status": string(), "estimator": string(), "model": string(),
-            "rejected_run": integer(), "position": numbers(), "covariance": points(), "uavs": points(),
+            "rejected_run": integer(), "heard": {"type": "array", "items": integer()},
+            "outliers": {"type": "array", "items": integer()}, "bias_cov": points(), "position": numbers(), "covariance": points(), "uavs": points(),
             "headings": numbers(), "velocity": numbers(), "cross_cov": points(), "velocity_cov": points(),
         })
     }
@@ -565,7 +577,8 @@ mod tests {
         let topics: Vec<&str> = back.messages.iter().map(|m| m.topic.as_str()).collect();
         assert_eq!(topics, ["/measurement", "/estimate", "/measurement"]);
         let m = &back.messages[0].json;
-        assert_eq!(m["diffs"][0].as_f64().unwrap().to_bits(), (0.1f64 + 0.2).to_bits());
+        assert_eq!(m["arrivals"][1].as_f64().unwrap().to_bits(), (0.1f64 + 0.2).to_bits());
+        assert_eq!(m["heard"], json!([0, 1, 2]));
         assert_eq!(m["uavs"].as_array().unwrap().len(), 3, "trimmed to the UAVs in use");
         assert_eq!(back.messages[0].log_time, 11);
         let e = &back.messages[1].json;

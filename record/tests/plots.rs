@@ -79,6 +79,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
                 range_sigmas_m: None,
                 estimator: None,
                 safety: None,
+                receiver: None,
             };
             for (p, h) in uavs.iter_mut().zip(&headings) {
                 p[0] += 500.0 * h.cos();

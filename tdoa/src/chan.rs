@@ -38,6 +38,9 @@ pub struct ChanSolution {
 /// resolves the two-root ambiguity of the 3-UAV case (the root nearer to it wins).
 pub fn chan(sensors: &Sensors, d: &RangeDiffs, prior: Option<Vector2<f64>>) -> Result<ChanSolution, TdoaError> {
     let n = sensors.len();
+    if n < 3 {
+        return Err(TdoaError::UavCount { got: n, min: 3, max: crate::MAX_UAVS });
+    }
     if d.as_slice().len() != n - 1 {
         return Err(TdoaError::LengthMismatch {
             what: "range differences".into(),

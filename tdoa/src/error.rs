@@ -7,9 +7,9 @@ use thiserror::Error;
 /// Every variant names the offending quantity so that a command-line user sees one clear line.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum TdoaError {
-    /// Fewer than 3 or more than [`crate::MAX_UAVS`] UAVs.
-    #[error("need between 3 and {max} UAVs, got {got}")]
-    UavCount { got: usize, max: usize },
+    /// Fewer than `min` (3; 2 for the arrivals of one burst) or more than [`crate::MAX_UAVS`] UAVs.
+    #[error("need between {min} and {max} UAVs, got {got}")]
+    UavCount { got: usize, min: usize, max: usize },
     /// A coordinate, σ or covariance entry is NaN or infinite.
     #[error("{what} is not a finite number ({value})")]
     NotFinite { what: String, value: f64 },

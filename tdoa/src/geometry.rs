@@ -34,10 +34,19 @@ pub struct RangeDiffs {
 impl RangeDiffs {
     /// Builds from a slice of N−1 values; errors if longer than the capacity or not finite.
     pub fn from_slice(values: &[f64]) -> Result<Self, TdoaError> {
-        if values.len() > MAX_DIFFS || values.len() < 2 {
+        Self::with_min(values, 2)
+    }
+
+    /// [`from_slice`](Self::from_slice) for a burst heard by as few as two UAVs: one value or more.
+    pub fn heard(values: &[f64]) -> Result<Self, TdoaError> {
+        Self::with_min(values, 1)
+    }
+
+    fn with_min(values: &[f64], min: usize) -> Result<Self, TdoaError> {
+        if values.len() > MAX_DIFFS || values.len() < min {
             return Err(TdoaError::LengthMismatch {
                 what: "range differences".into(),
-                expected: values.len().clamp(2, MAX_DIFFS),
+                expected: values.len().clamp(min, MAX_DIFFS),
                 got: values.len(),
             });
         }
@@ -84,9 +93,19 @@ struct QMatrices {
 impl NoiseModel {
     /// From per-UAV range standard deviations in metres (`sigmas[0]` is the reference UAV).
     pub fn from_range_sigmas(sigmas: &[f64]) -> Result<Self, TdoaError> {
+        Self::with_min(sigmas, 3)
+    }
+
+    /// [`from_range_sigmas`](Self::from_range_sigmas) for the arrivals of one burst heard by as few as
+    /// two UAVs (one range difference: information on one direction only, for a fused posterior).
+    pub fn heard(sigmas: &[f64]) -> Result<Self, TdoaError> {
+        Self::with_min(sigmas, 2)
+    }
+
+    fn with_min(sigmas: &[f64], min: usize) -> Result<Self, TdoaError> {
         let n = sigmas.len();
-        if !(3..=MAX_UAVS).contains(&n) {
-            return Err(TdoaError::UavCount { got: n, max: MAX_UAVS });
+        if !(min..=MAX_UAVS).contains(&n) {
+            return Err(TdoaError::UavCount { got: n, min, max: MAX_UAVS });
         }
         let mut s = [0.0; MAX_UAVS];
         for (i, &v) in sigmas.iter().enumerate() {
@@ -183,9 +202,19 @@ impl Sensors {
     /// Validates 3..=8 pairwise distinct UAV positions within ±[`MAX_EXTENT_M`] (finite) and a noise model of
     /// the same size. (A world whose UAVs flew out of the extent fails here, at its next measurement.)
     pub fn new(uavs: &[[f64; 2]], noise: NoiseModel) -> Result<Self, TdoaError> {
+        Self::with_min(uavs, noise, 3)
+    }
+
+    /// [`new`](Self::new) for the UAVs that heard one burst: as few as two (see [`NoiseModel::heard`]).
+    /// Chan's fix needs three; a fused posterior takes one range difference.
+    pub fn heard(uavs: &[[f64; 2]], noise: NoiseModel) -> Result<Self, TdoaError> {
+        Self::with_min(uavs, noise, 2)
+    }
+
+    fn with_min(uavs: &[[f64; 2]], noise: NoiseModel, min: usize) -> Result<Self, TdoaError> {
         let n = uavs.len();
-        if !(3..=MAX_UAVS).contains(&n) {
-            return Err(TdoaError::UavCount { got: n, max: MAX_UAVS });
+        if !(min..=MAX_UAVS).contains(&n) {
+            return Err(TdoaError::UavCount { got: n, min, max: MAX_UAVS });
         }
         if noise.len() != n {
             return Err(TdoaError::LengthMismatch { what: "sigma per UAV".into(), expected: n, got: noise.len() });
@@ -226,7 +255,7 @@ impl Sensors {
         self.n
     }
 
-    /// Always false: there are at least 3 UAVs.
+    /// Always false: there are at least 2 UAVs.
     pub fn is_empty(&self) -> bool {
         false
     }

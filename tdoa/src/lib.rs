@@ -5,8 +5,10 @@
 //! five ways behind one trait, Chan's estimator, and Monte Carlo helpers.
 //!
 //! Conventions: 2-D, positions in metres, times in seconds (σ may be given in ns), angles in radians;
-//! `uavs[0]` is the reference UAV; range differences are `d_i = r_i − r_0`, i = 1..N−1; 3 ≤ N ≤ 8.
+//! `uavs[0]` is the reference UAV; range differences are `d_i = r_i − r_0`, i = 1..N−1; 3 ≤ N ≤ 8 (a burst
+//! heard by only some of them: [`arrivals`]).
 
+pub mod arrivals;
 pub mod chan;
 pub mod dist;
 mod error;
@@ -21,6 +23,7 @@ pub mod rng;
 pub mod singular;
 pub mod support;
 
+pub use arrivals::{Arrivals, Heard, SensorErrors};
 pub use chan::{ChanSolution, chan};
 pub use error::TdoaError;
 pub use fim::{Crlb, crlb, fim, fim_derivatives, trace_crlb, trace_derivatives};

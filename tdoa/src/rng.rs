@@ -24,6 +24,11 @@ pub enum Purpose {
     Experiment = 7,
     /// The planner's standoff search (the second search of a step whose cone search found no feasible plan).
     StandoffSolver = 8,
+    /// The receiver model's draws of one step: which arrivals are lost, whether the emitter is silent,
+    /// multipath, and the white GNSS and clock errors ([`crate::arrivals`]).
+    Receiver = 9,
+    /// The receiver model's per-flight GNSS and clock biases (drawn once per run, at step 0).
+    FlightBias = 10,
 }
 
 /// SplitMix64's increment (2^64 / φ).

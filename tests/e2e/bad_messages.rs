@@ -77,7 +77,7 @@ struct Batch {
 fn batch() -> Batch {
     Batch {
         measurements: vec![
-            (with(measurement(), |m| m.diffs[1] = f64::NAN), "not_finite"),
+            (with(measurement(), |m| m.arrivals[1] = f64::NAN), "not_finite"),
             (with(measurement(), |m| m.count = 200), "bad_count"),
             (with(measurement(), |m| m.sigmas[2] = -28.0), "non_positive_sigma"),
             // Valid, with an old sequence number, from another publisher than emitter-sim: one measurement
@@ -227,7 +227,7 @@ fn a_flood_of_bad_messages_is_logged_at_a_bounded_rate_with_exact_counts() {
         let domain = Domain::new(&d).unwrap();
         let node = protocol::Link::open(protocol::TransportKind::Iceoryx2, &format!("{d}-flood")).unwrap();
         let m = Topic::<Measurement>::publisher(&node, &services::measurement(&domain)).unwrap();
-        let bad = with(measurement(), |m| m.diffs[1] = f64::NAN);
+        let bad = with(measurement(), |m| m.arrivals[1] = f64::NAN);
         for k in 0..20_000 {
             m.send(&bad).unwrap();
             // Bursts the receivers' buffers (64) can hold, so that most of the flood reaches them.

@@ -88,6 +88,32 @@ fn a_python_front_end_is_answered_every_step_and_its_emitter_is_localised() {
     assert!(last["estimate_status"] == "ok", "{last}");
 }
 
+/// A front end whose receivers lose arrivals, hear a silent emitter and time reflections: every step is
+/// answered with a command (a hold until the first fix), the monitor records who was heard and counts
+/// what was lost as the front end says, and the emitter is still localised.
+#[test]
+fn partial_and_silent_steps_from_the_python_front_end_are_fused_and_commanded() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("ext", "rx");
+    let (report, fe) = run(&d, "ext-rx", &["--loss", "0.2", "--silence", "0.2", "--multipath", "0.05", "--seed", "3"]);
+    assert_eq!(fe["commands_flown"], STEPS, "every step but the last answered with a command");
+    assert_eq!(report["rejected"], 0, "{}", report["rejected_by"]);
+    let rx = &report["receiver"];
+    assert_eq!(rx["silent_steps"], fe["silent_steps"], "{rx}");
+    assert_eq!(rx["arrivals_lost"], fe["arrivals_lost"], "{rx}");
+    assert!(fe["silent_steps"].as_u64().unwrap() + fe["partial_steps"].as_u64().unwrap() > 0, "{fe}");
+    let steps = report["steps"].as_array().unwrap();
+    let silent = steps.iter().filter(|s| s["receiver"]["silent"] == true).count() as u64;
+    assert_eq!(silent, fe["silent_steps"].as_u64().unwrap());
+    for s in steps.iter().filter(|s| s["receiver"]["silent"] == true) {
+        assert!(matches!(s["estimate_status"].as_str(), Some("predicted" | "failed")), "{s}");
+    }
+    let last = steps.last().unwrap();
+    let truth = [fe["truth"][0].as_f64().unwrap(), fe["truth"][1].as_f64().unwrap()];
+    let e = (last["estimate"][0].as_f64().unwrap() - truth[0]).hypot(last["estimate"][1].as_f64().unwrap() - truth[1]);
+    assert!(e < 1655.58, "final error {e} m");
+}
+
 #[test]
 fn malformed_messages_from_the_python_front_end_are_rejected_and_counted() {
     let _scenario = common::scenario(module_path!());
@@ -370,7 +396,7 @@ fn a_monitor_crash_with_an_external_front_end_fails_the_launch_at_once_saying_wh
 
 /// A front end whose range noise is not the launch scenario's (σ 20/35/50 m against 28.77 m): the noise
 /// it states in its measurements is the noise every stage uses — the estimator's estimate carries it
-/// (Estimate v4), the planner plans with it, the monitor's bounds use it. The run equals one whose
+/// (the Estimate carries it), the planner plans with it, the monitor's bounds use it. The run equals one whose
 /// `--scenario` states the same σ, plan for plan; the record says which σ each step had. (The planner and
 /// the monitor used to take the scenario's σ: the plans silently changed from step 2.)
 #[test]

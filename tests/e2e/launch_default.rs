@@ -57,6 +57,49 @@ fn the_default_24_step_run_equals_simulate() {
     assert_nothing_left(&d);
 }
 
+/// Every receiver impairment on (`scenarios/receiver.toml`: lost arrivals, a silent emitter, multipath,
+/// GNSS and clock errors per step and per flight): the processes reproduce `simulate` bit for bit — who
+/// was heard, the arrivals dropped, the holds and predictions included — and every step is commanded.
+#[test]
+fn every_receiver_impairment_on_launch_equals_simulate() {
+    let _scenario = common::scenario(module_path!());
+    let scenario = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/receiver.toml");
+    let d = domain("receiver");
+    let (run, _) = launch(&d, &["--scenario", scenario, "--steps", "20"]);
+    let sim = json_of(&["simulate", "--json", "--scenario", scenario, "--steps", "20"]);
+    assert_same_run(&sim, &run, "receiver");
+    let (a, b) = (sim["steps"].as_array().unwrap(), run["steps"].as_array().unwrap());
+    let mut impaired = 0;
+    for (s, l) in a.iter().zip(b) {
+        // `simulate` also records the steps whose only impairment is a reflection (known from the truth
+        // alone); the receiver's own view of such a step is a complete one, as `launch` records it.
+        assert_eq!(receiver_view(s), receiver_view(l), "step {}: the receiver's view", s["step"]);
+        impaired += usize::from(!l["receiver"].is_null());
+        assert_eq!(s["range_sigmas_m"], l["range_sigmas_m"], "step {}", s["step"]);
+    }
+    assert!(impaired >= 3, "the scenario impaired {impaired} steps only");
+    for key in ["arrivals_lost", "silent_steps", "steps_without_fix", "outliers_by_uav"] {
+        assert_eq!(sim["receiver"][key], run["receiver"][key], "receiver.{key}");
+    }
+    assert!(
+        sim["receiver"]["silent_steps"].as_u64().unwrap() > 0 && sim["receiver"]["arrivals_lost"].as_u64().unwrap() > 0
+    );
+    assert_eq!(run["rejected"].as_u64(), Some(0));
+    assert_nothing_left(&d);
+}
+
+/// A step's receiver as the estimator saw it: (UAVs heard, arrivals dropped, silent); a step recorded
+/// without a `receiver` was complete.
+fn receiver_view(step: &Value) -> (Value, Value, bool) {
+    let r = &step["receiver"];
+    let n = step["uavs"].as_array().map_or(0, Vec::len);
+    let all = Value::from((0..n as u64).collect::<Vec<_>>());
+    if r.is_null() {
+        return (all, serde_json::json!([]), false);
+    }
+    (r["heard"].clone(), r["outliers"].clone(), r["silent"].as_bool().unwrap_or(false))
+}
+
 #[test]
 fn the_table_and_a_second_seed() {
     let _scenario = common::scenario(module_path!());

@@ -111,29 +111,26 @@ fn a_start_that_cannot_be_localised_is_refused_up_front() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A step 0 without a fix (the nominal scenario with σ = 500 m, seed 10: Chan finds no physical solution,
-/// and there is no earlier estimate): `simulate` ends at once with the reason, and so does `launch` —
-/// the planner says the run cannot go on (exit code 3, no restart). It used to grind 62 s through five
-/// emitter-sim restarts and end with "no command within 10 s".
+/// A run whose first steps give no fix (the nominal scenario with an emitter silent at 99.99 % of the
+/// steps, so no burst and no earlier estimate): the swarm holds course and tries the next burst,
+/// and after `planning::FIRST_FIX_STEPS` steps without a fix `simulate` ends with the reason, and so does
+/// `launch` — the planner says the run cannot go on (exit code 3, no restart), at the same step. With
+/// σ = 500 m step 0 has no fix but a later one has: both hold, then run to the end alike.
 #[test]
-fn a_step_0_without_a_fix_ends_launch_at_once_as_it_ends_simulate() {
+fn a_run_without_a_first_fix_holds_then_ends_launch_as_it_ends_simulate() {
     let _scenario = common::scenario(module_path!());
     let dir = common::scratch("no-fix");
     let nominal =
         std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/nominal.toml"))
             .unwrap();
-    let noisy: String = nominal
-        .lines()
-        .map(|l| if l.starts_with("sigma =") { "sigma = 500.0" } else { l })
-        .collect::<Vec<_>>()
-        .join("\n");
-    assert_ne!(noisy, nominal);
+    let noisy = format!("{nominal}\n[receiver]\nsilence = 0.9999\n");
     let path = dir.join("noisy.toml");
     std::fs::write(&path, noisy).unwrap();
     let path = path.to_str().unwrap();
     let sim = Command::new(UAVLOC).args(["simulate", "--scenario", path, "--seed", "10"]).output().unwrap();
     assert_eq!(sim.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&sim.stderr).contains("no physical solution"));
+    let sim_err = String::from_utf8_lossy(&sim.stderr);
+    assert!(sim_err.contains("step 19: estimate") && sim_err.contains("no fix yet"), "{sim_err}");
     let d = domain("nofix", "launch");
     let out = Command::new(UAVLOC)
         .args(["launch", "--headless", "--json", "--scenario", path, "--seed", "10", "--domain", &d])
@@ -141,9 +138,38 @@ fn a_step_0_without_a_fix_ends_launch_at_once_as_it_ends_simulate() {
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(err.contains("step 0: the estimator found no fix") && err.contains("the run cannot go on"), "{err}");
+    assert!(err.contains("step 19: the estimator found no fix in the first 20 steps"), "{err}");
+    assert!(err.contains("the run cannot go on"), "{err}");
     // Ended by the planner's verdict, not by a timeout after restarts.
     assert!(!err.contains("restarting") && !err.contains("no command within"), "{err}");
+    assert_nothing_left(&d);
+    // σ = 500 m: step 0 has no fix, a later step has; both hold course until then and agree.
+    let half: String = nominal
+        .lines()
+        .map(|l| if l.starts_with("sigma =") { "sigma = 500.0" } else { l })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let path = dir.join("half.toml");
+    std::fs::write(&path, half).unwrap();
+    let path = path.to_str().unwrap();
+    let sim = json_of(&["simulate", "--json", "--scenario", path, "--seed", "10", "--steps", "6"]);
+    let d = domain("nofix", "hold");
+    let run = json_of(&[
+        "launch",
+        "--headless",
+        "--json",
+        "--scenario",
+        path,
+        "--seed",
+        "10",
+        "--steps",
+        "6",
+        "--domain",
+        &d,
+    ]);
+    assert_eq!(sim["steps"][0]["active_constraints"], serde_json::json!(["estimate_stale"]), "step 0 held");
+    assert!(sim["steps"][0]["estimate"][0].is_null(), "no estimate at step 0");
+    assert_same_run(&sim, &run, "a held step 0");
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -41,7 +41,7 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
         assert_eq!(channels[topic]["message_encoding"], "json");
         assert_eq!(channels[topic]["schema_encoding"], "jsonschema");
     }
-    assert_eq!(channels["/estimate"]["schema"], "uavloc::Estimate/v4");
+    assert_eq!(channels["/estimate"]["schema"], "uavloc::Estimate/v5");
     assert!(channels["/control"]["count"].as_u64().unwrap() >= 4, "every process said hello: {channels}");
     assert_eq!(read["metadata"]["uavloc"]["steps"], steps);
     for (k, s) in run["steps"].as_array().unwrap().iter().enumerate() {
@@ -76,7 +76,7 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
         }
         seen.into_values().collect()
     };
-    let m_keys = ["uavs", "diffs", "sigmas", "headings"];
+    let m_keys = ["uavs", "heard", "arrivals", "sigmas", "headings"];
     assert_eq!(fields(&sim_file, "/measurement", &m_keys), fields(&file, "/measurement", &m_keys));
     let e_keys = ["status", "position", "covariance", "velocity"];
     assert_eq!(fields(&sim_file, "/estimate", &e_keys), fields(&file, "/estimate", &e_keys));
@@ -97,9 +97,9 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
     let out = uavloc(&["replay", junk.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("not an MCAP file"), "{out:?}");
-    // One digit of a recorded range difference changed: still valid JSON, a different report — refused by
-    // the data section's CRC (it used to be replayed, exit 0).
-    let at = bytes.windows(9).position(|w| w == b"\"diffs\":[").expect("a recorded measurement") + 10;
+    // One digit of a recorded arrival changed: still valid JSON, a different report — refused by the data
+    // section's CRC (it used to be replayed, exit 0).
+    let at = bytes.windows(12).position(|w| w == b"\"arrivals\":[").expect("a recorded measurement") + 13;
     let digit = at + bytes[at..].iter().position(u8::is_ascii_digit).unwrap();
     let mut changed = bytes.clone();
     changed[digit] = if changed[digit] == b'7' { b'8' } else { b'7' };

@@ -89,8 +89,10 @@ pub struct StateEcho {
     pub model: u8,
     /// As [`Estimate::rejected_run`].
     pub rejected_run: u8,
+    /// As [`Estimate::confirmed`] (0, a provisional track, from a sender that does not state it).
+    pub confirmed: u8,
     /// Explicit padding; 0 when sent.
-    pub reserved: u32,
+    pub reserved: [u8; 3],
     /// The estimate, metres.
     pub position: [f64; 2],
     /// Its covariance, m², row-major.
@@ -103,7 +105,7 @@ pub struct StateEcho {
     pub velocity_cov: [[f64; 2]; 2],
 }
 
-// SAFETY: repr(C) of u64, four u8, u32 and f64 arrays, without implicit padding (144 bytes, see
+// SAFETY: repr(C) of u64, eight u8 and f64 arrays, without implicit padding (144 bytes, see
 // `layout_is_stable`): every bit pattern is a value.
 unsafe impl AnyBitPattern for StateEcho {}
 

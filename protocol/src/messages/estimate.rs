@@ -15,6 +15,9 @@ wire_enum! {
         /// A usable estimate whose snapshot failed the fused estimator's χ² gate and was not fused: the
         /// position and covariance are the posterior predicted to this step.
         Rejected = 3, "rejected";
+        /// No burst heard by two UAVs at this step (a silent emitter, lost arrivals): the position and
+        /// covariance are the fused posterior predicted to this step.
+        Predicted = 4, "predicted";
     }
 }
 
@@ -51,6 +54,13 @@ pub enum Fix {
         /// Its covariance, m².
         covariance: [[f64; 2]; 2],
     },
+    /// The fused estimator's prediction: no burst heard by two UAVs.
+    Predicted {
+        /// Predicted emitter position, metres.
+        position: [f64; 2],
+        /// Its covariance, m².
+        covariance: [[f64; 2]; 2],
+    },
 }
 
 impl Fix {
@@ -61,6 +71,7 @@ impl Fix {
             Fix::Ambiguous { .. } => EstimateStatus::Ambiguous,
             Fix::Failed => EstimateStatus::Failed,
             Fix::Rejected { .. } => EstimateStatus::Rejected,
+            Fix::Predicted { .. } => EstimateStatus::Predicted,
         }
     }
 
@@ -69,7 +80,8 @@ impl Fix {
         match *self {
             Fix::Ok { position, covariance }
             | Fix::Ambiguous { position, covariance }
-            | Fix::Rejected { position, covariance } => Some((position, covariance)),
+            | Fix::Rejected { position, covariance }
+            | Fix::Predicted { position, covariance } => Some((position, covariance)),
             Fix::Failed => None,
         }
     }
@@ -87,6 +99,9 @@ pub struct PosteriorExtra {
     /// Snapshots rejected in a row up to this estimate.
     #[serde(default)]
     pub rejected_run: u8,
+    /// Bursts fused whole since the track started (saturating; a provisional track drops no outlier).
+    #[serde(default)]
+    pub confirmed: u8,
     /// Velocity estimate, m/s.
     pub velocity: [f64; 2],
     /// Position–velocity cross-covariance (rows: x, y; columns: vx, vy), m²/s.
@@ -96,7 +111,8 @@ pub struct PosteriorExtra {
 }
 
 /// The fused posterior's fields beyond the position, as every message that carries an estimator state
-/// lays them out (`estimator`, `model`, `rejected_run`, `velocity`, `cross_cov`, `velocity_cov`): one
+/// lays them out (`estimator`, `model`, `rejected_run`, `confirmed`, `velocity`, `cross_cov`,
+/// `velocity_cov`): one
 /// mapping to and from [`PosteriorExtra`] for [`Estimate`] and [`StateEcho`].
 macro_rules! impl_posterior_fields {
     ($ty:ident) => {
@@ -107,6 +123,7 @@ macro_rules! impl_posterior_fields {
                     estimator: self.estimator,
                     model: self.model,
                     rejected_run: self.rejected_run,
+                    confirmed: self.confirmed,
                     velocity: self.velocity,
                     cross_cov: self.cross_cov,
                     velocity_cov: self.velocity_cov,
@@ -118,6 +135,7 @@ macro_rules! impl_posterior_fields {
                 self.estimator = extra.estimator;
                 self.model = extra.model;
                 self.rejected_run = extra.rejected_run;
+                self.confirmed = extra.confirmed;
                 self.velocity = extra.velocity;
                 self.cross_cov = extra.cross_cov;
                 self.velocity_cov = extra.velocity_cov;
@@ -131,7 +149,7 @@ impl_posterior_fields!(StateEcho);
 
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v4")]
+#[type_name("uavloc::Estimate/v5")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -140,7 +158,7 @@ pub struct Estimate {
     pub instance: u64,
     /// Number of UAVs N (3..=8).
     pub count: u32,
-    /// [`EstimateStatus`] as `u8` (0 ok, 1 ambiguous, 2 failed, 3 rejected).
+    /// [`EstimateStatus`] as `u8` (0 ok, 1 ambiguous, 2 failed, 3 rejected, 4 predicted).
     pub status: u8,
     /// The estimator: 0 snapshot (Chan per step), 1 fused (the posterior of every snapshot so far).
     pub estimator: u8,
@@ -149,6 +167,15 @@ pub struct Estimate {
     /// Fused: snapshots rejected in a row up to this one (the estimator restarts from Chan after a few,
     /// see `uavloc-estimator`); 0 otherwise.
     pub rejected_run: u8,
+    /// The UAVs whose arrival the measurement held (bit i: UAV i; v5).
+    pub heard: u8,
+    /// The arrivals the estimator dropped as outliers (bit i: UAV i; v5).
+    pub outliers: u8,
+    /// Fused: bursts fused whole since the track started (saturating at the estimator's confirmation
+    /// count; until then the track is provisional and drops no outlying arrival; v5).
+    pub confirmed: u8,
+    /// Explicit padding; 0 when sent.
+    pub reserved: [u8; 5],
     /// Estimated emitter position, metres. Failed: the *standing* estimate — the last usable one, which
     /// the estimator keeps and the next step is planned from — or NaN when there is none yet (v3; in v2 a
     /// failed estimate carried no position).
@@ -167,11 +194,15 @@ pub struct Estimate {
     pub velocity_cov: [[f64; 2]; 2],
     /// The range noise σ_i per UAV of the measurement it was made from, metres (v4): the noise every
     /// later stage uses (the planner's criterion, the monitor's bounds), so a front end's stated noise
-    /// is the run's. All 0: not stated (the scenario's σ is used).
+    /// is the run's. All 0: not stated (the scenario's σ is used). From v5 the *stated* σ: range noise
+    /// with the GNSS and clock errors (see `Measurement::stated_sigmas`).
     pub sigmas: [f64; MAX_UAVS],
+    /// The consider covariance of the persistent GNSS and clock errors at the estimate, m² (v5; zero
+    /// without them): not part of the fused state; [`Estimate::plan_from`] adds it.
+    pub bias_cov: [[f64; 2]; 2],
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 4, "uavloc::Estimate/v4");
+impl_message!(Estimate, MessageKind::Estimate, 5, "uavloc::Estimate/v5");
 
 impl_per_uav!(Estimate {
     /// UAV positions in use.
@@ -201,6 +232,10 @@ impl Estimate {
             estimator: 0,
             model: 0,
             rejected_run: 0,
+            heard: 0,
+            outliers: 0,
+            confirmed: 0,
+            reserved: [0; 5],
             position,
             covariance,
             uavs: [[0.0; 2]; MAX_UAVS],
@@ -209,6 +244,7 @@ impl Estimate {
             cross_cov: [[0.0; 2]; 2],
             velocity_cov: [[0.0; 2]; 2],
             sigmas: [0.0; MAX_UAVS],
+            bias_cov: [[0.0; 2]; 2],
         };
         e.uavs[..n].copy_from_slice(uavs);
         e.headings[..n].copy_from_slice(headings);
@@ -234,7 +270,8 @@ impl Estimate {
             Estimate::new(measurement.header.step, seq, instance, measurement.uavs(), measurement.headings(), fix)?
                 .carrying(measurement, received_ns);
         let n = e.len();
-        e.sigmas[..n].copy_from_slice(measurement.sigmas());
+        e.sigmas[..n].copy_from_slice(&measurement.stated_sigmas().0);
+        e.heard = measurement.heard;
         Ok(e)
     }
 
@@ -255,12 +292,23 @@ impl Estimate {
     }
 
     /// The estimate this step is planned from: the fix of a usable estimate, the standing estimate of a
-    /// failed one, `None` for a failed one without (no usable estimate yet) or an unknown status.
+    /// failed one, `None` for a failed one without (no usable estimate yet) or an unknown status. The
+    /// covariance includes the persistent errors' [`bias_cov`](Self::bias_cov).
     pub fn plan_from(&self) -> Option<([f64; 2], [[f64; 2]; 2])> {
+        let c = &self.covariance;
+        let b = &self.bias_cov;
+        let total = [[c[0][0] + b[0][0], c[0][1] + b[0][1]], [c[1][0] + b[1][0], c[1][1] + b[1][1]]];
         match self.status()? {
             EstimateStatus::Failed if !self.position.iter().all(|v| v.is_finite()) => None,
-            _ => Some((self.position, self.covariance)),
+            _ => Some((self.position, total)),
         }
+    }
+
+    /// This estimate with the arrivals dropped as outliers and the persistent errors' covariance.
+    pub fn with_receiver(mut self, outliers: u8, bias_cov: [[f64; 2]; 2]) -> Self {
+        self.outliers = outliers;
+        self.bias_cov = bias_cov;
+        self
     }
 
     /// The decoded status (`None` for an unknown wire value).
@@ -276,6 +324,7 @@ impl Estimate {
             EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
             EstimateStatus::Failed => Fix::Failed,
             EstimateStatus::Rejected => Fix::Rejected { position, covariance },
+            EstimateStatus::Predicted => Fix::Predicted { position, covariance },
         })
     }
 }

@@ -9,8 +9,8 @@ fn layout_is_stable() {
     assert_eq!((size_of::<Stamps>(), align_of::<Stamps>()), (64, 8));
     assert_eq!((size_of::<Header>(), align_of::<Header>()), (88, 8));
     assert_eq!((size_of::<Name16>(), align_of::<Name16>()), (16, 1));
-    assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (408, 8));
-    assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (488, 8));
+    assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (672, 8));
+    assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (528, 8));
     assert_eq!((size_of::<Command>(), align_of::<Command>()), (504, 8));
     assert_eq!((size_of::<StateEcho>(), align_of::<StateEcho>()), (144, 8));
     assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
@@ -24,17 +24,17 @@ fn layout_has_no_implicit_padding() {
     // Every byte belongs to a field: offsets are contiguous.
     assert_eq!(offset_of!(Header, stamps) + size_of::<Stamps>(), size_of::<Header>());
     assert_eq!(offset_of!(Header, step), 8);
-    assert_eq!(offset_of!(Measurement, headings) + 8 * MAX_UAVS, size_of::<Measurement>());
+    assert_eq!(offset_of!(Measurement, clock_bias_sigmas_ns) + 8 * MAX_UAVS, size_of::<Measurement>());
     assert_eq!(offset_of!(Measurement, uavs), 96);
-    assert_eq!(offset_of!(Estimate, position), 88 + 8 + 8);
+    assert_eq!(offset_of!(Estimate, position), 88 + 8 + 8 + 8);
     assert_eq!(offset_of!(Estimate, headings) + 8 * MAX_UAVS, offset_of!(Estimate, velocity));
     assert_eq!(offset_of!(Estimate, velocity_cov) + 32, offset_of!(Estimate, sigmas));
-    assert_eq!(offset_of!(Estimate, sigmas) + 8 * MAX_UAVS, size_of::<Estimate>());
-    assert_eq!(offset_of!(Estimate, rejected_run) + 1, offset_of!(Estimate, position));
+    assert_eq!(offset_of!(Estimate, bias_cov) + 32, size_of::<Estimate>());
+    assert_eq!(offset_of!(Estimate, reserved) + 5, offset_of!(Estimate, position));
     assert_eq!(offset_of!(Command, objective), 88 + 40);
     assert_eq!(offset_of!(Command, objective_name) + 16, offset_of!(Command, state));
     assert_eq!(offset_of!(Command, state) + size_of::<StateEcho>(), size_of::<Command>());
-    assert_eq!(offset_of!(StateEcho, reserved) + 4, offset_of!(StateEcho, position));
+    assert_eq!(offset_of!(StateEcho, reserved) + 3, offset_of!(StateEcho, position));
     assert_eq!(offset_of!(StateEcho, velocity_cov) + 32, size_of::<StateEcho>());
     assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));
     assert_eq!(offset_of!(Truth, reserved) + 4, size_of::<Truth>());
@@ -210,6 +210,6 @@ fn wire_enums_decode_exactly_their_values() {
     check(ControlKind::VARIANTS, |v| v as u32, ControlKind::from_u32, ControlKind::name);
     assert_eq!(
         (EstimateStatus::VARIANTS.len(), CommandOutcome::VARIANTS.len(), ControlKind::VARIANTS.len()),
-        (4, 3, 8)
+        (5, 3, 8)
     );
 }

@@ -255,7 +255,7 @@ fn every_send_writes_its_own_message_into_the_sample_loaned_ahead() {
     for seq in 1..=4 * SUBSCRIBER_BUFFER as u64 {
         let mut m = measurement(seq);
         m.header.step = seq;
-        m.diffs[0] = seq as f64;
+        m.arrivals[1] = seq as f64;
         let sent = publisher.send(&m).unwrap();
         assert_eq!(sent.subscribers, 4);
         m.header.stamps.mark_published(Measurement::KIND, sent.published_ns);

@@ -40,7 +40,7 @@ pub fn scratch(tag: &str) -> PathBuf {
     dir
 }
 
-/// The f64 bits of every number in a JSON value (arrays flattened).
+/// The f64 bits of every number in a JSON value (arrays flattened; a null — no estimate yet — as NaN's).
 fn bits(v: &Value, label: &str) -> Vec<u64> {
     let mut out = Vec::new();
     let mut stack = vec![v.clone()];
@@ -48,6 +48,7 @@ fn bits(v: &Value, label: &str) -> Vec<u64> {
         match x {
             Value::Array(items) => stack.extend(items),
             Value::Number(n) => out.push(n.as_f64().unwrap().to_bits()),
+            Value::Null => out.push(f64::NAN.to_bits()),
             other => panic!("{label}: unexpected {other}"),
         }
     }

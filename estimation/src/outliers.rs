@@ -1,0 +1,246 @@
+//! Which arrival of a burst is the outlier: a multipath arrival is late by hundreds of metres of range,
+//! and one late arrival must cost that arrival, not the whole burst.
+//!
+//! Two policies ([`OutlierPolicy`], scenario key `outliers`):
+//! - `snapshot`: a burst whose innovation fails the χ² gate is not fused at all (every arrival of it lost);
+//! - `arrival` (default): a burst that fails the gate is fused again without one arrival at a time
+//!   (leave-one-out) against the same prediction; the subset that passes its own gate with the largest
+//!   p-value, and whose left-out arrival is **late** (a positive residual: a reflection only lengthens the
+//!   path), is fused and the arrival reported as an outlier. When none passes, the arrival whose removal
+//!   helps most is dropped and the search goes on, at most `⌊(K − 1)/2⌋` arrivals of K heard (the
+//!   arrivals kept are always a majority). Chan's first fix of a burst heard by four or more UAVs is
+//!   checked the same way against its own residual (`m − 2` degrees of freedom).
+//!
+//! Pure functions over plain data.
+
+use nalgebra::Vector2;
+pub use tdoa::arrivals::OutlierPolicy;
+use tdoa::arrivals::bit;
+use tdoa::fusion::{self, Outcome, Posterior, Update};
+use tdoa::{Arrivals, ChanSolution, Heard, TdoaError, chan};
+
+/// The fusion of one burst: the update, and the arrivals dropped as outliers (bit i: UAV i).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BurstUpdate {
+    /// The update (of the arrivals kept).
+    pub update: Update,
+    /// The arrivals dropped.
+    pub dropped: u8,
+}
+
+/// How well `x` fits χ²_dof, as a p-value that does not underflow far in the tail: the Wilson–Hilferty
+/// normal score `z` of `x` mapped to `−z` (larger is better; monotone in the p-value `1 − CDF`).
+fn fit_score(dof: usize, x: f64) -> f64 {
+    let k = dof.max(1) as f64;
+    let v = 2.0 / (9.0 * k);
+    -(((x.max(0.0) / k).cbrt() - (1.0 - v)) / v.sqrt())
+}
+
+/// The residual of UAV `j`'s arrival against the position `z` in the frame of the other arrivals heard
+/// (`(a_j − a_r) − (|z − s_j| − |z − s_r|)` with `r` the first UAV heard other than `j`), metres:
+/// positive when the arrival is late.
+fn lateness(a: &Arrivals, j: usize, z: &Vector2<f64>) -> Option<f64> {
+    let r = (0..a.len()).find(|&i| i != j && a.heard_mask() & bit(i) != 0)?;
+    let (aj, ar) = (a.arrival(j)?, a.arrival(r)?);
+    let p = a.positions();
+    Some((aj - ar) - ((z - p[j]).norm() - (z - p[r]).norm()))
+}
+
+/// Fuses the burst `a` (≥ 2 arrivals) into the **predicted** posterior, gating each subset of `m` range
+/// differences at `gate(m)`, with the outlier `policy` (see the module documentation).
+pub fn fuse_burst(
+    predicted: &Posterior,
+    a: &Arrivals,
+    gate: impl Fn(usize) -> f64,
+    policy: OutlierPolicy,
+) -> Result<BurstUpdate, TdoaError> {
+    let fuse = |a: &Arrivals| -> Result<Option<(Update, usize)>, TdoaError> {
+        let Some(h) = a.heard()? else { return Ok(None) };
+        let m = h.diffs.as_slice().len();
+        Ok(Some((fusion::fuse(predicted, &h.sensors, &h.diffs, gate(m))?, m)))
+    };
+    let (whole, _) = fuse(a)?.ok_or_else(|| TdoaError::Degenerate("a burst heard by fewer than two UAVs".into()))?;
+    if matches!(whole.outcome, Outcome::Fused { .. }) || policy == OutlierPolicy::Snapshot || a.heard_count() < 3 {
+        return Ok(BurstUpdate { update: whole, dropped: 0 });
+    }
+    let max_drop = (a.heard_count() - 1) / 2;
+    let mut current = *a;
+    let mut dropped = 0u8;
+    for _ in 0..max_drop {
+        // (p-value, UAV, update) of the best subset that passes, and of the best that does not.
+        let mut passed: Option<(f64, usize, Update)> = None;
+        let mut failed: Option<(f64, usize)> = None;
+        for j in (0..current.len()).filter(|&j| current.heard_mask() & bit(j) != 0) {
+            let without = current.without(j);
+            let Some((up, m)) = fuse(&without)? else { continue };
+            match up.outcome {
+                Outcome::Fused { nis, .. } => {
+                    let late = lateness(&current, j, &up.posterior.position()).is_some_and(|r| r > 0.0);
+                    let p = fit_score(m, nis);
+                    if late && passed.is_none_or(|(q, _, _)| p > q) {
+                        passed = Some((p, j, up));
+                    }
+                }
+                Outcome::Rejected { nis, .. } => {
+                    let p = fit_score(m, nis);
+                    if failed.is_none_or(|(q, _)| p > q) {
+                        failed = Some((p, j));
+                    }
+                }
+            }
+        }
+        if let Some((_, j, update)) = passed {
+            return Ok(BurstUpdate { update, dropped: dropped | bit(j) });
+        }
+        let Some((_, j)) = failed else { break };
+        current = current.without(j);
+        dropped |= bit(j);
+        if current.heard_count() < 3 {
+            break;
+        }
+    }
+    Ok(BurstUpdate { update: whole, dropped: 0 })
+}
+
+/// `rᵀ Q⁻¹ r` of the residual `r = d − h(z)` of the heard arrivals at `z` (χ²_{m−2} at Chan's fix).
+pub fn residual_chi2(h: &Heard, z: &Vector2<f64>) -> f64 {
+    let exact = h.sensors.range_differences(z);
+    let r: Vec<f64> = h.diffs.as_slice().iter().zip(exact.as_slice()).map(|(d, e)| d - e).collect();
+    let noise = h.sensors.noise();
+    let mut s = 0.0;
+    for i in 0..r.len() {
+        for j in 0..r.len() {
+            s += r[i] * noise.q_inv(i, j) * r[j];
+        }
+    }
+    s
+}
+
+/// Chan's fix of the burst `a` (≥ 3 arrivals) with `prior` for the two-root case; with four or more
+/// arrivals and the `arrival` policy, a fix whose residual fails `gate(m − 2)` is replaced by the fix
+/// without the outlying arrivals (leave-one-out, at most `⌊(K − 1)/2⌋`, each left-out arrival late).
+/// Returns the fix, the geometry it used and the arrivals dropped.
+pub fn chan_burst(
+    a: &Arrivals,
+    prior: Option<Vector2<f64>>,
+    gate: impl Fn(usize) -> f64,
+    policy: OutlierPolicy,
+) -> Result<(ChanSolution, Heard, u8), TdoaError> {
+    let solve = |a: &Arrivals| -> Result<(ChanSolution, Heard), TdoaError> {
+        let h = a.heard()?.ok_or_else(|| TdoaError::Degenerate("a burst heard by fewer than two UAVs".into()))?;
+        let sol = chan(&h.sensors, &h.diffs, prior)?;
+        Ok((sol, h))
+    };
+    let (sol, h) = solve(a)?;
+    let dof = |h: &Heard| h.diffs.as_slice().len().saturating_sub(2);
+    if policy == OutlierPolicy::Snapshot || dof(&h) == 0 || residual_chi2(&h, &sol.position) <= gate(dof(&h)) {
+        return Ok((sol, h, 0));
+    }
+    let max_drop = (a.heard_count() - 1) / 2;
+    let mut current = *a;
+    let mut dropped = 0u8;
+    for _ in 0..max_drop {
+        let mut passed: Option<(f64, usize, ChanSolution, Heard)> = None;
+        let mut best: Option<(f64, usize)> = None;
+        for j in (0..current.len()).filter(|&j| current.heard_mask() & bit(j) != 0) {
+            let without = current.without(j);
+            let Ok((s, hj)) = solve(&without) else { continue };
+            let k = dof(&hj);
+            let chi = residual_chi2(&hj, &s.position);
+            let p = if k == 0 { 1.0 } else { fit_score(k, chi) };
+            let late = lateness(&current, j, &s.position).is_some_and(|r| r > 0.0);
+            if late && (k == 0 || chi <= gate(k)) && passed.as_ref().is_none_or(|(q, ..)| p > *q) {
+                passed = Some((p, j, s, hj));
+            } else if best.is_none_or(|(q, _)| p > q) {
+                best = Some((p, j));
+            }
+        }
+        if let Some((_, j, s, hj)) = passed {
+            return Ok((s, hj, dropped | bit(j)));
+        }
+        let Some((_, j)) = best else { break };
+        current = current.without(j);
+        dropped |= bit(j);
+        if dof(&current.heard()?.ok_or_else(|| TdoaError::Degenerate("no arrivals left".into()))?) == 0 {
+            break;
+        }
+    }
+    Ok((sol, h, 0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix4, Vector4};
+    use tdoa::EmitterModel;
+
+    fn swarm() -> Vec<[f64; 2]> {
+        vec![[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0], [-3000.0, 4000.0], [2000.0, -6000.0]]
+    }
+
+    fn arrivals(z: Vector2<f64>, late: &[(usize, f64)]) -> Arrivals {
+        let pos = swarm();
+        let mut a: Vec<f64> = pos.iter().map(|p| (z - Vector2::new(p[0], p[1])).norm()).collect();
+        for &(j, b) in late {
+            a[j] += b;
+        }
+        Arrivals::new(&pos, &a, 0b11111, &[20.0; 5], &[0.0; 5]).unwrap()
+    }
+
+    fn gate(m: usize) -> f64 {
+        fusion::gate_threshold(m, fusion::DEFAULT_GATE_PROBABILITY)
+    }
+
+    fn predicted(z: Vector2<f64>) -> Posterior {
+        let mut cov = Matrix4::zeros();
+        cov[(0, 0)] = 200.0f64.powi(2);
+        cov[(1, 1)] = 200.0f64.powi(2);
+        Posterior::new(EmitterModel::Static, Vector4::new(z.x + 50.0, z.y - 80.0, 0.0, 0.0), cov).unwrap()
+    }
+
+    #[test]
+    fn one_late_arrival_is_dropped_not_the_burst() {
+        let z = Vector2::new(25000.0, 15000.0);
+        for j in 0..5 {
+            let a = arrivals(z, &[(j, 600.0)]);
+            let whole = fuse_burst(&predicted(z), &a, gate, OutlierPolicy::Snapshot).unwrap();
+            assert!(matches!(whole.update.outcome, Outcome::Rejected { .. }), "UAV {j}");
+            let up = fuse_burst(&predicted(z), &a, gate, OutlierPolicy::Arrival).unwrap();
+            assert_eq!(up.dropped, bit(j), "UAV {j}");
+            assert!(matches!(up.update.outcome, Outcome::Fused { .. }));
+            // Noise-free otherwise: the fused estimate moves towards the truth.
+            assert!((up.update.posterior.position() - z).norm() < 20.0, "UAV {j}");
+        }
+    }
+
+    #[test]
+    fn two_late_arrivals_of_five_are_dropped() {
+        let z = Vector2::new(25000.0, 15000.0);
+        let a = arrivals(z, &[(1, 700.0), (3, 400.0)]);
+        let up = fuse_burst(&predicted(z), &a, gate, OutlierPolicy::Arrival).unwrap();
+        assert_eq!(up.dropped, bit(1) | bit(3));
+        assert!((up.update.posterior.position() - z).norm() < 20.0);
+    }
+
+    #[test]
+    fn an_early_arrival_is_not_taken_for_multipath() {
+        // A reflection only delays: an arrival 600 m *early* (a wrong prediction, not multipath) is not
+        // dropped as an outlier.
+        let z = Vector2::new(25000.0, 15000.0);
+        let a = arrivals(z, &[(2, -600.0)]);
+        let up = fuse_burst(&predicted(z), &a, gate, OutlierPolicy::Arrival).unwrap();
+        assert_eq!(up.dropped & bit(2), 0);
+    }
+
+    #[test]
+    fn chan_drops_the_late_arrival_of_its_first_fix() {
+        let z = Vector2::new(25000.0, 15000.0);
+        let a = arrivals(z, &[(4, 800.0)]);
+        let (bad, ..) = chan_burst(&a, None, gate, OutlierPolicy::Snapshot).unwrap();
+        let (good, h, dropped) = chan_burst(&a, None, gate, OutlierPolicy::Arrival).unwrap();
+        assert_eq!(dropped, bit(4));
+        assert_eq!(h.uavs, vec![0, 1, 2, 3]);
+        assert!((good.position - z).norm() < 1e-3, "{}", (good.position - z).norm());
+        assert!((bad.position - z).norm() > 100.0);
+    }
+}

@@ -1,0 +1,392 @@
+//! `uavloc paper receiver` (beyond the paper): the estimator on bursts as a real receiver gives them —
+//! lost arrivals, a silent emitter, multipath outliers, GNSS and clock errors — beside a receiver-blind
+//! estimator on the same runs.
+//!
+//! Two scenarios: the default three UAVs, and five UAVs (the default three and two more), static emitter,
+//! fused estimator, the analytical criterion with the gradient solver, [`STEPS`] steps. A fractional
+//! design of [`CELLS`] receiver models (one factor at a time, then everything at once). Every cell flies
+//! M paired runs (run m of every cell and of both estimators uses the same seed):
+//! - `stated` — the pipeline's estimator: any two or more arrivals, the stated σ (range, GNSS, clock),
+//!   outlying arrivals dropped ([`tdoa::arrivals::OutlierPolicy::Arrival`]);
+//! - `receiver-blind` — a step counts only when every UAV heard it, the range σ only, a burst that fails
+//!   the gate rejected whole ([`closed_loop::ReceiverView::CompleteOnly`]).
+//!
+//! The bound of a cell is the PCRLB of the arrivals the receivers delivered (with the stated σ as
+//! effective noise), and with persistent errors its square plus the trace of the bias's consider
+//! covariance at the truth (`tdoa::arrivals::bias_covariance`): the part no number of steps averages out.
+//! Per cell and estimator: `RMSE_k / bound_k` over the runs from step 5 (median, and the share of steps
+//! within 0.9–1.25), the share of steps whose mean NEES lies in the 95 % band, the terminal RMSE and
+//! bound, what the receivers lost, and the outliers: multipath arrivals dropped, good arrivals dropped,
+//! bursts rejected whole, and runs that ended far from the truth (error > 5 × bound and > 100 m: a lost
+//! track).
+
+use model::{ReceiverModel, Scenario};
+use nalgebra::Vector2;
+use planning::{ObjectiveKind, SolverKind};
+use rayon::prelude::*;
+use record::RunRecord;
+use serde_json::{Value, json};
+use tdoa::dist::mean_chi2_band;
+use tdoa::fusion::EstimatorKind;
+use tdoa::rng::{Purpose, derive_seed};
+
+use crate::batch::Engine;
+use crate::figures::Figure;
+use crate::grid::{Grid, cell};
+use crate::stats::median;
+use crate::{ExperimentError, ExperimentReport, settings_json};
+use closed_loop::{ReceiverView, run_closed_loop_with};
+
+/// Steps of every run.
+pub const STEPS: usize = 30;
+
+/// The first step the efficiency is judged from.
+pub const FROM_STEP: usize = 5;
+
+/// The receiver models of the design: (label, model).
+pub fn cells() -> Vec<(&'static str, ReceiverModel)> {
+    let base = ReceiverModel::default();
+    vec![
+        ("perfect", base),
+        ("loss 0.1", ReceiverModel { loss: 0.1, ..base }),
+        ("loss 0.3", ReceiverModel { loss: 0.3, ..base }),
+        ("silence 0.3", ReceiverModel { silence: 0.3, ..base }),
+        ("loss 0.3 + silence 0.3", ReceiverModel { loss: 0.3, silence: 0.3, ..base }),
+        ("multipath 0.05", ReceiverModel { multipath: 0.05, ..base }),
+        ("multipath 0.15", ReceiverModel { multipath: 0.15, ..base }),
+        ("GNSS 5 m, clock 10 ns", ReceiverModel { gnss_sigma_m: 5.0, clock_sigma_ns: 10.0, ..base }),
+        ("GNSS 20 m, clock 30 ns", ReceiverModel { gnss_sigma_m: 20.0, clock_sigma_ns: 30.0, ..base }),
+        (
+            "GNSS 5+5 m, clock 10+10 ns (flight bias)",
+            ReceiverModel {
+                gnss_sigma_m: 5.0,
+                gnss_bias_sigma_m: 5.0,
+                clock_sigma_ns: 10.0,
+                clock_bias_sigma_ns: 10.0,
+                ..base
+            },
+        ),
+        (
+            "all: loss 0.1, silence 0.3, multipath 0.05, GNSS 5 m, clock 10 ns",
+            ReceiverModel { loss: 0.1, silence: 0.3, multipath: 0.05, gnss_sigma_m: 5.0, clock_sigma_ns: 10.0, ..base },
+        ),
+    ]
+}
+
+/// How many receiver models the design has.
+pub const CELLS: usize = 11;
+
+/// The two scenarios: (label, scenario) with the default three UAVs and with five.
+pub fn scenarios() -> Vec<(&'static str, Scenario)> {
+    let three = Scenario { steps: STEPS, estimator: EstimatorKind::Fused, rmse_resamples: 1, ..Scenario::default() };
+    let mut five = three.clone();
+    five.uavs.extend([[-2000.0, 6000.0], [8000.0, -4000.0]]);
+    vec![("3 UAVs", three), ("5 UAVs", five)]
+}
+
+/// One run of one cell with one estimator.
+fn fly(sc: &Scenario, view: ReceiverView) -> Result<RunRecord, closed_loop::LoopError> {
+    run_closed_loop_with(sc, ObjectiveKind::Analytical, SolverKind::Gradient, view, |_, _| {})
+}
+
+/// The bound of step `s` of a run of `sc`: the PCRLB of the arrivals delivered, with the persistent
+/// errors' consider covariance at the truth added (m); `None` while singular.
+fn bound(sc: &Scenario, s: &record::StepRecord) -> Option<f64> {
+    let p = s.pcrlb_m?;
+    let e = sc.receiver.sensor_errors();
+    if e.bias_variance() == 0.0 {
+        return Some(p);
+    }
+    let truth = s.truth?;
+    let pos: Vec<Vector2<f64>> = s.uavs.iter().map(|u| Vector2::new(u[0], u[1])).collect();
+    let b = tdoa::arrivals::bias_covariance(
+        &pos,
+        &vec![e.bias_variance().sqrt(); pos.len()],
+        &Vector2::new(truth[0], truth[1]),
+    )?;
+    Some((p * p + b.trace()).sqrt())
+}
+
+/// The summary of the runs of one cell with one estimator.
+fn summary(sc: &Scenario, runs: &[RunRecord]) -> Value {
+    let m = runs.len();
+    let mut ratios = Vec::new();
+    let mut nees_inside = 0usize;
+    let mut nees_steps = 0usize;
+    for k in FROM_STEP..=STEPS {
+        let pick: Vec<(f64, f64)> = runs
+            .iter()
+            .filter_map(|r| r.steps.get(k).and_then(|s| Some((s.estimate_error_m?, bound(sc, s)?))))
+            .collect();
+        if pick.is_empty() {
+            continue;
+        }
+        let rmse = (pick.iter().map(|(e, _)| e * e).sum::<f64>() / pick.len() as f64).sqrt();
+        let b = (pick.iter().map(|(_, b)| b * b).sum::<f64>() / pick.len() as f64).sqrt();
+        ratios.push(rmse / b);
+        let nees: Vec<f64> = runs.iter().filter_map(|r| r.steps.get(k).and_then(|s| s.nees)).collect();
+        if !nees.is_empty() {
+            let (lo, hi) = mean_chi2_band(2.0, nees.len(), 0.95);
+            let mean = nees.iter().sum::<f64>() / nees.len() as f64;
+            nees_steps += 1;
+            nees_inside += usize::from((lo..=hi).contains(&mean));
+        }
+    }
+    let within = ratios.iter().filter(|r| (0.9..=1.25).contains(*r)).count();
+    let last: Vec<(f64, f64)> =
+        runs.iter().filter_map(|r| r.steps.last().and_then(|s| Some((s.estimate_error_m?, bound(sc, s)?)))).collect();
+    let rms = |v: &mut dyn Iterator<Item = f64>, n: usize| (v.map(|x| x * x).sum::<f64>() / n.max(1) as f64).sqrt();
+    let terminal_rmse = rms(&mut last.iter().map(|p| p.0), last.len());
+    let terminal_bound = rms(&mut last.iter().map(|p| p.1), last.len());
+    let lost_tracks = last.iter().filter(|(e, b)| *e > 5.0 * b && *e > 100.0).count();
+    let totals: Vec<&record::ReceiverTotals> = runs.iter().filter_map(|r| r.receiver.as_ref()).collect();
+    let sum = |f: &dyn Fn(&record::ReceiverTotals) -> u64| totals.iter().map(|t| f(t)).sum::<u64>();
+    let reflected = sum(&|t| t.multipath_arrivals.unwrap_or(0));
+    let found = sum(&|t| t.multipath_dropped.unwrap_or(0));
+    let good_dropped = sum(&|t| t.good_arrivals_dropped.unwrap_or(0));
+    let n = sc.uavs.len() as u64;
+    let slots = (m * (STEPS + 1)) as u64 * n;
+    let lost = sum(&|t| t.arrivals_lost);
+    let silent = sum(&|t| t.silent_steps);
+    let silent_slots = silent * n;
+    let good = slots.saturating_sub(lost + silent_slots + reflected);
+    let not_used = runs
+        .iter()
+        .flat_map(|r| r.steps.iter())
+        .filter(|s| matches!(s.estimate_status.as_str(), "failed" | "predicted" | "rejected"))
+        .count();
+    let planned = runs.iter().flat_map(|r| r.steps.iter()).filter(|s| s.plan_ms.is_some()).count();
+    json!({
+        "runs": m,
+        "rmse_over_bound_median": median(&ratios),
+        "rmse_over_bound_min": ratios.iter().copied().fold(f64::INFINITY, f64::min),
+        "rmse_over_bound_max": ratios.iter().copied().fold(0.0, f64::max),
+        "steps_within_0_9_1_25_fraction": within as f64 / ratios.len().max(1) as f64,
+        "nees_in_95_band_fraction": nees_inside as f64 / nees_steps.max(1) as f64,
+        "terminal_rmse_m": terminal_rmse,
+        "terminal_bound_m": terminal_bound,
+        "terminal_rmse_over_bound": terminal_rmse / terminal_bound,
+        "arrivals_lost": lost,
+        "silent_steps": silent,
+        "steps_commanded": planned + runs.iter().flat_map(|r| r.steps.iter()).filter(|s| s.active_constraints.iter().any(|c| c == closed_loop::HOLD_LABEL)).count(),
+        "steps_held": runs.iter().flat_map(|r| r.steps.iter()).filter(|s| s.active_constraints.iter().any(|c| c == closed_loop::HOLD_LABEL)).count(),
+        "steps_to_command": m * STEPS,
+        "steps_not_fused": not_used,
+        "multipath_arrivals": reflected,
+        "multipath_dropped_fraction": if reflected > 0 { Some(found as f64 / reflected as f64) } else { None },
+        "good_arrivals_dropped_fraction": good_dropped as f64 / good.max(1) as f64,
+        "snapshots_rejected": runs.iter().map(|r| r.rejected_snapshots).sum::<u64>(),
+        "lost_tracks": lost_tracks,
+    })
+}
+
+/// The study (see the module docs): `settings.runs` paired runs per cell.
+pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
+    let s = engine.settings();
+    let m = s.runs;
+    let scenarios = scenarios();
+    let cells = cells();
+    let views = [("receiver-blind", ReceiverView::CompleteOnly), ("stated", ReceiverView::Stated)];
+    // Every (scenario, cell, estimator, run), flown in parallel.
+    let jobs: Vec<(usize, usize, usize, usize)> = (0..scenarios.len())
+        .flat_map(|a| {
+            (0..cells.len()).flat_map(move |c| (0..views.len()).flat_map(move |v| (0..m).map(move |k| (a, c, v, k))))
+        })
+        .collect();
+    let bar = engine.bar(jobs.len() as u64, "receiver: scenarios × cells × estimators × runs");
+    // A run that cannot go on (no first fix in `planning::FIRST_FIX_STEPS` steps) is a result, not an
+    // error of the study: counted per cell as a stopped run.
+    let flown: Vec<Option<RunRecord>> = jobs
+        .par_iter()
+        .map(|&(a, c, v, k)| {
+            let sc = Scenario {
+                receiver: cells[c].1,
+                seed: derive_seed(s.seed, k as u64, Purpose::OuterRun),
+                ..scenarios[a].1.clone()
+            };
+            let run = fly(&sc, views[v].1).ok();
+            bar.inc(1);
+            run
+        })
+        .collect();
+    bar.finish_and_clear();
+    let mut grid = Grid::new(
+        "receiver",
+        &format!("{m} paired runs per cell, {STEPS} steps, static emitter, fused estimator, analytical + gradient"),
+        &[
+            "scenario",
+            "receiver",
+            "estimator",
+            "RMSE/bound (median, k ≥ 5)",
+            "steps in 0.9–1.25 %",
+            "NEES in band %",
+            "terminal RMSE m",
+            "terminal bound m",
+            "not fused",
+            "multipath dropped %",
+            "good dropped %",
+            "lost tracks",
+            "runs stopped",
+        ],
+    );
+    let mut rows = Vec::new();
+    let mut figures = Vec::new();
+    for (a, (slabel, sc)) in scenarios.iter().enumerate() {
+        let mut groups = Vec::new();
+        for (c, (clabel, model)) in cells.iter().enumerate() {
+            let mut values = Vec::new();
+            for (v, (vlabel, _)) in views.iter().enumerate() {
+                let i0 = ((a * cells.len() + c) * views.len() + v) * m;
+                let runs: Vec<RunRecord> = flown[i0..i0 + m].iter().flatten().cloned().collect();
+                let cell_sc = Scenario { receiver: *model, ..sc.clone() };
+                let mut sum = summary(&cell_sc, &runs);
+                sum["runs_stopped"] = json!(m - runs.len());
+                values.push(sum["terminal_rmse_over_bound"].as_f64());
+                grid.push(vec![
+                    slabel.to_string(),
+                    clabel.to_string(),
+                    vlabel.to_string(),
+                    cell(sum["rmse_over_bound_median"].as_f64(), 3),
+                    cell(sum["steps_within_0_9_1_25_fraction"].as_f64().map(|x| 100.0 * x), 0),
+                    cell(sum["nees_in_95_band_fraction"].as_f64().map(|x| 100.0 * x), 0),
+                    cell(sum["terminal_rmse_m"].as_f64(), 1),
+                    cell(sum["terminal_bound_m"].as_f64(), 1),
+                    format!("{}/{}", sum["steps_not_fused"], m * (STEPS + 1)),
+                    cell(sum["multipath_dropped_fraction"].as_f64().map(|x| 100.0 * x), 1),
+                    cell(sum["good_arrivals_dropped_fraction"].as_f64().map(|x| 100.0 * x), 2),
+                    sum["lost_tracks"].to_string(),
+                    sum["runs_stopped"].to_string(),
+                ]);
+                rows.push(json!({
+                    "scenario": slabel,
+                    "receiver": clabel,
+                    "receiver_model": model,
+                    "estimator": vlabel,
+                    "summary": sum,
+                }));
+            }
+            groups.push(record::BarGroup { label: clabel.to_string(), values, errors: Vec::new() });
+        }
+        figures.push(Figure::Bars {
+            name: format!("terminal-{}", if a == 0 { "3-uavs" } else { "5-uavs" }),
+            title: format!("{slabel}: terminal RMSE / bound per receiver model"),
+            y_label: "terminal RMSE / bound".into(),
+            series: views.iter().map(|(l, _)| l.to_string()).collect(),
+            groups,
+            log_y: true,
+        });
+    }
+    let conclusions = conclusions(&rows);
+    Ok(ExperimentReport {
+        experiment: "receiver".into(),
+        title: "the estimator on a real receiver's bursts: lost arrivals, silence, multipath, GNSS and clock errors \
+                (beyond the paper)"
+            .into(),
+        settings: settings_json(
+            engine,
+            &scenarios[0].1,
+            &[
+                ("runs_per_cell", json!(m)),
+                ("steps", json!(STEPS)),
+                ("from_step", json!(FROM_STEP)),
+                ("cells", json!(cells.iter().map(|(l, _)| *l).collect::<Vec<_>>())),
+                (
+                    "scenarios",
+                    json!(scenarios.iter().map(|(l, s)| json!({"label": l, "uavs": s.uavs})).collect::<Vec<_>>()),
+                ),
+                ("multipath_bias_m", json!(ReceiverModel::default().multipath_bias_m)),
+                ("planner", json!("analytical + gradient")),
+            ],
+        ),
+        rows,
+        conclusions,
+        tables: vec![grid],
+        figures,
+        files: Vec::new(),
+    })
+}
+
+/// One sentence per finding the issue asks about, from the rows.
+fn conclusions(rows: &[Value]) -> Vec<String> {
+    let find = |scenario: &str, receiver: &str, estimator: &str| {
+        rows.iter()
+            .find(|r| r["scenario"] == scenario && r["receiver"] == receiver && r["estimator"] == estimator)
+            .map(|r| r["summary"].clone())
+            .unwrap_or(Value::Null)
+    };
+    let mut out = Vec::new();
+    for sc in ["3 UAVs", "5 UAVs"] {
+        let clean: Vec<String> = cells()
+            .iter()
+            .filter(|(l, m)| m.multipath == 0.0 && !l.starts_with("all"))
+            .map(|(l, _)| {
+                let s = find(sc, l, "stated");
+                format!(
+                    "{l}: {} ({} % of steps in 0.9–1.25, NEES in band {} %)",
+                    cell(s["rmse_over_bound_median"].as_f64(), 2),
+                    cell(s["steps_within_0_9_1_25_fraction"].as_f64().map(|x| 100.0 * x), 0),
+                    cell(s["nees_in_95_band_fraction"].as_f64().map(|x| 100.0 * x), 0),
+                )
+            })
+            .collect();
+        out.push(format!(
+            "{sc}, without multipath, RMSE / bound of the stated estimator (median from step 5): {}.",
+            clean.join("; ")
+        ));
+        for mp in ["multipath 0.05", "multipath 0.15"] {
+            let (s, b) = (find(sc, mp, "stated"), find(sc, mp, "receiver-blind"));
+            out.push(format!(
+                "{sc}, {mp}: terminal RMSE {} m vs bound {} m (× {}), {} % of the reflected arrivals dropped, {} % of the good ones, {} lost tracks; whole-burst rejection: terminal RMSE {} m (× {}), {} lost tracks.",
+                cell(s["terminal_rmse_m"].as_f64(), 1),
+                cell(s["terminal_bound_m"].as_f64(), 1),
+                cell(s["terminal_rmse_over_bound"].as_f64(), 2),
+                cell(s["multipath_dropped_fraction"].as_f64().map(|x| 100.0 * x), 1),
+                cell(s["good_arrivals_dropped_fraction"].as_f64().map(|x| 100.0 * x), 2),
+                s["lost_tracks"],
+                cell(b["terminal_rmse_m"].as_f64(), 1),
+                cell(b["terminal_rmse_over_bound"].as_f64(), 2),
+                b["lost_tracks"],
+            ));
+        }
+        let (s, b) =
+            (find(sc, "loss 0.3 + silence 0.3", "stated"), find(sc, "loss 0.3 + silence 0.3", "receiver-blind"));
+        out.push(format!(
+            "{sc}, loss 0.3 + silence 0.3: {} of {} steps commanded ({} held for a first fix), {} runs stopped; terminal RMSE {} × the bound of the arrivals received ({} steps not fused); the receiver-blind estimator {} × ({} steps not fused, {} runs stopped).",
+            s["steps_commanded"],
+            s["steps_to_command"],
+            s["steps_held"],
+            s["runs_stopped"],
+            cell(s["terminal_rmse_over_bound"].as_f64(), 2),
+            s["steps_not_fused"],
+            cell(b["terminal_rmse_over_bound"].as_f64(), 2),
+            b["steps_not_fused"],
+            b["runs_stopped"],
+        ));
+        let (s, b) =
+            (find(sc, "GNSS 20 m, clock 30 ns", "stated"), find(sc, "GNSS 20 m, clock 30 ns", "receiver-blind"));
+        out.push(format!(
+            "{sc}, GNSS 20 m + clock 30 ns: NEES in band at {} % of steps with the stated σ, {} % with the range σ only.",
+            cell(s["nees_in_95_band_fraction"].as_f64().map(|x| 100.0 * x), 0),
+            cell(b["nees_in_95_band_fraction"].as_f64().map(|x| 100.0 * x), 0),
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_design_is_what_it_says() {
+        assert_eq!(cells().len(), CELLS);
+        assert!(cells()[0].1.is_perfect());
+        for (label, m) in cells() {
+            m.validate().unwrap_or_else(|e| panic!("{label}: {e:?}"));
+        }
+        for (label, sc) in scenarios() {
+            sc.validate().unwrap_or_else(|e| panic!("{label}: {e}"));
+        }
+        assert_eq!(scenarios()[1].1.uavs.len(), 5);
+    }
+}
