@@ -121,11 +121,13 @@ pub fn run_closed_loop_with(
             }
         };
         // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): the swarm
-        // holds course and tries the next burst, for at most FIRST_FIX_STEPS steps (what the pipeline's
+        // holds course and tries the next burst, until planning::gives_up_without_fix (what the pipeline's
         // planner does with such an estimate).
         let (est, awaiting_fix) = match estimator.estimate_burst(k, &seen) {
             Ok(est) => (est, false),
-            Err(e) if k + 1 < planning::FIRST_FIX_STEPS => (no_fix_yet(&seen, e.to_string()), true),
+            Err(e) if !planning::gives_up_without_fix(k, seen.heard_count()) => {
+                (no_fix_yet(&seen, e.to_string()), true)
+            }
             Err(e) => return Err(failed(Some(k), "estimate")(e)),
         };
         let status = est.status.name();

@@ -39,9 +39,11 @@ pub use tdoa::fusion::EstimatorKind;
 pub const REJECTED_RUN_RESTART: u8 = 3;
 
 /// A fused track is provisional until it has fused this many bursts whole (no arrival dropped): until
-/// then a burst that fails the gate is rejected whole, never made to fit by dropping arrivals — a first
-/// fix that a reflection corrupted (three UAVs leave no redundancy to see it) is not kept alive by the
-/// subsets that happen to agree with it, and is restarted after [`REJECTED_RUN_RESTART`] rejections.
+/// then a burst that fails the gate is never made to fit by dropping the arrivals that disagree with the
+/// track — a first fix that a reflection corrupted (three UAVs leave no redundancy to see it) is not kept
+/// alive by the subsets that happen to agree with it, and is restarted after [`REJECTED_RUN_RESTART`]
+/// rejections. Only arrivals the burst itself shows to be outliers (its own Chan residual, five or more
+/// arrivals: [`outliers::fuse_self_checked`]) are dropped from a provisional track's bursts.
 pub const CONFIRM_BURSTS: u8 = 3;
 
 /// How an estimate came about.
@@ -483,9 +485,19 @@ impl Estimator {
 
     fn fuse(&self, predicted: &Posterior, a: &Arrivals) -> Result<EstimateOut, TdoaError> {
         let config = self.config;
-        // A provisional track drops no arrival (see CONFIRM_BURSTS).
-        let policy = if self.confirmed >= CONFIRM_BURSTS { config.outliers } else { OutlierPolicy::Snapshot };
-        let up = outliers::fuse_burst(predicted, a, |m| config.gate(m), policy)?;
+        // A provisional track drops only the arrivals the burst itself shows to be outliers (see
+        // CONFIRM_BURSTS), never the ones that merely disagree with the track.
+        let provisional = self.confirmed < CONFIRM_BURSTS;
+        let policy = if provisional { OutlierPolicy::Snapshot } else { config.outliers };
+        let mut up = outliers::fuse_burst(predicted, a, |m| config.gate(m), policy)?;
+        if provisional
+            && config.outliers == OutlierPolicy::Arrival
+            && matches!(up.update.outcome, Outcome::Rejected { .. })
+        {
+            if let Some(self_checked) = outliers::fuse_self_checked(predicted, a, |m| config.gate(m))? {
+                up = self_checked;
+            }
+        }
         let (status, nis) = match up.update.outcome {
             Outcome::Fused { nis, .. } => (EstimateStatus::Ok, nis),
             Outcome::Rejected { nis, threshold } => (EstimateStatus::Rejected { nis, threshold }, nis),

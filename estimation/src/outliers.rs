@@ -3,7 +3,9 @@
 //!
 //! Two policies ([`OutlierPolicy`], scenario key `outliers`):
 //! - `snapshot`: a burst whose innovation fails the χ² gate is not fused at all (every arrival of it lost);
-//! - `arrival` (default): a burst that fails the gate is fused again without one arrival at a time
+//! - `arrival` (default): in a burst that passes the gate, an arrival whose own share of the NIS
+//!   (`NIS(all) − NIS(all but it)`, χ²₁) exceeds the one-degree gate and that is late is dropped; a burst
+//!   that fails the gate is fused again without one arrival at a time
 //!   (leave-one-out) against the same prediction; the subset that passes its own gate with the largest
 //!   p-value, and whose left-out arrival is **late** (a positive residual: a reflection only lengthens the
 //!   path), is fused and the arrival reported as an outlier. When none passes, the arrival whose removal
@@ -60,8 +62,28 @@ pub fn fuse_burst(
         Ok(Some((fusion::fuse(predicted, &h.sensors, &h.diffs, gate(m))?, m)))
     };
     let (whole, _) = fuse(a)?.ok_or_else(|| TdoaError::Degenerate("a burst heard by fewer than two UAVs".into()))?;
-    if matches!(whole.outcome, Outcome::Fused { .. }) || policy == OutlierPolicy::Snapshot || a.heard_count() < 3 {
+    if policy == OutlierPolicy::Snapshot || a.heard_count() < 3 {
         return Ok(BurstUpdate { update: whole, dropped: 0 });
+    }
+    if let Outcome::Fused { nis, .. } = whole.outcome {
+        // The burst passes as a whole, but one late arrival may still stand out: the part of the NIS that
+        // arrival j alone contributes, NIS(all) − NIS(all but j), is χ²₁ given the prediction and the other
+        // arrivals (exact for the linearised update); above gate(1) and late, arrival j is the outlier
+        // (fault detection and exclusion, as RAIM does it for GNSS).
+        let mut worst: Option<(f64, usize, Update)> = None;
+        for j in (0..a.len()).filter(|&j| a.heard_mask() & bit(j) != 0) {
+            let Some((up, _)) = fuse(&a.without(j))? else { continue };
+            let Outcome::Fused { nis: nis_j, .. } = up.outcome else { continue };
+            let t = nis - nis_j;
+            let late = lateness(a, j, &up.posterior.position()).is_some_and(|r| r > 0.0);
+            if late && t > gate(1) && worst.as_ref().is_none_or(|(w, ..)| t > *w) {
+                worst = Some((t, j, up));
+            }
+        }
+        return Ok(match worst {
+            Some((_, j, update)) => BurstUpdate { update, dropped: bit(j) },
+            None => BurstUpdate { update: whole, dropped: 0 },
+        });
     }
     let max_drop = (a.heard_count() - 1) / 2;
     let mut current = *a;
@@ -102,6 +124,34 @@ pub fn fuse_burst(
     Ok(BurstUpdate { update: whole, dropped: 0 })
 }
 
+/// Fuses the burst `a` into the predicted posterior without the arrivals the burst **itself** shows to
+/// be outliers: Chan's fix of the burst alone, checked against its own residual ([`chan_burst`], five or
+/// more arrivals so that the residual has two or more degrees of freedom and one late arrival is
+/// identifiable, not only detectable). `None` when the burst shows no outlier, has too few arrivals, or
+/// its remaining arrivals still fail the gate against the prediction. The identification does not look
+/// at the track, so a wrong track cannot make a good arrival look like an outlier.
+pub fn fuse_self_checked(
+    predicted: &Posterior,
+    a: &Arrivals,
+    gate: impl Fn(usize) -> f64 + Copy,
+) -> Result<Option<BurstUpdate>, TdoaError> {
+    if a.heard_count() < 5 {
+        return Ok(None);
+    }
+    let Ok((_, _, dropped)) = chan_burst(a, Some(predicted.position()), gate, OutlierPolicy::Arrival) else {
+        return Ok(None);
+    };
+    if dropped == 0 {
+        return Ok(None);
+    }
+    let mut kept = *a;
+    for j in (0..a.len()).filter(|&j| dropped & bit(j) != 0) {
+        kept = kept.without(j);
+    }
+    let update = fuse_burst(predicted, &kept, gate, OutlierPolicy::Snapshot)?.update;
+    Ok(matches!(update.outcome, Outcome::Fused { .. }).then_some(BurstUpdate { update, dropped }))
+}
+
 /// `rᵀ Q⁻¹ r` of the residual `r = d − h(z)` of the heard arrivals at `z` (χ²_{m−2} at Chan's fix).
 pub fn residual_chi2(h: &Heard, z: &Vector2<f64>) -> f64 {
     let exact = h.sensors.range_differences(z);
@@ -133,8 +183,28 @@ pub fn chan_burst(
     };
     let (sol, h) = solve(a)?;
     let dof = |h: &Heard| h.diffs.as_slice().len().saturating_sub(2);
-    if policy == OutlierPolicy::Snapshot || dof(&h) == 0 || residual_chi2(&h, &sol.position) <= gate(dof(&h)) {
+    if policy == OutlierPolicy::Snapshot || dof(&h) == 0 {
         return Ok((sol, h, 0));
+    }
+    let chi_all = residual_chi2(&h, &sol.position);
+    if chi_all <= gate(dof(&h)) {
+        // Passes as a whole; an arrival whose own share of the residual (χ²₁) exceeds gate(1) and that
+        // is late is still excluded, as in [`fuse_burst`].
+        let mut worst: Option<(f64, usize, ChanSolution, Heard)> = None;
+        if dof(&h) >= 2 {
+            for j in (0..a.len()).filter(|&j| a.heard_mask() & bit(j) != 0) {
+                let Ok((s, hj)) = solve(&a.without(j)) else { continue };
+                let t = chi_all - residual_chi2(&hj, &s.position);
+                let late = lateness(a, j, &s.position).is_some_and(|r| r > 0.0);
+                if late && t > gate(1) && worst.as_ref().is_none_or(|(w, ..)| t > *w) {
+                    worst = Some((t, j, s, hj));
+                }
+            }
+        }
+        return Ok(match worst {
+            Some((_, j, s, hj)) => (s, hj, bit(j)),
+            None => (sol, h, 0),
+        });
     }
     let max_drop = (a.heard_count() - 1) / 2;
     let mut current = *a;
@@ -211,6 +281,53 @@ mod tests {
             // Noise-free otherwise: the fused estimate moves towards the truth.
             assert!((up.update.posterior.position() - z).norm() < 20.0, "UAV {j}");
         }
+    }
+
+    #[test]
+    fn a_late_arrival_below_the_burst_gate_is_still_excluded() {
+        // 95 m late (≈ 5 σ) in one arrival of five: the burst as a whole passes its χ²₄ gate, the arrival's
+        // own χ²₁ share does not.
+        let z = Vector2::new(25000.0, 15000.0);
+        let tight = |z: Vector2<f64>| {
+            let mut cov = Matrix4::zeros();
+            cov[(0, 0)] = 30.0f64.powi(2);
+            cov[(1, 1)] = 30.0f64.powi(2);
+            Posterior::new(EmitterModel::Static, Vector4::new(z.x, z.y, 0.0, 0.0), cov).unwrap()
+        };
+        for j in 0..5 {
+            let a = arrivals(z, &[(j, 95.0)]);
+            let whole = fuse_burst(&tight(z), &a, gate, OutlierPolicy::Snapshot).unwrap();
+            let Outcome::Fused { nis, .. } = whole.update.outcome else { panic!("UAV {j}: {whole:?}") };
+            assert!(nis < gate(4), "UAV {j}: the burst must pass as a whole ({nis})");
+            let up = fuse_burst(&tight(z), &a, gate, OutlierPolicy::Arrival).unwrap();
+            assert_eq!(up.dropped, bit(j), "UAV {j}");
+            // Without the late arrival the update is exact (noise-free, the prediction at the truth).
+            assert!((up.update.posterior.position() - z).norm() < 1.0, "UAV {j}");
+            assert!((whole.update.posterior.position() - z).norm() > 1.0, "UAV {j}");
+        }
+        // Noise-free arrivals: nothing is excluded.
+        let up = fuse_burst(&tight(z), &arrivals(z, &[]), gate, OutlierPolicy::Arrival).unwrap();
+        assert_eq!(up.dropped, 0);
+    }
+
+    #[test]
+    fn a_burst_names_its_own_outlier_but_does_not_rescue_a_wrong_track() {
+        let z = Vector2::new(25000.0, 15000.0);
+        for j in 0..5 {
+            let a = arrivals(z, &[(j, 400.0)]);
+            let up = fuse_self_checked(&predicted(z), &a, gate).unwrap().expect("identified by the burst itself");
+            assert_eq!(up.dropped, bit(j), "UAV {j}");
+            assert!((up.update.posterior.position() - z).norm() < 20.0, "UAV {j}");
+            // A track 3 km off: the burst still names the same arrival, but the rest does not fit the track.
+            let wrong =
+                Posterior::new(EmitterModel::Static, Vector4::new(z.x + 3000.0, z.y, 0.0, 0.0), predicted(z).cov())
+                    .unwrap();
+            assert_eq!(fuse_self_checked(&wrong, &a, gate).unwrap(), None, "UAV {j}");
+        }
+        // Nothing late, or four arrivals only: nothing to say.
+        assert_eq!(fuse_self_checked(&predicted(z), &arrivals(z, &[]), gate).unwrap(), None);
+        let four = arrivals(z, &[(1, 400.0)]).without(4);
+        assert_eq!(fuse_self_checked(&predicted(z), &four, gate).unwrap(), None);
     }
 
     #[test]

@@ -154,14 +154,14 @@ impl Planner<'_> {
             )));
         }
         let Some((position, covariance)) = est.plan_from() else {
-            if step + 1 < planning::FIRST_FIX_STEPS {
+            if !planning::gives_up_without_fix(step, est.heard.count_ones() as usize) {
                 // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): hold
                 // course and try the next burst, as `uavloc simulate` does.
                 let hold = self.hold(step, &points(est.uavs()), est.headings(), node.instance())?;
                 return Ok(Some(hold.with_state_of(est)));
             }
-            // No fix in the first FIRST_FIX_STEPS steps: the run cannot go on, as `uavloc simulate` of the
-            // scenario says at the same step.
+            // No fix in the first FIRST_FIX_STEPS steps, and this step's burst was heard well enough for
+            // one: the run cannot go on, as `uavloc simulate` of the scenario says at the same step.
             return Err(ProcessError::Unrecoverable(format!(
                 "step {step}: the estimator found no fix in the first {} steps and has no estimate to plan from \
                  (no emitter position fits the range differences: too much noise for this geometry, or no burst \

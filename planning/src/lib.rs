@@ -36,10 +36,18 @@ pub mod step;
 
 /// Steps a run may wait for its first fix: while no step so far has given an estimate (a silent emitter,
 /// lost arrivals, a burst with no physical solution), the swarm holds course — every UAV keeps its
-/// heading — and the next burst is tried; a run with no fix in its first `FIRST_FIX_STEPS` steps cannot
-/// go on (the geometry or the noise leaves no fix). Shared by the pipeline's planner and the in-process
-/// closed loop, so both hold and give up at the same step.
+/// heading — and the next burst is tried; from step `FIRST_FIX_STEPS − 1` on, a burst heard by three or
+/// more UAVs that still gives no fix ends the run (the geometry or the noise leaves no fix). Steps the
+/// receiver delivered too little (a silent emitter, arrivals lost) never end it: the swarm holds until
+/// the emitter is heard. See [`gives_up_without_fix`]; shared by the pipeline's planner and the
+/// in-process closed loop, so both hold and give up at the same step.
 pub const FIRST_FIX_STEPS: u64 = 20;
+
+/// Whether a run that has no fix yet ends at `step`, whose burst was heard by `heard` UAVs (see
+/// [`FIRST_FIX_STEPS`]). A function of the step alone, so a restarted planner decides as the one before.
+pub fn gives_up_without_fix(step: u64, heard: usize) -> bool {
+    step + 1 >= FIRST_FIX_STEPS && heard >= 3
+}
 
 /// `scenario` with the range σ an estimate states (`protocol::Estimate::range_sigmas`) — `None` when it
 /// states none or the scenario's already are those (no copy on the hot path of a simulated run).
@@ -62,3 +70,20 @@ pub use pso::{Pso, PsoConfig};
 pub use shield::EmitterMotion;
 pub use solver::{EarlyStop, SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult, StopRule};
 pub use step::{PlanError, PlanOutput, PlanRequest, plan_step};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_without_a_fix_ends_only_on_a_burst_that_could_have_given_one() {
+        // Before step FIRST_FIX_STEPS − 1: never; after: only when three or more UAVs heard the burst.
+        for step in 0..FIRST_FIX_STEPS - 1 {
+            assert!((0..=8).all(|heard| !gives_up_without_fix(step, heard)), "step {step}");
+        }
+        for step in [FIRST_FIX_STEPS - 1, FIRST_FIX_STEPS, 1000] {
+            assert!((0..3).all(|heard| !gives_up_without_fix(step, heard)), "step {step}: silent or lost");
+            assert!((3..=8).all(|heard| gives_up_without_fix(step, heard)), "step {step}");
+        }
+    }
+}

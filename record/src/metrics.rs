@@ -108,6 +108,7 @@ fn receiver_totals(run: &crate::RunRecord) -> Option<crate::ReceiverTotals> {
     let truth = run.steps.iter().all(|s| s.truth.is_some());
     let mut t = crate::ReceiverTotals { outliers_by_uav: vec![0; n], ..Default::default() };
     let (mut multipath, mut found, mut good) = (0u64, 0u64, 0u64);
+    let (mut minority, mut minority_found) = (0u64, 0u64);
     for s in &run.steps {
         let Some(r) = &s.receiver else { continue };
         if r.silent == Some(true) {
@@ -127,11 +128,17 @@ fn receiver_totals(run: &crate::RunRecord) -> Option<crate::ReceiverTotals> {
         multipath += reflected.len() as u64;
         found += r.outliers.iter().filter(|i| reflected.contains(i)).count() as u64;
         good += r.outliers.iter().filter(|i| !reflected.contains(i)).count() as u64;
+        if 2 * reflected.len() < r.heard.len() {
+            minority += reflected.len() as u64;
+            minority_found += r.outliers.iter().filter(|i| reflected.contains(i)).count() as u64;
+        }
     }
     if truth {
         t.multipath_arrivals = Some(multipath);
         t.multipath_dropped = Some(found);
         t.good_arrivals_dropped = Some(good);
+        t.multipath_minority_arrivals = Some(minority);
+        t.multipath_minority_dropped = Some(minority_found);
     }
     Some(t)
 }

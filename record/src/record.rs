@@ -153,6 +153,13 @@ pub struct ReceiverTotals {
     pub multipath_dropped: Option<u64>,
     /// Good arrivals (no reflection) the estimator dropped (`null` without a truth).
     pub good_arrivals_dropped: Option<u64>,
+    /// Reflected arrivals in bursts where the reflections are a minority of the arrivals heard — the
+    /// only ones any estimator that keeps a majority can identify (`null` without a truth).
+    #[serde(default)]
+    pub multipath_minority_arrivals: Option<u64>,
+    /// Of those, the ones the estimator dropped (`null` without a truth).
+    #[serde(default)]
+    pub multipath_minority_dropped: Option<u64>,
 }
 
 /// The safety of one interval (from a step to the next), along the arcs the UAVs flew.
