@@ -17,6 +17,65 @@ pub struct ProcessRow {
     pub restarts: u64,
 }
 
+/// What the receivers delivered, as the steps come in.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ReceiverCounts {
+    /// The newest step's receiver view (`None`: a complete burst, nothing dropped).
+    pub last: Option<record::StepReceiver>,
+    /// Steps the emitter was silent.
+    pub silent_steps: u64,
+    /// Arrivals lost (a UAV that did not hear a burst that was sent).
+    pub arrivals_lost: u64,
+    /// Arrivals dropped as outliers, per UAV.
+    pub outliers_by_uav: Vec<u64>,
+}
+
+impl ReceiverCounts {
+    /// Takes the receiver view of a step of `n` UAVs.
+    pub fn add(&mut self, n: usize, r: Option<&record::StepReceiver>) {
+        self.last = r.cloned();
+        let Some(r) = r else { return };
+        if r.silent == Some(true) {
+            self.silent_steps += 1;
+        } else {
+            self.arrivals_lost += n.saturating_sub(r.heard.len()) as u64;
+        }
+        if self.outliers_by_uav.len() < n {
+            self.outliers_by_uav.resize(n, 0);
+        }
+        for &i in &r.outliers {
+            if let Some(c) = self.outliers_by_uav.get_mut(i) {
+                *c += 1;
+            }
+        }
+    }
+
+    /// One line: the newest step (heard by whom, silent, outliers) and the run's counts.
+    pub fn line(&self) -> String {
+        let uavs = |v: &[usize]| v.iter().map(|i| format!("U{i}")).collect::<Vec<_>>().join(" ");
+        let now = match &self.last {
+            None => "every UAV heard the burst".to_string(),
+            Some(r) if r.silent == Some(true) => "SILENT (estimate predicted)".to_string(),
+            Some(r) if r.heard.len() < 2 => format!("heard by {} UAV(s) only (estimate predicted)", r.heard.len()),
+            Some(r) if r.outliers.is_empty() => format!("heard by {}", uavs(&r.heard)),
+            Some(r) => format!("heard by {}, outliers dropped: {}", uavs(&r.heard), uavs(&r.outliers)),
+        };
+        let outliers: Vec<String> = self
+            .outliers_by_uav
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| **n > 0)
+            .map(|(i, n)| format!("U{i}×{n}"))
+            .collect();
+        format!(
+            "receiver: {now}; silent steps {}, arrivals lost {}, outliers {}",
+            self.silent_steps,
+            self.arrivals_lost,
+            if outliers.is_empty() { "0".to_string() } else { outliers.join(" ") }
+        )
+    }
+}
+
 /// Everything the view draws.
 #[derive(Debug, Clone, Default)]
 pub struct LiveState {
@@ -59,6 +118,9 @@ pub struct LiveState {
     pub uncertified: u64,
     /// The newest such step.
     pub last_uncertified: Option<u64>,
+    /// What the receivers delivered: the newest step's view (`None`: every UAV heard it, nothing
+    /// dropped) and the run's counts so far.
+    pub receiver: ReceiverCounts,
     /// The posterior CRLB as the steps come in (the records' `pcrlb_m` is computed only at the end of a
     /// run); see [`LiveState::with_bound`].
     bound: Option<record::RunningBound>,
@@ -94,6 +156,7 @@ impl LiveState {
         for (track, p) in self.tracks.iter_mut().zip(&r.uavs) {
             track.push(*p);
         }
+        self.receiver.add(r.uavs.len(), r.receiver.as_ref());
         self.truth = r.truth;
         self.estimate = r.estimate.iter().all(|v| v.is_finite()).then_some((r.estimate, r.estimate_cov));
         let k = r.step as f64;
@@ -247,6 +310,35 @@ mod tests {
         s.apply_step(&r);
         assert!(s.safety_line().starts_with("safety: certified; 1 step(s)"), "{}", s.safety_line());
         assert_eq!(s.uncertified, 1);
+    }
+
+    #[test]
+    fn the_receiver_line_says_who_heard_the_burst_and_counts_what_was_lost() {
+        let mut s = LiveState::new("t", 4, 3000.0);
+        s.apply_step(&record_of(0));
+        assert_eq!(
+            s.receiver.line(),
+            "receiver: every UAV heard the burst; silent steps 0, arrivals lost 0, outliers 0"
+        );
+        let mut r = record_of(1);
+        r.receiver = Some(record::StepReceiver::from_masks(3, 0b101, 0b100, Some(false), None));
+        s.apply_step(&r);
+        assert_eq!(
+            s.receiver.line(),
+            "receiver: heard by U0 U2, outliers dropped: U2; silent steps 0, arrivals lost 1, outliers U2×1"
+        );
+        r.step = 2;
+        r.receiver = Some(record::StepReceiver::from_masks(3, 0, 0, Some(true), None));
+        s.apply_step(&r);
+        assert_eq!(
+            s.receiver.line(),
+            "receiver: SILENT (estimate predicted); silent steps 1, arrivals lost 1, outliers U2×1"
+        );
+        r.step = 3;
+        r.receiver = Some(record::StepReceiver::from_masks(3, 0b010, 0, Some(false), None));
+        s.apply_step(&r);
+        assert!(s.receiver.line().starts_with("receiver: heard by 1 UAV(s) only"), "{}", s.receiver.line());
+        assert_eq!((s.receiver.silent_steps, s.receiver.arrivals_lost), (1, 3));
     }
 
     pub(crate) fn record_of(step: u64) -> StepRecord {

@@ -170,6 +170,7 @@ fn draw_processes(frame: &mut Frame, area: Rect, s: &LiveState) {
     lines.push(Line::from(format!("planner in charge: {}", s.planner.as_deref().unwrap_or("-"))));
     let safety = Line::from(s.safety_line());
     lines.push(if s.certified == Some(false) { safety.style(Style::new().fg(Color::Red)) } else { safety });
+    lines.push(Line::from(s.receiver.line()));
     lines.push(Line::from(format!(
         "rejected messages: {}",
         ["monitor", "estimator", "planner", "emitter-sim"].iter().map(|r| s.rejected_of(r)).sum::<u64>()

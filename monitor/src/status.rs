@@ -21,6 +21,20 @@ fn fmt_m(v: Option<f64>) -> String {
 }
 
 /// One status line of a completed step.
+/// What the receivers delivered at a step, for its status line: empty for a complete burst.
+fn receiver_note(r: Option<&record::record::StepReceiver>) -> String {
+    let Some(r) = r else { return String::new() };
+    let list = |v: &[usize]| v.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(",");
+    if r.silent == Some(true) {
+        return "  SILENT".to_string();
+    }
+    let mut note = format!("  heard {}", list(&r.heard));
+    if !r.outliers.is_empty() {
+        note += &format!(" outliers {}", list(&r.outliers));
+    }
+    note
+}
+
 pub(crate) fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> String {
     let r = &done.record;
     let l = &done.latencies;
@@ -39,7 +53,7 @@ pub(crate) fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> Str
     format!(
         "step {:>3}/{last}  CRLB {:>8} m  CRLB@ẑ {:>8} m  RMSE {:>8} m  |ẑ−z| {:>8} m  95% ellipse {:.0}×{:.0} m  \
          closest UAV to {to} {:.0} m  meas→est {:>7}  est→plan {:>7}  plan {:>8}  cycle {:>8}  planner {planner}  \
-         rejected {rejected}{}",
+         rejected {rejected}{}{}",
         r.step,
         fmt_m(r.crlb_true_m),
         fmt_m(r.crlb_at_estimate_m),
@@ -52,6 +66,7 @@ pub(crate) fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> Str
         fmt_us(l.estimate_hop_ns),
         r.plan_ms.map_or("-".into(), |ms| format!("{ms:.3} ms")),
         fmt_us(l.cycle_ns),
+        receiver_note(r.receiver.as_ref()),
         if done.missed {
             "  COMMAND MISSED (flew straight on)"
         } else if done.held {
@@ -60,4 +75,21 @@ pub(crate) fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> Str
             ""
         },
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::receiver_note;
+    use record::record::StepReceiver;
+
+    #[test]
+    fn the_status_line_names_who_heard_the_burst() {
+        assert_eq!(receiver_note(None), "");
+        assert_eq!(receiver_note(Some(&StepReceiver::from_masks(4, 0, 0, Some(true), None))), "  SILENT");
+        assert_eq!(receiver_note(Some(&StepReceiver::from_masks(4, 0b1101, 0, Some(false), None))), "  heard 0,2,3");
+        assert_eq!(
+            receiver_note(Some(&StepReceiver::from_masks(4, 0b1111, 0b0010, Some(false), None))),
+            "  heard 0,1,2,3 outliers 1"
+        );
+    }
 }
