@@ -164,15 +164,7 @@ impl SigmaArgs {
                 return Err(CliError::Input("give exactly one of --sigma (metres) or --sigma-ns (nanoseconds)".into()));
             }
         };
-        let values = match list.0.len() {
-            1 => vec![list.0[0]; n],
-            k if k == n => list.0.clone(),
-            k => {
-                return Err(CliError::Input(format!(
-                    "{flag} has {k} values but there are {n} UAVs (give one value for all UAVs, or exactly one per UAV)"
-                )));
-            }
-        };
+        let values = per_uav(flag, list, n)?;
         for (i, &v) in values.iter().enumerate() {
             if v <= 0.0 {
                 let which = if list.0.len() == 1 { String::new() } else { format!(" (UAV {i})") };
@@ -185,6 +177,64 @@ impl SigmaArgs {
     }
 }
 
+/// `list` for `n` UAVs: one value for all, or exactly one per UAV.
+fn per_uav(flag: &str, list: &NumList, n: usize) -> Result<Vec<f64>, CliError> {
+    match list.0.len() {
+        1 => Ok(vec![list.0[0]; n]),
+        k if k == n => Ok(list.0.clone()),
+        k => Err(CliError::Input(format!(
+            "{flag} has {k} values but there are {n} UAVs (give one value for all UAVs, or exactly one per UAV)"
+        ))),
+    }
+}
+
+/// The UAVs' GNSS and clock errors beyond the range noise (docs/receiver.md): each one value for all
+/// UAVs or one per UAV, ≥ 0, default 0.
+#[derive(Args, Debug, Clone, PartialEq, Default)]
+pub struct SensorErrorArgs {
+    /// GNSS position error per axis that changes every step, metres (one value or one per UAV).
+    ///
+    /// Adds its variance to every arrival's: the bound and the estimate use the effective range σ
+    /// sqrt(σ² + σ_gnss² + (c·σ_clock)² + the biases' variances) (exact to first order: the GNSS error is
+    /// isotropic, so its projection on any line of sight has variance σ_gnss²).
+    #[arg(long = "gnss-sigma", value_name = "M|M0,M1,..", value_parser = parse_list, help_heading = "Sensor errors")]
+    pub gnss: Option<NumList>,
+    /// GNSS position bias per axis that lasts the whole flight, metres (one value or one per UAV).
+    ///
+    /// Counted in the effective σ as above and, for `crlb`, reported as the floor no number of snapshots
+    /// averages out: bias_floor_m = sqrt(tr B), B = (Hᵀ Q_b⁻¹ H)⁻¹ of the biases alone.
+    #[arg(long = "gnss-bias-sigma", value_name = "M|M0,M1,..", value_parser = parse_list, help_heading = "Sensor errors")]
+    pub gnss_bias: Option<NumList>,
+    /// Clock error that changes every step, nanoseconds (one value or one per UAV).
+    #[arg(long = "clock-sigma-ns", value_name = "T|T0,T1,..", allow_hyphen_values = true, value_parser = parse_list, help_heading = "Sensor errors")]
+    pub clock_ns: Option<NumList>,
+    /// Clock bias that lasts the whole flight, nanoseconds (one value or one per UAV).
+    #[arg(long = "clock-bias-sigma-ns", value_name = "T|T0,T1,..", value_parser = parse_list, help_heading = "Sensor errors")]
+    pub clock_bias_ns: Option<NumList>,
+}
+
+impl SensorErrorArgs {
+    /// The errors of `n` UAVs (all zero when no flag is given).
+    pub fn errors(&self, n: usize) -> Result<Vec<tdoa::SensorErrors>, CliError> {
+        const C_M_PER_NS: f64 = tdoa::SPEED_OF_LIGHT * 1e-9;
+        let get = |flag: &str, list: &Option<NumList>, scale: f64| -> Result<Vec<f64>, CliError> {
+            let Some(list) = list else { return Ok(vec![0.0; n]) };
+            let v = per_uav(flag, list, n)?;
+            if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !(x.is_finite() && **x >= 0.0)) {
+                return Err(CliError::Input(format!("{flag} must be finite and ≥ 0 (UAV {i}), got {x}")));
+            }
+            Ok(v.into_iter().map(|x| x * scale).collect())
+        };
+        let g = get("--gnss-sigma", &self.gnss, 1.0)?;
+        let gb = get("--gnss-bias-sigma", &self.gnss_bias, 1.0)?;
+        let c = get("--clock-sigma-ns", &self.clock_ns, C_M_PER_NS)?;
+        let cb = get("--clock-bias-sigma-ns", &self.clock_bias_ns, C_M_PER_NS)?;
+        Ok((0..n)
+            .map(|i| tdoa::SensorErrors { gnss_m: g[i], gnss_bias_m: gb[i], clock_m: c[i], clock_bias_m: cb[i] })
+            .collect())
+    }
+}
+
 /// UAVs and their noise: everything needed to build [`tdoa::Sensors`].
 #[derive(Args, Debug, Clone, PartialEq)]
 pub struct SensorArgs {
@@ -192,14 +242,36 @@ pub struct SensorArgs {
     pub uav: UavArgs,
     #[command(flatten)]
     pub sigma: SigmaArgs,
+    #[command(flatten)]
+    pub errors: SensorErrorArgs,
 }
 
 impl SensorArgs {
-    /// Validated sensors (count, σ, distinct positions).
+    /// Validated sensors (count, σ, distinct positions), with the effective range σ of the GNSS and
+    /// clock errors when any is given.
     pub fn sensors(&self) -> Result<Sensors, CliError> {
         let positions = self.uav.positions()?;
         let noise = self.sigma.noise(positions.len())?;
+        let errors = self.errors.errors(positions.len())?;
+        let noise = if errors.iter().all(|e| *e == tdoa::SensorErrors::default()) {
+            noise
+        } else {
+            let sigmas: Vec<f64> = noise.sigmas().iter().zip(&errors).map(|(s, e)| e.effective_sigma(*s)).collect();
+            tdoa::NoiseModel::from_range_sigmas(&sigmas).map_err(CliError::tdoa_in("--sigma"))?
+        };
         Sensors::new(&positions, noise).map_err(CliError::tdoa_in("--uav"))
+    }
+
+    /// The persistent biases' covariance of one snapshot's estimate at `target`, m²: zero without biases
+    /// (`tdoa::arrivals::bias_covariance`).
+    pub fn bias_covariance(&self, target: &nalgebra::Vector2<f64>) -> Result<nalgebra::Matrix2<f64>, CliError> {
+        let positions: Vec<nalgebra::Vector2<f64>> =
+            self.uav.positions()?.iter().map(|p| nalgebra::Vector2::new(p[0], p[1])).collect();
+        let errors = self.errors.errors(positions.len())?;
+        let sig: Vec<f64> = errors.iter().map(|e| e.bias_variance().sqrt()).collect();
+        tdoa::arrivals::bias_covariance(&positions, &sig, target).ok_or_else(|| {
+            CliError::Input(format!("no bias bound at --target {},{}: a singular geometry", target.x, target.y))
+        })
     }
 }
 

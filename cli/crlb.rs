@@ -26,6 +26,9 @@ Examples:
   uavloc crlb --uav 1500,500 --uav 10000,1500 --uav 5000,8500 --target 25000,15000 --sigma 28.7712
   # the same noise as a time-of-arrival sigma of about 96 ns, JSON output
   uavloc crlb --uav 1500,500 --uav 10000,1500 --uav 5000,8500 --target 25000,15000 --sigma-ns 95.97 --json
+  # GNSS (5 m per axis) and clock (10 ns) errors per step, and flight-long biases: the bound of the
+  # effective range sigma, and the floor the biases leave however many snapshots are fused
+  uavloc crlb --uav 1500,500 --uav 10000,1500 --uav 5000,8500 --target 25000,15000 --sigma 28.7712 --gnss-sigma 5 --clock-sigma-ns 10 --gnss-bias-sigma 5 --clock-bias-sigma-ns 10
   # per-UAV sigmas and negative coordinates
   uavloc crlb --uav -1500,200 --uav 0,0 --uav 800,-900 --target -3000,-4000 --sigma 10,20,15
 
@@ -53,25 +56,39 @@ pub struct CrlbReport {
     pub cond: f64,
     /// The Fisher information matrix `F`, 1/m², row-major.
     pub fim: [[f64; 2]; 2],
+    /// With flight-long GNSS/clock biases (`--gnss-bias-sigma`, `--clock-bias-sigma-ns`): `sqrt(tr B)`,
+    /// the error the biases alone cause, which no number of snapshots averages out, metres; else absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bias_floor_m: Option<f64>,
 }
 
 /// The CRLB of an emitter at `target` seen by `sensors`.
 pub fn compute(sensors: &Sensors, target: &Vector2<f64>) -> Result<CrlbReport, CliError> {
     let c = tdoa::crlb(sensors, target).map_err(CliError::tdoa_in(format!("--target {},{}", target.x, target.y)))?;
-    Ok(CrlbReport { crlb_m: c.crlb_m, trace_m2: c.trace_m2, cond: c.cond, fim: rows(&c.fim) })
+    Ok(CrlbReport { crlb_m: c.crlb_m, trace_m2: c.trace_m2, cond: c.cond, fim: rows(&c.fim), bias_floor_m: None })
 }
 
 /// Runs `uavloc crlb`.
 pub fn run(args: &CrlbArgs) -> Result<CrlbReport, CliError> {
-    compute(&args.sensors.sensors()?, &args.target.vector())
+    let target = args.target.vector();
+    let mut report = compute(&args.sensors.sensors()?, &target)?;
+    let b = args.sensors.bias_covariance(&target)?;
+    if b != nalgebra::Matrix2::zeros() {
+        report.bias_floor_m = Some(b.trace().sqrt());
+    }
+    Ok(report)
 }
 
 impl Report for CrlbReport {
     fn table(&self) -> Table {
-        Table::new()
+        let t = Table::new()
             .row("CRLB", format!("{} m", num(self.crlb_m)))
             .row("trace F^-1", format!("{} m²", num(self.trace_m2)))
             .row("cond(F)", num(self.cond))
-            .row("FIM F", format!("{} 1/m²", matrix(self.fim)))
+            .row("FIM F", format!("{} 1/m²", matrix(self.fim)));
+        match self.bias_floor_m {
+            Some(b) => t.row("bias floor (flight-long GNSS/clock)", format!("{} m", num(b))),
+            None => t,
+        }
     }
 }

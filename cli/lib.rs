@@ -181,6 +181,44 @@ mod tests {
         assert_eq!(a.target.0, [-3.0, -40.0]);
     }
 
+    fn crlb_of(extra: &[&str]) -> Result<crlb::CrlbReport, CliError> {
+        let mut argv = vec!["uavloc", "crlb", "--uav", "1500,500", "--uav", "10000,1500", "--uav", "5000,8500"];
+        argv.extend(["--target", "25000,15000"]);
+        argv.extend(extra);
+        let Command::Crlb(a) = Cli::try_parse_from(argv).unwrap().command else { panic!("not crlb") };
+        crlb::run(&a)
+    }
+
+    #[test]
+    fn gnss_and_clock_errors_give_the_effective_range_sigma_and_the_bias_floor() {
+        // White GNSS 20 m and clock 30 ns: the bound of σ_eff = sqrt(σ² + 20² + (30 ns · c)²) exactly.
+        let with = crlb_of(&["--sigma", "28.7712", "--gnss-sigma", "20", "--clock-sigma-ns", "30"]).unwrap();
+        let c_ns = tdoa::SPEED_OF_LIGHT * 1e-9;
+        let eff = (28.7712f64.powi(2) + 400.0 + (30.0 * c_ns).powi(2)).sqrt();
+        let plain = crlb_of(&["--sigma", &eff.to_string()]).unwrap();
+        assert!((with.crlb_m - plain.crlb_m).abs() < 1e-9 * plain.crlb_m, "{} vs {}", with.crlb_m, plain.crlb_m);
+        assert_eq!(with.bias_floor_m, None);
+        // Biases of 3 m and 4 m·c: the floor is the CRLB of a 5 m range σ; they also widen the per-step σ.
+        let b = crlb_of(&[
+            "--sigma",
+            "28.7712",
+            "--gnss-bias-sigma",
+            "3",
+            "--clock-bias-sigma-ns",
+            &(4.0 / c_ns).to_string(),
+        ])
+        .unwrap();
+        let five = crlb_of(&["--sigma", "5"]).unwrap();
+        assert!((b.bias_floor_m.unwrap() - five.crlb_m).abs() < 1e-6 * five.crlb_m, "{:?}", b.bias_floor_m);
+        let widened = crlb_of(&["--sigma", &(28.7712f64.powi(2) + 25.0).sqrt().to_string()]).unwrap();
+        assert!((b.crlb_m - widened.crlb_m).abs() < 1e-9 * widened.crlb_m);
+        // Bad values: a clear error, not a bound.
+        for bad in [&["--sigma", "1", "--gnss-sigma", "1,2"][..], &["--sigma", "1", "--clock-sigma-ns=-3"]] {
+            let e = crlb_of(bad).unwrap_err().to_string();
+            assert!(e.contains("--gnss-sigma") || e.contains("--clock-sigma-ns"), "{e}");
+        }
+    }
+
     #[test]
     fn clap_errors_fit_on_one_line() {
         let e = Cli::try_parse_from(["uavloc", "crlb", "--uav", "0,0", "--sigma", "1"]).unwrap_err();
