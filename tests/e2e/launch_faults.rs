@@ -111,11 +111,12 @@ fn a_start_that_cannot_be_localised_is_refused_up_front() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A run whose first steps give no fix (the nominal scenario with an emitter silent at 99.99 % of the
-/// steps, so no burst and no earlier estimate): the swarm holds course and tries the next burst,
-/// and after `planning::FIRST_FIX_STEPS` steps without a fix `simulate` ends with the reason, and so does
-/// `launch` — the planner says the run cannot go on (exit code 3, no restart), at the same step. With
-/// σ = 500 m step 0 has no fix but a later one has: both hold, then run to the end alike.
+/// A run whose first steps give no fix: the swarm holds course and tries the next burst. With
+/// σ = 20 km (seed 10) every burst is heard by all three UAVs and none gives a physical solution, so at
+/// step `planning::FIRST_FIX_STEPS − 1` `simulate` ends with the reason, and so does `launch` — the
+/// planner says the run cannot go on (exit code 3, no restart), at the same step. An emitter silent at
+/// 99.99 % of the steps never ends a run (silence is the receiver's, not the geometry's): both hold to
+/// the end alike. With σ = 500 m step 0 has no fix but a later one has: both hold, then run alike.
 #[test]
 fn a_run_without_a_first_fix_holds_then_ends_launch_as_it_ends_simulate() {
     let _scenario = common::scenario(module_path!());
@@ -123,14 +124,21 @@ fn a_run_without_a_first_fix_holds_then_ends_launch_as_it_ends_simulate() {
     let nominal =
         std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/nominal.toml"))
             .unwrap();
-    let noisy = format!("{nominal}\n[receiver]\nsilence = 0.9999\n");
+    let with_sigma = |sigma: &str| -> String {
+        nominal
+            .lines()
+            .map(|l| if l.starts_with("sigma =") { format!("sigma = {sigma}") } else { l.to_string() })
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let noisy = with_sigma("20000.0");
     let path = dir.join("noisy.toml");
     std::fs::write(&path, noisy).unwrap();
     let path = path.to_str().unwrap();
     let sim = Command::new(UAVLOC).args(["simulate", "--scenario", path, "--seed", "10"]).output().unwrap();
     assert_eq!(sim.status.code(), Some(1));
     let sim_err = String::from_utf8_lossy(&sim.stderr);
-    assert!(sim_err.contains("step 19: estimate") && sim_err.contains("no fix yet"), "{sim_err}");
+    assert!(sim_err.contains("step 19: estimate") && sim_err.contains("no physical solution"), "{sim_err}");
     let d = domain("nofix", "launch");
     let out = Command::new(UAVLOC)
         .args(["launch", "--headless", "--json", "--scenario", path, "--seed", "10", "--domain", &d])
@@ -144,11 +152,39 @@ fn a_run_without_a_first_fix_holds_then_ends_launch_as_it_ends_simulate() {
     assert!(!err.contains("restarting") && !err.contains("no command within"), "{err}");
     assert_nothing_left(&d);
     // σ = 500 m: step 0 has no fix, a later step has; both hold course until then and agree.
-    let half: String = nominal
-        .lines()
-        .map(|l| if l.starts_with("sigma =") { "sigma = 500.0" } else { l })
-        .collect::<Vec<_>>()
-        .join("\n");
+    // Silent at 99.99 % of the steps: every step holds, none ends the run.
+    let silent = format!("{nominal}\n[receiver]\nsilence = 0.9999\n");
+    let path = dir.join("silent.toml");
+    std::fs::write(&path, silent).unwrap();
+    let path = path.to_str().unwrap();
+    let sim = json_of(&["simulate", "--json", "--scenario", path, "--seed", "10", "--steps", "6"]);
+    let d = domain("nofix", "silent");
+    let run = json_of(&[
+        "launch",
+        "--headless",
+        "--json",
+        "--scenario",
+        path,
+        "--seed",
+        "10",
+        "--steps",
+        "6",
+        "--domain",
+        &d,
+    ]);
+    let steps = sim["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 7, "every step of the silent run is there");
+    for (k, s) in steps.iter().enumerate() {
+        assert!(s["estimate"][0].is_null(), "a silent step gave an estimate: {s}");
+        // The last step flies nothing more: only the steps before it plan.
+        if k + 1 == steps.len() {
+            continue;
+        }
+        assert_eq!(s["active_constraints"], serde_json::json!(["estimate_stale"]), "step {} held", s["step"]);
+    }
+    assert_same_run(&sim, &run, "a silent run");
+    assert_nothing_left(&d);
+    let half = with_sigma("500.0");
     let path = dir.join("half.toml");
     std::fs::write(&path, half).unwrap();
     let path = path.to_str().unwrap();
