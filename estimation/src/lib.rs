@@ -493,10 +493,9 @@ impl Estimator {
         if provisional
             && config.outliers == OutlierPolicy::Arrival
             && matches!(up.update.outcome, Outcome::Rejected { .. })
+            && let Some(self_checked) = outliers::fuse_self_checked(predicted, a, |m| config.gate(m))?
         {
-            if let Some(self_checked) = outliers::fuse_self_checked(predicted, a, |m| config.gate(m))? {
-                up = self_checked;
-            }
+            up = self_checked;
         }
         let (status, nis) = match up.update.outcome {
             Outcome::Fused { nis, .. } => (EstimateStatus::Ok, nis),

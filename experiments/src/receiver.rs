@@ -76,6 +76,11 @@ pub fn cells() -> Vec<(&'static str, ReceiverModel)> {
 /// How many receiver models the design has.
 pub const CELLS: usize = 11;
 
+/// The cells' short names on a figure's axis, in the order of [`cells`] (the table names them in full):
+/// sil: silence; l+s: loss and silence; mp: multipath; bias: GNSS and clock biases fixed for the flight.
+pub const AXIS_LABELS: [&str; CELLS] =
+    ["perfect", "loss.1", "loss.3", "sil.3", "l+s", "mp.05", "mp.15", "gnss5", "gnss20", "bias", "all"];
+
 /// The two scenarios: (label, scenario) with the default three UAVs and with five.
 pub fn scenarios() -> Vec<(&'static str, Scenario)> {
     let three = Scenario { steps: STEPS, estimator: EstimatorKind::Fused, rmse_resamples: 1, ..Scenario::default() };
@@ -273,7 +278,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
                     "summary": sum,
                 }));
             }
-            groups.push(record::BarGroup { label: clabel.to_string(), values, errors: Vec::new() });
+            groups.push(record::BarGroup { label: AXIS_LABELS[c].to_string(), values, errors: Vec::new() });
         }
         figures.push(Figure::Bars {
             name: format!("terminal-{}", if a == 0 { "3-uavs" } else { "5-uavs" }),
