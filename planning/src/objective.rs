@@ -25,6 +25,7 @@ use std::str::FromStr;
 
 use nalgebra::Vector2;
 use tdoa::global::{GlobalCrlb, McScheme, Method, MonteCarlo, PreparedObjective};
+use tdoa::loss::ArrivalOdds;
 use tdoa::rng::{Purpose, derive_seed};
 use tdoa::singular::singular_report;
 use tdoa::{MAX_UAVS, NoiseModel, Sensors, TdoaError, Uncertainty};
@@ -112,20 +113,36 @@ impl FromStr for ObjectiveKind {
     }
 }
 
-/// Any criterion of `kind`, prepared for one planning step (see [`CrlbObjective::prepare`] for the
-/// arguments).
+/// How a sampled criterion draws its points: `mc_samples` (K ≥ 2) of `mc_scheme`, seeded by planning
+/// step `step` of run `run_seed` (see [`CrlbObjective::prepare`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sampling {
+    /// K, the `mc` criterion's points.
+    pub mc_samples: usize,
+    /// How they are drawn.
+    pub mc_scheme: McScheme,
+    /// The run's seed.
+    pub run_seed: u64,
+    /// The planning step.
+    pub step: u64,
+}
+
+/// Any criterion of `kind`, prepared for one planning step: the uncertainty `unc`, the UAVs' range
+/// noise `noise`, and the receiver's odds `odds` — arrivals lost, the emitter silent — that the
+/// posterior criteria count (`None` or perfect: every arrival; see [`tdoa::loss`]). The CRLB criteria
+/// plan on every arrival whatever the odds: the expectation of `tr F⁻¹` over lost arrivals is infinite
+/// as soon as fewer than three arrivals have a positive probability.
 pub fn prepare(
     kind: ObjectiveKind,
     unc: &Uncertainty,
     noise: NoiseModel,
-    mc_samples: usize,
-    mc_scheme: McScheme,
-    run_seed: u64,
-    step: u64,
+    odds: Option<ArrivalOdds>,
+    sampling: Sampling,
 ) -> Result<Box<dyn StepObjective>, TdoaError> {
+    let Sampling { mc_samples, mc_scheme, run_seed, step } = sampling;
     Ok(match kind {
         ObjectiveKind::Posterior | ObjectiveKind::PosteriorCubature => {
-            Box::new(PosteriorObjective::prepare(kind, unc, noise)?)
+            Box::new(PosteriorObjective::prepare(kind, unc, noise)?.with_odds(odds))
         }
         _ => Box::new(CrlbObjective::prepare(kind.criterion(), unc, noise, mc_samples, mc_scheme, run_seed, step)?),
     })
@@ -140,12 +157,15 @@ pub trait StepObjective: PlanObjective {
 }
 
 /// The posterior criteria: `Σ_k ω_k tr((M⁻¹ + F(p_k))⁻¹)` over nodes `p_k` (ẑ alone for `posterior`, the
-/// 25-point cubature of N(ẑ, M) for `posterior-cubature`), m².
+/// 25-point cubature of N(ẑ, M) for `posterior-cubature`), m². With a receiver that loses arrivals or
+/// falls silent, each node's term is the expected posterior trace over what is received
+/// ([`tdoa::loss::expected_posterior_trace`]).
 pub struct PosteriorObjective {
     points: Vec<Vector2<f64>>,
     weights: Vec<f64>,
     prior_info: nalgebra::Matrix2<f64>,
     noise: NoiseModel,
+    odds: Option<ArrivalOdds>,
 }
 
 impl fmt::Debug for PosteriorObjective {
@@ -170,7 +190,12 @@ impl PosteriorObjective {
             }
             _ => (vec![unc.estimate()], vec![1.0]),
         };
-        Ok(Self { points, weights, prior_info, noise })
+        Ok(Self { points, weights, prior_info, noise, odds: None })
+    }
+
+    /// The same criterion for a receiver with the odds `odds` (`None` or perfect: every arrival).
+    pub fn with_odds(self, odds: Option<ArrivalOdds>) -> Self {
+        Self { odds: odds.filter(|o| !o.is_perfect()), ..self }
     }
 }
 
@@ -178,6 +203,15 @@ impl PlanObjective for PosteriorObjective {
     fn evaluate(&self, next: &[Vector2<f64>]) -> f64 {
         let Some(sensors) = sensors_at(next, &self.noise) else { return f64::INFINITY };
         let mut sum = 0.0;
+        if let Some(odds) = &self.odds {
+            for (p, w) in self.points.iter().zip(&self.weights) {
+                let Some(t) = tdoa::loss::expected_posterior_trace(&self.prior_info, &sensors, p, odds) else {
+                    return f64::INFINITY;
+                };
+                sum += w * t;
+            }
+            return sum;
+        }
         for (p, w) in self.points.iter().zip(&self.weights) {
             let info = self.prior_info + tdoa::fim(&sensors, p).unwrap_or_else(nalgebra::Matrix2::zeros);
             let Some(post) = info.try_inverse() else { return f64::INFINITY };
@@ -292,6 +326,10 @@ mod tests {
     use super::*;
     use nalgebra::Matrix2;
 
+    fn sampling() -> Sampling {
+        Sampling { mc_samples: 200, mc_scheme: McScheme::UniformWeighted, run_seed: 1, step: 0 }
+    }
+
     fn setup() -> (Uncertainty, NoiseModel, Vec<Vector2<f64>>) {
         let z = Vector2::new(25000.0, 15000.0);
         let unc = Uncertainty::with_eq36_side(z, Matrix2::new(4e5, 1e5, 1e5, 2e5), 20000.0, 0.1).unwrap();
@@ -373,14 +411,13 @@ mod tests {
         let z = unc.estimate();
         let m = unc.cov();
         let direct = (m.try_inverse().unwrap() + tdoa::fim(&sensors, &z).unwrap()).try_inverse().unwrap().trace();
-        let post =
-            prepare(ObjectiveKind::Posterior, &unc, noise.clone(), 200, McScheme::UniformWeighted, 1, 0).unwrap();
+        let post = prepare(ObjectiveKind::Posterior, &unc, noise.clone(), None, sampling()).unwrap();
         assert!((post.evaluate(&uavs) - direct).abs() <= 1e-12 * direct);
         // Adding information can only shrink the posterior: below both M's trace and tr F⁻¹(ẑ).
         assert!(direct < m.trace() && direct < tdoa::trace_crlb(&sensors, &z));
         // A vague prior (M → ∞·I) gives back the single-point criterion tr F⁻¹(ẑ).
         let vague = Uncertainty::new(z, Matrix2::identity() * 1e14, 1e6).unwrap();
-        let v = prepare(ObjectiveKind::Posterior, &vague, noise.clone(), 200, McScheme::UniformWeighted, 1, 0).unwrap();
+        let v = prepare(ObjectiveKind::Posterior, &vague, noise.clone(), None, sampling()).unwrap();
         let single = tdoa::trace_crlb(&sensors, &z);
         assert!((v.evaluate(&uavs) - single).abs() < 1e-6 * single);
         // The cubature form: a weighted mean over the 25 nodes, each by the same formula.
@@ -393,8 +430,7 @@ mod tests {
                 w * (m.try_inverse().unwrap() + tdoa::fim(&sensors, p).unwrap()).try_inverse().unwrap().trace()
             })
             .sum();
-        let pc = prepare(ObjectiveKind::PosteriorCubature, &unc, noise.clone(), 200, McScheme::UniformWeighted, 1, 0)
-            .unwrap();
+        let pc = prepare(ObjectiveKind::PosteriorCubature, &unc, noise.clone(), None, sampling()).unwrap();
         assert!((pc.evaluate(&uavs) - mean).abs() <= 1e-12 * mean);
         // Finite even on the singular locus (collinear UAVs through ẑ), infinite for coincident UAVs.
         let v2 = |x: f64, y: f64| Vector2::new(x, y);

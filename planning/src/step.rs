@@ -51,7 +51,7 @@ use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
 use crate::gradient::Gradient;
 use crate::heading_interval::{HeadingInterval, Uav, heading_interval, heading_interval_of};
-use crate::objective::ObjectiveKind;
+use crate::objective::{ObjectiveKind, Sampling};
 use crate::shield::{EmitterMotion, Shield, prediction, safety_limits};
 use crate::solver::{SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult};
 use model::kinematics::{bearing, next_position, turn_angle, wrap_angle};
@@ -240,6 +240,12 @@ fn is_certified(fitness: &Fitness) -> bool {
     fitness.tiers()[..3].iter().all(|t| *t == 0.0)
 }
 
+/// The receiver's odds the posterior criteria count: the scenario's `receiver.loss` per arrival and
+/// `receiver.silence` (with an external front end: the loss and silence its user declares there).
+fn arrival_odds(sc: &Scenario) -> Result<tdoa::loss::ArrivalOdds, TdoaError> {
+    tdoa::loss::ArrivalOdds::uniform(sc.uav_count(), sc.receiver.loss, sc.receiver.silence)
+}
+
 /// Plans one step; see the module docs.
 pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
     let start = Instant::now();
@@ -269,10 +275,8 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
         req.objective,
         &unc,
         sc.noise_model()?,
-        sc.mc_samples,
-        sc.mc_scheme,
-        req.run_seed,
-        req.step,
+        Some(arrival_odds(sc)?),
+        Sampling { mc_samples: sc.mc_samples, mc_scheme: sc.mc_scheme, run_seed: req.run_seed, step: req.step },
     )?;
 
     if sc.safety == SafetyMode::Certified {
@@ -593,9 +597,14 @@ mod tests {
                     assert!((w - out.waypoints[i]).norm() < 1e-6);
                 }
                 if objective.is_optimised() {
-                    let obj =
-                        crate::objective::prepare(objective, &unc, noise.clone(), sc.mc_samples, sc.mc_scheme, 42, 3)
-                            .unwrap();
+                    let obj = crate::objective::prepare(
+                        objective,
+                        &unc,
+                        noise.clone(),
+                        None,
+                        Sampling { mc_samples: sc.mc_samples, mc_scheme: sc.mc_scheme, run_seed: 42, step: 3 },
+                    )
+                    .unwrap();
                     let keep = obj.evaluate(&straight);
                     assert!(out.objective_value < keep, "{label}: planned {} vs straight {keep}", out.objective_value);
                     assert!(out.iterations >= 1 && out.evaluations > 0);
@@ -618,6 +627,38 @@ mod tests {
             case.psi.push(wrap_angle(a + std::f64::consts::FRAC_PI_2));
         }
         case
+    }
+
+    /// With arrivals lost (receiver.loss 0.3), the posterior criterion is the expected posterior trace
+    /// over the arrivals received: the step reports that value at its waypoints, and its plan is at least
+    /// as good under it as the plan made for a perfect receiver — which the loss changes.
+    #[test]
+    fn the_posterior_criterion_counts_lost_arrivals() {
+        // Step 6 of a nominal run (seed 1) with 30 % of arrivals lost: UAV 0 is free of its cone.
+        let mut case = Case::nominal();
+        case.pos = vec![
+            Vector2::new(3486.154777252734, 2682.135104045065),
+            Vector2::new(12700.668853960275, 2710.1764819217765),
+            Vector2::new(7392.023194338519, 10241.121245111975),
+        ];
+        case.psi = vec![0.4703387296845407, 0.35410593578786415, 0.6983479283652942];
+        case.z = Vector2::new(24609.786955059564, 14815.713568627936);
+        case.m = Matrix2::new(239755.06194176787, 138077.2756263937, 138077.2756263937, 81408.0017322886);
+        let blind = plan_step(&case.request(ObjectiveKind::Posterior, SolverKind::Gradient)).unwrap();
+        case.sc.receiver.loss = 0.3;
+        let aware = plan_step(&case.request(ObjectiveKind::Posterior, SolverKind::Gradient)).unwrap();
+        let odds = tdoa::loss::ArrivalOdds::uniform(3, 0.3, 0.0).unwrap();
+        let info = case.m.try_inverse().unwrap();
+        let expected = |w: &[Vector2<f64>]| {
+            let pts: Vec<[f64; 2]> = w.iter().map(|p| [p.x, p.y]).collect();
+            let sensors = Sensors::new(&pts, case.sc.noise_model().unwrap()).unwrap();
+            tdoa::loss::expected_posterior_trace(&info, &sensors, &case.z, &odds).unwrap()
+        };
+        let (ea, eb) = (expected(&aware.waypoints), expected(&blind.waypoints));
+        assert!((aware.objective_value - ea).abs() <= 1e-9 * ea, "{} vs {ea}", aware.objective_value);
+        assert!(ea <= eb * (1.0 + 1e-9), "the loss-aware plan {ea} m² is worse than the blind one {eb} m²");
+        assert!(blind.objective_value < ea, "losing arrivals must cost information");
+        assert_ne!(aware.headings, blind.headings, "the loss changed nothing");
     }
 
     #[test]

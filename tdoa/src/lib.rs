@@ -16,6 +16,7 @@ pub mod fim;
 pub mod fusion;
 pub mod geometry;
 pub mod global;
+pub mod loss;
 pub mod montecarlo;
 pub mod motion;
 pub mod pcrlb;
