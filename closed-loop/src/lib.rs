@@ -252,6 +252,7 @@ fn no_fix_yet(a: &tdoa::Arrivals, reason: String) -> estimation::EstimateOut {
         heard: a.heard_mask(),
         outliers: 0,
         bias_cov: Matrix2::zeros(),
+        sensitivity: None,
     }
 }
 

@@ -23,6 +23,7 @@
 //! Units: metres (positions), m² (covariance), m/s (velocity).
 
 use nalgebra::{Matrix2, Vector2};
+use tdoa::consider::BiasSensitivity;
 use tdoa::fusion::{self, DEFAULT_GATE_PROBABILITY, Outcome, Posterior};
 use tdoa::{Arrivals, Dynamics, NoiseModel, RangeDiffs, TdoaError};
 
@@ -108,10 +109,14 @@ pub struct EstimateOut {
     pub heard: u8,
     /// The arrivals dropped as outliers (bit i: UAV i; see [`outliers`]).
     pub outliers: u8,
-    /// The consider covariance of the persistent GNSS and clock errors at `position`, m² (zero without
-    /// them; see [`tdoa::arrivals`]): not part of the fused state, added to it wherever the uncertainty
-    /// of the emitter is used ([`EstimateOut::total_covariance`]).
+    /// The consider covariance of the persistent GNSS and clock errors, `S Σ_β Sᵀ` of
+    /// [`EstimateOut::sensitivity`], m² (zero without them; see [`tdoa::consider`]): not part of the
+    /// fused state, added to it wherever the uncertainty of the emitter is used
+    /// ([`EstimateOut::total_covariance`]).
     pub bias_cov: Matrix2<f64>,
+    /// How the estimate depends on each UAV's flight-long range bias, `S = ∂(x̂ − x)/∂β`
+    /// ([`tdoa::consider`]); `None` before any fix. Fused: part of the state the next step starts from.
+    pub sensitivity: Option<BiasSensitivity>,
 }
 
 impl EstimateOut {
@@ -134,6 +139,11 @@ pub enum EstimatorError {
         /// UAVs that heard this step's burst.
         heard: usize,
     },
+}
+
+/// `S Σ_β Sᵀ` (position block) of the sensitivity `s` with the burst's per-UAV bias σ; zero without.
+fn bias_cov(s: Option<&BiasSensitivity>, a: &Arrivals) -> Matrix2<f64> {
+    s.map_or_else(Matrix2::zeros, |s| s.position_covariance(a.bias_sigmas()))
 }
 
 /// What an [`Estimator`] is: its kind, the motion model and the gate.
@@ -204,6 +214,10 @@ pub struct Estimator {
     /// Fused: bursts fused whole since the track started (saturating at [`CONFIRM_BURSTS`]).
     confirmed: u8,
     last_step: Option<u64>,
+    /// Fused: the posterior's dependence on the flight-long biases ([`tdoa::consider`]).
+    sensitivity: Option<BiasSensitivity>,
+    /// The same for the pending second root.
+    alt_sensitivity: Option<BiasSensitivity>,
 }
 
 impl Default for Estimator {
@@ -224,6 +238,8 @@ impl Estimator {
             rejected_run: 0,
             confirmed: 0,
             last_step: None,
+            sensitivity: None,
+            alt_sensitivity: None,
         }
     }
 
@@ -264,7 +280,21 @@ impl Estimator {
             rejected_run: 0,
             confirmed: 0,
             last_step: Some(step),
+            sensitivity: None,
+            alt_sensitivity: None,
         }
+    }
+
+    /// This estimator with the posterior's bias sensitivity `s` behind it (the state of an estimate's
+    /// `sensitivity`; `None`: no dependence yet).
+    pub fn with_sensitivity(mut self, s: Option<BiasSensitivity>) -> Self {
+        self.sensitivity = s;
+        self
+    }
+
+    /// Fused: the posterior's dependence on the flight-long biases (see [`EstimateOut::sensitivity`]).
+    pub fn sensitivity(&self) -> Option<BiasSensitivity> {
+        self.sensitivity
     }
 
     /// This estimator with `n` snapshots rejected in a row behind it (the state of an estimate's
@@ -351,13 +381,19 @@ impl Estimator {
         }
         let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
         let dynamics = self.config.dynamics;
+        let predicted_s =
+            |s: Option<BiasSensitivity>| s.map_or(BiasSensitivity::zero(), |s| s.predict(&dynamics, elapsed));
+        let (s_pred, alt_pred) = (predicted_s(self.sensitivity), predicted_s(self.alt_sensitivity.take()));
         let result = match (self.config.kind, self.posterior, self.alternative.take()) {
-            (EstimatorKind::Fused, Some(post), Some(other)) => {
-                self.resolve(&post.predict(&dynamics, elapsed), &other.predict(&dynamics, elapsed), a)
-            }
-            (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), a),
+            (EstimatorKind::Fused, Some(post), Some(other)) => self.resolve(
+                (&post.predict(&dynamics, elapsed), &s_pred),
+                (&other.predict(&dynamics, elapsed), &alt_pred),
+                a,
+            ),
+            (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), &s_pred, a),
             _ => self.solve(a).map(|(out, other)| {
-                self.alternative = other;
+                self.alternative = other.map(|o| o.0);
+                self.alt_sensitivity = other.and_then(|o| o.1);
                 out
             }),
         };
@@ -372,7 +408,8 @@ impl Estimator {
                     self.previous = None;
                     match self.solve(a) {
                         Ok((fresh, other)) => {
-                            self.alternative = other;
+                            self.alternative = other.map(|o| o.0);
+                            self.alt_sensitivity = other.and_then(|o| o.1);
                             self.rejected_run = 0;
                             self.confirmed = 0;
                             Ok(fresh)
@@ -399,7 +436,7 @@ impl Estimator {
             out.rejected_run = self.rejected_run;
             out.confirmed = self.confirmed;
             out.heard = a.heard_mask();
-            out.bias_cov = a.bias_covariance(&out.position).unwrap_or_else(Matrix2::zeros);
+            out.bias_cov = bias_cov(out.sensitivity.as_ref(), a);
             out
         });
         match result {
@@ -407,6 +444,7 @@ impl Estimator {
                 self.previous = Some((out.position, out.covariance));
                 if out.posterior.is_some() {
                     self.posterior = out.posterior;
+                    self.sensitivity = out.sensitivity;
                 }
                 Ok(out)
             }
@@ -414,6 +452,7 @@ impl Estimator {
                 // Fused: the state moves on as predicted (unchanged for a static emitter).
                 if let Some(post) = self.posterior {
                     self.posterior = Some(post.predict(&self.config.dynamics, elapsed));
+                    self.sensitivity = self.sensitivity.map(|s| s.predict(&self.config.dynamics, elapsed));
                 }
                 self.keep_previous(e.to_string(), a.heard_mask()).ok_or(EstimatorError::NoEstimate(e))
             }
@@ -435,6 +474,7 @@ impl Estimator {
             heard,
             outliers: 0,
             bias_cov: Matrix2::zeros(),
+            sensitivity: self.sensitivity,
         })
     }
 
@@ -444,6 +484,7 @@ impl Estimator {
         self.last_step = Some(step);
         if let Some(post) = self.posterior {
             self.posterior = Some(post.predict(&self.config.dynamics, elapsed));
+            self.sensitivity = self.sensitivity.map(|s| s.predict(&self.config.dynamics, elapsed));
         }
         self.keep_previous(e.to_string(), 0).ok_or(EstimatorError::NoEstimate(e))
     }
@@ -456,10 +497,12 @@ impl Estimator {
         self.last_step = Some(step);
         let dynamics = self.config.dynamics;
         self.alternative = self.alternative.map(|o| o.predict(&dynamics, elapsed));
+        self.alt_sensitivity = self.alt_sensitivity.map(|s| s.predict(&dynamics, elapsed));
         match (self.config.kind, self.posterior) {
             (EstimatorKind::Fused, Some(post)) => {
                 let pred = post.predict(&dynamics, elapsed);
                 self.posterior = Some(pred);
+                self.sensitivity = self.sensitivity.map(|s| s.predict(&dynamics, elapsed));
                 self.previous = Some((pred.position(), pred.position_cov()));
                 Ok(EstimateOut {
                     position: pred.position(),
@@ -472,7 +515,8 @@ impl Estimator {
                     confirmed: self.confirmed,
                     heard: a.heard_mask(),
                     outliers: 0,
-                    bias_cov: a.bias_covariance(&pred.position()).unwrap_or_else(Matrix2::zeros),
+                    bias_cov: bias_cov(self.sensitivity.as_ref(), a),
+                    sensitivity: self.sensitivity,
                 })
             }
             _ => {
@@ -483,7 +527,8 @@ impl Estimator {
         }
     }
 
-    fn fuse(&self, predicted: &Posterior, a: &Arrivals) -> Result<EstimateOut, TdoaError> {
+    /// Fuses `a` into the prediction `predicted`, whose bias sensitivity is `s_pred`.
+    fn fuse(&self, predicted: &Posterior, s_pred: &BiasSensitivity, a: &Arrivals) -> Result<EstimateOut, TdoaError> {
         let config = self.config;
         // A provisional track drops only the arrivals the burst itself shows to be outliers (see
         // CONFIRM_BURSTS), never the ones that merely disagree with the track.
@@ -502,6 +547,14 @@ impl Estimator {
             Outcome::Rejected { nis, threshold } => (EstimateStatus::Rejected { nis, threshold }, nis),
         };
         let post = up.update.posterior;
+        // The arrivals fused: those heard less those dropped.
+        let used = (0..a.len()).filter(|&j| up.dropped & tdoa::arrivals::bit(j) != 0).fold(*a, |u, j| u.without(j));
+        let sensitivity = match status {
+            EstimateStatus::Ok => used
+                .heard()?
+                .and_then(|h| s_pred.after_update(&predicted.cov(), predicted.model().dim(), &h, &post.position())),
+            _ => Some(*s_pred),
+        };
         Ok(EstimateOut {
             position: post.position(),
             covariance: post.position_cov(),
@@ -514,18 +567,24 @@ impl Estimator {
             heard: a.heard_mask(),
             outliers: up.dropped,
             bias_cov: Matrix2::zeros(),
+            sensitivity,
         })
     }
 
     /// After an ambiguous start: fuses the snapshot into both roots' posteriors and keeps the one whose
     /// innovation is smaller (the likelier root given both snapshots). The status is that of the
     /// update of the root kept.
-    fn resolve(&self, first: &Posterior, other: &Posterior, a: &Arrivals) -> Result<EstimateOut, TdoaError> {
+    fn resolve(
+        &self,
+        first: (&Posterior, &BiasSensitivity),
+        other: (&Posterior, &BiasSensitivity),
+        a: &Arrivals,
+    ) -> Result<EstimateOut, TdoaError> {
         let nis = |o: &EstimateOut| match o.status {
             EstimateStatus::Rejected { nis, .. } => nis,
             _ => o.nis.unwrap_or(f64::INFINITY),
         };
-        match (self.fuse(first, a), self.fuse(other, a)) {
+        match (self.fuse(first.0, first.1, a), self.fuse(other.0, other.1, a)) {
             (Ok(x), Ok(y)) => Ok(if nis(&y) < nis(&x) { y } else { x }),
             (Ok(x), Err(_)) => Ok(x),
             (Err(_), Ok(y)) => Ok(y),
@@ -533,8 +592,10 @@ impl Estimator {
         }
     }
 
-    /// Chan's fix; fused and ambiguous, also the posterior of the other root.
-    fn solve(&self, a: &Arrivals) -> Result<(EstimateOut, Option<Posterior>), TdoaError> {
+    /// Chan's fix; fused and ambiguous, also the posterior of the other root (with its bias
+    /// sensitivity).
+    #[allow(clippy::type_complexity)]
+    fn solve(&self, a: &Arrivals) -> Result<(EstimateOut, Option<(Posterior, Option<BiasSensitivity>)>), TdoaError> {
         let config = self.config;
         let (sol, heard, dropped) = outliers::chan_burst(a, self.prior(), |m| config.gate(m), config.outliers)?;
         let finite = sol.position.iter().chain(sol.covariance.iter()).all(|v| v.is_finite());
@@ -547,7 +608,8 @@ impl Estimator {
                 let other = match (sol.ambiguous, sol.candidates.as_slice()) {
                     (true, [_, second]) => tdoa::crlb(&heard.sensors, second).ok().and_then(|c| {
                         let alt = tdoa::ChanSolution { position: *second, covariance: c.bound, ..sol.clone() };
-                        Posterior::from_chan(&alt, &self.config.dynamics).ok()
+                        let s = BiasSensitivity::of_fix(&heard, second);
+                        Posterior::from_chan(&alt, &self.config.dynamics).ok().map(|p| (p, s))
                     }),
                     _ => None,
                 };
@@ -567,6 +629,7 @@ impl Estimator {
             heard: a.heard_mask(),
             outliers: dropped,
             bias_cov: Matrix2::zeros(),
+            sensitivity: BiasSensitivity::of_fix(&heard, &sol.position),
         };
         Ok((out, other))
     }

@@ -120,6 +120,7 @@ class StateEcho(ctypes.Structure):
         ("velocity", ctypes.c_double * 2),
         ("cross_cov", (ctypes.c_double * 2) * 2),
         ("velocity_cov", (ctypes.c_double * 2) * 2),
+        ("bias_sensitivity", (ctypes.c_double * MAX_UAVS) * 4),
     ]
 
 
@@ -144,11 +145,11 @@ class Command(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "uavloc::Command/v4"
+        return "uavloc::Command/v5"
 
 
 # Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/e2e/wire_layout.rs).
-SIZES = {Measurement: 672, Command: 504}
+SIZES = {Measurement: 672, Command: 760}
 
 
 def check_layout() -> None:

@@ -27,14 +27,14 @@ extern "C" {
 
 /* Layout versions (the header's `version` must equal the type's). */
 #define UAVLOC_MEASUREMENT_VERSION 2u
-#define UAVLOC_ESTIMATE_VERSION 5u
-#define UAVLOC_COMMAND_VERSION 4u
+#define UAVLOC_ESTIMATE_VERSION 6u
+#define UAVLOC_COMMAND_VERSION 5u
 #define UAVLOC_TRUTH_VERSION 2u
 #define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v2"
-#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v5"
-#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v4"
+#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v6"
+#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v5"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
 
@@ -116,6 +116,7 @@ typedef struct uavloc_estimate {
     double velocity_cov[2][2];        /* m^2/s^2 */
     double sigmas[UAVLOC_MAX_UAVS];   /* m: stated sigma (range, GNSS, clock) of the measurement; all 0: not stated */
     double bias_cov[2][2];            /* m^2: the persistent GNSS/clock errors' covariance, added to covariance */
+    double bias_sensitivity[4][UAVLOC_MAX_UAVS]; /* d(estimate - truth)/d(bias of UAV j): rows x, y, vx, vy */
 } uavloc_estimate;
 
 /* uavloc_command.flags */
@@ -142,6 +143,7 @@ typedef struct uavloc_state_echo {
     double velocity[2];                 /* m/s */
     double cross_cov[2][2];             /* m^2/s */
     double velocity_cov[2][2];          /* m^2/s^2 */
+    double bias_sensitivity[4][UAVLOC_MAX_UAVS]; /* as uavloc_estimate */
 } uavloc_state_echo;
 
 /* planner -> front end (emitter-sim), monitor: the headings for step k. */
@@ -158,7 +160,7 @@ typedef struct uavloc_command {
     double waypoints[UAVLOC_MAX_UAVS][2]; /* where they lead after one interval, m */
     uavloc_name16 solver;               /* e.g. "pso" */
     uavloc_name16 objective_name;       /* e.g. "analytical" */
-    uavloc_state_echo state;            /* the estimator's state it was planned from (v4) */
+    uavloc_state_echo state;            /* the estimator's state it was planned from (v4; v5 with bias_sensitivity) */
 } uavloc_command;
 
 /* uavloc_truth.previous_command */

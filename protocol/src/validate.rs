@@ -323,6 +323,7 @@ struct StateFields {
     velocity: &'static str,
     cross_cov: &'static str,
     velocity_cov: &'static str,
+    bias_sensitivity: &'static str,
 }
 
 const ESTIMATE_FIELDS: StateFields = StateFields {
@@ -333,6 +334,7 @@ const ESTIMATE_FIELDS: StateFields = StateFields {
     velocity: "velocity",
     cross_cov: "cross_cov",
     velocity_cov: "velocity_cov",
+    bias_sensitivity: "bias_sensitivity",
 };
 
 const STATE_FIELDS: StateFields = StateFields {
@@ -343,6 +345,7 @@ const STATE_FIELDS: StateFields = StateFields {
     velocity: "state velocity",
     cross_cov: "state cross_cov",
     velocity_cov: "state velocity_cov",
+    bias_sensitivity: "state bias_sensitivity",
 };
 
 impl StateFields {
@@ -356,9 +359,10 @@ impl StateFields {
         Ok(())
     }
 
-    /// The posterior beyond the position: a known estimator and model, and for the constant-velocity
-    /// model a finite velocity block.
+    /// The posterior beyond the position: a known estimator and model, a finite bias sensitivity, and
+    /// for the constant-velocity model a finite velocity block.
     fn check_posterior(&self, x: &crate::PosteriorExtra) -> Result<(), Rejection> {
+        check_finite(self.bias_sensitivity, x.bias_sensitivity.iter().flatten())?;
         if x.estimator > 1 {
             return Err(Rejection::UnknownKind { field: self.estimator, kind: u32::from(x.estimator) });
         }
@@ -779,6 +783,7 @@ mod tests {
             velocity: [1.0, -2.0],
             cross_cov: [[0.1, 0.2], [0.3, 0.4]],
             velocity_cov: [[5.0, 0.5], [0.5, 6.0]],
+            bias_sensitivity: [[0.5; crate::MAX_UAVS]; 4],
         });
         let c = command().with_state_of(&e);
         assert_eq!(c.validate(None), Ok(()));
@@ -805,6 +810,7 @@ mod tests {
         assert_eq!(bad(|s| s.covariance[1][1] = -1.0), "not_positive_definite");
         assert_eq!(bad(|s| s.kind = 3), "unknown_kind");
         assert_eq!(bad(|s| s.velocity_cov[0][0] = f64::INFINITY), "not_finite");
+        assert_eq!(bad(|s| s.bias_sensitivity[3][7] = f64::NAN), "not_finite");
 
         // The monitor's answer to a state request carries the echo, checked the same way; a hold is no
         // state to send.

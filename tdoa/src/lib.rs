@@ -10,6 +10,7 @@
 
 pub mod arrivals;
 pub mod chan;
+pub mod consider;
 pub mod dist;
 mod error;
 pub mod fim;

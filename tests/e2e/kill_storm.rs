@@ -275,7 +275,9 @@ fn backoff_ms(attempt: usize) -> u64 {
 
 /// One storm: a launch of `steps` steps at `step_delay_ms`, every role killed `kills_per_role` times
 /// alone plus `pairs` double kills, then every check of the module doc.
-fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_ms: u64) {
+/// A storm of `kills_per_role` SIGKILLs per process and `pairs` pairs killed together over a launch of
+/// `steps` steps (`scenario`: a scenario file, or the default one), checked against `simulate`.
+fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_ms: u64, scenario: Option<&str>) {
     let started = Instant::now();
     let seed = kill_seed();
     eprintln!("kill storm {tag}: UAVLOC_KILL_SEED={seed}");
@@ -290,8 +292,13 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
     // emitter-sim gives up on a step whose command has not come after --command-timeout-s (10 s by default):
     // the launcher restarts one process at a time, up to 1.6 s each, so a burst of kills (events that fell
     // due together while the monitor was restarting) can hold a step longer than that.
-    let flags =
-        ["--steps", &n, "--step-delay-ms", &delay, "--max-restarts", &max_restarts, "--command-timeout-s", "60"];
+    let mut flags =
+        vec!["--steps", &n, "--step-delay-ms", &delay, "--max-restarts", &max_restarts, "--command-timeout-s", "60"];
+    let mut sim_args = vec!["simulate", "--json", "--steps", &n];
+    if let Some(path) = scenario {
+        flags.extend(["--scenario", path]);
+        sim_args.extend(["--scenario", path]);
+    }
     let mut launch = Launch::start(&d, &dir, &flags);
     let mut guard = StopOnPanic(Some(launch.child.id()));
     let mut tail = LogTail::new(&launch.log);
@@ -379,7 +386,7 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
     assert_eq!(emitter["summary"]["steps"].as_u64(), Some(steps - started_at), "{emitter}");
 
     // The run is exactly simulate's (its active constraints as the command's bit mask carries them).
-    let sim = json_of(&["simulate", "--json", "--steps", &n]);
+    let sim = json_of(&sim_args);
     assert_same_run(&sim, &run, tag);
     assert_eq!(run["rejected"].as_u64(), Some(0), "{}", run["rejected_by"]);
     // Kills and restarts leave the flight safe: nothing broken along the arcs.
@@ -393,14 +400,24 @@ fn storm(tag: &str, kills_per_role: usize, pairs: usize, steps: u64, step_delay_
 #[test]
 fn quick_storm_two_kills_per_process_and_one_pair() {
     let _scenario = common::scenario(module_path!());
-    storm("quick", 2, 1, 300, 10);
+    storm("quick", 2, 1, 300, 10, None);
 }
 
 /// The long storm: alone (a scenario of its own), so that no other test takes the 2 cores from it.
 #[test]
 fn ten_kills_per_process_and_pairs() {
     let _scenario = common::scenario(concat!(module_path!(), "::long"));
-    storm("long", 10, 3, 1500, 5);
+    storm("long", 10, 3, 1500, 5, None);
+}
+
+/// The quick storm in a world with every receiver impairment on (`scenarios/receiver.toml`: lost
+/// arrivals, silent steps, multipath, GNSS and clock errors per step and for the flight): a restarted
+/// estimator takes the whole state from the messages — the fused posterior, the track's confirmation and
+/// the bias sensitivity — and the run is still `simulate`'s, bit for bit.
+#[test]
+fn quick_storm_with_every_receiver_impairment() {
+    let _scenario = common::scenario(module_path!());
+    storm("receiver", 2, 1, 300, 10, Some(concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/receiver.toml")));
 }
 
 /// A restarted monitor asks emitter-sim to replay the run from its first missing step. When that step's

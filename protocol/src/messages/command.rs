@@ -25,7 +25,7 @@ pub struct PlanInfo<'a> {
 
 /// planner → emitter-sim, monitor: the headings to fly for the next step.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Command/v4")]
+#[type_name("uavloc::Command/v5")]
 #[repr(C)]
 pub struct Command {
     /// Common header (step of the estimate it was planned from).
@@ -55,11 +55,12 @@ pub struct Command {
     /// Objective name.
     pub objective_name: Name16,
     /// The estimator's state after the step this command was planned from, echoed from that estimate
-    /// (v4): where a restarted, rewound or replayed-to estimator finds it (see [`StateEcho`]).
+    /// (v4; v5 with the bias sensitivity): where a restarted, rewound or replayed-to estimator finds it
+    /// (see [`StateEcho`]).
     pub state: StateEcho,
 }
 
-impl_message!(Command, MessageKind::Command, 4, "uavloc::Command/v4");
+impl_message!(Command, MessageKind::Command, 5, "uavloc::Command/v5");
 
 impl_per_uav!(Command {
     /// Headings in use.
@@ -74,7 +75,7 @@ impl_per_uav!(Command {
 /// continues the chain at step `step + 1` exactly as the one that made the estimate would have
 /// (`uavloc-estimator`), so no estimator keeps its answers or needs a checkpoint to answer a replay.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::StateEcho/v1")]
+#[type_name("uavloc::StateEcho/v2")]
 #[repr(C)]
 pub struct StateEcho {
     /// The step of the estimate.
@@ -103,14 +104,18 @@ pub struct StateEcho {
     pub cross_cov: [[f64; 2]; 2],
     /// As [`Estimate::velocity_cov`], m²/s².
     pub velocity_cov: [[f64; 2]; 2],
+    /// As [`Estimate::bias_sensitivity`] (v2).
+    pub bias_sensitivity: [[f64; MAX_UAVS]; 4],
 }
 
-// SAFETY: repr(C) of u64, eight u8 and f64 arrays, without implicit padding (144 bytes, see
+// SAFETY: repr(C) of u64, eight u8 and f64 arrays, without implicit padding (400 bytes, see
 // `layout_is_stable`): every bit pattern is a value.
 unsafe impl AnyBitPattern for StateEcho {}
 
-/// What a [`StateEcho`] says, decoded.
+/// What a [`StateEcho`] says, decoded. (A short-lived, `Copy` view of one message: the size of its
+/// `State` variant is the message's own.)
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[allow(clippy::large_enum_variant)]
 pub enum EchoedState {
     /// The estimator's state after `step`: the estimate and the posterior beyond the position.
     State {
@@ -149,7 +154,7 @@ impl StateEcho {
     pub fn of(e: &Estimate) -> Option<Self> {
         e.status()?;
         let mut echo = StateEcho { step: e.header.step, ..StateEcho::default() };
-        match e.plan_from() {
+        match e.state_from() {
             Some((position, covariance)) => {
                 echo.kind = Self::STATE;
                 echo.position = position;

@@ -108,11 +108,15 @@ pub struct PosteriorExtra {
     pub cross_cov: [[f64; 2]; 2],
     /// Velocity covariance, m²/s².
     pub velocity_cov: [[f64; 2]; 2],
+    /// How the estimate depends on each UAV's flight-long range bias, `S = ∂(x̂ − x)/∂β` (rows x, y, vx,
+    /// vy; one column per UAV; zeros without a fix): the consider state `bias_cov = S Σ_β Sᵀ` comes from.
+    #[serde(default)]
+    pub bias_sensitivity: [[f64; MAX_UAVS]; 4],
 }
 
 /// The fused posterior's fields beyond the position, as every message that carries an estimator state
 /// lays them out (`estimator`, `model`, `rejected_run`, `confirmed`, `velocity`, `cross_cov`,
-/// `velocity_cov`): one
+/// `velocity_cov`, `bias_sensitivity`): one
 /// mapping to and from [`PosteriorExtra`] for [`Estimate`] and [`StateEcho`].
 macro_rules! impl_posterior_fields {
     ($ty:ident) => {
@@ -127,6 +131,7 @@ macro_rules! impl_posterior_fields {
                     velocity: self.velocity,
                     cross_cov: self.cross_cov,
                     velocity_cov: self.velocity_cov,
+                    bias_sensitivity: self.bias_sensitivity,
                 }
             }
 
@@ -139,6 +144,7 @@ macro_rules! impl_posterior_fields {
                 self.velocity = extra.velocity;
                 self.cross_cov = extra.cross_cov;
                 self.velocity_cov = extra.velocity_cov;
+                self.bias_sensitivity = extra.bias_sensitivity;
             }
         }
     };
@@ -149,7 +155,7 @@ impl_posterior_fields!(StateEcho);
 
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v5")]
+#[type_name("uavloc::Estimate/v6")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -198,11 +204,15 @@ pub struct Estimate {
     /// with the GNSS and clock errors (see `Measurement::stated_sigmas`).
     pub sigmas: [f64; MAX_UAVS],
     /// The consider covariance of the persistent GNSS and clock errors at the estimate, m² (v5; zero
-    /// without them): not part of the fused state; [`Estimate::plan_from`] adds it.
+    /// without them): not part of the fused state; [`Estimate::plan_from`] adds it. From v6
+    /// `S Σ_β Sᵀ` of `bias_sensitivity`.
     pub bias_cov: [[f64; 2]; 2],
+    /// How the estimate depends on each UAV's flight-long range bias, `S = ∂(x̂ − x)/∂β` (v6; rows x,
+    /// y, vx, vy; one column per UAV; metres per metre, 1/s): part of the estimator's state.
+    pub bias_sensitivity: [[f64; MAX_UAVS]; 4],
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 5, "uavloc::Estimate/v5");
+impl_message!(Estimate, MessageKind::Estimate, 6, "uavloc::Estimate/v6");
 
 impl_per_uav!(Estimate {
     /// UAV positions in use.
@@ -245,6 +255,7 @@ impl Estimate {
             velocity_cov: [[0.0; 2]; 2],
             sigmas: [0.0; MAX_UAVS],
             bias_cov: [[0.0; 2]; 2],
+            bias_sensitivity: [[0.0; MAX_UAVS]; 4],
         };
         e.uavs[..n].copy_from_slice(uavs);
         e.headings[..n].copy_from_slice(headings);
@@ -295,12 +306,19 @@ impl Estimate {
     /// failed one, `None` for a failed one without (no usable estimate yet) or an unknown status. The
     /// covariance includes the persistent errors' [`bias_cov`](Self::bias_cov).
     pub fn plan_from(&self) -> Option<([f64; 2], [[f64; 2]; 2])> {
-        let c = &self.covariance;
+        let (position, c) = self.state_from()?;
         let b = &self.bias_cov;
         let total = [[c[0][0] + b[0][0], c[0][1] + b[0][1]], [c[1][0] + b[1][0], c[1][1] + b[1][1]]];
+        Some((position, total))
+    }
+
+    /// The estimator's own state of this step, as [`plan_from`](Self::plan_from) picks it but with the
+    /// fused covariance alone (without `bias_cov`, which the bias sensitivity carries): what a restarted
+    /// estimator goes on from.
+    pub fn state_from(&self) -> Option<([f64; 2], [[f64; 2]; 2])> {
         match self.status()? {
             EstimateStatus::Failed if !self.position.iter().all(|v| v.is_finite()) => None,
-            _ => Some((self.position, total)),
+            _ => Some((self.position, self.covariance)),
         }
     }
 
