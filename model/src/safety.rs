@@ -161,8 +161,13 @@ pub struct SafetyLimits {
     pub dt: f64,
     /// `R_min`, metres (0: off).
     pub r_min: f64,
-    /// `D_min`, metres (0: off).
+    /// `D_min`, metres (0: off), between the positions the planner knows.
     pub d_min: f64,
+    /// The part of `d_min` that covers the UAVs' own position errors (0: exact positions): a pair closer
+    /// than `d_min` breaks the certificate; closer than `d_min − position_margin_m`, it is a collision
+    /// (the first tier, [`SafetyReport::collision_deficit`]). So a plan never buys back a few metres of
+    /// that margin with a UAV deep inside the standoff ring.
+    pub position_margin_m: f64,
     /// `L_min`, metres (0: off).
     pub l_min: f64,
     /// `k = Φ⁻¹(c)` of the standoff chance bound (0: at ẑ).
@@ -426,16 +431,20 @@ impl<'a> Certifier<'a> {
         let part = |i: usize| parts[i].expect("computed above");
         let mut tightest: Option<Tightest> = None;
         let (mut total, mut step, mut collision) = (0.0, 0.0f64, 0.0f64);
-        let mut note = |limit, uav, other, deficit: f64| {
+        // `hard`: the deficit that counts as a collision (below D_min itself for the spacing limits).
+        let mut note = |limit, uav, other, deficit: f64, hard: f64| {
             let deficit = if deficit.is_nan() { f64::INFINITY } else { deficit };
+            let hard = if hard.is_nan() { f64::INFINITY } else { hard };
             if deficit > 0.0 {
                 total += deficit;
                 if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::Standoff) {
                     step = step.max(deficit);
                 }
-                if matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::BackupSpacing) {
-                    collision = collision.max(deficit);
-                }
+            }
+            if hard > 0.0
+                && matches!(limit, SafetyLimit::TurnRadius | SafetyLimit::Spacing | SafetyLimit::BackupSpacing)
+            {
+                collision = collision.max(hard);
             }
             if tightest.is_none_or(|t| deficit > t.deficit) {
                 tightest = Some(Tightest { limit, uav, other, deficit });
@@ -447,12 +456,8 @@ impl<'a> Certifier<'a> {
         if limits.r_min > 0.0 {
             for i in 0..n {
                 // A turn clamped exactly onto θ_max may come back one ulp beyond it: rounding, not a violation.
-                note(
-                    SafetyLimit::TurnRadius,
-                    i,
-                    None,
-                    (part(i).arc.turn.abs() - theta_max) / theta_max - TURN_ROUNDING,
-                );
+                let deficit = (part(i).arc.turn.abs() - theta_max) / theta_max - TURN_ROUNDING;
+                note(SafetyLimit::TurnRadius, i, None, deficit, deficit);
             }
         }
         // 2. Spacing along the arcs, and 4a. on the backup circles (closed form, for ever).
@@ -467,12 +472,14 @@ impl<'a> Certifier<'a> {
         let pair = |i: usize, j: usize| pairs[pair_index(i, j)].expect("computed above");
         let mut min_pair = None::<f64>;
         let mut backup_pair = None::<f64>;
+        // The spacing a collision is judged by: D_min without the position margin.
+        let hard_d = (limits.d_min - limits.position_margin_m).max(f64::MIN_POSITIVE);
         if limits.d_min > 0.0 {
             let d = limits.d_min;
             for i in 0..n {
                 for j in i + 1..n {
                     let p = pair(i, j);
-                    note(SafetyLimit::Spacing, i, Some(j), (d - p.along) / d);
+                    note(SafetyLimit::Spacing, i, Some(j), (d - p.along) / d, (hard_d - p.along) / hard_d);
                     let m = if exact {
                         let (a, b) = (part(i), part(j));
                         let (f0, f1) = ((self.positions[i] - self.positions[j]).norm(), (a.end - b.end).norm());
@@ -493,7 +500,7 @@ impl<'a> Certifier<'a> {
             let (z, v, dt) = (self.emitter.position, self.emitter.velocity, limits.dt);
             for i in 0..n {
                 let m = part(i).standoff;
-                note(SafetyLimit::Standoff, i, None, (b_step - m) / b_step);
+                note(SafetyLimit::Standoff, i, None, (b_step - m) / b_step, 0.0);
                 reserve_deficit = reserve_deficit.max((b_step + reserve - m) / (b_step + reserve));
                 let m = if exact { moving_point_min_distance(&part(i).arc, z, v, dt, f64::INFINITY).lower } else { m };
                 let margin = m - b_step;
@@ -507,7 +514,14 @@ impl<'a> Certifier<'a> {
                 for j in i + 1..n {
                     let m = pair(i, j).backup;
                     backup_pair = Some(backup_pair.map_or(m, |p| p.min(m)));
-                    note(SafetyLimit::BackupSpacing, i, Some(j), (need - m) / need);
+                    let hard = hard_d + delta;
+                    note(SafetyLimit::BackupSpacing, i, Some(j), (need - m) / need, (hard - m) / hard);
+                    // The reported positions move by their GNSS errors from one step to the next: keep
+                    // the backup circles one margin further apart where a plan can.
+                    if limits.position_margin_m > 0.0 {
+                        let kept = need + limits.position_margin_m;
+                        reserve_deficit = reserve_deficit.max((kept - m) / kept);
+                    }
                 }
             }
         }
@@ -519,7 +533,7 @@ impl<'a> Certifier<'a> {
                 let to_circle = part(i).to_circle;
                 let margin = to_circle - need;
                 backup_standoff = Some(backup_standoff.map_or(margin, |s| s.min(margin)));
-                note(SafetyLimit::BackupStandoff, i, None, (need + delta - to_circle) / (need + delta));
+                note(SafetyLimit::BackupStandoff, i, None, (need + delta - to_circle) / (need + delta), 0.0);
                 let kept = need + delta + reserve;
                 reserve_deficit = reserve_deficit.max((kept - to_circle) / kept);
             }
@@ -561,6 +575,7 @@ mod tests {
             dt: 10.0,
             r_min: 1000.0,
             d_min: 500.0,
+            position_margin_m: 0.0,
             l_min: 3000.0,
             standoff_k: 2.326,
             horizon_s: 300.0,

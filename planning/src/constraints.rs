@@ -136,7 +136,8 @@ impl Constraints {
         Self {
             arc_len: scenario.speed * scenario.dt,
             r_min: scenario.r_min,
-            d_min: scenario.d_min,
+            // Between reported positions, with the margin their GNSS errors need (0 for exact ones).
+            d_min: scenario.d_min + crate::shield::PositionMargin::of(scenario).spacing_m,
             l_min: scenario.l_min,
             delta_alpha: scenario.delta_alpha,
             standoff_k: standoff_k(scenario.standoff_confidence),

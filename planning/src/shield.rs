@@ -48,13 +48,42 @@ pub struct EmitterMotion {
     pub velocity_cov: Matrix2<f64>,
 }
 
-/// The limits of `scenario` as the certificate takes them.
+/// Standard deviations of the relative position error two UAVs' spacing is certified beyond: `D_min`
+/// holds between the true positions unless their GNSS errors along the pair's line exceed 5 σ
+/// (one-sided probability 3·10⁻⁷ per pair and step).
+pub const SPACING_POSITION_SIGMAS: f64 = 5.0;
+
+/// What the UAVs' own position errors cost the safety constraints: the planner knows each UAV where its
+/// GNSS reports it, `σ_g` per axis per step and `σ_gb` for the flight (the scenario's `receiver.gnss_*`),
+/// so the true distance between two UAVs differs from the reported one by a Gaussian of variance
+/// `2 (σ_g² + σ_gb²)` along their line, and a UAV's true distance to the emitter by one of variance
+/// `σ_g² + σ_gb²` more than the emitter's own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionMargin {
+    /// Added to the emitter's covariance in the standoff's chance bound (isotropic), m².
+    pub variance_m2: f64,
+    /// Added to `D_min` for the certificate: [`SPACING_POSITION_SIGMAS`] relative σ, metres.
+    pub spacing_m: f64,
+}
+
+impl PositionMargin {
+    /// The margin of `sc`'s receiver (zero for exact positions: the paper's world, unchanged).
+    pub fn of(sc: &Scenario) -> Self {
+        let var = sc.receiver.gnss_sigma_m.powi(2) + sc.receiver.gnss_bias_sigma_m.powi(2);
+        Self { variance_m2: var, spacing_m: SPACING_POSITION_SIGMAS * (2.0 * var).sqrt() }
+    }
+}
+
+/// The limits of `scenario` as the certificate takes them: `D_min` with the [`PositionMargin`] (a pair
+/// below `D_min` itself is what the first tier, a collision, ranks).
 pub fn safety_limits(scenario: &Scenario) -> SafetyLimits {
+    let margin = PositionMargin::of(scenario).spacing_m;
     SafetyLimits {
         arc_len: scenario.speed * scenario.dt,
         dt: scenario.dt,
         r_min: scenario.r_min,
-        d_min: scenario.d_min,
+        d_min: scenario.d_min + margin,
+        position_margin_m: margin,
         l_min: scenario.l_min,
         standoff_k: crate::constraints::standoff_k(scenario.standoff_confidence),
         horizon_s: scenario.safety_horizon_s,

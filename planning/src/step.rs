@@ -52,7 +52,7 @@ use crate::formation::formation_headings;
 use crate::gradient::Gradient;
 use crate::heading_interval::{HeadingInterval, Uav, heading_interval, heading_interval_of};
 use crate::objective::{ObjectiveKind, Sampling};
-use crate::shield::{EmitterMotion, Shield, prediction, safety_limits};
+use crate::shield::{EmitterMotion, PositionMargin, Shield, prediction, safety_limits};
 use crate::solver::{SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult};
 use model::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use model::safety::{SafetyMode, SafetyReport};
@@ -246,51 +246,11 @@ fn arrival_odds(sc: &Scenario) -> Result<tdoa::loss::ArrivalOdds, TdoaError> {
     tdoa::loss::ArrivalOdds::uniform(sc.uav_count(), sc.receiver.loss, sc.receiver.silence)
 }
 
-/// Standard deviations of the relative position error two UAVs' spacing is kept beyond: `D_min` holds
-/// between the true positions unless their GNSS errors along the pair's line exceed 5 σ (one-sided
-/// probability 3·10⁻⁷ per pair and step).
-pub const SPACING_POSITION_SIGMAS: f64 = 5.0;
-
-/// What the UAVs' own position errors cost the safety constraints: the planner knows each UAV where its
-/// GNSS reports it, `σ_g` per axis per step and `σ_gb` for the flight (the scenario's `receiver.gnss_*`),
-/// so the true distance between two UAVs differs from the reported one by a Gaussian of variance
-/// `2 (σ_g² + σ_gb²)` along their line, and a UAV's true distance to the emitter by one of variance
-/// `σ_g² + σ_gb²` more than the emitter's own.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PositionMargin {
-    /// Added to the emitter's covariance in the standoff's chance bound (isotropic), m².
-    pub variance_m2: f64,
-    /// Added to `D_min`: [`SPACING_POSITION_SIGMAS`] relative σ, metres.
-    pub spacing_m: f64,
-}
-
-impl PositionMargin {
-    /// The margin of `sc`'s receiver (zero for exact positions: the paper's world, unchanged).
-    pub fn of(sc: &Scenario) -> Self {
-        let var = sc.receiver.gnss_sigma_m.powi(2) + sc.receiver.gnss_bias_sigma_m.powi(2);
-        Self { variance_m2: var, spacing_m: SPACING_POSITION_SIGMAS * (2.0 * var).sqrt() }
-    }
-}
-
 /// Plans one step; see the module docs. With UAV positions known only to their GNSS error
-/// ([`PositionMargin`]), the safety constraints are kept with the margin: `D_min` plus the spacing
-/// margin between reported positions, and the standoff's chance bound over the emitter's covariance plus
-/// the UAV's position variance; the criterion keeps the estimate's own covariance.
+/// ([`PositionMargin`]), the safety constraints keep its margin: `D_min` plus the spacing margin between
+/// reported positions, and the standoff's chance bound over the emitter's covariance plus the UAV's
+/// position variance; the criterion keeps the estimate's own covariance.
 pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
-    let margin = PositionMargin::of(req.scenario);
-    if margin.spacing_m == 0.0 {
-        return plan(req, req.covariance);
-    }
-    req.scenario.validate()?;
-    let sc = Scenario { d_min: req.scenario.d_min + margin.spacing_m, ..req.scenario.clone() };
-    let safe =
-        PlanRequest { scenario: &sc, covariance: req.covariance + Matrix2::identity() * margin.variance_m2, ..*req };
-    plan(&safe, req.covariance)
-}
-
-/// [`plan_step`] with the safety constraints of `req` (its scenario's `D_min`, its covariance) and the
-/// criterion's covariance `criterion_cov`.
-fn plan(req: &PlanRequest<'_>, criterion_cov: Matrix2<f64>) -> Result<PlanOutput, PlanError> {
     let start = Instant::now();
     let sc = req.scenario;
     sc.validate()?;
@@ -311,9 +271,11 @@ fn plan(req: &PlanRequest<'_>, criterion_cov: Matrix2<f64>) -> Result<PlanOutput
         }
     }
     let (pos, psi, z) = (req.positions, req.headings, req.estimate);
-    let constraints = Constraints::from_scenario(sc).with_covariance(req.covariance).for_step(pos, req.estimate);
+    // The safety constraints see the UAVs' own position errors too (zero for exact positions).
+    let safety_cov = req.covariance + Matrix2::identity() * PositionMargin::of(sc).variance_m2;
+    let constraints = Constraints::from_scenario(sc).with_covariance(safety_cov).for_step(pos, req.estimate);
     let r_avg = pos.iter().map(|p| (p - z).norm()).sum::<f64>() / n as f64;
-    let unc = Uncertainty::with_eq36_side(z, criterion_cov, r_avg, sc.kappa)?;
+    let unc = Uncertainty::with_eq36_side(z, req.covariance, r_avg, sc.kappa)?;
     let objective = crate::objective::prepare(
         req.objective,
         &unc,
@@ -324,7 +286,7 @@ fn plan(req: &PlanRequest<'_>, criterion_cov: Matrix2<f64>) -> Result<PlanOutput
 
     if sc.safety == SafetyMode::Certified {
         let shield =
-            Shield::new(pos, psi, safety_limits(sc), prediction(sc, z, &req.covariance, req.motion), &constraints, z);
+            Shield::new(pos, psi, safety_limits(sc), prediction(sc, z, &safety_cov, req.motion), &constraints, z);
         let mut safe = |phi: &[f64]| {
             shield.fitness(phi, || {
                 let next = waypoints_of(pos, psi, phi, sc);

@@ -23,13 +23,12 @@
 //! GNSS and clock errors are not white: a part of each lasts the whole flight (`σ_gb`, `σ_cb`). Such a
 //! bias never averages out: fusing K snapshots shrinks the white part of the error like 1/K, not the
 //! bias's. The estimators here keep the bias variance in the per-step noise (so that the χ² gate sees
-//! the real spread of the innovations) and, in addition, report the *bias covariance*
-//! [`bias_covariance`]: the covariance of the position error the biases alone cause in one snapshot of
-//! the swarm's geometry, `(Hᵀ Q_b⁻¹ H)⁻¹` with `Q_b` built from `s_i² = σ_gb² + σ_cb²` — a consider
-//! covariance added to the fused one. It is the bias's effect at the current geometry only: the fused
-//! estimate also keeps the bias error of the earlier steps' geometries, which were worse, so the sum
-//! understates the error in the middle of a run (measured: mean NEES 2.4–3.6 instead of 2 at steps
-//! 5–15 with 5 m and 10 ns biases). A consider state carried through the filter would not.
+//! the real spread of the innovations). [`bias_covariance`] is the covariance of the position error the
+//! biases alone cause in one snapshot of the swarm's geometry, `(Hᵀ Q_b⁻¹ H)⁻¹` with `Q_b` built from
+//! `s_i² = σ_gb² + σ_cb²` (the bound's bias part). The estimators carry the bias as a consider state
+//! ([`crate::consider`]): the fused estimate keeps the bias error of the earlier steps' geometries too,
+//! which this snapshot covariance at the current geometry misses (measured with it: mean NEES 2.4–3.6
+//! instead of 2 at steps 5–15 with 5 m and 10 ns biases).
 //!
 //! Units: metres (positions, arrivals, σ), m² (covariances).
 

@@ -12,7 +12,7 @@
 //! ```
 //!
 //! (`u_i` the unit vector from UAV i to the emitter); `F_S = 0` for fewer than two arrivals. For `S` the
-//! whole swarm this is eq. 48, `Jᵀ Q⁻¹ J` — the tests check it against [`crate::fim`].
+//! whole swarm this is eq. 48, `Jᵀ Q⁻¹ J` — the tests check it against [`crate::fim()`].
 //!
 //! ## The expected posterior
 //! With arrival i kept with probability `p_i` independently and the emitter silent with probability
