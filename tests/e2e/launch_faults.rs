@@ -151,27 +151,20 @@ fn a_run_without_a_first_fix_holds_then_ends_launch_as_it_ends_simulate() {
     // Ended by the planner's verdict, not by a timeout after restarts.
     assert!(!err.contains("restarting") && !err.contains("no command within"), "{err}");
     assert_nothing_left(&d);
-    // σ = 500 m: step 0 has no fix, a later step has; both hold course until then and agree.
+    // The same 6-step run of the scenario `text` by simulate and by launch (seed 10), nothing left after.
+    let both = |name: &str, text: String| -> (Value, Value) {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let path = path.to_str().unwrap();
+        let common = ["--json", "--scenario", path, "--seed", "10", "--steps", "6"];
+        let sim = json_of(&[&["simulate"][..], &common].concat());
+        let d = domain("nofix", name);
+        let run = json_of(&[&["launch", "--headless", "--domain", d.as_str()][..], &common].concat());
+        assert_nothing_left(&d);
+        (sim, run)
+    };
     // Silent at 99.99 % of the steps: every step holds, none ends the run.
-    let silent = format!("{nominal}\n[receiver]\nsilence = 0.9999\n");
-    let path = dir.join("silent.toml");
-    std::fs::write(&path, silent).unwrap();
-    let path = path.to_str().unwrap();
-    let sim = json_of(&["simulate", "--json", "--scenario", path, "--seed", "10", "--steps", "6"]);
-    let d = domain("nofix", "silent");
-    let run = json_of(&[
-        "launch",
-        "--headless",
-        "--json",
-        "--scenario",
-        path,
-        "--seed",
-        "10",
-        "--steps",
-        "6",
-        "--domain",
-        &d,
-    ]);
+    let (sim, run) = both("silent", format!("{nominal}\n[receiver]\nsilence = 0.9999\n"));
     let steps = sim["steps"].as_array().unwrap();
     assert_eq!(steps.len(), 7, "every step of the silent run is there");
     for (k, s) in steps.iter().enumerate() {
@@ -183,30 +176,11 @@ fn a_run_without_a_first_fix_holds_then_ends_launch_as_it_ends_simulate() {
         assert_eq!(s["active_constraints"], serde_json::json!(["estimate_stale"]), "step {} held", s["step"]);
     }
     assert_same_run(&sim, &run, "a silent run");
-    assert_nothing_left(&d);
-    let half = with_sigma("500.0");
-    let path = dir.join("half.toml");
-    std::fs::write(&path, half).unwrap();
-    let path = path.to_str().unwrap();
-    let sim = json_of(&["simulate", "--json", "--scenario", path, "--seed", "10", "--steps", "6"]);
-    let d = domain("nofix", "hold");
-    let run = json_of(&[
-        "launch",
-        "--headless",
-        "--json",
-        "--scenario",
-        path,
-        "--seed",
-        "10",
-        "--steps",
-        "6",
-        "--domain",
-        &d,
-    ]);
+    // σ = 500 m: step 0 has no fix, a later step has; both hold course until then and agree.
+    let (sim, run) = both("hold", with_sigma("500.0"));
     assert_eq!(sim["steps"][0]["active_constraints"], serde_json::json!(["estimate_stale"]), "step 0 held");
     assert!(sim["steps"][0]["estimate"][0].is_null(), "no estimate at step 0");
     assert_same_run(&sim, &run, "a held step 0");
-    assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
