@@ -253,6 +253,7 @@ fn no_fix_yet(a: &tdoa::Arrivals, reason: String) -> estimation::EstimateOut {
         outliers: 0,
         bias_cov: Matrix2::zeros(),
         sensitivity: None,
+        alternative: None,
     }
 }
 

@@ -117,6 +117,9 @@ pub struct EstimateOut {
     /// How the estimate depends on each UAV's flight-long range bias, `S = ∂(x̂ − x)/∂β`
     /// ([`tdoa::consider`]); `None` before any fix. Fused: part of the state the next step starts from.
     pub sensitivity: Option<BiasSensitivity>,
+    /// Fused, after an ambiguous fix: the posterior of Chan's other root (with its bias sensitivity),
+    /// pending until the next burst decides between the two — part of the state after this step.
+    pub alternative: Option<(Posterior, Option<BiasSensitivity>)>,
 }
 
 impl EstimateOut {
@@ -297,6 +300,21 @@ impl Estimator {
         self.sensitivity
     }
 
+    /// This estimator with the pending second root `alt` behind it (the state of an estimate's
+    /// `alternative`; fused only).
+    pub fn with_alternative(mut self, alt: Option<(Posterior, Option<BiasSensitivity>)>) -> Self {
+        if self.config.kind == EstimatorKind::Fused {
+            self.alternative = alt.map(|a| a.0);
+            self.alt_sensitivity = alt.and_then(|a| a.1);
+        }
+        self
+    }
+
+    /// Fused, after an ambiguous fix: the pending second root (see [`EstimateOut::alternative`]).
+    pub fn alternative(&self) -> Option<(Posterior, Option<BiasSensitivity>)> {
+        self.alternative.map(|p| (p, self.alt_sensitivity))
+    }
+
     /// This estimator with `n` snapshots rejected in a row behind it (the state of an estimate's
     /// `rejected_run`).
     pub fn with_rejected_run(mut self, n: u8) -> Self {
@@ -440,12 +458,13 @@ impl Estimator {
             out
         });
         match result {
-            Ok(out) => {
+            Ok(mut out) => {
                 self.previous = Some((out.position, out.covariance));
                 if out.posterior.is_some() {
                     self.posterior = out.posterior;
                     self.sensitivity = out.sensitivity;
                 }
+                out.alternative = self.alternative();
                 Ok(out)
             }
             Err(e) => {
@@ -475,6 +494,7 @@ impl Estimator {
             outliers: 0,
             bias_cov: Matrix2::zeros(),
             sensitivity: self.sensitivity,
+            alternative: self.alternative(),
         })
     }
 
@@ -517,6 +537,7 @@ impl Estimator {
                     outliers: 0,
                     bias_cov: bias_cov(self.sensitivity.as_ref(), a),
                     sensitivity: self.sensitivity,
+                    alternative: self.alternative(),
                 })
             }
             _ => {
@@ -568,6 +589,7 @@ impl Estimator {
             outliers: up.dropped,
             bias_cov: Matrix2::zeros(),
             sensitivity,
+            alternative: None,
         })
     }
 
@@ -630,6 +652,7 @@ impl Estimator {
             outliers: dropped,
             bias_cov: Matrix2::zeros(),
             sensitivity: BiasSensitivity::of_fix(&heard, &sol.position),
+            alternative: None,
         };
         Ok((out, other))
     }

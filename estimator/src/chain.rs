@@ -24,10 +24,15 @@ use tdoa::{Arrivals, Posterior};
 
 use estimation::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig};
 
-/// The wire form of the fused posterior beyond the position, with its bias sensitivity `sensitivity`.
+/// A pending second root as the library estimator keeps it: its posterior and bias sensitivity.
+pub type PendingRoot = (Posterior, Option<BiasSensitivity>);
+
+/// The wire form of the fused posterior beyond the position, with its bias sensitivity `sensitivity`
+/// and the pending second root `alternative`.
 pub fn extra_of(
     posterior: Option<&Posterior>,
     sensitivity: Option<&BiasSensitivity>,
+    alternative: Option<&PendingRoot>,
     rejected_run: u8,
     confirmed: u8,
 ) -> PosteriorExtra {
@@ -36,6 +41,13 @@ pub fn extra_of(
         PosteriorExtra { estimator: 1, model: p.model().code(), rejected_run, confirmed, ..PosteriorExtra::default() };
     if let Some(s) = sensitivity {
         extra.bias_sensitivity = s.rows();
+    }
+    if let Some((alt, s)) = alternative {
+        let (m, c) = (alt.mean(), alt.cov());
+        extra.alternative = 1;
+        extra.alt_mean = [m[0], m[1], m[2], m[3]];
+        extra.alt_cov = std::array::from_fn(|i| std::array::from_fn(|j| c[(i, j)]));
+        extra.alt_bias_sensitivity = s.map_or([[0.0; protocol::MAX_UAVS]; 4], |s| s.rows());
     }
     if p.model() == EmitterModel::ConstantVelocity {
         let (m, c) = (p.mean(), p.cov());
@@ -62,6 +74,23 @@ pub fn posterior_of(position: &[f64; 2], covariance: &[[f64; 2]; 2], extra: &Pos
         x[0][1], x[1][1], v[1][0], v[1][1],
     );
     Posterior::new(model, mean, cov).ok()
+}
+
+/// The pending second root an estimate carries (`alternative` = 1), `None` otherwise or for numbers that
+/// do not form a posterior.
+pub fn pending_of(extra: &PosteriorExtra) -> Option<PendingRoot> {
+    if extra.estimator != 1 || extra.alternative != 1 {
+        return None;
+    }
+    let model = EmitterModel::from_code(extra.model)?;
+    let mean = Vector4::from(extra.alt_mean);
+    let cov = Matrix4::from_fn(|i, j| extra.alt_cov[i][j]);
+    let posterior = Posterior::new(model, mean, cov).ok()?;
+    let zero = [[0.0; protocol::MAX_UAVS]; 4];
+    let s = (extra.alt_bias_sensitivity != zero)
+        .then(|| BiasSensitivity::from_rows(&extra.alt_bias_sensitivity).ok())
+        .flatten();
+    Some((posterior, s))
 }
 
 /// Measurements held for the state before them (the newest are kept beyond).
@@ -92,7 +121,8 @@ impl Chain {
                 let estimator = Estimator::resume(config, step, z, m, posterior)
                     .with_rejected_run(extra.rejected_run)
                     .with_confirmed(extra.confirmed)
-                    .with_sensitivity(sensitivity);
+                    .with_sensitivity(sensitivity)
+                    .with_alternative(pending_of(&extra));
                 Self { estimator, last_step: Some(step) }
             }
             EchoedState::Empty { step } => Self { last_step: Some(step), ..Self::fresh(config) },
@@ -275,6 +305,7 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply
             extra: extra_of(
                 estimator.posterior().as_ref(),
                 estimator.sensitivity().as_ref(),
+                estimator.alternative().as_ref(),
                 estimator.rejected_run(),
                 estimator.confirmed(),
             ),
@@ -304,7 +335,13 @@ pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
             // The library returned its previous estimate: the standing one.
             return Reply {
                 fix: Fix::Failed,
-                extra: extra_of(out.posterior.as_ref(), out.sensitivity.as_ref(), out.rejected_run, out.confirmed),
+                extra: extra_of(
+                    out.posterior.as_ref(),
+                    out.sensitivity.as_ref(),
+                    out.alternative.as_ref(),
+                    out.rejected_run,
+                    out.confirmed,
+                ),
                 standing: Some((position, covariance)),
                 outliers: 0,
                 bias_cov: [[0.0; 2]; 2],
@@ -313,7 +350,13 @@ pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
     };
     Reply {
         fix,
-        extra: extra_of(out.posterior.as_ref(), out.sensitivity.as_ref(), out.rejected_run, out.confirmed),
+        extra: extra_of(
+            out.posterior.as_ref(),
+            out.sensitivity.as_ref(),
+            out.alternative.as_ref(),
+            out.rejected_run,
+            out.confirmed,
+        ),
         standing: None,
         outliers: out.outliers,
         bias_cov: tdoa::matrix_to_rows(&out.bias_cov),
@@ -450,44 +493,85 @@ mod tests {
             .with_sensor_errors([5.0, 2.0], [10.0, 3.0])
     }
 
+    /// Three UAVs whose first burst has two physical roots (Chan is ambiguous), then silent and heard
+    /// steps as the swarm flies on: `(the emitter, the measurement of step k)`.
+    fn ambiguous_run() -> (Vector2<f64>, impl Fn(u64) -> Measurement) {
+        let at = |step: u64| {
+            let t = step as f64;
+            [[300.0 * t, 100.0 * t], [4000.0 + 300.0 * t, 100.0 * t], [300.0 * t, 4000.0 + 100.0 * t]]
+        };
+        let r = |p: [f64; 2], z: Vector2<f64>| (Vector2::new(p[0], p[1]) - z).norm();
+        let uavs0 = at(0);
+        let sensors = tdoa::Sensors::new(&uavs0, tdoa::NoiseModel::uniform(3, 28.7712).unwrap()).unwrap();
+        let z = (-20..=20)
+            .flat_map(|i| (-20..=20).map(move |j| Vector2::new(1000.0 * i as f64 + 137.0, 1000.0 * j as f64 + 71.0)))
+            .find(|z| {
+                let d = sensors.range_differences(z);
+                tdoa::chan(&sensors, &d, None).is_ok_and(|sol| {
+                    sol.ambiguous
+                        && sol.candidates.len() == 2
+                        && (sol.candidates[0] - sol.candidates[1]).norm() > 1000.0
+                })
+            })
+            .expect("an ambiguous geometry");
+        let measure = move |step: u64| {
+            let uavs = at(step);
+            if step % 4 == 1 {
+                return Measurement::silent(step, step + 1, &uavs, &[28.7712; 3], &[0.3; 3]).unwrap();
+            }
+            let e = |i: u64| ((step * 5 + i * 3) % 7) as f64 * 4.0 - 12.0;
+            let diffs = [r(uavs[1], z) - r(uavs[0], z) + e(1), r(uavs[2], z) - r(uavs[0], z) + e(2)];
+            Measurement::new(step, step + 1, &uavs, &diffs, &[28.7712; 3], &[0.3; 3]).unwrap()
+        };
+        (z, measure)
+    }
+
+    /// An estimator restarted after any step of `measure(0..=last)`, told only the state the command of
+    /// that step echoed, gives every later estimate bit for bit as the undisturbed one; returns the
+    /// undisturbed replies.
+    fn restarts_continue(config: EstimatorConfig, measure: &dyn Fn(u64) -> Measurement, last: u64) -> Vec<Reply> {
+        let mut straight = StepEstimator::with_config(config);
+        let (mut reference, mut echoes) = (Vec::new(), Vec::new());
+        for k in 0..=last {
+            let r = reply(straight.handle(&measure(k), k));
+            echoes.push(protocol::StateEcho::of(&r.to_estimate(&measure(k), 0, k + 1, 1).unwrap()).unwrap());
+            reference.push(r);
+        }
+        for after in 0..last {
+            let mut restarted = StepEstimator::with_config(config);
+            restarted.remember(echoes[after as usize]);
+            for k in after + 1..=last {
+                let got = reply(restarted.handle(&measure(k), k));
+                assert_eq!(got, reference[k as usize], "{:?}: restarted after {after}, step {k}", config.kind);
+            }
+        }
+        reference
+    }
+
+    /// A restart between an ambiguous fix and the burst that decides between its two roots goes on from
+    /// both: the pending root travels in the messages.
+    #[test]
+    fn a_restart_while_a_second_root_is_pending_continues_bit_for_bit() {
+        let (_, measure) = ambiguous_run();
+        let cv = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 0.05, 20.0).unwrap();
+        for config in [EstimatorConfig::fused(Dynamics::fixed()), EstimatorConfig::fused(cv)] {
+            let reference = restarts_continue(config, &measure, 12);
+            assert!(matches!(reference[0].fix, Fix::Ambiguous { .. }), "{:?}", reference[0].fix);
+            assert_eq!(reference[0].extra.alternative, 1, "the second root is pending after step 0");
+        }
+    }
+
     /// With every receiver impairment, an estimator restarted after any step — told only the state the
     /// command of that step echoed — gives every later estimate bit for bit as the undisturbed one: the
-    /// posterior, the track's confirmation and the bias sensitivity all travel in the messages.
+    /// posterior, the track's confirmation, the bias sensitivity and a pending second root all travel in
+    /// the messages.
     #[test]
     fn a_restart_after_any_step_of_an_impaired_receiver_continues_bit_for_bit() {
         let cv = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 0.05, 20.0).unwrap();
         for config in [EstimatorConfig::fused(Dynamics::fixed()), EstimatorConfig::fused(cv)] {
-            let last = 30;
-            let mut straight = StepEstimator::with_config(config);
-            let (mut reference, mut echoes) = (Vec::new(), Vec::new());
-            for k in 0..=last {
-                let r = reply(straight.handle(&impaired(k), k));
-                echoes.push(protocol::StateEcho::of(&r.to_estimate(&impaired(k), 0, k + 1, 1).unwrap()).unwrap());
-                reference.push(r);
-            }
+            let reference = restarts_continue(config, &impaired, 30);
             assert!(reference.iter().any(|r| r.extra.bias_sensitivity != [[0.0; protocol::MAX_UAVS]; 4]));
             assert!(reference.iter().any(|r| r.bias_cov != [[0.0; 2]; 2]));
-            // After an ambiguous fix the posterior of Chan's other root waits for the next burst to decide
-            // between the two; that pending root is not in the messages (a restart in that window goes on
-            // from the root chosen first), so the restarts are checked outside it.
-            let mut pending = vec![false; reference.len()];
-            for (k, r) in reference.iter().enumerate() {
-                let before = k > 0 && pending[k - 1];
-                pending[k] = match r.fix {
-                    Fix::Ambiguous { .. } => true,
-                    Fix::Ok { .. } | Fix::Rejected { .. } => false,
-                    _ => before,
-                };
-            }
-            assert!(pending.iter().filter(|p| !**p).count() > 20, "{pending:?}");
-            for after in (0..last).filter(|&a| !pending[a as usize]) {
-                let mut restarted = StepEstimator::with_config(config);
-                restarted.remember(echoes[after as usize]);
-                for k in after + 1..=last {
-                    let got = reply(restarted.handle(&impaired(k), k));
-                    assert_eq!(got, reference[k as usize], "{:?}: restarted after {after}, step {k}", config.kind);
-                }
-            }
         }
     }
 }

@@ -114,13 +114,17 @@ class StateEcho(ctypes.Structure):
         ("model", ctypes.c_uint8),
         ("rejected_run", ctypes.c_uint8),
         ("confirmed", ctypes.c_uint8),
-        ("reserved", ctypes.c_uint8 * 3),
+        ("alternative", ctypes.c_uint8),
+        ("reserved", ctypes.c_uint8 * 2),
         ("position", ctypes.c_double * 2),
         ("covariance", (ctypes.c_double * 2) * 2),
         ("velocity", ctypes.c_double * 2),
         ("cross_cov", (ctypes.c_double * 2) * 2),
         ("velocity_cov", (ctypes.c_double * 2) * 2),
         ("bias_sensitivity", (ctypes.c_double * MAX_UAVS) * 4),
+        ("alt_mean", ctypes.c_double * 4),
+        ("alt_cov", (ctypes.c_double * 4) * 4),
+        ("alt_bias_sensitivity", (ctypes.c_double * MAX_UAVS) * 4),
     ]
 
 
@@ -145,11 +149,11 @@ class Command(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "uavloc::Command/v5"
+        return "uavloc::Command/v6"
 
 
 # Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/e2e/wire_layout.rs).
-SIZES = {Measurement: 672, Command: 760}
+SIZES = {Measurement: 672, Command: 1176}
 
 
 def check_layout() -> None:

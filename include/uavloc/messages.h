@@ -27,14 +27,14 @@ extern "C" {
 
 /* Layout versions (the header's `version` must equal the type's). */
 #define UAVLOC_MEASUREMENT_VERSION 2u
-#define UAVLOC_ESTIMATE_VERSION 6u
-#define UAVLOC_COMMAND_VERSION 5u
+#define UAVLOC_ESTIMATE_VERSION 7u
+#define UAVLOC_COMMAND_VERSION 6u
 #define UAVLOC_TRUTH_VERSION 2u
 #define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v2"
-#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v6"
-#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v5"
+#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v7"
+#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v6"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
 
@@ -106,7 +106,8 @@ typedef struct uavloc_estimate {
     uint8_t heard;                    /* bit i: UAV i's arrival was in the measurement */
     uint8_t outliers;                 /* bit i: UAV i's arrival dropped as an outlier */
     uint8_t confirmed;                /* fused: bursts fused whole since the track started (saturating) */
-    uint8_t reserved[5];
+    uint8_t alternative;              /* fused: 1 when Chan's other root is pending (alt_* below) */
+    uint8_t reserved[4];
     double position[2];               /* m; failed: the standing estimate, or NaN */
     double covariance[2][2];          /* m^2, row-major */
     double uavs[UAVLOC_MAX_UAVS][2];  /* m */
@@ -117,6 +118,9 @@ typedef struct uavloc_estimate {
     double sigmas[UAVLOC_MAX_UAVS];   /* m: stated sigma (range, GNSS, clock) of the measurement; all 0: not stated */
     double bias_cov[2][2];            /* m^2: the persistent GNSS/clock errors' covariance, added to covariance */
     double bias_sensitivity[4][UAVLOC_MAX_UAVS]; /* d(estimate - truth)/d(bias of UAV j): rows x, y, vx, vy */
+    double alt_mean[4];               /* the pending root: x, y (m), vx, vy (m/s) */
+    double alt_cov[4][4];             /* its covariance, row-major */
+    double alt_bias_sensitivity[4][UAVLOC_MAX_UAVS]; /* its bias sensitivity */
 } uavloc_estimate;
 
 /* uavloc_command.flags */
@@ -137,13 +141,17 @@ typedef struct uavloc_state_echo {
     uint8_t model;
     uint8_t rejected_run;
     uint8_t confirmed;                  /* as uavloc_estimate (0: a provisional track) */
-    uint8_t reserved[3];                /* 0 */
+    uint8_t alternative;                /* as uavloc_estimate */
+    uint8_t reserved[2];                /* 0 */
     double position[2];                 /* m */
     double covariance[2][2];            /* m^2 */
     double velocity[2];                 /* m/s */
     double cross_cov[2][2];             /* m^2/s */
     double velocity_cov[2][2];          /* m^2/s^2 */
     double bias_sensitivity[4][UAVLOC_MAX_UAVS]; /* as uavloc_estimate */
+    double alt_mean[4];                 /* as uavloc_estimate */
+    double alt_cov[4][4];
+    double alt_bias_sensitivity[4][UAVLOC_MAX_UAVS];
 } uavloc_state_echo;
 
 /* planner -> front end (emitter-sim), monitor: the headings for step k. */
@@ -160,7 +168,7 @@ typedef struct uavloc_command {
     double waypoints[UAVLOC_MAX_UAVS][2]; /* where they lead after one interval, m */
     uavloc_name16 solver;               /* e.g. "pso" */
     uavloc_name16 objective_name;       /* e.g. "analytical" */
-    uavloc_state_echo state;            /* the estimator's state it was planned from (v4; v5 with bias_sensitivity) */
+    uavloc_state_echo state;            /* the estimator's state it was planned from (v4; v5 bias_sensitivity; v6 alt_*) */
 } uavloc_command;
 
 /* uavloc_truth.previous_command */

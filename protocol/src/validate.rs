@@ -324,6 +324,7 @@ struct StateFields {
     cross_cov: &'static str,
     velocity_cov: &'static str,
     bias_sensitivity: &'static str,
+    alternative: &'static str,
 }
 
 const ESTIMATE_FIELDS: StateFields = StateFields {
@@ -335,6 +336,7 @@ const ESTIMATE_FIELDS: StateFields = StateFields {
     cross_cov: "cross_cov",
     velocity_cov: "velocity_cov",
     bias_sensitivity: "bias_sensitivity",
+    alternative: "alternative",
 };
 
 const STATE_FIELDS: StateFields = StateFields {
@@ -346,6 +348,7 @@ const STATE_FIELDS: StateFields = StateFields {
     cross_cov: "state cross_cov",
     velocity_cov: "state velocity_cov",
     bias_sensitivity: "state bias_sensitivity",
+    alternative: "state alternative",
 };
 
 impl StateFields {
@@ -363,6 +366,15 @@ impl StateFields {
     /// for the constant-velocity model a finite velocity block.
     fn check_posterior(&self, x: &crate::PosteriorExtra) -> Result<(), Rejection> {
         check_finite(self.bias_sensitivity, x.bias_sensitivity.iter().flatten())?;
+        match x.alternative {
+            0 => {}
+            1 => {
+                check_finite(self.alternative, &x.alt_mean)?;
+                check_finite(self.alternative, x.alt_cov.iter().flatten())?;
+                check_finite(self.alternative, x.alt_bias_sensitivity.iter().flatten())?;
+            }
+            kind => return Err(Rejection::UnknownKind { field: self.alternative, kind: u32::from(kind) }),
+        }
         if x.estimator > 1 {
             return Err(Rejection::UnknownKind { field: self.estimator, kind: u32::from(x.estimator) });
         }
@@ -784,6 +796,10 @@ mod tests {
             cross_cov: [[0.1, 0.2], [0.3, 0.4]],
             velocity_cov: [[5.0, 0.5], [0.5, 6.0]],
             bias_sensitivity: [[0.5; crate::MAX_UAVS]; 4],
+            alternative: 1,
+            alt_mean: [1.0, 2.0, 0.0, 0.0],
+            alt_cov: [[4.0, 0.0, 0.0, 0.0], [0.0, 4.0, 0.0, 0.0], [0.0; 4], [0.0; 4]],
+            alt_bias_sensitivity: [[0.25; crate::MAX_UAVS]; 4],
         });
         let c = command().with_state_of(&e);
         assert_eq!(c.validate(None), Ok(()));
@@ -811,6 +827,8 @@ mod tests {
         assert_eq!(bad(|s| s.kind = 3), "unknown_kind");
         assert_eq!(bad(|s| s.velocity_cov[0][0] = f64::INFINITY), "not_finite");
         assert_eq!(bad(|s| s.bias_sensitivity[3][7] = f64::NAN), "not_finite");
+        assert_eq!(bad(|s| s.alt_cov[2][1] = f64::NAN), "not_finite");
+        assert_eq!(bad(|s| s.alternative = 2), "unknown_kind");
 
         // The monitor's answer to a state request carries the echo, checked the same way; a hold is no
         // state to send.

@@ -79,6 +79,7 @@ fn layouts() -> Vec<Layout> {
                 heard,
                 outliers,
                 confirmed,
+                alternative,
                 reserved,
                 position,
                 covariance,
@@ -90,6 +91,9 @@ fn layouts() -> Vec<Layout> {
                 sigmas,
                 bias_cov,
                 bias_sensitivity,
+                alt_mean,
+                alt_cov,
+                alt_bias_sensitivity,
             ]
         ),
         layout!(
@@ -121,13 +125,17 @@ fn layouts() -> Vec<Layout> {
                 model,
                 rejected_run,
                 confirmed,
+                alternative,
                 reserved,
                 position,
                 covariance,
                 velocity,
                 cross_cov,
                 velocity_cov,
-                bias_sensitivity
+                bias_sensitivity,
+                alt_mean,
+                alt_cov,
+                alt_bias_sensitivity
             ]
         ),
         layout!(Truth, "uavloc_truth", [header, position, previous_command, reserved]),
@@ -218,10 +226,10 @@ fn every_field_of_every_type_is_listed() {
         ("uavloc_measurement", vec![size_of::<Header>(), 4, 1, 1, 2, 128, 64, 64, 64, 64, 64, 64, 64]),
         (
             "uavloc_estimate",
-            vec![size_of::<Header>(), 8, 4, 1, 1, 1, 1, 1, 1, 1, 5, 16, 32, 128, 64, 16, 32, 32, 64, 32, 256],
+            vec![size_of::<Header>(), 8, 4, 1, 1, 1, 1, 1, 1, 1, 1, 4, 16, 32, 128, 64, 16, 32, 32, 64, 32, 256, 32, 128, 256],
         ),
         ("uavloc_command", vec![size_of::<Header>(), 8, 8, 8, 8, 4, 4, 8, 64, 128, 16, 16, size_of::<StateEcho>()]),
-        ("uavloc_state_echo", vec![8, 1, 1, 1, 1, 1, 3, 16, 32, 16, 32, 32, 256]),
+        ("uavloc_state_echo", vec![8, 1, 1, 1, 1, 1, 1, 2, 16, 32, 16, 32, 32, 256, 32, 128, 256]),
         ("uavloc_truth", vec![size_of::<Header>(), 16, 4, 4]),
         ("uavloc_control", vec![size_of::<Header>(), 8, 8, 4, 4, 8, 16, 16]),
     ]);

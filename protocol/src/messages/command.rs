@@ -25,7 +25,7 @@ pub struct PlanInfo<'a> {
 
 /// planner → emitter-sim, monitor: the headings to fly for the next step.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Command/v5")]
+#[type_name("uavloc::Command/v6")]
 #[repr(C)]
 pub struct Command {
     /// Common header (step of the estimate it was planned from).
@@ -55,12 +55,12 @@ pub struct Command {
     /// Objective name.
     pub objective_name: Name16,
     /// The estimator's state after the step this command was planned from, echoed from that estimate
-    /// (v4; v5 with the bias sensitivity): where a restarted, rewound or replayed-to estimator finds it
+    /// (v4; v5 with the bias sensitivity; v6 with a pending second root): where a restarted, rewound or replayed-to estimator finds it
     /// (see [`StateEcho`]).
     pub state: StateEcho,
 }
 
-impl_message!(Command, MessageKind::Command, 5, "uavloc::Command/v5");
+impl_message!(Command, MessageKind::Command, 6, "uavloc::Command/v6");
 
 impl_per_uav!(Command {
     /// Headings in use.
@@ -75,7 +75,7 @@ impl_per_uav!(Command {
 /// continues the chain at step `step + 1` exactly as the one that made the estimate would have
 /// (`uavloc-estimator`), so no estimator keeps its answers or needs a checkpoint to answer a replay.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::StateEcho/v2")]
+#[type_name("uavloc::StateEcho/v3")]
 #[repr(C)]
 pub struct StateEcho {
     /// The step of the estimate.
@@ -92,8 +92,10 @@ pub struct StateEcho {
     pub rejected_run: u8,
     /// As [`Estimate::confirmed`] (0, a provisional track, from a sender that does not state it).
     pub confirmed: u8,
+    /// As [`Estimate::alternative`] (v3).
+    pub alternative: u8,
     /// Explicit padding; 0 when sent.
-    pub reserved: [u8; 3],
+    pub reserved: [u8; 2],
     /// The estimate, metres.
     pub position: [f64; 2],
     /// Its covariance, m², row-major.
@@ -106,9 +108,15 @@ pub struct StateEcho {
     pub velocity_cov: [[f64; 2]; 2],
     /// As [`Estimate::bias_sensitivity`] (v2).
     pub bias_sensitivity: [[f64; MAX_UAVS]; 4],
+    /// As [`Estimate::alt_mean`] (v3).
+    pub alt_mean: [f64; 4],
+    /// As [`Estimate::alt_cov`] (v3).
+    pub alt_cov: [[f64; 4]; 4],
+    /// As [`Estimate::alt_bias_sensitivity`] (v3).
+    pub alt_bias_sensitivity: [[f64; MAX_UAVS]; 4],
 }
 
-// SAFETY: repr(C) of u64, eight u8 and f64 arrays, without implicit padding (400 bytes, see
+// SAFETY: repr(C) of u64, eight u8 and f64 arrays, without implicit padding (816 bytes, see
 // `layout_is_stable`): every bit pattern is a value.
 unsafe impl AnyBitPattern for StateEcho {}
 

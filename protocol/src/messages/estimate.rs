@@ -112,11 +112,25 @@ pub struct PosteriorExtra {
     /// vy; one column per UAV; zeros without a fix): the consider state `bias_cov = S Σ_β Sᵀ` comes from.
     #[serde(default)]
     pub bias_sensitivity: [[f64; MAX_UAVS]; 4],
+    /// 1 when an ambiguous fix left the posterior of Chan's other root pending (the next burst decides
+    /// between the two), its fields below; 0 otherwise.
+    #[serde(default)]
+    pub alternative: u8,
+    /// The pending root's mean (x, y, vx, vy), m and m/s.
+    #[serde(default)]
+    pub alt_mean: [f64; 4],
+    /// Its covariance, row-major over (x, y, vx, vy).
+    #[serde(default)]
+    pub alt_cov: [[f64; 4]; 4],
+    /// Its bias sensitivity, as `bias_sensitivity`.
+    #[serde(default)]
+    pub alt_bias_sensitivity: [[f64; MAX_UAVS]; 4],
 }
 
 /// The fused posterior's fields beyond the position, as every message that carries an estimator state
 /// lays them out (`estimator`, `model`, `rejected_run`, `confirmed`, `velocity`, `cross_cov`,
-/// `velocity_cov`, `bias_sensitivity`): one
+/// `velocity_cov`, `bias_sensitivity`, the pending root's `alternative`, `alt_mean`, `alt_cov`,
+/// `alt_bias_sensitivity`): one
 /// mapping to and from [`PosteriorExtra`] for [`Estimate`] and [`StateEcho`].
 macro_rules! impl_posterior_fields {
     ($ty:ident) => {
@@ -132,6 +146,10 @@ macro_rules! impl_posterior_fields {
                     cross_cov: self.cross_cov,
                     velocity_cov: self.velocity_cov,
                     bias_sensitivity: self.bias_sensitivity,
+                    alternative: self.alternative,
+                    alt_mean: self.alt_mean,
+                    alt_cov: self.alt_cov,
+                    alt_bias_sensitivity: self.alt_bias_sensitivity,
                 }
             }
 
@@ -145,6 +163,10 @@ macro_rules! impl_posterior_fields {
                 self.cross_cov = extra.cross_cov;
                 self.velocity_cov = extra.velocity_cov;
                 self.bias_sensitivity = extra.bias_sensitivity;
+                self.alternative = extra.alternative;
+                self.alt_mean = extra.alt_mean;
+                self.alt_cov = extra.alt_cov;
+                self.alt_bias_sensitivity = extra.alt_bias_sensitivity;
             }
         }
     };
@@ -155,7 +177,7 @@ impl_posterior_fields!(StateEcho);
 
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v6")]
+#[type_name("uavloc::Estimate/v7")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -180,8 +202,11 @@ pub struct Estimate {
     /// Fused: bursts fused whole since the track started (saturating at the estimator's confirmation
     /// count; until then the track is provisional and drops no outlying arrival; v5).
     pub confirmed: u8,
+    /// Fused: 1 when the posterior of Chan's other root is pending after an ambiguous fix (v7; see
+    /// `alt_mean`).
+    pub alternative: u8,
     /// Explicit padding; 0 when sent.
-    pub reserved: [u8; 5],
+    pub reserved: [u8; 4],
     /// Estimated emitter position, metres. Failed: the *standing* estimate — the last usable one, which
     /// the estimator keeps and the next step is planned from — or NaN when there is none yet (v3; in v2 a
     /// failed estimate carried no position).
@@ -210,9 +235,15 @@ pub struct Estimate {
     /// How the estimate depends on each UAV's flight-long range bias, `S = ∂(x̂ − x)/∂β` (v6; rows x,
     /// y, vx, vy; one column per UAV; metres per metre, 1/s): part of the estimator's state.
     pub bias_sensitivity: [[f64; MAX_UAVS]; 4],
+    /// Fused, `alternative` = 1: the pending root's mean (x, y, vx, vy; v7), m and m/s.
+    pub alt_mean: [f64; 4],
+    /// Its covariance (row-major over x, y, vx, vy; v7).
+    pub alt_cov: [[f64; 4]; 4],
+    /// Its bias sensitivity (v7), as `bias_sensitivity`.
+    pub alt_bias_sensitivity: [[f64; MAX_UAVS]; 4],
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 6, "uavloc::Estimate/v6");
+impl_message!(Estimate, MessageKind::Estimate, 7, "uavloc::Estimate/v7");
 
 impl_per_uav!(Estimate {
     /// UAV positions in use.
@@ -245,7 +276,8 @@ impl Estimate {
             heard: 0,
             outliers: 0,
             confirmed: 0,
-            reserved: [0; 5],
+            alternative: 0,
+            reserved: [0; 4],
             position,
             covariance,
             uavs: [[0.0; 2]; MAX_UAVS],
@@ -256,6 +288,9 @@ impl Estimate {
             sigmas: [0.0; MAX_UAVS],
             bias_cov: [[0.0; 2]; 2],
             bias_sensitivity: [[0.0; MAX_UAVS]; 4],
+            alt_mean: [0.0; 4],
+            alt_cov: [[0.0; 4]; 4],
+            alt_bias_sensitivity: [[0.0; MAX_UAVS]; 4],
         };
         e.uavs[..n].copy_from_slice(uavs);
         e.headings[..n].copy_from_slice(headings);
