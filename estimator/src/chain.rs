@@ -326,6 +326,13 @@ pub fn arrivals_of(m: &Measurement) -> Result<Arrivals, tdoa::TdoaError> {
 /// The wire form of the library estimator's output.
 pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
     let (position, covariance) = tdoa::estimate_to_arrays(&out.position, &out.covariance);
+    let extra = extra_of(
+        out.posterior.as_ref(),
+        out.sensitivity.as_ref(),
+        out.alternative.as_ref(),
+        out.rejected_run,
+        out.confirmed,
+    );
     let fix = match out.status {
         EstimateStatus::Ok => Fix::Ok { position, covariance },
         EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
@@ -335,32 +342,14 @@ pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
             // The library returned its previous estimate: the standing one.
             return Reply {
                 fix: Fix::Failed,
-                extra: extra_of(
-                    out.posterior.as_ref(),
-                    out.sensitivity.as_ref(),
-                    out.alternative.as_ref(),
-                    out.rejected_run,
-                    out.confirmed,
-                ),
+                extra,
                 standing: Some((position, covariance)),
                 outliers: 0,
                 bias_cov: [[0.0; 2]; 2],
             };
         }
     };
-    Reply {
-        fix,
-        extra: extra_of(
-            out.posterior.as_ref(),
-            out.sensitivity.as_ref(),
-            out.alternative.as_ref(),
-            out.rejected_run,
-            out.confirmed,
-        ),
-        standing: None,
-        outliers: out.outliers,
-        bias_cov: tdoa::matrix_to_rows(&out.bias_cov),
-    }
+    Reply { fix, extra, standing: None, outliers: out.outliers, bias_cov: tdoa::matrix_to_rows(&out.bias_cov) }
 }
 
 #[cfg(test)]
