@@ -119,8 +119,12 @@ pub struct EstimateOut {
     pub sensitivity: Option<BiasSensitivity>,
     /// Fused, after an ambiguous fix: the posterior of Chan's other root (with its bias sensitivity),
     /// pending until the next burst decides between the two — part of the state after this step.
-    pub alternative: Option<(Posterior, Option<BiasSensitivity>)>,
+    pub alternative: Option<PendingRoot>,
 }
+
+/// The posterior of Chan's other root after an ambiguous fix, with its bias sensitivity: pending until
+/// the next burst decides between the two roots.
+pub type PendingRoot = (Posterior, Option<BiasSensitivity>);
 
 impl EstimateOut {
     /// `covariance + bias_cov`: the uncertainty of the position, persistent errors included, m².
@@ -209,9 +213,9 @@ pub struct Estimator {
     prior: Option<Vector2<f64>>,
     previous: Option<(Vector2<f64>, Matrix2<f64>)>,
     posterior: Option<Posterior>,
-    /// Fused, after an ambiguous start: the posterior of Chan's other root, until the next snapshot
-    /// decides between the two.
-    alternative: Option<Posterior>,
+    /// Fused, after an ambiguous start: the posterior of Chan's other root (and its bias sensitivity),
+    /// until the next snapshot decides between the two.
+    alternative: Option<PendingRoot>,
     /// Fused: snapshots rejected in a row.
     rejected_run: u8,
     /// Fused: bursts fused whole since the track started (saturating at [`CONFIRM_BURSTS`]).
@@ -219,8 +223,6 @@ pub struct Estimator {
     last_step: Option<u64>,
     /// Fused: the posterior's dependence on the flight-long biases ([`tdoa::consider`]).
     sensitivity: Option<BiasSensitivity>,
-    /// The same for the pending second root.
-    alt_sensitivity: Option<BiasSensitivity>,
 }
 
 impl Default for Estimator {
@@ -242,7 +244,6 @@ impl Estimator {
             confirmed: 0,
             last_step: None,
             sensitivity: None,
-            alt_sensitivity: None,
         }
     }
 
@@ -284,7 +285,6 @@ impl Estimator {
             confirmed: 0,
             last_step: Some(step),
             sensitivity: None,
-            alt_sensitivity: None,
         }
     }
 
@@ -302,17 +302,16 @@ impl Estimator {
 
     /// This estimator with the pending second root `alt` behind it (the state of an estimate's
     /// `alternative`; fused only).
-    pub fn with_alternative(mut self, alt: Option<(Posterior, Option<BiasSensitivity>)>) -> Self {
+    pub fn with_alternative(mut self, alt: Option<PendingRoot>) -> Self {
         if self.config.kind == EstimatorKind::Fused {
-            self.alternative = alt.map(|a| a.0);
-            self.alt_sensitivity = alt.and_then(|a| a.1);
+            self.alternative = alt;
         }
         self
     }
 
     /// Fused, after an ambiguous fix: the pending second root (see [`EstimateOut::alternative`]).
-    pub fn alternative(&self) -> Option<(Posterior, Option<BiasSensitivity>)> {
-        self.alternative.map(|p| (p, self.alt_sensitivity))
+    pub fn alternative(&self) -> Option<PendingRoot> {
+        self.alternative
     }
 
     /// This estimator with `n` snapshots rejected in a row behind it (the state of an estimate's
@@ -401,17 +400,16 @@ impl Estimator {
         let dynamics = self.config.dynamics;
         let predicted_s =
             |s: Option<BiasSensitivity>| s.map_or(BiasSensitivity::zero(), |s| s.predict(&dynamics, elapsed));
-        let (s_pred, alt_pred) = (predicted_s(self.sensitivity), predicted_s(self.alt_sensitivity.take()));
+        let s_pred = predicted_s(self.sensitivity);
         let result = match (self.config.kind, self.posterior, self.alternative.take()) {
-            (EstimatorKind::Fused, Some(post), Some(other)) => self.resolve(
+            (EstimatorKind::Fused, Some(post), Some((other, other_s))) => self.resolve(
                 (&post.predict(&dynamics, elapsed), &s_pred),
-                (&other.predict(&dynamics, elapsed), &alt_pred),
+                (&other.predict(&dynamics, elapsed), &predicted_s(other_s)),
                 a,
             ),
             (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), &s_pred, a),
             _ => self.solve(a).map(|(out, other)| {
-                self.alternative = other.map(|o| o.0);
-                self.alt_sensitivity = other.and_then(|o| o.1);
+                self.alternative = other;
                 out
             }),
         };
@@ -426,8 +424,7 @@ impl Estimator {
                     self.previous = None;
                     match self.solve(a) {
                         Ok((fresh, other)) => {
-                            self.alternative = other.map(|o| o.0);
-                            self.alt_sensitivity = other.and_then(|o| o.1);
+                            self.alternative = other;
                             self.rejected_run = 0;
                             self.confirmed = 0;
                             Ok(fresh)
@@ -516,8 +513,8 @@ impl Estimator {
         let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
         self.last_step = Some(step);
         let dynamics = self.config.dynamics;
-        self.alternative = self.alternative.map(|o| o.predict(&dynamics, elapsed));
-        self.alt_sensitivity = self.alt_sensitivity.map(|s| s.predict(&dynamics, elapsed));
+        self.alternative =
+            self.alternative.map(|(o, s)| (o.predict(&dynamics, elapsed), s.map(|s| s.predict(&dynamics, elapsed))));
         match (self.config.kind, self.posterior) {
             (EstimatorKind::Fused, Some(post)) => {
                 let pred = post.predict(&dynamics, elapsed);
@@ -616,8 +613,7 @@ impl Estimator {
 
     /// Chan's fix; fused and ambiguous, also the posterior of the other root (with its bias
     /// sensitivity).
-    #[allow(clippy::type_complexity)]
-    fn solve(&self, a: &Arrivals) -> Result<(EstimateOut, Option<(Posterior, Option<BiasSensitivity>)>), TdoaError> {
+    fn solve(&self, a: &Arrivals) -> Result<(EstimateOut, Option<PendingRoot>), TdoaError> {
         let config = self.config;
         let (sol, heard, dropped) = outliers::chan_burst(a, self.prior(), |m| config.gate(m), config.outliers)?;
         let finite = sol.position.iter().chain(sol.covariance.iter()).all(|v| v.is_finite());

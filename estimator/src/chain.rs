@@ -22,10 +22,7 @@ use runtime::recovery::StateStore;
 use tdoa::consider::BiasSensitivity;
 use tdoa::{Arrivals, Posterior};
 
-use estimation::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig};
-
-/// A pending second root as the library estimator keeps it: its posterior and bias sensitivity.
-pub type PendingRoot = (Posterior, Option<BiasSensitivity>);
+use estimation::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig, PendingRoot};
 
 /// The wire form of the fused posterior beyond the position, with its bias sensitivity `sensitivity`
 /// and the pending second root `alternative`.

@@ -203,19 +203,15 @@ impl PlanObjective for PosteriorObjective {
     fn evaluate(&self, next: &[Vector2<f64>]) -> f64 {
         let Some(sensors) = sensors_at(next, &self.noise) else { return f64::INFINITY };
         let mut sum = 0.0;
-        if let Some(odds) = &self.odds {
-            for (p, w) in self.points.iter().zip(&self.weights) {
-                let Some(t) = tdoa::loss::expected_posterior_trace(&self.prior_info, &sensors, p, odds) else {
-                    return f64::INFINITY;
-                };
-                sum += w * t;
-            }
-            return sum;
-        }
         for (p, w) in self.points.iter().zip(&self.weights) {
-            let info = self.prior_info + tdoa::fim(&sensors, p).unwrap_or_else(nalgebra::Matrix2::zeros);
-            let Some(post) = info.try_inverse() else { return f64::INFINITY };
-            sum += w * post.trace();
+            let trace = match &self.odds {
+                Some(odds) => tdoa::loss::expected_posterior_trace(&self.prior_info, &sensors, p, odds),
+                None => (self.prior_info + tdoa::fim(&sensors, p).unwrap_or_else(nalgebra::Matrix2::zeros))
+                    .try_inverse()
+                    .map(|post| post.trace()),
+            };
+            let Some(trace) = trace else { return f64::INFINITY };
+            sum += w * trace;
         }
         sum
     }

@@ -129,24 +129,12 @@ fn finite(s: BiasSensitivity) -> Option<BiasSensitivity> {
 /// `G` (m × 2, the range differences' Jacobian at `z`) and `D` (m × [`MAX_UAVS`], their dependence on
 /// the biases) of the burst `heard`.
 fn jacobians(heard: &Heard, z: &Vector2<f64>) -> Option<(DMatrix<f64>, DMatrix<f64>)> {
-    let n = MAX_UAVS;
-    let w = heard.sensors.positions();
-    let m = w.len().checked_sub(1)?;
-    let unit = |p: &Vector2<f64>| {
-        let d = z - p;
-        let r = d.norm();
-        (r.is_finite() && r >= 1e-6).then(|| d / r)
-    };
-    let u0 = unit(&w[0])?;
-    let mut g = DMatrix::zeros(m, 2);
-    let mut d = DMatrix::zeros(m, n);
+    let (_, g) = crate::fusion::measure(&heard.sensors, z)?;
+    let mut d = DMatrix::zeros(g.nrows(), MAX_UAVS);
     let reference = *heard.uavs.first()?;
-    for k in 1..=m {
-        let uk = unit(&w[k])?;
-        g[(k - 1, 0)] = uk.x - u0.x;
-        g[(k - 1, 1)] = uk.y - u0.y;
+    for k in 1..=g.nrows() {
         let uav = *heard.uavs.get(k)?;
-        if uav >= n || reference >= n {
+        if uav >= MAX_UAVS || reference >= MAX_UAVS {
             return None;
         }
         d[(k - 1, uav)] = 1.0;

@@ -20,14 +20,14 @@ const MIN_RANGE_M: f64 = 1e-6;
 const SINGULAR_RCOND: f64 = 1e-13;
 
 /// Unit vectors and ranges of one emitter position; `None` if the emitter is on a UAV.
-struct Rays {
-    u: [Vector2<f64>; MAX_UAVS],
-    r: [f64; MAX_UAVS],
-    n: usize,
+pub(crate) struct Rays {
+    pub(crate) u: [Vector2<f64>; MAX_UAVS],
+    pub(crate) r: [f64; MAX_UAVS],
+    pub(crate) n: usize,
 }
 
 impl Rays {
-    fn new(sensors: &Sensors, z: &Vector2<f64>) -> Option<Self> {
+    pub(crate) fn new(sensors: &Sensors, z: &Vector2<f64>) -> Option<Self> {
         let n = sensors.len();
         let mut u = [Vector2::zeros(); MAX_UAVS];
         let mut r = [0.0; MAX_UAVS];

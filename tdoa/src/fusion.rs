@@ -234,7 +234,7 @@ pub fn gate_threshold(m: usize, p: f64) -> f64 {
 }
 
 /// `h(z)` and its Jacobian rows `(u_i − u_0)ᵀ` (m×2), or `None` when the emitter is on a UAV.
-fn measure(sensors: &Sensors, z: &Vector2<f64>) -> Option<(DVector<f64>, DMatrix<f64>)> {
+pub(crate) fn measure(sensors: &Sensors, z: &Vector2<f64>) -> Option<(DVector<f64>, DMatrix<f64>)> {
     let w = sensors.positions();
     let m = w.len() - 1;
     let unit = |p: &Vector2<f64>| {

@@ -96,18 +96,12 @@ impl ArrivalOdds {
 
 /// Unit vectors from the UAVs to `z` and the weights `1/s_i²`; `None` if `z` sits on a UAV.
 fn rays(sensors: &Sensors, z: &Vector2<f64>) -> Option<([Vector2<f64>; MAX_UAVS], [f64; MAX_UAVS])> {
-    let mut u = [Vector2::zeros(); MAX_UAVS];
+    let rays = crate::fim::Rays::new(sensors, z)?;
     let mut w = [0.0; MAX_UAVS];
-    for (i, (p, s)) in sensors.positions().iter().zip(sensors.noise().sigmas()).enumerate() {
-        let d = z - p;
-        let r = d.norm();
-        if r.is_nan() || r < 1e-6 {
-            return None;
-        }
-        u[i] = d / r;
-        w[i] = 1.0 / (s * s);
+    for (w, s) in w.iter_mut().zip(sensors.noise().sigmas()) {
+        *w = 1.0 / (s * s);
     }
-    Some((u, w))
+    Some((rays.u, w))
 }
 
 /// `F_S` of the subset `mask` (bit i: UAV i's arrival received), 1/m²; zero for fewer than two
