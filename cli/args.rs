@@ -110,25 +110,77 @@ pub struct UavArgs {
     #[arg(
         long = "uav",
         value_name = "X,Y",
-        required = true,
+        required_unless_present = "uav_lat_lon",
         allow_hyphen_values = true,
         value_parser = parse_point,
         help_heading = "Geometry"
     )]
     pub uavs: Vec<Point>,
+    /// UAV position as WGS84 LAT,LON in degrees, instead of --uav (needs --origin); repeat 3 to 8 times.
+    #[arg(
+        long = "uav-lat-lon",
+        value_name = "LAT,LON",
+        conflicts_with = "uavs",
+        requires = "origin",
+        allow_hyphen_values = true,
+        value_parser = parse_lat_lon,
+        help_heading = "Geometry"
+    )]
+    pub uav_lat_lon: Vec<model::geo::LatLon>,
+    /// The origin of the local plane, LAT,LON[,ALT] (degrees, metres above the WGS84 ellipsoid): x is
+    /// metres east of it, y metres north. With it, results also give positions as latitude/longitude.
+    #[arg(long, value_name = "LAT,LON[,ALT]", allow_hyphen_values = true, value_parser = parse_origin, help_heading = "Geometry")]
+    pub origin: Option<model::geo::Origin>,
 }
 
 impl UavArgs {
-    /// The positions, after checking the count (3..=8).
+    /// The positions in the plane (metres), after checking the count (3..=8).
     pub fn positions(&self) -> Result<Vec<[f64; 2]>, CliError> {
-        let n = self.uavs.len();
+        let (n, flag) = if self.uav_lat_lon.is_empty() {
+            (self.uavs.len(), "--uav X,Y")
+        } else {
+            (self.uav_lat_lon.len(), "--uav-lat-lon LAT,LON")
+        };
         if !(MIN_UAVS..=MAX_UAVS).contains(&n) {
             return Err(CliError::Input(format!(
-                "--uav given {n} time(s); need between {MIN_UAVS} and {MAX_UAVS} UAVs (repeat --uav X,Y once per UAV)"
+                "{} given {n} time(s); need between {MIN_UAVS} and {MAX_UAVS} UAVs (repeat {flag} once per UAV)",
+                flag.split(' ').next().unwrap_or(flag)
             )));
         }
-        Ok(self.uavs.iter().map(|p| p.0).collect())
+        if self.uav_lat_lon.is_empty() {
+            return Ok(self.uavs.iter().map(|p| p.0).collect());
+        }
+        let frame = self.frame()?.ok_or_else(|| CliError::Input("--uav-lat-lon needs --origin".into()))?;
+        self.uav_lat_lon
+            .iter()
+            .enumerate()
+            .map(|(i, p)| frame.to_local(*p).map_err(|e| CliError::Input(format!("--uav-lat-lon (UAV {i}): {e}"))))
+            .collect()
     }
+
+    /// The local plane of `--origin`, if given.
+    pub fn frame(&self) -> Result<Option<model::geo::LocalFrame>, CliError> {
+        self.origin
+            .map(|o| model::geo::LocalFrame::new(o).map_err(|e| CliError::Input(format!("--origin: {e}"))))
+            .transpose()
+    }
+}
+
+/// clap value parser for `LAT,LON` in degrees.
+pub fn parse_lat_lon(text: &str) -> Result<model::geo::LatLon, String> {
+    let v = parse_numbers(text, Some(2), "LAT,LON")?;
+    model::geo::LatLon::new(v[0], v[1]).map_err(|e| e.to_string())
+}
+
+/// clap value parser for `LAT,LON[,ALT]` (degrees, metres; the altitude 0 when not given).
+pub fn parse_origin(text: &str) -> Result<model::geo::Origin, String> {
+    let v = parse_numbers(text, None, "LAT,LON[,ALT]")?;
+    if !(2..=3).contains(&v.len()) {
+        return Err(format!("expected LAT,LON or LAT,LON,ALT, got {} value(s)", v.len()));
+    }
+    let origin = model::geo::Origin { lat_deg: v[0], lon_deg: v[1], alt_m: v.get(2).copied().unwrap_or(0.0) };
+    model::geo::LocalFrame::new(origin).map_err(|e| e.to_string())?;
+    Ok(origin)
 }
 
 /// The measurement noise: exactly one of `--sigma` (metres) or `--sigma-ns` (nanoseconds).

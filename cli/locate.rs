@@ -32,6 +32,10 @@ Examples:
   # 4 UAVs, negative coordinates and range differences, JSON (emitter near (-4000, -3000))
   uavloc locate --uav -1500,200 --uav 0,0 --uav 800,-900 --uav 300,700 --range-diff 939.2,1178.5,1612 \\
       --sigma-ns 30 --json
+  # UAVs as latitude/longitude (WGS84) around an origin; the fix also as latitude/longitude
+  uavloc locate --origin 47.3977,8.5456,488 --uav-lat-lon 47.4021952,8.5654704 \\
+      --uav-lat-lon 47.4111142,8.6780919 --uav-lat-lon 47.4741281,8.6119250 \\
+      --range-diff -7432.966,-6583.662 --sigma 28.7712
 
 Fusing recorded snapshots (--fuse FILE): one snapshot per line, in time order, either CSV
   x0,y0,x1,y1,...,x{N-1},y{N-1},d1,...,d{N-1},sigma        (a header line starting with a letter is skipped)
@@ -83,6 +87,34 @@ pub struct LocateReport {
     pub ambiguous: bool,
     /// Every physically valid solution, metres.
     pub candidates: Vec<[f64; 2]>,
+    /// With `--origin`: the estimate as latitude/longitude and its 95 % ellipse (absent otherwise).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub geo: Option<GeoFix>,
+}
+
+/// A fix placed on the Earth (`--origin`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GeoFix {
+    /// Latitude of the estimate, degrees.
+    pub lat_deg: f64,
+    /// Longitude of the estimate, degrees.
+    pub lon_deg: f64,
+    /// The 95 % confidence ellipse of the estimate, a closed polygon of `[lat, lon]` (degrees).
+    pub ellipse_95_lat_lon_deg: Option<Vec<[f64; 2]>>,
+}
+
+impl GeoFix {
+    /// The fix at `xy` with covariance `cov` (metres, m²) in `frame`; `None` when it is too far.
+    pub fn of(frame: &model::geo::LocalFrame, xy: [f64; 2], cov: [[f64; 2]; 2]) -> Option<Self> {
+        let at = frame.to_geodetic(xy).ok()?;
+        let ring = model::geo::confidence_ellipse(xy, cov, 0.95, 64).and_then(|r| frame.pairs(&r));
+        Some(Self { lat_deg: at.lat_deg, lon_deg: at.lon_deg, ellipse_95_lat_lon_deg: ring })
+    }
+
+    /// Its rows of a table.
+    pub fn rows(&self, t: Table) -> Table {
+        t.row("lat, lon", format!("{:.7}°, {:.7}°", self.lat_deg, self.lon_deg))
+    }
 }
 
 /// Locates the emitter from range differences `d` (`d_i = r_i − r_0`, metres).
@@ -103,6 +135,7 @@ pub fn compute(sensors: &Sensors, d: &[f64], prior: Option<Vector2<f64>>) -> Res
         cov: rows(&sol.covariance),
         ambiguous: sol.ambiguous,
         candidates: sol.candidates.iter().map(|c| [c.x, c.y]).collect(),
+        geo: None,
     })
 }
 
@@ -123,7 +156,11 @@ pub fn run(args: &LocateArgs) -> Result<LocateOutput, CliError> {
     }
     // Without --fuse, clap requires --uav, --range-diff and one of --sigma/--sigma-ns (see `cli::Command`).
     let d = args.range_diff.as_ref().ok_or_else(|| CliError::Input("--range-diff is required".into()))?;
-    compute(&args.sensors.sensors()?, &d.0, args.prior.map(|p| p.vector())).map(LocateOutput::Snapshot)
+    let mut report = compute(&args.sensors.sensors()?, &d.0, args.prior.map(|p| p.vector()))?;
+    if let Some(frame) = args.sensors.uav.frame()? {
+        report.geo = GeoFix::of(&frame, [report.x, report.y], report.cov);
+    }
+    Ok(LocateOutput::Snapshot(report))
 }
 
 impl Report for LocateOutput {
@@ -153,8 +190,11 @@ pub(crate) fn position_rows(t: Table, x: f64, y: f64, cov: [[f64; 2]; 2]) -> Tab
 
 impl Report for LocateReport {
     fn table(&self) -> Table {
-        let mut t = position_rows(Table::new(), self.x, self.y, self.cov)
-            .row("ambiguous", if self.ambiguous { "yes" } else { "no" });
+        let mut t = position_rows(Table::new(), self.x, self.y, self.cov);
+        if let Some(g) = &self.geo {
+            t = g.rows(t);
+        }
+        t = t.row("ambiguous", if self.ambiguous { "yes" } else { "no" });
         for (i, c) in self.candidates.iter().enumerate() {
             t = t.row(format!("candidate {}", i + 1), format!("{} m", pair(*c)));
         }

@@ -124,6 +124,9 @@ pub struct LiveState {
     /// The posterior CRLB as the steps come in (the records' `pcrlb_m` is computed only at the end of a
     /// run); see [`LiveState::with_bound`].
     bound: Option<record::RunningBound>,
+    /// The run's local plane when its scenario has an origin: the estimate is also shown as
+    /// latitude/longitude.
+    pub frame: Option<model::geo::LocalFrame>,
 }
 
 impl LiveState {
@@ -136,6 +139,7 @@ impl LiveState {
     /// model ([`record::RunningBound`]; without it the series is what the records carry).
     pub fn with_bound(mut self, scenario: &model::Scenario) -> Self {
         self.bound = Some(record::RunningBound::new(scenario));
+        self.frame = scenario.frame();
         self
     }
 

@@ -183,8 +183,12 @@ fn draw_processes(frame: &mut Frame, area: Rect, s: &LiveState) {
     if let Some((p, cov)) = s.estimate {
         let e = ellipse_95(p, cov, 4);
         let axis = |q: (f64, f64)| (q.0 - p[0]).hypot(q.1 - p[1]);
+        let place = s
+            .frame
+            .and_then(|f| f.to_geodetic(p).ok())
+            .map_or(String::new(), |q| format!(" = {:.6}°, {:.6}°", q.lat_deg, q.lon_deg));
         lines.push(Line::from(format!(
-            "estimate ({:.0}, {:.0}) m, 95 % ellipse {:.0} × {:.0} m",
+            "estimate ({:.0}, {:.0}) m{place}, 95 % ellipse {:.0} × {:.0} m",
             p[0],
             p[1],
             2.0 * axis(e[0]),
@@ -228,6 +232,22 @@ mod tests {
 
     fn text_at(b: &ratatui::buffer::Buffer, (x, y): (u16, u16), len: u16) -> String {
         (x..x + len).map(|x| b[(x, y)].symbol().to_string()).collect()
+    }
+
+    /// With an origin the estimate's line also gives it as latitude/longitude; without, it does not.
+    #[test]
+    fn a_run_with_an_origin_shows_the_estimate_as_latitude_longitude() {
+        let whole = |s: &LiveState| {
+            let (b, _) = render(s);
+            (0..b.area.height).map(|y| text_at(&b, (0, y), b.area.width)).collect::<Vec<_>>().join("\n")
+        };
+        let mut s = state();
+        assert!(!whole(&s).contains('°'));
+        let sc = model::Scenario::from_toml_str(include_str!("../../scenarios/geo.toml")).unwrap();
+        s.frame = sc.frame();
+        let at = sc.frame().unwrap().to_geodetic([24000.0, 14000.0]).unwrap();
+        let text = whole(&s);
+        assert!(text.contains(&format!("= {:.6}°, {:.6}°", at.lat_deg, at.lon_deg)), "{text}");
     }
 
     #[test]

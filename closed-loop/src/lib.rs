@@ -142,6 +142,7 @@ pub fn run_closed_loop_with(
         let (z_hat, m) = target.map_or((est.position, est.total_covariance()), |t| (t.estimate, t.covariance));
         let mut record = StepRecord {
             step: k,
+            geo: None,
             uavs: meas.uavs.iter().map(pair).collect(),
             headings_rad: world.headings().to_vec(),
             estimate: pair(&est.position),

@@ -5,6 +5,7 @@
 //!
 //! - [`scenario`]: the run's settings from TOML ([`Scenario`]; default = the paper's Table 1 case) and
 //!   the rule every process applies to `--scenario` / `--steps` / `--seed` ([`load_scenario`]);
+//! - [`geo`]: the geographic frame (a WGS84 origin, the plane ↔ latitude/longitude);
 //! - [`kinematics`]: fixed-speed circular-arc motion (eq. 54);
 //! - [`solver_config`]: the solvers' settings as the scenario carries them;
 //! - [`constraint`]: the four motion constraints by name and one active instance;
@@ -18,6 +19,7 @@
 pub mod active_mask;
 pub mod arc;
 pub mod constraint;
+pub mod geo;
 pub mod kinematics;
 pub mod receiver;
 pub mod safety;

@@ -23,6 +23,7 @@ use tdoa::global::McScheme;
 use tdoa::{DEFAULT_KAPPA, Dynamics, EmitterModel, MAX_EXTENT_M, MAX_UAVS, NoiseModel};
 use thiserror::Error;
 
+use crate::geo::{LatLon, LocalFrame, Origin};
 use crate::kinematics::bearing;
 use crate::receiver::ReceiverModel;
 use crate::safety::SafetyMode;
@@ -180,6 +181,20 @@ pub struct Scenario {
     pub velocity_prior_sigma: f64,
     /// The true emitter's velocity, m/s (the truth moves at constant velocity) — default [0, 0].
     pub emitter_velocity: [f64; 2],
+    /// Where the plane is on the Earth (`[origin]`: `lat_deg`, `lon_deg`, `alt_m`; see `model::geo`).
+    /// With an origin, `uavs_lat_lon_deg` and `emitter_lat_lon_deg` may give the positions as WGS84
+    /// latitude/longitude instead of `uavs` and `emitter`, and every output that holds a position also
+    /// gives it as latitude/longitude. The run itself is the same in the plane. Default: none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub origin: Option<Origin>,
+    /// The UAVs' positions at step 0 as `[lat, lon]` in degrees (needs `[origin]`; instead of `uavs`).
+    /// Read from TOML only: loading converts them into `uavs` ([`Scenario::from_toml_str`]).
+    #[serde(skip_serializing)]
+    pub uavs_lat_lon_deg: Option<Vec<[f64; 2]>>,
+    /// The emitter's position as `[lat, lon]` in degrees (needs `[origin]`; instead of `emitter`). Read from
+    /// TOML only: loading converts it into `emitter`.
+    #[serde(skip_serializing)]
+    pub emitter_lat_lon_deg: Option<[f64; 2]>,
     /// Confidence c of the standoff chance constraint `P(|w − z| < L_min) ≤ 1 − c` under N(ẑ, M), in
     /// [0, 1) — our choice 0.99; 0 is the paper's constraint `|w − ẑ| ≥ L_min` (see
     /// `planning::constraints`).
@@ -238,6 +253,9 @@ impl Default for Scenario {
             process_noise_accel: 0.05,
             velocity_prior_sigma: 20.0,
             emitter_velocity: [0.0, 0.0],
+            origin: None,
+            uavs_lat_lon_deg: None,
+            emitter_lat_lon_deg: None,
             standoff_confidence: 0.99,
             safety: SafetyMode::Certified,
             safety_horizon_s: 120.0,
@@ -317,9 +335,51 @@ impl Scenario {
 
     /// Parses TOML and validates.
     pub fn from_toml_str(text: &str) -> Result<Self, ScenarioError> {
-        let scenario: Scenario = toml::from_str(text).map_err(|e| parse_error(text, &e))?;
+        let mut scenario: Scenario = toml::from_str(text).map_err(|e| parse_error(text, &e))?;
+        let table: toml::Table = text.parse().map_err(|e| parse_error(text, &e))?;
+        scenario.resolve_geographic(&table)?;
         scenario.validate()?;
         Ok(scenario)
+    }
+
+    /// The run's local plane, when the scenario has an origin (an invalid origin is `None`; `validate`
+    /// refuses it).
+    pub fn frame(&self) -> Option<LocalFrame> {
+        self.origin.and_then(|o| LocalFrame::new(o).ok())
+    }
+
+    /// Converts `uavs_lat_lon_deg` / `emitter_lat_lon_deg` into `uavs` / `emitter` in the origin's plane
+    /// (and clears them): each position is given once, and only with an origin.
+    fn resolve_geographic(&mut self, table: &toml::Table) -> Result<(), ScenarioError> {
+        let geo_uavs = self.uavs_lat_lon_deg.take();
+        let geo_emitter = self.emitter_lat_lon_deg.take();
+        for (geo, local, given) in [
+            ("uavs_lat_lon_deg", "uavs", geo_uavs.is_some()),
+            ("emitter_lat_lon_deg", "emitter", geo_emitter.is_some()),
+        ] {
+            if given && table.contains_key(local) {
+                return Err(invalid(geo, format!("give the position once: `{local}` (metres) or `{geo}`, not both")));
+            }
+            if given && self.origin.is_none() {
+                return Err(invalid(geo, "latitude/longitude positions need an `[origin]` (lat_deg, lon_deg, alt_m)"));
+            }
+        }
+        let Some(origin) = self.origin else { return Ok(()) };
+        let frame = LocalFrame::new(origin).map_err(|e| invalid("origin", e.to_string()))?;
+        let local = |key: String, p: [f64; 2]| {
+            LatLon::new(p[0], p[1]).and_then(|p| frame.to_local(p)).map_err(|e| invalid(&key, e.to_string()))
+        };
+        if let Some(uavs) = geo_uavs {
+            self.uavs = uavs
+                .iter()
+                .enumerate()
+                .map(|(i, p)| local(format!("uavs_lat_lon_deg[{i}]"), *p))
+                .collect::<Result<_, _>>()?;
+        }
+        if let Some(p) = geo_emitter {
+            self.emitter = local("emitter_lat_lon_deg".into(), p)?;
+        }
+        Ok(())
     }
 
     /// Reads, parses and validates a TOML file.
@@ -355,6 +415,24 @@ impl Scenario {
 
     /// Checks every value; the error names the first offending key.
     pub fn validate(&self) -> Result<(), ScenarioError> {
+        if self.uavs_lat_lon_deg.is_some() || self.emitter_lat_lon_deg.is_some() {
+            return Err(invalid(
+                "uavs_lat_lon_deg",
+                "latitude/longitude positions are read from TOML only (from_toml_str)",
+            ));
+        }
+        if let Some(origin) = self.origin {
+            let frame = LocalFrame::new(origin).map_err(|e| invalid("origin", e.to_string()))?;
+            for (key, p) in self
+                .uavs
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (format!("uavs[{i}]"), p))
+                .chain([("emitter".to_string(), &self.emitter)])
+            {
+                frame.to_geodetic(*p).map_err(|e| invalid(&key, e.to_string()))?;
+            }
+        }
         let n = self.uavs.len();
         if !(3..=MAX_UAVS).contains(&n) {
             return Err(invalid("uavs", format!("need 3 to {MAX_UAVS} UAVs, got {n}")));
@@ -772,6 +850,54 @@ mod tests {
         let s = Scenario::from_toml_str(NOMINAL).unwrap();
         assert_eq!(s, Scenario::default());
         Scenario::default().validate().unwrap();
+    }
+
+    const GEO: &str = include_str!("../../scenarios/geo.toml");
+
+    /// `scenarios/geo.toml` is the nominal case given in latitude/longitude: its positions are the
+    /// nominal ones to within 0.1 mm, it keeps its origin, and it reads back from its own TOML (in metres)
+    /// as the same scenario.
+    #[test]
+    fn positions_in_latitude_longitude_are_the_nominal_ones_in_the_plane() {
+        let s = Scenario::from_toml_str(GEO).unwrap();
+        let d = Scenario::default();
+        for (a, b) in s.uavs.iter().chain([&s.emitter]).zip(d.uavs.iter().chain([&d.emitter])) {
+            assert!(dist(*a, *b) < 1e-4, "{a:?} vs {b:?}");
+        }
+        assert_eq!(s.origin.map(|o| o.lat_deg), Some(47.3977));
+        assert!(s.uavs_lat_lon_deg.is_none() && s.emitter_lat_lon_deg.is_none(), "resolved into the plane");
+        let text = s.to_toml_string();
+        assert!(text.contains("[origin]") && !text.contains("lat_lon"), "{text}");
+        assert_eq!(Scenario::from_toml_str(&text).unwrap(), s);
+        // An origin alone changes nothing of the run's values but the fingerprint.
+        let placed = Scenario { origin: s.origin, ..Scenario::default() };
+        assert_ne!(placed.fingerprint(), d.fingerprint());
+        assert_eq!(Scenario { origin: None, ..placed }, d);
+    }
+
+    #[test]
+    fn bad_geographic_positions_are_named() {
+        let origin = "[origin]\nlat_deg = 47.0\nlon_deg = 8.0\n";
+        assert_eq!(key_of("emitter_lat_lon_deg = [47.1, 8.2]"), "emitter_lat_lon_deg", "no origin");
+        assert_eq!(
+            key_of(&format!("emitter = [1.0, 2.0]\nemitter_lat_lon_deg = [47.1, 8.2]\n{origin}")),
+            "emitter_lat_lon_deg"
+        );
+        assert_eq!(
+            key_of(&format!("uavs = [[0,0],[1,1],[2,0]]\nuavs_lat_lon_deg = [[47.1, 8.2]]\n{origin}")),
+            "uavs_lat_lon_deg"
+        );
+        let e = Scenario::from_toml_str(&format!("emitter_lat_lon_deg = [95.0, 8.2]\n{origin}")).unwrap_err();
+        assert_eq!(e.key(), Some("emitter_lat_lon_deg"));
+        assert!(e.to_string().contains("latitude 95"), "{e}");
+        let far = format!("uavs_lat_lon_deg = [[47.0, 8.0], [47.0, 8.1], [60.0, 8.0]]\n{origin}");
+        let e = Scenario::from_toml_str(&far).unwrap_err();
+        assert_eq!(e.key(), Some("uavs_lat_lon_deg[2]"));
+        assert!(e.to_string().contains("from the origin"), "{e}");
+        assert_eq!(key_of("[origin]\nlat_deg = 89.9\nlon_deg = 0.0"), "origin");
+        assert_eq!(key_of("[origin]\nlat_deg = 10.0\nlon_deg = 0.0\nalt_m = nan"), "origin");
+        assert_eq!(key_of("[origin]\nlat_deg = 10.0"), "origin");
+        assert_eq!(key_of("[origin]\nlat_deg = 10.0\nlon_deg = 0.0\nheight = 3"), "origin.height");
     }
 
     #[test]

@@ -347,6 +347,7 @@ impl Assembler {
         let crlb_at_estimate_m = geometry.as_ref().and_then(|sensors| crlb_at(sensors, &estimate));
         let mut record = StepRecord {
             step: k,
+            geo: None,
             uavs: m.uavs().to_vec(),
             headings_rad: m.headings().to_vec(),
             estimate: position,

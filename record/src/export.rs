@@ -40,14 +40,21 @@ pub enum ExportError {
     Plot(#[from] PlotError),
 }
 
-/// Writes one row per step and UAV: `step,uav,x_m,y_m,heading_rad`.
+/// Writes one row per step and UAV: `step,uav,x_m,y_m,heading_rad`, and `lat_deg,lon_deg` when the run
+/// has an origin.
 pub fn write_trajectory_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
     let mut out = BufWriter::new(File::create(path)?);
-    writeln!(out, "step,uav,x_m,y_m,heading_rad")?;
+    let geo = run.scenario.origin.is_some();
+    writeln!(out, "step,uav,x_m,y_m,heading_rad{}", if geo { ",lat_deg,lon_deg" } else { "" })?;
     for step in &run.steps {
         for (i, [x, y]) in step.uavs.iter().enumerate() {
             let heading = opt(step.headings_rad.get(i).copied());
-            writeln!(out, "{},{i},{x},{y},{heading}", step.step)?;
+            write!(out, "{},{i},{x},{y},{heading}", step.step)?;
+            if geo {
+                let at = step.geo.as_ref().and_then(|g| g.uavs_lat_lon_deg.get(i));
+                write!(out, ",{},{}", opt(at.map(|p| p[0])), opt(at.map(|p| p[1])))?;
+            }
+            writeln!(out)?;
         }
     }
     out.flush()
@@ -58,44 +65,57 @@ pub fn write_trajectory_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
 /// estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,pcrlb_at_estimate_m,certified,
 /// min_pair_m,standoff_margin_m,min_true_distance_along_m` (the last four: the interval's safety along
 /// the arcs flown to the next step, [`crate::StepSafety`]; `certified` is `true`, `false` or empty; the active constraints
-/// joined with `;`; the truth-based columns empty without a truth).
+/// joined with `;`; the truth-based columns empty without a truth). A run with an origin adds
+/// `estimate_lat_deg,estimate_lon_deg`.
 pub fn write_steps_csv(run: &RunRecord, path: &Path) -> io::Result<()> {
     let mut out = BufWriter::new(File::create(path)?);
+    let geo = run.scenario.origin.is_some();
     writeln!(
         out,
         "step,crlb_true_m,rmse_m,estimate_x_m,estimate_y_m,estimate_status,objective_value_m,plan_ms,active_constraints,\
          pcrlb_m,estimate_error_m,nees,min_true_distance_m,estimate_cov_xx_m2,estimate_cov_xy_m2,estimate_cov_yy_m2,crlb_at_estimate_m,\
-         pcrlb_at_estimate_m,certified,min_pair_m,standoff_margin_m,min_true_distance_along_m"
+         pcrlb_at_estimate_m,certified,min_pair_m,standoff_margin_m,min_true_distance_along_m{}",
+        if geo { ",estimate_lat_deg,estimate_lon_deg" } else { "" }
     )?;
     for s in &run.steps {
-        writeln!(
-            out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
-            s.step,
-            opt(s.crlb_true_m),
-            opt(s.rmse_m),
-            s.estimate[0],
-            s.estimate[1],
-            csv_text(&s.estimate_status),
-            opt(s.objective_value),
-            opt(s.plan_ms),
-            csv_text(&s.active_constraints.join(";")),
-            opt(s.pcrlb_m),
-            opt(s.estimate_error_m),
-            opt(s.nees),
-            opt(s.min_true_distance_m),
-            s.estimate_cov[0][0],
-            s.estimate_cov[0][1],
-            s.estimate_cov[1][1],
-            opt(s.crlb_at_estimate_m),
-            opt(s.pcrlb_at_estimate_m),
-            s.safety.and_then(|x| x.certified).map_or(String::new(), |c| c.to_string()),
-            opt(s.safety.and_then(|x| x.min_pair_m)),
-            opt(s.safety.and_then(|x| x.standoff_margin_m)),
-            opt(s.safety.and_then(|x| x.min_true_distance_m)),
-        )?;
+        write_step_row(&mut out, s)?;
+        if geo {
+            let at = s.geo.as_ref().and_then(|g| g.estimate_lat_lon_deg);
+            write!(out, ",{},{}", opt(at.map(|p| p[0])), opt(at.map(|p| p[1])))?;
+        }
+        writeln!(out)?;
     }
     out.flush()
+}
+
+/// The columns of one step of `steps.csv` that every run has (no line end).
+fn write_step_row(out: &mut impl Write, s: &crate::StepRecord) -> io::Result<()> {
+    write!(
+        out,
+        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        s.step,
+        opt(s.crlb_true_m),
+        opt(s.rmse_m),
+        s.estimate[0],
+        s.estimate[1],
+        csv_text(&s.estimate_status),
+        opt(s.objective_value),
+        opt(s.plan_ms),
+        csv_text(&s.active_constraints.join(";")),
+        opt(s.pcrlb_m),
+        opt(s.estimate_error_m),
+        opt(s.nees),
+        opt(s.min_true_distance_m),
+        s.estimate_cov[0][0],
+        s.estimate_cov[0][1],
+        s.estimate_cov[1][1],
+        opt(s.crlb_at_estimate_m),
+        opt(s.pcrlb_at_estimate_m),
+        s.safety.and_then(|x| x.certified).map_or(String::new(), |c| c.to_string()),
+        opt(s.safety.and_then(|x| x.min_pair_m)),
+        opt(s.safety.and_then(|x| x.standoff_margin_m)),
+        opt(s.safety.and_then(|x| x.min_true_distance_m)),
+    )
 }
 
 /// Writes the whole run into `dir` (created if needed): the files of [`RUN_FILES`] — both CSV tables,

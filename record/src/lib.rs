@@ -6,10 +6,11 @@
 //! - [`record`]: the run record ([`RunRecord`], [`StepRecord`]), the JSON shape of every run;
 //! - [`metrics`]: per-step metrics against the truth (CRLB at the truth, RMSE, the running PCRLB) and the
 //!   run's totals ([`annotate`]); [`along_arcs`]: spacing and standoff along the arcs flown;
+//! - [`geographic`]: a run's positions as latitude/longitude when it has an origin;
 //! - [`export`]: a run's files (run.json, steps.csv, trajectory.csv, figures);
 //! - [`plot`], [`chart`]: a run's figures and generic report charts (curves with confidence bands,
 //!   grouped bars), SVG and PNG ([`png`]);
-//! - [`recording`]: a run's messages as MCAP.
+//! - [`recording`]: a run's messages as MCAP, with [`foxglove`]'s channels for Foxglove's own panels.
 //!
 //! Units: metres, seconds, radians.
 
@@ -17,6 +18,8 @@ pub mod along_arcs;
 mod canvas;
 pub mod chart;
 pub mod export;
+pub mod foxglove;
+pub mod geographic;
 pub mod metrics;
 pub mod plot;
 pub mod png;

@@ -186,6 +186,7 @@ pub fn annotate(run: &mut crate::RunRecord) {
     run.receiver = receiver_totals(run);
     // The violations of D_min and L_min, counted along the arcs flown.
     crate::along_arcs::annotate_along_arcs(run);
+    crate::geographic::annotate_geographic(run);
 }
 
 #[cfg(test)]

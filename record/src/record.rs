@@ -11,6 +11,9 @@ use serde::{Deserialize, Serialize};
 pub struct StepRecord {
     /// Planning step index.
     pub step: u64,
+    /// The step's positions as latitude/longitude, when the run has an origin (absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geo: Option<crate::geographic::StepGeo>,
     /// UAV positions at this step, metres (`[x, y]` per UAV, UAV0 first).
     pub uavs: Vec<[f64; 2]>,
     /// Headings chosen at this step for the next interval, radians (current headings on the last step,
@@ -299,6 +302,7 @@ pub(crate) mod tests {
     pub(crate) fn record(step: u64, crlb: f64) -> StepRecord {
         StepRecord {
             step,
+            geo: None,
             uavs: vec![[0.0, 0.0], [0.0, 0.0], [1.0, 0.0]],
             headings_rad: vec![0.0; 3],
             estimate: [1.0, 2.0],

@@ -8,6 +8,8 @@
 //!   they read back to the same `f64` bit for bit; a NaN (a failed estimate without a standing one) is
 //!   `null`. `log_time` is when the monitor received the message, `publish_time` its `published_ns`.
 //! - A metadata record `uavloc` holds the run: the scenario (JSON), steps, seed, domain and source.
+//! - Beside these channels, messages in Foxglove's own schemas that its Map and 3D panels draw
+//!   (`crate::foxglove`: the UAVs, the estimate with its ellipse, the tracks, the L_min circle).
 //! - Messages are written unchunked and the file is flushed after every recorded step, so a monitor killed
 //!   mid-run leaves a file whose messages up to the last flush are intact; the restarted monitor
 //!   (`--resume`) copies them into a new file and records on (the summary and footer are written at the
@@ -22,6 +24,8 @@ use std::path::{Path, PathBuf};
 
 use protocol::{Command, Control, ControlKind, Estimate, Measurement, Message, MessageKind, Stamps, Truth};
 use serde_json::{Value, json};
+
+use crate::foxglove::{FoxgloveSchema, FoxgloveView};
 
 /// The MCAP channel (topic) of each message kind.
 pub fn topic(kind: MessageKind) -> &'static str {
@@ -246,6 +250,9 @@ pub struct Recorder {
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
     error: Option<String>,
+    /// Foxglove's channels, derived from the recorded messages (absent when the metadata holds no
+    /// scenario).
+    view: Option<FoxgloveView>,
 }
 
 impl std::fmt::Debug for Recorder {
@@ -264,6 +271,22 @@ fn channel_of<T: Recordable>(
     }
     let schema = serde_json::to_vec(&schema_of::<T>()).expect("a JSON value");
     let schema_id = writer.add_schema(T::TYPE_NAME, "jsonschema", &schema)?;
+    let id = writer.add_channel(schema_id, topic, "json", &BTreeMap::new())?;
+    channels.insert(topic, id);
+    Ok(id)
+}
+
+/// The channel of a Foxglove topic, declared with its published schema on first use.
+fn foxglove_channel(
+    writer: &mut mcap::Writer<BufWriter<File>>,
+    channels: &mut BTreeMap<&'static str, u16>,
+    topic: &'static str,
+    schema: FoxgloveSchema,
+) -> mcap::McapResult<u16> {
+    if let Some(id) = channels.get(topic) {
+        return Ok(*id);
+    }
+    let schema_id = writer.add_schema(schema.name, "jsonschema", schema.json_schema.as_bytes())?;
     let id = writer.add_channel(schema_id, topic, "json", &BTreeMap::new())?;
     channels.insert(topic, id);
     Ok(id)
@@ -291,6 +314,10 @@ impl Recorder {
         } else {
             Vec::new()
         };
+        let view = metadata
+            .get("scenario")
+            .and_then(|text| serde_json::from_str::<model::Scenario>(text).ok())
+            .map(|scenario| FoxgloveView::new(&scenario));
         let file = File::create(path).map_err(|e| fail(&e))?;
         let options = mcap::WriteOptions::new()
             .compression(None)
@@ -302,7 +329,8 @@ impl Recorder {
         writer
             .write_metadata(&mcap::records::Metadata { name: METADATA_NAME.into(), metadata })
             .map_err(|e| fail(&with_causes(&e)))?;
-        let mut r = Recorder { path: path.to_path_buf(), writer, channels: BTreeMap::new(), sequence: 0, error: None };
+        let mut r =
+            Recorder { path: path.to_path_buf(), writer, channels: BTreeMap::new(), sequence: 0, error: None, view };
         for m in earlier {
             r.write_json(&m.topic, m.log_time, &m.json);
         }
@@ -314,7 +342,19 @@ impl Recorder {
     /// Records one message received at `received_ns`.
     pub fn record<T: Recordable>(&mut self, msg: &T, received_ns: u64) {
         let channel = channel_of::<T>(&mut self.writer, &mut self.channels);
-        self.write(channel, received_ns, msg.header().stamps.published_ns, &msg.to_json());
+        let json = msg.to_json();
+        self.write(channel, received_ns, msg.header().stamps.published_ns, &json);
+        self.write_foxglove(topic(T::KIND), received_ns, &json);
+    }
+
+    /// Writes the Foxglove messages derived from one uavloc message (see `crate::foxglove`).
+    fn write_foxglove(&mut self, topic_name: &str, log_time: u64, json: &Value) {
+        let Some(view) = self.view.as_mut() else { return };
+        for m in view.derive(topic_name, json) {
+            let channel = foxglove_channel(&mut self.writer, &mut self.channels, m.topic, m.schema);
+            let published = json["stamps"]["published_ns"].as_u64().unwrap_or(0);
+            self.write(channel, log_time, published, &m.json);
+        }
     }
 
     /// Re-writes a message read back from an earlier recording (its type from its topic).
@@ -325,9 +365,11 @@ impl Recorder {
             "/command" => channel_of::<Command>(&mut self.writer, &mut self.channels),
             "/truth" => channel_of::<Truth>(&mut self.writer, &mut self.channels),
             "/control" => channel_of::<Control>(&mut self.writer, &mut self.channels),
+            // Foxglove's channels are derived again from the uavloc messages copied.
             _ => return,
         };
         self.write(channel, log_time, json["stamps"]["published_ns"].as_u64().unwrap_or(0), json);
+        self.write_foxglove(topic_name, log_time, json);
     }
 
     /// Writes one message on `channel` (the first error is kept, and nothing is written after it).

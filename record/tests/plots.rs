@@ -51,6 +51,7 @@ fn synthetic(n: usize, objective: &str, solver: &str, seed: u64) -> RunRecord {
             let wobble = crlb * ((k as f64) * 1.7).sin();
             let step = StepRecord {
                 step: k as u64,
+                geo: None,
                 uavs: uavs.clone(),
                 headings_rad: headings.clone(),
                 estimate: [emitter[0] + wobble, emitter[1] - 0.5 * wobble],

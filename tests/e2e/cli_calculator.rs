@@ -694,3 +694,72 @@ fn locate_fuses_recorded_snapshots() {
     assert!(bad.stderr.contains("line 2") && bad.stderr.lines().count() == 1, "{}", bad.stderr);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `locate` with the UAVs as latitude/longitude around `--origin` finds the same emitter as with the
+/// plane's metres (the positions are nominal to 0.1 mm), and gives it as latitude/longitude with its
+/// 95 % ellipse; bad geographic input is a clear error (exit 2).
+#[test]
+fn locate_takes_and_gives_latitude_longitude_around_an_origin() {
+    let d = range_diffs(&NOMINAL_UAVS, NOMINAL_TARGET);
+    let geo = uavloc(&args(&[
+        "locate",
+        "--json",
+        "--origin",
+        "47.3977,8.5456,488",
+        "--uav-lat-lon",
+        "47.402195200,8.565470406",
+        "--uav-lat-lon",
+        "47.411114214,8.678091854",
+        "--uav-lat-lon",
+        "47.474128061,8.611925036",
+        "--range-diff",
+        &d,
+        "--sigma",
+        NOMINAL_SIGMA,
+        "--prior",
+        "20000,20000",
+    ]))
+    .json();
+    assert!(
+        (f(&geo, "x") - NOMINAL_TARGET[0]).abs() < 1e-3 && (f(&geo, "y") - NOMINAL_TARGET[1]).abs() < 1e-3,
+        "{geo}"
+    );
+    // scenarios/geo.toml puts the emitter at 47.532126769, 8.877592429.
+    assert!((f(&geo, "lat_deg") - 47.532_126_769).abs() < 1e-8 && (f(&geo, "lon_deg") - 8.877_592_429).abs() < 1e-8);
+    assert_eq!(geo["ellipse_95_lat_lon_deg"].as_array().unwrap().len(), 65);
+    let plain = uavloc(
+        &[
+            &["locate", "--json"][..],
+            &nominal().iter().map(String::as_str).collect::<Vec<_>>(),
+            &["--range-diff", &d, "--sigma", NOMINAL_SIGMA, "--prior", "20000,20000"],
+        ]
+        .concat(),
+    )
+    .json();
+    assert!(plain.get("lat_deg").is_none(), "no origin, no latitude");
+    for (bad, says) in [
+        (vec!["--origin", "91,8", "--uav", "0,0", "--uav", "1000,0", "--uav", "0,1000"], "latitude 91"),
+        (vec!["--uav-lat-lon", "47.4,8.5", "--uav-lat-lon", "47.5,8.5", "--uav-lat-lon", "47.4,8.6"], "--origin"),
+        (
+            vec![
+                "--origin",
+                "47,8",
+                "--uav-lat-lon",
+                "47.4,8.5",
+                "--uav-lat-lon",
+                "57.5,8.5",
+                "--uav-lat-lon",
+                "47.4,8.6",
+            ],
+            "from the origin",
+        ),
+        (
+            vec!["--origin", "47,8", "--uav-lat-lon", "47.4", "--uav-lat-lon", "47.5,8.5", "--uav-lat-lon", "47.4,8.6"],
+            "LAT,LON",
+        ),
+    ] {
+        let out = uavloc(&[&["locate"][..], &bad, &["--range-diff", "1,2", "--sigma", "30"]].concat());
+        assert_eq!(out.code, 2, "{bad:?}: {}", out.stderr);
+        assert!(out.stderr.contains(says), "{bad:?}: {}", out.stderr);
+    }
+}

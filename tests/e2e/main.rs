@@ -23,6 +23,7 @@ mod collision;
 mod crash_restart;
 mod external_frontend;
 mod fusion_consistency;
+mod geographic;
 mod launch_default;
 mod launch_faults;
 mod monitor_backpressure;

@@ -398,8 +398,9 @@ pub fn python() -> PathBuf {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let venv = root.join("target").join("pyenv");
     let py = venv.join("bin").join("python");
-    let usable =
-        |py: &Path| Command::new(py).args(["-c", "import iceoryx2, mcap"]).output().is_ok_and(|o| o.status.success());
+    let usable = |py: &Path| {
+        Command::new(py).args(["-c", "import iceoryx2, mcap, jsonschema"]).output().is_ok_and(|o| o.status.success())
+    };
     if usable(&py) {
         return py;
     }
@@ -419,8 +420,27 @@ pub fn python() -> PathBuf {
     if std::fs::rename(&tmp, &venv).is_err() {
         let _ = std::fs::remove_dir_all(&tmp); // another test binary was first
     }
-    assert!(usable(&py), "{} cannot import iceoryx2 and mcap", py.display());
+    assert!(usable(&py), "{} cannot import iceoryx2, mcap and jsonschema", py.display());
     py
+}
+
+/// Foxglove's published JSON schemas (`@foxglove/schemas` from the npm registry), one file per schema in
+/// `target/foxglove-schemas`, fetched on first use by `examples/python/fetch_foxglove_schemas.sh`
+/// (`.ci/run` fetches them before the tests).
+pub fn foxglove_schemas() -> PathBuf {
+    static FETCHING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = FETCHING.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("target").join("foxglove-schemas");
+    if dir.join("LocationFix.json").exists() {
+        return dir;
+    }
+    let out = Command::new(root.join("examples/python/fetch_foxglove_schemas.sh"))
+        .arg(&dir)
+        .output()
+        .expect("run examples/python/fetch_foxglove_schemas.sh");
+    assert!(out.status.success(), "fetching @foxglove/schemas failed: {}", String::from_utf8_lossy(&out.stderr));
+    dir
 }
 
 /// The scenario running now and how many of its tests are running.
