@@ -31,6 +31,10 @@ pub enum ProcessRole {
     /// The monitor: live view, event log, run record, plots.
     #[command(after_help = monitor::args::AFTER_HELP)]
     Monitor(monitor::args::MonitorArgs),
+    /// The MAVLink bridge: each command to the UAVs' autopilots as guided targets, their positions back
+    /// on the swarm topic.
+    #[command(after_help = bridge::args::AFTER_HELP)]
+    Bridge(bridge::args::BridgeArgs),
     /// Lists the iceoryx2 nodes and services of a domain as JSON (optionally removing dead nodes first).
     Resources(ResourcesArgs),
     /// The echo end of `uavloc bench ipc`.
@@ -58,6 +62,7 @@ pub fn run_process(args: &ProcessArgs) -> ExitCode {
         ProcessRole::Estimator(a) => estimator::process::main_with(a),
         ProcessRole::Planner(a) => planner::process::main_with(a),
         ProcessRole::Monitor(a) => monitor::process::main_with(a),
+        ProcessRole::Bridge(a) => bridge::process::main_with(a),
         ProcessRole::IpcEcho(a) => crate::bench::ipc::run_echo(a),
         ProcessRole::Resources(a) => {
             protocol::transport::quiet_logs();

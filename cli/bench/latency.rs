@@ -340,6 +340,7 @@ pub fn measure(flags: &RunFlags, config: &RunConfig) -> Result<RunResult, CliErr
         plan_delay_steps: Vec::new(),
         retry_interval_ms: 1000,
         max_restarts: 0,
+        autopilots: Vec::new(),
     };
     let report = launch::run(&args);
     let text = std::fs::read_to_string(&stamps_file);

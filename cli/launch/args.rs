@@ -65,6 +65,8 @@ Examples:
   uavloc launch --mode realtime --time-scale 100
   uavloc launch --source external --domain lab1 --steps 20    (then: python3 examples/python/frontend.py --domain lab1 --steps 20)
   uavloc launch --scenario scenarios/nominal.toml --solver ga --domain lab1 --log run.jsonl --out runs/lab1
+  uavloc launch --scenario scenarios/geo.toml --mode realtime --time-scale 20 --autopilot udpin:127.0.0.1:14550 \\
+      --autopilot udpin:127.0.0.1:14551 --autopilot udpin:127.0.0.1:14552   (aircraft over MAVLink, docs/flying.md)
 
 Each process also runs on its own, e.g. in four terminals (or systemd units) with one --domain:
   monitor --domain lab1 --log run.jsonl;  planner --domain lab1;  estimator --domain lab1
@@ -152,6 +154,13 @@ pub struct LaunchArgs {
     /// 200 ms, … (doubling, at most 1.6 s).
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub max_restarts: u32,
+    /// Fly real (or simulated) aircraft: one MAVLink endpoint per UAV, UAV0 first (udpin:HOST:PORT,
+    /// udpout:HOST:PORT, tcpout:HOST:PORT, serial:DEVICE:BAUD). The launch starts the MAVLink bridge,
+    /// which streams each command to the autopilots as guided targets, and emitter-sim measures from
+    /// where they report the UAVs (`--uavs autopilots`). Needs --mode realtime and a scenario with an
+    /// [origin] (docs/flying.md).
+    #[arg(long = "autopilot", value_name = "ENDPOINT")]
+    pub autopilots: Vec<String>,
 }
 
 impl LaunchArgs {

@@ -62,6 +62,17 @@ pub(super) fn child_flags(
             node: node(true),
             ..defaults()
         }),
+        Role::Bridge => to_flags(&bridge::args::BridgeArgs {
+            process: runtime::ProcessArgs { node: node(true), run },
+            autopilots: args.autopilots.clone(),
+            system_ids: Vec::new(),
+            rate_hz: 10.0,
+            link_timeout_ms: 1500,
+            ready_timeout_ms: 15_000,
+            max_start_offset_m: 5_000.0,
+            altitude_m: 120.0,
+            time_scale: args.time_scale.unwrap_or(1.0),
+        }),
         Role::EmitterSim => to_flags(&emitter_sim::args::EmitterSimArgs {
             process: runtime::ProcessArgs { node: node(true), run },
             // The world's snapshots: the one file of the recovery (the estimator and the planner keep no
@@ -85,6 +96,11 @@ pub(super) fn emitter_args(args: &LaunchArgs) -> emitter_sim::args::EmitterSimAr
         time_scale: args.time_scale,
         // Stays after the last step to replay it to a monitor behind.
         linger: true,
+        uavs: if args.autopilots.is_empty() {
+            emitter_sim::args::UavSource::World
+        } else {
+            emitter_sim::args::UavSource::Autopilots
+        },
         ..defaults()
     }
 }
@@ -98,7 +114,7 @@ pub(super) fn start_and_run(
     state: &StateDir,
     log: &std::path::Path,
 ) -> Result<(), CliError> {
-    for role in Role::started(args.source) {
+    for role in Role::started(args.source, !args.autopilots.is_empty()) {
         if role == Role::EmitterSim && args.idle_probe_ms > 0 {
             let idle: Vec<(String, u32)> = sup.procs.iter().map(|p| (p.role.to_string(), p.child.id())).collect();
             sup.idle_cpu = crate::bench::sys::idle_cpu(&idle, Duration::from_millis(args.idle_probe_ms));
@@ -158,7 +174,15 @@ mod tests {
             #[command(subcommand)]
             process: crate::process_cmd::ProcessRole,
         }
-        let args = LaunchArgs::try_parse_from_defaults();
+        // With aircraft, so that the bridge is a child too.
+        let args = LaunchArgs {
+            autopilots: vec![
+                "udpin:127.0.0.1:14550".into(),
+                "tcpout:10.0.0.2:5760".into(),
+                "serial:/dev/ttyACM0:57600".into(),
+            ],
+            ..LaunchArgs::try_parse_from_defaults()
+        };
         let sc = Scenario::default();
         let domain = Domain::new("t").unwrap();
         let state = StateDir::create(&domain).unwrap();

@@ -13,6 +13,8 @@ pub enum Role {
     Planner,
     /// Estimates each step; runs until stopped.
     Estimator,
+    /// The MAVLink bridge to the UAVs' autopilots (with `--autopilot`); runs until stopped.
+    Bridge,
     /// The world; prints `finished` after the last step (and lingers for replays).
     EmitterSim,
 }
@@ -34,12 +36,17 @@ pub enum RestartDecision {
 
 impl Role {
     /// The start order: each role's subscriptions exist before the next one publishes.
-    pub const START_ORDER: [Role; 4] = [Role::Monitor, Role::Planner, Role::Estimator, Role::EmitterSim];
+    pub const START_ORDER: [Role; 5] = [Role::Monitor, Role::Planner, Role::Estimator, Role::Bridge, Role::EmitterSim];
 
-    /// The roles a launch starts, in start order: all four, or without emitter-sim when the measurements
-    /// come from an external front end.
-    pub fn started(source: runtime::Source) -> impl Iterator<Item = Role> {
-        Self::START_ORDER.into_iter().filter(move |r| *r != Role::EmitterSim || source == runtime::Source::Simulator)
+    /// The roles a launch starts, in start order: the monitor, the planner and the estimator; emitter-sim
+    /// unless the measurements come from an external front end; the bridge when aircraft fly
+    /// (`autopilots`).
+    pub fn started(source: runtime::Source, autopilots: bool) -> impl Iterator<Item = Role> {
+        Self::START_ORDER.into_iter().filter(move |r| match r {
+            Role::EmitterSim => source == runtime::Source::Simulator,
+            Role::Bridge => autopilots,
+            _ => true,
+        })
     }
 
     /// The `uavloc process` subcommand and node-name suffix.
@@ -48,6 +55,7 @@ impl Role {
             Role::Monitor => "monitor",
             Role::Planner => "planner",
             Role::Estimator => "estimator",
+            Role::Bridge => "bridge",
             Role::EmitterSim => "emitter-sim",
         }
     }
@@ -184,7 +192,11 @@ mod tests {
 
     #[test]
     fn names_and_order() {
-        assert_eq!(Role::START_ORDER.map(Role::name), ["monitor", "planner", "estimator", "emitter-sim"]);
+        assert_eq!(Role::START_ORDER.map(Role::name), ["monitor", "planner", "estimator", "bridge", "emitter-sim"]);
+        let sim = Role::started(runtime::Source::Simulator, false).collect::<Vec<_>>();
+        assert!(!sim.contains(&Role::Bridge) && sim.contains(&Role::EmitterSim));
+        let flying = Role::started(runtime::Source::Simulator, true).collect::<Vec<_>>();
+        assert_eq!(flying.iter().position(|r| *r == Role::Bridge), Some(3), "before emitter-sim, which waits for it");
         assert_eq!(Role::Monitor.restart_flag(), Some("--resume"));
     }
 }

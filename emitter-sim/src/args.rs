@@ -58,6 +58,26 @@ impl std::fmt::Display for Mode {
     }
 }
 
+/// Where the UAVs are (`--uavs`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
+pub enum UavSource {
+    /// emitter-sim flies them along the planner's arcs (the model of `uavloc simulate`).
+    #[default]
+    World,
+    /// Real (or simulated) aircraft fly the commands through the MAVLink bridge: each step measures
+    /// from the positions its swarm state reports (`<domain>/swarm`). Needs --mode realtime.
+    Autopilots,
+}
+
+impl std::fmt::Display for UavSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            UavSource::World => "world",
+            UavSource::Autopilots => "autopilots",
+        })
+    }
+}
+
 /// Checks `--time-scale` against `--mode`: given only with `realtime`, and then a valid scale.
 /// The longest `--step-delay-ms`: a minute per step (a typo of hours per step would otherwise run as asked).
 pub const MAX_STEP_DELAY_MS: u64 = 60_000;
@@ -161,6 +181,16 @@ pub struct EmitterSimArgs {
     /// is in the pipeline), else it has no effect until a monitor reports. No effect in real-time mode.
     #[arg(long, value_name = "N", default_value_t = recovery::MONITOR_WINDOW)]
     pub monitor_window: u64,
+    /// Where the UAVs are: world (emitter-sim flies the commanded arcs) or autopilots (the MAVLink
+    /// bridge's swarm state: each step is measured from where the autopilots report the UAVs; needs
+    /// --mode realtime).
+    #[arg(long, value_enum, value_name = "SOURCE", default_value_t = UavSource::World)]
+    #[serde(serialize_with = "runtime::flags::display")]
+    pub uavs: UavSource,
+    /// With --uavs autopilots: a UAV whose last fix is older than this at a step (a quiet link) is not
+    /// heard in that step's burst, ms.
+    #[arg(long, value_name = "MS", default_value_t = 1500)]
+    pub fix_timeout_ms: u64,
 }
 
 impl EmitterSimArgs {
@@ -198,6 +228,14 @@ impl EmitterSimArgs {
         }
         if self.retry_interval_ms == 0 {
             return Err("--retry-interval-ms must be > 0".into());
+        }
+        if self.uavs == UavSource::Autopilots && self.mode != Mode::Realtime {
+            return Err("--uavs autopilots needs --mode realtime: aircraft fly in real time (with --time-scale for \
+                        simulated ones)"
+                .into());
+        }
+        if self.fix_timeout_ms == 0 {
+            return Err("--fix-timeout-ms must be > 0".into());
         }
         Ok(())
     }
@@ -251,6 +289,8 @@ mod tests {
             checkpoint: None,
             linger: true,
             monitor_window: 17,
+            uavs: UavSource::Autopilots,
+            fix_timeout_ms: 900,
         };
         assert_eq!(runtime::flags::round_trip(&e).unwrap(), e);
         // A value that is not a finite number is an error, not a flag left out (the child's default).

@@ -43,12 +43,13 @@ use model::load_scenario;
 use protocol::services::{self, Domain};
 use protocol::transport::{Link, TopicPublisher};
 use protocol::{
-    Command, CommandOutcome, Control, ControlKind, Measurement, Message, Stamps, Topic, TopicSubscriber, Truth,
+    Command, CommandOutcome, Control, ControlKind, LinkState, Measurement, Message, Stamps, SwarmState, Topic,
+    TopicSubscriber, Truth,
 };
 use runtime::recovery::{self, EMITTER_SNAPSHOTS, HISTORY_STEPS};
 use runtime::{Ended, Flow, Handler, Join, Node, ProcessError, SupervisorLine};
 
-use crate::args::EmitterSimArgs;
+use crate::args::{EmitterSimArgs, UavSource};
 use crate::checkpoint::{self, Start};
 use crate::schedule::{Action, Config, Other, Pacing, Schedule};
 use crate::summary::EmitterSummary;
@@ -91,6 +92,32 @@ fn wait_for_pipeline(
     }
 }
 
+/// `--uavs autopilots`: waits until the bridge reports every UAV flying guided with a fix (the world
+/// measures from where they are), up to `timeout_s`.
+fn wait_for_autopilots(node: &mut Node, swarm: &mut Swarm<'_>, n: usize, timeout_s: f64) -> Result<(), ProcessError> {
+    let start = Instant::now();
+    node.say(format_args!("waiting for the bridge to report all {n} UAVs flying guided"));
+    loop {
+        swarm.take(node)?;
+        if swarm.all_flying(n) {
+            return Ok(());
+        }
+        if start.elapsed().as_secs_f64() > timeout_s {
+            let said =
+                swarm.newest.map_or("no swarm state at all (is the bridge running in this domain?)".to_string(), |s| {
+                    (0..s.len())
+                        .map(|i| format!("UAV {i} {}", s.link_of(i).map_or("?", LinkState::name)))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                });
+            return Err(ProcessError::Failed(format!(
+                "the autopilots were not all flying within {timeout_s} s (--connect-timeout-s): {said}"
+            )));
+        }
+        node.link().sleep(CONNECT_POLL * 10)?;
+    }
+}
+
 /// The world's shell on the node runtime: the ports, the world, what was published, and the schedule.
 struct EmitterNode<'a> {
     args: &'a EmitterSimArgs,
@@ -114,6 +141,63 @@ struct EmitterNode<'a> {
     sent_count: u64,
     /// The scenario's fingerprint, written with the snapshots.
     fingerprint: String,
+    /// `--uavs autopilots`: the bridge's swarm states, the newest one and the steps' UAVs not heard for a
+    /// quiet link.
+    swarm: Option<Swarm<'a>>,
+}
+
+/// The UAVs as the autopilots report them (`--uavs autopilots`).
+struct Swarm<'a> {
+    states: &'a TopicSubscriber<SwarmState>,
+    last_seq: Option<u64>,
+    newest: Option<SwarmState>,
+    /// UAV-steps not heard because their fix was stale or their link quiet.
+    unheard: u64,
+}
+
+impl Swarm<'_> {
+    /// Takes the swarm states waiting (each checked; a bad one counted and logged by the node).
+    fn take(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        let (batch, _) = node.receive(self.states, &mut self.last_seq, "a swarm state")?;
+        if let Some(s) = batch.into_iter().last() {
+            self.newest = Some(s);
+        }
+        Ok(())
+    }
+
+    /// Whether every UAV of `n` flies guided with a fix.
+    fn all_flying(&self, n: usize) -> bool {
+        self.newest
+            .is_some_and(|s| s.len() == n && (0..n).all(|i| s.has_fix(i) && s.link_of(i) == Some(LinkState::Flying)))
+    }
+
+    /// Puts the world's UAVs where the newest swarm state reports them; a UAV without a fix younger than
+    /// `fix_timeout` (or not flying) is not heard this step.
+    fn place(&mut self, world: &mut World, fix_timeout: Duration, k: u64) -> Result<u8, ProcessError> {
+        let n = world.positions().len();
+        let s = self
+            .newest
+            .filter(|s| s.len() == n)
+            .ok_or_else(|| ProcessError::Failed(format!("step {k}: no swarm state of {n} UAVs from the bridge")))?;
+        let now = protocol::now_ns();
+        let mut unheard = 0u8;
+        let mut positions = Vec::with_capacity(n);
+        let mut headings = Vec::with_capacity(n);
+        for i in 0..n {
+            let fresh = s.has_fix(i) && now.saturating_sub(s.fix_ns[i]) <= fix_timeout.as_nanos() as u64;
+            if !fresh || s.link_of(i) != Some(LinkState::Flying) {
+                unheard |= 1 << i;
+            }
+            let here = world.positions()[i];
+            positions.push(if s.has_fix(i) { s.positions[i] } else { [here.x, here.y] });
+            headings.push(if s.has_fix(i) { s.headings[i] } else { world.headings()[i] });
+        }
+        world
+            .place(&positions, &headings, unheard)
+            .map_err(|e| ProcessError::failed_because(format!("step {k}: the swarm state"), e))?;
+        self.unheard += u64::from(unheard.count_ones());
+        Ok(unheard)
+    }
 }
 
 impl EmitterNode<'_> {
@@ -138,6 +222,14 @@ impl EmitterNode<'_> {
     fn publish(&mut self, node: &mut Node, k: u64) -> Result<(), ProcessError> {
         if self.args.checkpoint.is_some() && recovery::is_snapshot_step(k) {
             self.before = Some((self.world.snapshot(), self.previous == CommandOutcome::Missed));
+        }
+        if let Some(swarm) = self.swarm.as_mut() {
+            swarm.take(node)?;
+            let unheard = swarm.place(&mut self.world, Duration::from_millis(self.args.fix_timeout_ms), k)?;
+            if unheard != 0 {
+                let who: Vec<String> = (0..8).filter(|i| unheard & (1 << i) != 0).map(|i| format!("UAV {i}")).collect();
+                node.warn(format_args!("step {k}: no fresh fix of {} (a quiet link): not heard", who.join(", ")));
+            }
         }
         // A geometry the world cannot measure (two UAVs on top of each other: a collision) is where the
         // run ends; a restart would fly into it again.
@@ -224,6 +316,9 @@ impl EmitterNode<'_> {
 
 impl Handler for EmitterNode<'_> {
     fn on_wake(&mut self, node: &mut Node) -> Result<Flow, ProcessError> {
+        if let Some(swarm) = self.swarm.as_mut() {
+            swarm.take(node)?;
+        }
         // Every message is checked and counted, also after the one that is applied.
         let (batch, received_ns) = node.receive(self.commands, &mut self.last_seq, "a command")?;
         for cmd in batch {
@@ -283,6 +378,13 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let measurements = Topic::<Measurement>::publisher(node.link(), &services::measurement(&domain))?;
     let commands = Topic::<Command>::subscriber(node.link(), &services::command(&domain))?;
     wait_for_pipeline(node.link(), &measurements, &commands, &domain, args)?;
+    let swarm_states = (args.uavs == UavSource::Autopilots)
+        .then(|| Topic::<SwarmState>::subscriber(node.link(), &services::swarm(&domain)))
+        .transpose()?;
+    let mut swarm = swarm_states.as_ref().map(|states| Swarm { states, last_seq: None, newest: None, unheard: 0 });
+    if let Some(swarm) = swarm.as_mut() {
+        wait_for_autopilots(&mut node, swarm, scenario.uav_count(), args.connect_timeout_s)?;
+    }
     node.join(Join::Hello, "")?;
     if start_step > 0 {
         node.say(format_args!("resumed from the snapshot of step {start_step}"));
@@ -329,8 +431,13 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         before: None,
         sent_count: 0,
         fingerprint,
+        swarm,
     };
-    let ended = node.run(&[&commands], &mut world)?;
+    let mut inputs: Vec<&dyn protocol::Waitable> = vec![&commands];
+    if let Some(s) = &swarm_states {
+        inputs.push(s);
+    }
+    let ended = node.run(&inputs, &mut world)?;
     if matches!(ended, Ended::Interrupted | Ended::Shutdown) && !world.schedule.is_done() {
         return Err(ProcessError::Interrupted);
     }
@@ -344,6 +451,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         rejected: node_summary.rejected,
         started_at: start_step,
         cpu_s: node_summary.cpu_s,
+        unheard_uav_steps: world.swarm.as_ref().map(|s| s.unheard),
     };
     if !args.process.node.quiet {
         eprint!("{}", summary.closing_lines());

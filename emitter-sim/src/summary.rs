@@ -23,6 +23,9 @@ pub struct EmitterSummary {
     pub started_at: u64,
     /// CPU time this process used, seconds.
     pub cpu_s: f64,
+    /// `--uavs autopilots`: UAV-steps not heard because the UAV's fix was stale (a quiet link).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unheard_uav_steps: Option<u64>,
 }
 
 impl EmitterSummary {

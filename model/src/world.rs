@@ -93,6 +93,9 @@ pub struct World {
     dt: f64,
     seed: u64,
     step: u64,
+    /// UAVs whose arrival of the current burst cannot be timed or placed (bit i: UAV i) — a UAV flown by
+    /// an autopilot whose link is quiet ([`World::place`]); 0 otherwise.
+    unheard: u8,
 }
 
 impl World {
@@ -111,7 +114,30 @@ impl World {
             dt: scenario.dt,
             seed: scenario.seed,
             step: 0,
+            unheard: 0,
         })
+    }
+
+    /// Puts the UAVs where their autopilots report them (`positions`, `headings`) for the current step:
+    /// the world then measures from there instead of from the arcs it flew. `unheard` (bit i: UAV i) marks
+    /// UAVs without a fresh fix — their arrivals of this burst are lost, as a receiver whose position and
+    /// time are unknown cannot contribute. Refuses a wrong count or a value that is not finite (leaving the
+    /// world unchanged).
+    pub fn place(&mut self, positions: &[[f64; 2]], headings: &[f64], unheard: u8) -> Result<(), WorldError> {
+        let n = self.positions.len();
+        if positions.len() != n || headings.len() != n {
+            return Err(WorldError::HeadingCount { expected: n, got: positions.len().min(headings.len()) });
+        }
+        if let Some((uav, &value)) = headings.iter().enumerate().find(|(_, h)| !h.is_finite()) {
+            return Err(WorldError::HeadingNotFinite { uav, value });
+        }
+        if let Some(&value) = positions.iter().flatten().find(|v| !v.is_finite()) {
+            return Err(WorldError::Geometry(TdoaError::NotFinite { what: "a reported UAV position".into(), value }));
+        }
+        self.positions = positions.iter().map(|p| Vector2::new(p[0], p[1])).collect();
+        self.headings = headings.iter().copied().map(wrap_angle).collect();
+        self.unheard = unheard;
+        Ok(())
     }
 
     /// The true emitter position at the current step, metres: the scenario's `emitter` moved by
@@ -186,7 +212,7 @@ impl World {
         let n = self.positions.len();
         let reported: Vec<[f64; 2]> = b.reported[..n].iter().map(|p| [p.x, p.y]).collect();
         let (sigmas, bias) = self.stated_sigmas();
-        let arrivals = Arrivals::new(&reported, &b.arrivals[..n], b.heard, &sigmas, &bias)?;
+        let arrivals = Arrivals::new(&reported, &b.arrivals[..n], b.heard & !self.unheard, &sigmas, &bias)?;
         Ok(Measurement {
             step: self.step,
             uavs: b.reported[..n].to_vec(),
@@ -222,6 +248,7 @@ impl World {
         world.positions = snapshot.positions.iter().map(|p| Vector2::new(p[0], p[1])).collect();
         world.headings = snapshot.headings.clone();
         world.step = snapshot.step;
+        world.unheard = 0;
         Ok(world)
     }
 
@@ -239,6 +266,7 @@ impl World {
             *psi = wrap_angle(phi);
         }
         self.step += 1;
+        self.unheard = 0;
         Ok(())
     }
 }
@@ -365,5 +393,23 @@ mod tests {
         let mut w = world();
         w.positions[2] = w.positions[1];
         assert!(matches!(w.measure(), Err(WorldError::Geometry(TdoaError::CoincidentUavs { .. }))));
+    }
+
+    /// A UAV placed where its autopilot reports it is measured from there; one without a fresh fix is not
+    /// heard; a bad report changes nothing; the next step hears every UAV again.
+    #[test]
+    fn placed_uavs_are_measured_where_reported_and_a_quiet_one_is_not_heard() {
+        let mut w = world();
+        let at = [[1600.0, 450.0], [10100.0, 1500.0], [5000.0, 8700.0]];
+        w.place(&at, &[0.1, 0.2, 0.3], 0b010).unwrap();
+        let m = w.measure().unwrap();
+        assert_eq!(m.uavs.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(), at);
+        assert_eq!(m.arrivals.heard_mask(), 0b101, "UAV 1's link is quiet");
+        let before = w.clone();
+        assert!(w.place(&at[..2], &[0.0, 0.0], 0).is_err());
+        assert!(w.place(&[[f64::NAN, 0.0], at[1], at[2]], &[0.0; 3], 0).is_err());
+        assert_eq!(w, before, "refused: unchanged");
+        w.apply(&[0.1, 0.2, 0.3]).unwrap();
+        assert_eq!(w.measure().unwrap().arrivals.heard_mask(), 0b111);
     }
 }

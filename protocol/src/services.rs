@@ -140,6 +140,12 @@ pub fn command(domain: &Domain) -> String {
     format!("{domain}/command")
 }
 
+/// Topic of [`SwarmState`](crate::SwarmState)s: the MAVLink bridge → emitter-sim (`--uavs autopilots`),
+/// the monitor and external front ends: the UAVs as their autopilots report them.
+pub fn swarm(domain: &Domain) -> String {
+    format!("{domain}/swarm")
+}
+
 /// Topic of [`Truth`](crate::Truth)s: emitter-sim → monitor only.
 pub fn truth(domain: &Domain) -> String {
     format!("{domain}/truth")

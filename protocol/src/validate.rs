@@ -29,7 +29,8 @@ use core::fmt;
 use thiserror::Error;
 
 use crate::messages::{
-    Command, Control, ControlKind, Estimate, EstimateStatus, FLAG_SILENT, Measurement, Message, MessageKind, Truth,
+    Command, Control, ControlKind, Estimate, EstimateStatus, FLAG_SILENT, Measurement, Message, MessageKind,
+    SwarmState, Truth,
 };
 use crate::{MAX_UAVS, MIN_UAVS};
 
@@ -398,6 +399,36 @@ impl Truth {
             return Err(Rejection::UnknownKind { field: "previous_command", kind: self.previous_command });
         }
         check_finite("position", &self.position)?;
+        check_seq(self.header.seq, last_seq)
+    }
+}
+
+/// The largest coordinate of a swarm position, metres: the maths' plane extent (`tdoa::MAX_EXTENT_M`).
+pub const SWARM_EXTENT_M: f64 = 1.0e7;
+
+impl SwarmState {
+    /// Checks the swarm state; see the [module docs](crate::validate): the count, the link states, and
+    /// for every UAV with a fix finite values, a position within the plane's extent and a
+    /// latitude/longitude in range.
+    pub fn validate(&self, last_seq: Option<u64>) -> Result<(), Rejection> {
+        check_version(Self::VERSION, self.header.version)?;
+        let n = check_count(self.count)?;
+        for i in 0..n {
+            if self.link_of(i).is_none() {
+                return Err(Rejection::UnknownKind { field: "link", kind: self.link[i] });
+            }
+            if !self.has_fix(i) {
+                continue;
+            }
+            check_finite("positions", &self.positions[i])?;
+            check_finite("lat_lon_deg", &self.lat_lon_deg[i])?;
+            check_finite("velocities", &self.velocities[i])?;
+            check_finite("headings", [&self.headings[i], &self.altitude_m[i]])?;
+            let [lat, lon] = self.lat_lon_deg[i];
+            if self.positions[i].iter().any(|v| v.abs() > SWARM_EXTENT_M) || lat.abs() > 90.0 || lon.abs() > 180.0 {
+                return Err(Rejection::NotFinite { field: "positions (out of range)" });
+            }
+        }
         check_seq(self.header.seq, last_seq)
     }
 }

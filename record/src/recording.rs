@@ -37,6 +37,8 @@ pub fn topic(kind: MessageKind) -> &'static str {
         MessageKind::Control => "/control",
         // Not recorded (the monitor's own answers to the estimator); named for completeness.
         MessageKind::State => "/state",
+        // Not recorded (the bridge's 10 Hz report; the UAVs of each step are in its measurement).
+        MessageKind::Swarm => "/swarm",
     }
 }
 

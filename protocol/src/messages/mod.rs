@@ -59,17 +59,20 @@ pub enum MessageKind {
     Control,
     /// [`EstimatorState`].
     State,
+    /// [`SwarmState`].
+    Swarm,
 }
 
 impl MessageKind {
     /// All kinds, in index order.
-    pub const ALL: [MessageKind; 6] = [
+    pub const ALL: [MessageKind; 7] = [
         MessageKind::Measurement,
         MessageKind::Estimate,
         MessageKind::Command,
         MessageKind::Truth,
         MessageKind::Control,
         MessageKind::State,
+        MessageKind::Swarm,
     ];
 
     /// Stable lower-case name (`"measurement"`, …).
@@ -81,6 +84,7 @@ impl MessageKind {
             MessageKind::Truth => "truth",
             MessageKind::Control => "control",
             MessageKind::State => "state",
+            MessageKind::Swarm => "swarm",
         }
     }
 
@@ -133,7 +137,7 @@ impl Stamps {
             MessageKind::Measurement => self.measurement_published_ns = t,
             MessageKind::Estimate => self.estimate_published_ns = t,
             MessageKind::Command => self.command_published_ns = t,
-            MessageKind::Truth | MessageKind::Control | MessageKind::State => {}
+            MessageKind::Truth | MessageKind::Control | MessageKind::State | MessageKind::Swarm => {}
         }
     }
 
@@ -159,7 +163,9 @@ impl Stamps {
                 trigger_command_received_ns: received_ns,
                 ..Stamps::default()
             },
-            MessageKind::Truth | MessageKind::Control | MessageKind::State => Stamps { published_ns: 0, ..*upstream },
+            MessageKind::Truth | MessageKind::Control | MessageKind::State | MessageKind::Swarm => {
+                Stamps { published_ns: 0, ..*upstream }
+            }
         }
     }
 
@@ -486,6 +492,7 @@ mod control;
 mod estimate;
 mod measurement;
 mod state;
+mod swarm;
 mod truth;
 
 pub use command::*;
@@ -493,6 +500,7 @@ pub use control::*;
 pub use estimate::*;
 pub use measurement::*;
 pub use state::*;
+pub use swarm::*;
 pub use truth::*;
 
 #[cfg(test)]

@@ -399,7 +399,10 @@ pub fn python() -> PathBuf {
     let venv = root.join("target").join("pyenv");
     let py = venv.join("bin").join("python");
     let usable = |py: &Path| {
-        Command::new(py).args(["-c", "import iceoryx2, mcap, jsonschema"]).output().is_ok_and(|o| o.status.success())
+        Command::new(py)
+            .args(["-c", "import iceoryx2, mcap, jsonschema, pymavlink, pymap3d"])
+            .output()
+            .is_ok_and(|o| o.status.success())
     };
     if usable(&py) {
         return py;
