@@ -51,6 +51,8 @@ pub(super) fn child_flags(
             estimate_deadline_ms: args.estimate_deadline_ms,
             plan_delay_ms: args.plan_delay_ms,
             plan_delay_steps: if args.plan_delay_ms > 0 { args.plan_delay_steps.clone() } else { Vec::new() },
+            // Aircraft: a quiet link's reach widens the safety margins.
+            stated_position_margins: !args.autopilots.is_empty(),
             ..defaults()
         }),
         Role::Estimator => to_flags(&estimator::args::EstimatorArgs {

@@ -153,6 +153,8 @@ struct Swarm<'a> {
     newest: Option<SwarmState>,
     /// UAV-steps not heard because their fix was stale or their link quiet.
     unheard: u64,
+    /// The UAVs' speed (the scenario's), m/s, times the time scale: metres flown per wall second.
+    speed_per_real_s: f64,
 }
 
 impl Swarm<'_> {
@@ -172,8 +174,9 @@ impl Swarm<'_> {
     }
 
     /// Puts the world's UAVs where the newest swarm state reports them; a UAV without a fix younger than
-    /// `fix_timeout` (or not flying) is not heard this step.
-    fn place(&mut self, world: &mut World, fix_timeout: Duration, k: u64) -> Result<u8, ProcessError> {
+    /// `fix_timeout` is not heard this step. Returns, per UAV not heard, how far it may be
+    /// from the position reported (its speed times its fix's age), metres.
+    fn place(&mut self, world: &mut World, fix_timeout: Duration, k: u64) -> Result<Vec<Option<f64>>, ProcessError> {
         let n = world.positions().len();
         let s = self
             .newest
@@ -181,12 +184,17 @@ impl Swarm<'_> {
             .ok_or_else(|| ProcessError::Failed(format!("step {k}: no swarm state of {n} UAVs from the bridge")))?;
         let now = protocol::now_ns();
         let mut unheard = 0u8;
+        let mut reach = vec![None; n];
         let mut positions = Vec::with_capacity(n);
         let mut headings = Vec::with_capacity(n);
         for i in 0..n {
             let fresh = s.has_fix(i) && now.saturating_sub(s.fix_ns[i]) <= fix_timeout.as_nanos() as u64;
-            if !fresh || s.link_of(i) != Some(LinkState::Flying) {
+            // Heard with a fresh fix whatever the link's mode: the arrival can be timed and placed (whether
+            // it may be commanded is the bridge's business).
+            if !fresh {
                 unheard |= 1 << i;
+                let age_s = now.saturating_sub(s.fix_ns[i]) as f64 * 1e-9;
+                reach[i] = Some(self.speed_per_real_s * age_s);
             }
             let here = world.positions()[i];
             positions.push(if s.has_fix(i) { s.positions[i] } else { [here.x, here.y] });
@@ -196,7 +204,7 @@ impl Swarm<'_> {
             .place(&positions, &headings, unheard)
             .map_err(|e| ProcessError::failed_because(format!("step {k}: the swarm state"), e))?;
         self.unheard += u64::from(unheard.count_ones());
-        Ok(unheard)
+        Ok(reach)
     }
 }
 
@@ -223,12 +231,17 @@ impl EmitterNode<'_> {
         if self.args.checkpoint.is_some() && recovery::is_snapshot_step(k) {
             self.before = Some((self.world.snapshot(), self.previous == CommandOutcome::Missed));
         }
+        let mut reach = Vec::new();
         if let Some(swarm) = self.swarm.as_mut() {
             swarm.take(node)?;
-            let unheard = swarm.place(&mut self.world, Duration::from_millis(self.args.fix_timeout_ms), k)?;
-            if unheard != 0 {
-                let who: Vec<String> = (0..8).filter(|i| unheard & (1 << i) != 0).map(|i| format!("UAV {i}")).collect();
-                node.warn(format_args!("step {k}: no fresh fix of {} (a quiet link): not heard", who.join(", ")));
+            reach = swarm.place(&mut self.world, Duration::from_millis(self.args.fix_timeout_ms), k)?;
+            let who: Vec<String> = reach
+                .iter()
+                .enumerate()
+                .filter_map(|(i, r)| r.map(|r| format!("UAV {i} (within {r:.0} m of its last fix)")))
+                .collect();
+            if !who.is_empty() {
+                node.warn(format_args!("step {k}: no fresh fix of {}: not heard", who.join(", ")));
             }
         }
         // A geometry the world cannot measure (two UAVs on top of each other: a collision) is where the
@@ -238,6 +251,14 @@ impl EmitterNode<'_> {
         })?;
         let mut message = wire_measurement(k, &meas, &self.sigmas, self.world.headings(), self.world.receiver())
             .map_err(|e| ProcessError::failed_because(format!("step {k}: measurement"), e))?;
+        // A UAV not heard for a quiet link is stated with the position σ of its reach: the planner's safety
+        // margins then cover where it may be (planner --stated-position-margins).
+        for (i, r) in reach.iter().enumerate() {
+            if let Some(r) = r {
+                let sigma = model::safety::position_sigma_of_reach(*r);
+                message.position_sigmas[i] = message.position_sigmas[i].max(sigma);
+            }
+        }
         let z = self.world.truth();
         let mut truth = Truth::new(k, 0, [z.x, z.y]).with_previous_command(self.previous);
         if let Some((cmd, received_ns)) = &self.trigger {
@@ -381,7 +402,14 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
     let swarm_states = (args.uavs == UavSource::Autopilots)
         .then(|| Topic::<SwarmState>::subscriber(node.link(), &services::swarm(&domain)))
         .transpose()?;
-    let mut swarm = swarm_states.as_ref().map(|states| Swarm { states, last_seq: None, newest: None, unheard: 0 });
+    let speed_per_real_s = scenario.speed * args.time_scale.unwrap_or(1.0);
+    let mut swarm = swarm_states.as_ref().map(|states| Swarm {
+        states,
+        last_seq: None,
+        newest: None,
+        unheard: 0,
+        speed_per_real_s,
+    });
     if let Some(swarm) = swarm.as_mut() {
         wait_for_autopilots(&mut node, swarm, scenario.uav_count(), args.connect_timeout_s)?;
     }

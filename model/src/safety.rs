@@ -46,6 +46,18 @@ use serde::{Deserialize, Serialize};
 use crate::arc::{Arc, MIN_TOLERANCE_M, moving_point_min_distance, pair_min_distance_from};
 use crate::kinematics::max_turn;
 
+/// Standard deviations of the relative position error two UAVs' spacing is certified beyond: `D_min`
+/// holds between the true positions unless their GNSS errors along the pair's line exceed 5 σ
+/// (one-sided probability 3·10⁻⁷ per pair and step). The planner's margin is `5 √2 σ` for a position σ
+/// per axis of each UAV ([`position_sigma_of_reach`] states a quiet link's reach that way).
+pub const SPACING_POSITION_SIGMAS: f64 = 5.0;
+
+/// The position σ per axis whose spacing margin (`SPACING_POSITION_SIGMAS · √2 · σ`) is `reach` metres:
+/// how far a UAV whose link has been quiet may be from its last fix (its speed times the fix's age).
+pub fn position_sigma_of_reach(reach_m: f64) -> f64 {
+    reach_m / (SPACING_POSITION_SIGMAS * std::f64::consts::SQRT_2)
+}
+
 /// Most the backup turns per step, radians: below π so that the commanded heading `ψ − θ_b` cannot wrap
 /// into a left turn.
 pub const BACKUP_MAX_TURN: f64 = 0.9 * std::f64::consts::PI;

@@ -53,6 +53,12 @@ pub struct PlannerArgs {
     /// step).
     #[arg(long, value_name = "K,..", value_delimiter = ',')]
     pub plan_delay_steps: Vec<u64>,
+    /// Take each step's stated UAV position σ (the measurement's `position_sigmas`) into the safety
+    /// margins when it exceeds the scenario's GNSS σ: with aircraft over MAVLink, a UAV whose link is quiet
+    /// is stated with the σ of how far it may have flown since its last fix, so the certificate covers it
+    /// or says it cannot. `uavloc launch --autopilot` passes it.
+    #[arg(long)]
+    pub stated_position_margins: bool,
 }
 
 /// Checks that the process pipeline can run `scenario` (also what `uavloc launch` checks): only
@@ -94,6 +100,7 @@ mod tests {
             estimate_deadline_ms: 12,
             plan_delay_ms: 5,
             plan_delay_steps: vec![1, 4],
+            stated_position_margins: true,
         };
         assert_eq!(runtime::flags::round_trip(&p).unwrap(), p);
     }

@@ -82,6 +82,8 @@ struct Planner<'a> {
     seen_before_takeover: u32,
     last_planned: Option<u64>,
     summary: PlannerSummary,
+    /// With --stated-position-margins: the largest stated UAV position σ of each recent step, metres.
+    position_sigmas: std::collections::BTreeMap<u64, f64>,
 }
 
 impl Planner<'_> {
@@ -120,17 +122,38 @@ impl Planner<'_> {
 
     /// The staleness deadline: measurements start a step's deadline.
     fn track_measurements(&mut self, node: &mut Node) -> Result<(), ProcessError> {
-        let (Some(t), Some(sub)) = (self.tracker.as_mut(), self.measurements) else { return Ok(()) };
+        let Some(sub) = self.measurements else { return Ok(()) };
         let (batch, _) = node.receive_measurements(sub, &mut self.measurement_gate)?;
         // The deadline runs from when the measurements are in hand (see `Node::receive`).
         let now = Instant::now();
         for m in batch {
             let step = m.header.step;
+            if self.args.stated_position_margins {
+                let most = m.position_sigmas[..m.len()].iter().copied().fold(0.0, f64::max);
+                self.position_sigmas.insert(step, most);
+                while self.position_sigmas.len() as u64 > HISTORY_STEPS {
+                    self.position_sigmas.pop_first();
+                }
+            }
+            let Some(t) = self.tracker.as_mut() else { continue };
             let positions = points(m.uavs());
             let plannable = step < self.scenario.steps as u64 && self.last_planned.is_none_or(|l| step > l);
             t.on_measurement(step, now, positions, m.headings().to_vec(), staleness::fingerprint(&m), plannable);
         }
         Ok(())
+    }
+
+    /// The scenario step `step` is planned with: the noise the measurement stated (an external front
+    /// end's σ) and, with --stated-position-margins, its largest stated position σ as the GNSS σ of the
+    /// safety margins when that is larger than the scenario's.
+    fn scenario_of(&self, step: u64, range_sigmas: Option<&[f64]>) -> Option<Scenario> {
+        let stated = wire::scenario_with_sigmas(&self.scenario, range_sigmas);
+        let sigma = self.position_sigmas.get(&step).copied().unwrap_or(0.0);
+        let base = stated.as_ref().unwrap_or(&self.scenario);
+        if sigma <= base.receiver.gnss_sigma_m {
+            return stated;
+        }
+        Some(Scenario { receiver: model::ReceiverModel { gnss_sigma_m: sigma, ..base.receiver }, ..base.clone() })
     }
 
     /// The hold command of a step whose estimate missed the deadline ([`wire::hold_command`]).
@@ -177,8 +200,9 @@ impl Planner<'_> {
         }
         let (z_hat, m) = tdoa::estimate_from_arrays(&position, &covariance);
         let positions = points(est.uavs());
-        // The noise the measurement stated (an external front end's σ) is the noise planned for.
-        let stated = wire::scenario_with_sigmas(&self.scenario, est.range_sigmas());
+        // The noise the measurement stated (an external front end's σ) is the noise planned for; a quiet
+        // link's reach widens the safety margins (--stated-position-margins).
+        let stated = self.scenario_of(step, est.range_sigmas());
         let plan = match plan_step(&PlanRequest {
             positions: &positions,
             headings: est.headings(),
@@ -271,7 +295,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let estimates = Topic::<Estimate>::subscriber(node.link(), &services::estimate(&domain))?;
     let commands = Topic::<Command>::publisher(node.link(), &services::command(&domain))?;
     // With a staleness deadline: the measurements start each step's deadline.
-    let measurements = (args.estimate_deadline_ms > 0)
+    let measurements = (args.estimate_deadline_ms > 0 || args.stated_position_margins)
         .then(|| Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain)))
         .transpose()?;
     let detail = format!("{}/{}", args.solver.name(), args.objective.name());
@@ -300,6 +324,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
         seen_before_takeover: 0,
         last_planned: None,
         summary: PlannerSummary::default(),
+        position_sigmas: std::collections::BTreeMap::new(),
     };
     let mut inputs: Vec<&dyn protocol::Waitable> = vec![&estimates];
     if let Some(m) = &measurements {

@@ -48,10 +48,7 @@ pub struct EmitterMotion {
     pub velocity_cov: Matrix2<f64>,
 }
 
-/// Standard deviations of the relative position error two UAVs' spacing is certified beyond: `D_min`
-/// holds between the true positions unless their GNSS errors along the pair's line exceed 5 σ
-/// (one-sided probability 3·10⁻⁷ per pair and step).
-pub const SPACING_POSITION_SIGMAS: f64 = 5.0;
+pub use model::safety::SPACING_POSITION_SIGMAS;
 
 /// What the UAVs' own position errors cost the safety constraints: the planner knows each UAV where its
 /// GNSS reports it, `σ_g` per axis per step and `σ_gb` for the flight (the scenario's `receiver.gnss_*`),

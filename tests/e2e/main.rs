@@ -22,6 +22,7 @@ mod cli_calculator;
 mod collision;
 mod crash_restart;
 mod external_frontend;
+mod flying;
 mod fusion_consistency;
 mod geographic;
 mod launch_default;

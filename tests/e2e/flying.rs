@@ -1,0 +1,229 @@
+//! Aircraft over MAVLink: `uavloc launch --autopilot …` with simulated fixed-wing autopilots that speak
+//! real MAVLink 2 (`examples/python/sim_autopilot.py`, pymavlink; one process per UAV, time-scaled), the
+//! MAVLink bridge between them and the pipeline. The run localises the emitter within the error of
+//! `simulate` on the same scenario, with the bridge killed once mid-run and one UAV's link dropped for
+//! a few seconds; and the bridge's bad inputs — an endpoint it cannot open, an autopilot that never arms,
+//! one that reports another system id or a position 100 km off — end in a clear error, never a command
+//! sent from a bad state.
+
+use crate::common;
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use common::{Launch, domain, json_of, kill, pid_of, python, scratch, uavloc};
+use serde_json::Value;
+
+const GEO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/geo.toml");
+const ORIGIN: &str = "47.3977,8.5456,488";
+const STARTS: [&str; 3] = ["1500,500", "10000,1500", "5000,8500"];
+/// Simulated seconds per wall second: the paper's 10 s step in 0.5 s.
+const TIME_SCALE: &str = "20";
+
+/// UDP ports of this test process (one block per process, so parallel test binaries never share one).
+fn ports(block: u16) -> [u16; 3] {
+    let base = 20_000 + (std::process::id() % 2_000) as u16 * 16 + block * 4;
+    [base, base + 1, base + 2]
+}
+
+/// The simulated autopilots of one test, killed when dropped.
+struct Autopilots(Vec<Child>);
+
+impl Autopilots {
+    /// One autopilot per UAV, sending to `ports` on loopback; `extra[i]` are UAV i's own flags.
+    fn start(ports: [u16; 3], extra: [&[&str]; 3], dir: &Path) -> Self {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/sim_autopilot.py");
+        let py = python();
+        Self(
+            (0..3)
+                .map(|i| {
+                    Command::new(&py)
+                        .arg(&script)
+                        .args(["--connect", &format!("udpout:127.0.0.1:{}", ports[i])])
+                        .args(["--system-id", &(i + 1).to_string(), "--origin", ORIGIN, "--start", STARTS[i]])
+                        .args(["--time-scale", TIME_SCALE, "--duration", "120"])
+                        .args(extra[i])
+                        .stdout(std::fs::File::create(dir.join(format!("autopilot{i}.out"))).unwrap())
+                        .stderr(std::fs::File::create(dir.join(format!("autopilot{i}.err"))).unwrap())
+                        .stdin(Stdio::null())
+                        .spawn()
+                        .expect("start a simulated autopilot")
+                })
+                .collect(),
+        )
+    }
+}
+
+impl Drop for Autopilots {
+    /// SIGTERM (each prints its report), then SIGKILL for one that does not end within 5 s.
+    fn drop(&mut self) {
+        for c in &self.0 {
+            kill(c.id(), libc::SIGTERM);
+        }
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        for c in &mut self.0 {
+            while c.try_wait().ok().flatten().is_none() && std::time::Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn endpoints(ports: [u16; 3]) -> Vec<String> {
+    ports.iter().flat_map(|p| ["--autopilot".to_string(), format!("udpin:127.0.0.1:{p}")]).collect()
+}
+
+fn summary_of<'a>(run: &'a Value, role: &str) -> Vec<&'a Value> {
+    run["processes"].as_array().unwrap().iter().filter(|p| p["role"] == role).map(|p| &p["summary"]).collect()
+}
+
+#[test]
+fn simulated_autopilots_fly_the_plan_to_a_fix_through_a_bridge_killed_once_and_a_dropped_link() {
+    let _scenario = common::scenario(module_path!());
+    let dir = scratch("flying");
+    let ports = ports(0);
+    // UAV 1's link drops 7 s (wall) after its first target for 3 s: both ways, while it flies on. UAV 2
+    // sends a NaN yaw in every ATTITUDE (refused and counted; its heading comes from its fixes).
+    let _aircraft = Autopilots::start(ports, [&[], &["--drop-at", "7", "--drop-for", "3"], &["--nan-yaw"]], &dir);
+    let d = domain("fly", "e2e");
+    let file = dir.join("run.mcap");
+    let mut flags =
+        vec!["--scenario", GEO, "--mode", "realtime", "--time-scale", TIME_SCALE, "--record", file.to_str().unwrap()];
+    let eps = endpoints(ports);
+    flags.extend(eps.iter().map(String::as_str));
+    let mut launch = Launch::start(&d, &dir, &flags);
+    launch.wait_for_step(5, Duration::from_secs(60));
+    let bridge = pid_of(&d, "bridge").expect("the bridge runs");
+    kill(bridge, libc::SIGKILL);
+    let run = launch.finish_json();
+
+    let steps = run["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 25, "every step of the scenario");
+    let flown = steps.last().unwrap()["estimate_error_m"].as_f64().unwrap();
+    let simulated =
+        json_of(&["simulate", "--json", "--scenario", GEO])["steps"][24]["estimate_error_m"].as_f64().unwrap();
+    // Not bit-equal (real time, the autopilots' own turns), but the same localisation: the initial error
+    // is ≈ 820 m, simulate ends at ≈ 131 m.
+    eprintln!("flying: terminal error flown {flown:.1} m, simulated {simulated:.1} m");
+    assert!(flown < 2.0 * simulated, "flown {flown:.1} m vs simulated {simulated:.1} m");
+    // The bridge was restarted once (the killed one left no summary); the restarted one flew targets.
+    let bridges = summary_of(&run, "bridge");
+    assert_eq!(bridges.len(), 2, "killed once, restarted once: {}", run["processes"]);
+    assert!(bridges[0].is_null(), "SIGKILL: no summary");
+    let bridges = &bridges[1..];
+    assert!(bridges[0]["links"][0]["targets_sent"].as_u64().unwrap() > 0, "{bridges:?}");
+    // The dropped link: the bridge saw it go quiet, emitter-sim did not hear that UAV for some steps.
+    let quiet: u64 = bridges.iter().map(|b| b["links"][1]["quiet_periods"].as_u64().unwrap()).sum();
+    assert!(quiet >= 1, "UAV 1's link went quiet: {bridges:?}");
+    let unheard = summary_of(&run, "emitter-sim")[0]["unheard_uav_steps"].as_u64().unwrap();
+    assert!(unheard >= 1, "steps without UAV 1's arrival");
+    let missing: Vec<u64> = steps
+        .iter()
+        .filter(|s| s["receiver"]["heard"].as_array().is_some_and(|h| !h.iter().any(|u| u == 1)))
+        .map(|s| s["step"].as_u64().unwrap())
+        .collect();
+    assert!(!missing.is_empty(), "the record shows the steps UAV 1 was not heard");
+    eprintln!("flying: UAV 1 not heard at steps {missing:?}");
+    // Those steps state UAV 1's position with the σ of how far it may have flown since its last fix
+    // (≥ 1.5 s · 20 · 50 m/s = 1.5 km of reach, σ = reach / (5 √2)), which the planner's margins take.
+    let recording = record::recording::read_recording(&file).unwrap();
+    for m in recording.messages.iter().filter(|m| m.topic == "/measurement") {
+        let step = m.json["step"].as_u64().unwrap();
+        let sigma = m.json["position_sigmas"][1].as_f64().unwrap();
+        if missing.contains(&step) {
+            assert!(sigma >= 1_500.0 / (5.0 * 2f64.sqrt()) - 1.0, "step {step}: UAV 1 stated σ {sigma}");
+        } else {
+            assert_eq!(sigma, 0.0, "step {step}: a fresh fix is exact");
+        }
+    }
+    let nan_yaws: u64 = bridges.iter().map(|b| b["links"][2]["rejected"].as_u64().unwrap()).sum();
+    assert!(nan_yaws > 10, "UAV 2's NaN yaws refused and counted: {bridges:?}");
+    // The UAVs flew: step 24's positions are kilometres from the starts, as the plan takes them.
+    let moved =
+        (steps[24]["uavs"][0][0].as_f64().unwrap() - 1500.0).hypot(steps[24]["uavs"][0][1].as_f64().unwrap() - 500.0);
+    assert!(moved > 5_000.0, "UAV 0 flew {moved:.0} m");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The bridge alone against bad peers: each a clear error (exit code, the UAV and why) within its ready
+/// timeout, and no target ever sent to the bad autopilot (it counts the targets it gets).
+#[test]
+fn the_bridge_refuses_bad_autopilots_with_a_clear_error() {
+    let _scenario = common::scenario(module_path!());
+    let dir = scratch("flying-bad");
+    let d = domain("fly", "bad");
+    // An endpoint it cannot open: a TCP peer that refuses.
+    let out = uavloc(&[
+        "process",
+        "bridge",
+        "--domain",
+        &d,
+        "--scenario",
+        GEO,
+        "--autopilot",
+        "tcpout:127.0.0.1:1",
+        "--autopilot",
+        "udpin:127.0.0.1:0",
+        "--autopilot",
+        "udpin:127.0.0.1:0",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("tcpout:127.0.0.1:1") && err.contains("UAV 0"), "{err}");
+    // No origin: the bridge cannot place a target.
+    let out = uavloc(&[
+        "process",
+        "bridge",
+        "--domain",
+        &d,
+        "--autopilot",
+        "udpin:127.0.0.1:0",
+        "--autopilot",
+        "udpin:127.0.0.1:0",
+        "--autopilot",
+        "udpin:127.0.0.1:0",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("[origin]"));
+
+    for (case, (bad, says)) in [
+        (&["--never-arm"][..], "never armed"),
+        (&["--system-id-sent", "7"][..], "system 7"),
+        (&["--offset-m", "100000"][..], "m from the scenario's start"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let ports = ports(1 + case as u16);
+        let aircraft = Autopilots::start(ports, [&[], bad, &[]], &dir);
+        let mut args = vec![
+            "process",
+            "bridge",
+            "--domain",
+            &d,
+            "--scenario",
+            GEO,
+            "--ready-timeout-ms",
+            "3000",
+            "--time-scale",
+            TIME_SCALE,
+        ];
+        let eps = endpoints(ports);
+        args.extend(eps.iter().map(String::as_str));
+        let started = std::time::Instant::now();
+        let out = uavloc(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{bad:?}: {err}");
+        assert!(err.contains("UAV 1") && err.contains(says), "{bad:?}: {err}");
+        assert!(started.elapsed() < Duration::from_secs(15), "no hang");
+        drop(aircraft);
+        // The bad autopilot got no target (and none came before any command: there was none).
+        let report: Value =
+            serde_json::from_str(std::fs::read_to_string(dir.join("autopilot1.out")).unwrap().trim()).unwrap();
+        assert_eq!(report["targets"], 0, "{bad:?}: {report}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
