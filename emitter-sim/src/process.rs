@@ -187,14 +187,14 @@ impl Swarm<'_> {
         let mut reach = vec![None; n];
         let mut positions = Vec::with_capacity(n);
         let mut headings = Vec::with_capacity(n);
-        for i in 0..n {
+        for (i, reach) in reach.iter_mut().enumerate() {
             let fresh = s.has_fix(i) && now.saturating_sub(s.fix_ns[i]) <= fix_timeout.as_nanos() as u64;
             // Heard with a fresh fix whatever the link's mode: the arrival can be timed and placed (whether
             // it may be commanded is the bridge's business).
             if !fresh {
                 unheard |= 1 << i;
                 let age_s = now.saturating_sub(s.fix_ns[i]) as f64 * 1e-9;
-                reach[i] = Some(self.speed_per_real_s * age_s);
+                *reach = Some(self.speed_per_real_s * age_s);
             }
             let here = world.positions()[i];
             positions.push(if s.has_fix(i) { s.positions[i] } else { [here.x, here.y] });
