@@ -152,8 +152,32 @@ class Command(ctypes.Structure):
         return "uavloc::Command/v6"
 
 
+class SwarmState(ctypes.Structure):
+    """MAVLink bridge -> world, monitor, front ends: the UAVs as their autopilots report them (10 Hz)."""
+
+    LINK_UNKNOWN, LINK_FLYING, LINK_NOT_GUIDED, LINK_QUIET = 0, 1, 2, 3
+
+    _fields_ = [
+        ("header", Header),
+        ("count", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+        ("positions", (ctypes.c_double * 2) * MAX_UAVS),
+        ("lat_lon_deg", (ctypes.c_double * 2) * MAX_UAVS),
+        ("altitude_m", ctypes.c_double * MAX_UAVS),
+        ("headings", ctypes.c_double * MAX_UAVS),
+        ("velocities", (ctypes.c_double * 2) * MAX_UAVS),
+        ("fix_ns", ctypes.c_uint64 * MAX_UAVS),
+        ("link", ctypes.c_uint32 * MAX_UAVS),
+        ("rejected", ctypes.c_uint32 * MAX_UAVS),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        return "uavloc::SwarmState/v1"
+
+
 # Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/e2e/wire_layout.rs).
-SIZES = {Measurement: 672, Command: 1176}
+SIZES = {Measurement: 672, Command: 1176, SwarmState: 736}
 
 
 def check_layout() -> None:

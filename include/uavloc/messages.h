@@ -30,12 +30,14 @@ extern "C" {
 #define UAVLOC_ESTIMATE_VERSION 7u
 #define UAVLOC_COMMAND_VERSION 6u
 #define UAVLOC_TRUTH_VERSION 2u
+#define UAVLOC_SWARM_VERSION 1u
 #define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v2"
 #define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v7"
 #define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v6"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
+#define UAVLOC_TYPE_NAME_SWARM "uavloc::SwarmState/v1"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
 
 /* Latency stamps (CLOCK_MONOTONIC, ns; 0 = not stamped) carried forward along one planning cycle. */
@@ -183,6 +185,28 @@ typedef struct uavloc_truth {
     uint32_t previous_command; /* what became of step k-1's command: UAVLOC_PREVIOUS_* */
     uint32_t reserved;
 } uavloc_truth;
+
+/* uavloc_swarm_state.link[i] */
+#define UAVLOC_LINK_UNKNOWN 0u    /* nothing heard from the autopilot yet */
+#define UAVLOC_LINK_FLYING 1u     /* armed, guided, with a fix: it flies the commanded targets */
+#define UAVLOC_LINK_NOT_GUIDED 2u /* heard, but not armed or not in a guided mode: no target sent */
+#define UAVLOC_LINK_QUIET 3u      /* nothing heard for the bridge's link timeout: the last fix ages */
+
+/* MAVLink bridge -> world (--uavs autopilots), monitor, front ends: the UAVs as their autopilots report
+   them, at the bridge's rate (10 Hz); header.step is the step of the last command flown. */
+typedef struct uavloc_swarm_state {
+    uavloc_header header;
+    uint32_t count;                           /* UAVs N, 3..=8 */
+    uint32_t reserved;
+    double positions[UAVLOC_MAX_UAVS][2];     /* the run's plane (x east, y north), m; valid when fix_ns != 0 */
+    double lat_lon_deg[UAVLOC_MAX_UAVS][2];   /* the same, WGS84 [lat, lon], degrees */
+    double altitude_m[UAVLOC_MAX_UAVS];       /* as GLOBAL_POSITION_INT.alt, m */
+    double headings[UAVLOC_MAX_UAVS];         /* rad, counter-clockwise from east */
+    double velocities[UAVLOC_MAX_UAVS][2];    /* ground velocity (east, north), m/s */
+    uint64_t fix_ns[UAVLOC_MAX_UAVS];         /* when the fix was received, CLOCK_MONOTONIC ns; 0 = never */
+    uint32_t link[UAVLOC_MAX_UAVS];           /* UAVLOC_LINK_* */
+    uint32_t rejected[UAVLOC_MAX_UAVS];       /* telemetry refused so far */
+} uavloc_swarm_state;
 
 /* uavloc_control.kind */
 #define UAVLOC_CONTROL_HELLO 0u

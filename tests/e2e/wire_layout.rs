@@ -7,7 +7,9 @@ use std::collections::BTreeMap;
 use std::mem::{align_of, offset_of, size_of};
 use std::process::Command;
 
-use protocol::{Command as Cmd, Control, Estimate, Header, Measurement, Message, Name16, Stamps, StateEcho, Truth};
+use protocol::{
+    Command as Cmd, Control, Estimate, Header, Measurement, Message, Name16, Stamps, StateEcho, SwarmState, Truth,
+};
 
 /// One struct: its C name, Rust size and alignment, and (field, Rust offset) pairs.
 struct Layout {
@@ -139,6 +141,11 @@ fn layouts() -> Vec<Layout> {
             ]
         ),
         layout!(Truth, "uavloc_truth", [header, position, previous_command, reserved]),
+        layout!(
+            SwarmState,
+            "uavloc_swarm_state",
+            [header, count, reserved, positions, lat_lon_deg, altitude_m, headings, velocities, fix_ns, link, rejected]
+        ),
         layout!(Control, "uavloc_control", [header, instance, started_ns, kind, reserved, run, role, detail]),
     ]
 }
@@ -156,7 +163,7 @@ fn c_source(layouts: &[Layout]) -> String {
             src += &format!("  printf(\"{c}.{f} %zu\\n\", offsetof({c}, {f}));\n");
         }
     }
-    for m in ["MEASUREMENT", "ESTIMATE", "COMMAND", "TRUTH", "CONTROL"] {
+    for m in ["MEASUREMENT", "ESTIMATE", "COMMAND", "TRUTH", "CONTROL", "SWARM"] {
         src += &format!("  printf(\"version.{m} %u\\n\", UAVLOC_{m}_VERSION);\n");
         src += &format!("  printf(\"type_name.{m} %s\\n\", UAVLOC_TYPE_NAME_{m});\n");
     }
@@ -203,6 +210,7 @@ fn the_c_header_has_the_layout_of_the_rust_types() {
         ("COMMAND", Cmd::VERSION, Cmd::TYPE_NAME),
         ("TRUTH", Truth::VERSION, Truth::TYPE_NAME),
         ("CONTROL", Control::VERSION, Control::TYPE_NAME),
+        ("SWARM", SwarmState::VERSION, SwarmState::TYPE_NAME),
     ] {
         assert_eq!(get(&format!("version.{m}")), version.to_string(), "{m} version");
         assert_eq!(get(&format!("type_name.{m}")), name, "{m} type name");
@@ -257,6 +265,7 @@ fn every_field_of_every_type_is_listed() {
         ("uavloc_command", vec![size_of::<Header>(), 8, 8, 8, 8, 4, 4, 8, 64, 128, 16, 16, size_of::<StateEcho>()]),
         ("uavloc_state_echo", vec![8, 1, 1, 1, 1, 1, 1, 2, 16, 32, 16, 32, 32, 256, 32, 128, 256]),
         ("uavloc_truth", vec![size_of::<Header>(), 16, 4, 4]),
+        ("uavloc_swarm_state", vec![size_of::<Header>(), 4, 4, 128, 128, 64, 64, 128, 64, 32, 32]),
         ("uavloc_control", vec![size_of::<Header>(), 8, 8, 4, 4, 8, 16, 16]),
     ]);
     for l in layouts() {

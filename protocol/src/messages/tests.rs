@@ -16,6 +16,7 @@ fn layout_is_stable() {
     assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
     assert_eq!((size_of::<Control>(), align_of::<Control>()), (152, 8));
     assert_eq!((size_of::<EstimatorState>(), align_of::<EstimatorState>()), (912, 8));
+    assert_eq!((size_of::<SwarmState>(), align_of::<SwarmState>()), (736, 8));
 }
 
 #[test]
@@ -216,4 +217,31 @@ fn wire_enums_decode_exactly_their_values() {
         (EstimateStatus::VARIANTS.len(), CommandOutcome::VARIANTS.len(), ControlKind::VARIANTS.len()),
         (5, 3, 8)
     );
+}
+
+/// A swarm state is checked like every message: count, link states, and the values of UAVs with a fix
+/// (a UAV without one may hold anything).
+#[test]
+fn a_swarm_state_with_a_bad_fix_or_link_is_refused() {
+    let mut s = SwarmState::new(3, 1, 3).unwrap();
+    s.validate(None).unwrap();
+    s.positions[1] = [f64::NAN, 0.0];
+    s.validate(None).unwrap();
+    s.fix_ns[1] = 5;
+    assert!(matches!(s.validate(None), Err(Rejection::NotFinite { field: "positions" })));
+    s.positions[1] = [1.0e8, 0.0];
+    assert!(s.validate(None).is_err(), "beyond the plane");
+    s.positions[1] = [100.0, 0.0];
+    s.lat_lon_deg[1] = [95.0, 8.0];
+    assert!(s.validate(None).is_err(), "latitude beyond 90");
+    s.lat_lon_deg[1] = [47.0, 8.0];
+    s.validate(None).unwrap();
+    s.link[2] = 9;
+    assert!(matches!(s.validate(None), Err(Rejection::UnknownKind { field: "link", kind: 9 })));
+    s.link[2] = LinkState::Quiet as u32;
+    assert_eq!(s.link_of(2), Some(LinkState::Quiet));
+    assert!(matches!(s.validate(Some(1)), Err(Rejection::Stale { .. })));
+    s.count = 9;
+    assert!(matches!(s.validate(None), Err(Rejection::BadCount { count: 9 })));
+    assert!(SwarmState::new(0, 0, 2).is_err());
 }
