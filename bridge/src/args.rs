@@ -65,6 +65,11 @@ pub struct BridgeArgs {
     #[arg(long, value_name = "M", default_value_t = 120.0)]
     #[serde(serialize_with = "runtime::flags::finite")]
     pub altitude_m: f64,
+    /// A bridge restarted during a run (the launcher passes it): the UAVs have flown, so a first fix is
+    /// refused only farther from the scenario's start than --max-start-offset-m plus the whole run's
+    /// flight (speed · dt · steps).
+    #[arg(long)]
+    pub rejoin: bool,
     /// Simulated time per real second of the autopilots (SITL's speed-up): scales the expected speed
     /// of the jump check. 1 for real aircraft.
     #[arg(long, value_name = "X", default_value_t = 1.0)]

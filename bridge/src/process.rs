@@ -244,7 +244,9 @@ pub fn run(args: &BridgeArgs) -> Result<BridgeSummary, ProcessError> {
             let cfg = LinkConfig {
                 system_id: args.system_id(i),
                 start: *start,
-                max_start_offset_m: args.max_start_offset_m,
+                // A restarted bridge finds the UAVs anywhere they could have flown in the run.
+                max_start_offset_m: args.max_start_offset_m
+                    + if args.rejoin { scenario.speed * scenario.dt * scenario.steps as f64 } else { 0.0 },
                 speed_per_real_s: scenario.speed * args.time_scale,
                 timeout: Duration::from_millis(args.link_timeout_ms),
             };
@@ -324,6 +326,7 @@ mod tests {
             "12.5",
             "--time-scale",
             "20",
+            "--rejoin",
         ]);
         assert_eq!(cli.args.autopilots.len(), 3);
         assert_eq!(cli.args.system_id(1), 5);

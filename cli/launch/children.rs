@@ -73,6 +73,7 @@ pub(super) fn child_flags(
             ready_timeout_ms: 15_000,
             max_start_offset_m: 5_000.0,
             altitude_m: 120.0,
+            rejoin: false,
             time_scale: args.time_scale.unwrap_or(1.0),
         }),
         Role::EmitterSim => to_flags(&emitter_sim::args::EmitterSimArgs {

@@ -120,6 +120,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         estimator: flags_of(Role::Estimator)?,
     })?;
     let mut sup = Supervisor::new(domain.clone(), Some(log.clone()), args.max_restarts, args.source);
+    sup.aircraft = !args.autopilots.is_empty();
     let result = children::start_and_run(&mut sup, args, &sc, &domain, &state, &log);
     sup.stop_all();
     // Processes that are not our children (swapped in by `uavloc swap`) stop on the domain's shutdown

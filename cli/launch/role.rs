@@ -19,6 +19,16 @@ pub enum Role {
     EmitterSim,
 }
 
+/// What a launch's restarts depend on besides the exit: where the measurements come from, and whether
+/// aircraft fly (`--autopilot`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Recovery {
+    /// emitter-sim or an external front end.
+    pub source: runtime::Source,
+    /// Real or simulated aircraft fly the commands through the MAVLink bridge.
+    pub aircraft: bool,
+}
+
 /// What to do with a child that exited.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum RestartDecision {
@@ -66,9 +76,14 @@ impl Role {
         matches!(self, Role::Monitor | Role::EmitterSim)
     }
 
-    /// The flag a restarted instance gets on top of the first one's (the monitor resumes its log).
+    /// The flag a restarted instance gets on top of the first one's (the monitor resumes its log; the
+    /// bridge rejoins UAVs that have flown away from their starts).
     pub fn restart_flag(self) -> Option<&'static str> {
-        (self == Role::Monitor).then_some("--resume")
+        match self {
+            Role::Monitor => Some("--resume"),
+            Role::Bridge => Some("--rejoin"),
+            _ => None,
+        }
     }
 
     /// The decision for an instance of this role that exited with `status` after `restarts_so_far`
@@ -85,8 +100,9 @@ impl Role {
         handed_over: bool,
         restarts_so_far: u32,
         max_restarts: u32,
-        source: runtime::Source,
+        recovery: Recovery,
     ) -> RestartDecision {
+        let source = recovery.source;
         if handed_over || (status.success() && self.ends_by_itself()) {
             return RestartDecision::Done;
         }
@@ -101,6 +117,14 @@ impl Role {
         // Bad input (2) and a run that cannot go on (3) would fail again the same way.
         if matches!(status.code(), Some(c) if c == 2 || c == i32::from(runtime::EXIT_UNRECOVERABLE)) {
             return RestartDecision::Fail(format!("the {self} process stopped unexpectedly ({what})"));
+        }
+        if recovery.aircraft && self == Role::EmitterSim {
+            return RestartDecision::Fail(format!(
+                "the emitter-sim process stopped unexpectedly ({what}); with aircraft (--autopilot) it is not \
+                 restarted: the UAVs have flown on, so the steps already published cannot be measured again the \
+                 same — the steps recorded so far are in the log; the aircraft keep their last target; start \
+                 the launch again"
+            ));
         }
         if source == runtime::Source::External && self == Role::Monitor {
             return RestartDecision::Fail(format!(
@@ -141,7 +165,9 @@ mod tests {
 
     use super::*;
 
-    const SIM: runtime::Source = runtime::Source::Simulator;
+    const SIM: Recovery = Recovery { source: runtime::Source::Simulator, aircraft: false };
+    const EXTERNAL: Recovery = Recovery { source: runtime::Source::External, aircraft: false };
+    const AIRCRAFT: Recovery = Recovery { source: runtime::Source::Simulator, aircraft: true };
 
     fn code(c: i32) -> ExitStatus {
         ExitStatus::from_raw(c << 8)
@@ -168,20 +194,32 @@ mod tests {
         // With an external front end nobody can measure the steps published while the monitor is down:
         // its crash fails the launch at once, saying why; the estimator and the planner are restarted
         // (the monitor gives the step in flight again).
-        let external = Role::Monitor.on_exit(signal(9), false, 0, 5, runtime::Source::External);
+        let external = Role::Monitor.on_exit(signal(9), false, 0, 5, EXTERNAL);
         assert!(
             matches!(&external, RestartDecision::Fail(m) if m.contains("signal 9") && m.contains("not restarted")),
             "{external:?}"
         );
         for role in [Role::Estimator, Role::Planner] {
-            let external = role.on_exit(signal(9), false, 0, 5, runtime::Source::External);
+            let external = role.on_exit(signal(9), false, 0, 5, EXTERNAL);
             assert_eq!(external, RestartDecision::Restart { attempt: 1 }, "{role}");
         }
-        assert_eq!(Role::Monitor.on_exit(code(0), false, 0, 5, runtime::Source::External), RestartDecision::Done);
+        assert_eq!(Role::Monitor.on_exit(code(0), false, 0, 5, EXTERNAL), RestartDecision::Done);
         assert_eq!(Role::Monitor.on_exit(code(1), false, 4, 5, SIM), RestartDecision::Restart { attempt: 5 });
         assert!(
             matches!(Role::Monitor.on_exit(code(1), false, 5, 5, SIM), RestartDecision::Fail(m) if m.contains("after 5 restart(s)"))
         );
+        // With aircraft a crashed emitter-sim cannot measure the flown steps again: the launch fails, saying
+        // why; the bridge and the others restart.
+        let flying = Role::EmitterSim.on_exit(signal(9), false, 0, 5, AIRCRAFT);
+        assert!(matches!(&flying, RestartDecision::Fail(m) if m.contains("--autopilot")), "{flying:?}");
+        assert_eq!(Role::EmitterSim.on_exit(code(0), false, 0, 5, AIRCRAFT), RestartDecision::Done);
+        for role in [Role::Bridge, Role::Planner, Role::Estimator, Role::Monitor] {
+            assert_eq!(
+                role.on_exit(signal(9), false, 0, 5, AIRCRAFT),
+                RestartDecision::Restart { attempt: 1 },
+                "{role}"
+            );
+        }
         // Failures that would repeat are not restarted.
         for c in [2, i32::from(runtime::EXIT_UNRECOVERABLE)] {
             assert!(
@@ -198,5 +236,6 @@ mod tests {
         let flying = Role::started(runtime::Source::Simulator, true).collect::<Vec<_>>();
         assert_eq!(flying.iter().position(|r| *r == Role::Bridge), Some(3), "before emitter-sim, which waits for it");
         assert_eq!(Role::Monitor.restart_flag(), Some("--resume"));
+        assert_eq!(Role::Bridge.restart_flag(), Some("--rejoin"));
     }
 }

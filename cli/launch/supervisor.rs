@@ -14,7 +14,7 @@ use protocol::services::Domain;
 use record::RunRecord;
 use runtime::SupervisorLine;
 
-use super::role::{RestartDecision, Role, describe};
+use super::role::{Recovery, RestartDecision, Role, describe};
 use super::signals;
 use crate::error::CliError;
 
@@ -70,16 +70,16 @@ impl Proc {
 
     /// Its role's decision on its exit (`None` while it runs, once it was replaced, and for a successful
     /// exit whose last lines — its summary — are not all in yet), given the role's `restarts` so far.
-    fn decision(&self, restarts: u32, max_restarts: u32, source: runtime::Source) -> Option<RestartDecision> {
+    fn decision(&self, restarts: u32, max_restarts: u32, recovery: Recovery) -> Option<RestartDecision> {
         let status = self.exit?;
         if self.replaced || (status.success() && !self.closed) {
             return None;
         }
-        Some(self.role.on_exit(status, self.handed_over(), restarts, max_restarts, source))
+        Some(self.role.on_exit(status, self.handed_over(), restarts, max_restarts, recovery))
     }
 
-    fn needs_restart(&self, source: runtime::Source) -> bool {
-        matches!(self.decision(0, u32::MAX, source), Some(RestartDecision::Restart { .. }))
+    fn needs_restart(&self, recovery: Recovery) -> bool {
+        matches!(self.decision(0, u32::MAX, recovery), Some(RestartDecision::Restart { .. }))
     }
 
     pub(super) fn describe_exit(&self) -> String {
@@ -101,12 +101,20 @@ pub(super) struct Supervisor {
     /// Where the measurements come from: with an external front end a crash cannot be recovered
     /// ([`Role::on_exit`]).
     source: runtime::Source,
+    /// Aircraft fly the commands (`--autopilot`): a crashed emitter-sim is not restarted
+    /// ([`Role::on_exit`]).
+    pub(super) aircraft: bool,
     pub(super) restarts: u64,
     /// CPU use of the idle children before the run (see [`LaunchArgs::idle_probe_ms`]).
     pub(super) idle_cpu: BTreeMap<String, f64>,
 }
 
 impl Supervisor {
+    /// What the restarts depend on besides the exit.
+    fn recovery(&self) -> Recovery {
+        Recovery { source: self.source, aircraft: self.aircraft }
+    }
+
     pub(super) fn new(domain: Domain, log: Option<PathBuf>, max_restarts: u32, source: runtime::Source) -> Self {
         let (tx, rx) = mpsc::channel();
         Self {
@@ -118,6 +126,7 @@ impl Supervisor {
             log,
             max_restarts,
             source,
+            aircraft: false,
             restarts: 0,
             idle_cpu: BTreeMap::new(),
         }
@@ -378,7 +387,7 @@ impl Supervisor {
         for i in 0..self.procs.len() {
             let role = self.procs[i].role;
             let restarts = self.procs.iter().filter(|q| q.role == role && q.replaced).count() as u32;
-            match self.procs[i].decision(restarts, self.max_restarts, self.source) {
+            match self.procs[i].decision(restarts, self.max_restarts, self.recovery()) {
                 None | Some(RestartDecision::Done) => {}
                 Some(RestartDecision::Restart { .. }) if let Some(pid) = self.swapped_in(role) => {
                     self.leave_to_swapped_in(i, pid)?
@@ -464,7 +473,7 @@ impl Supervisor {
         self.spawn(role, flags)?;
         // Not ready, but exited, or another process needs a restart: the next round sees to it.
         self.until_ready(self.procs.len() - 1, |sup, p| {
-            Ok(p.exit.is_some() || sup.procs.iter().any(|q| q.needs_restart(sup.source)))
+            Ok(p.exit.is_some() || sup.procs.iter().any(|q| q.needs_restart(sup.recovery())))
         })
     }
 

@@ -155,12 +155,23 @@ struct Swarm<'a> {
     unheard: u64,
     /// The UAVs' speed (the scenario's), m/s, times the time scale: metres flown per wall second.
     speed_per_real_s: f64,
+    /// Each UAV's newest fix seen (its time, position and heading): kept across bridge restarts, whose
+    /// first swarm states have no fix yet.
+    last_fix: Vec<Option<(u64, [f64; 2], f64)>>,
 }
 
 impl Swarm<'_> {
     /// Takes the swarm states waiting (each checked; a bad one counted and logged by the node).
     fn take(&mut self, node: &mut Node) -> Result<(), ProcessError> {
         let (batch, _) = node.receive(self.states, &mut self.last_seq, "a swarm state")?;
+        for s in &batch {
+            self.last_fix.resize(s.len(), None);
+            for (i, kept) in self.last_fix.iter_mut().enumerate() {
+                if s.has_fix(i) && kept.is_none_or(|(t, _, _)| s.fix_ns[i] >= t) {
+                    *kept = Some((s.fix_ns[i], s.positions[i], s.headings[i]));
+                }
+            }
+        }
         if let Some(s) = batch.into_iter().last() {
             self.newest = Some(s);
         }
@@ -173,32 +184,29 @@ impl Swarm<'_> {
             .is_some_and(|s| s.len() == n && (0..n).all(|i| s.has_fix(i) && s.link_of(i) == Some(LinkState::Flying)))
     }
 
-    /// Puts the world's UAVs where the newest swarm state reports them; a UAV without a fix younger than
-    /// `fix_timeout` is not heard this step. Returns, per UAV not heard, how far it may be
-    /// from the position reported (its speed times its fix's age), metres.
+    /// Puts the world's UAVs where their newest fixes put them (kept across bridge restarts); a UAV
+    /// without a fix younger than `fix_timeout` is not heard this step. Returns, per UAV not heard, how far
+    /// it may be from the position reported (its speed times its fix's age), metres.
     fn place(&mut self, world: &mut World, fix_timeout: Duration, k: u64) -> Result<Vec<Option<f64>>, ProcessError> {
         let n = world.positions().len();
-        let s = self
-            .newest
-            .filter(|s| s.len() == n)
-            .ok_or_else(|| ProcessError::Failed(format!("step {k}: no swarm state of {n} UAVs from the bridge")))?;
         let now = protocol::now_ns();
         let mut unheard = 0u8;
         let mut reach = vec![None; n];
         let mut positions = Vec::with_capacity(n);
         let mut headings = Vec::with_capacity(n);
         for (i, reach) in reach.iter_mut().enumerate() {
-            let fresh = s.has_fix(i) && now.saturating_sub(s.fix_ns[i]) <= fix_timeout.as_nanos() as u64;
+            let Some((fix_ns, at, heading)) = self.last_fix.get(i).copied().flatten() else {
+                return Err(ProcessError::Failed(format!("step {k}: the bridge never reported UAV {i}'s position")));
+            };
+            let age_ns = now.saturating_sub(fix_ns);
             // Heard with a fresh fix whatever the link's mode: the arrival can be timed and placed (whether
             // it may be commanded is the bridge's business).
-            if !fresh {
+            if age_ns > fix_timeout.as_nanos() as u64 {
                 unheard |= 1 << i;
-                let age_s = now.saturating_sub(s.fix_ns[i]) as f64 * 1e-9;
-                *reach = Some(self.speed_per_real_s * age_s);
+                *reach = Some(self.speed_per_real_s * age_ns as f64 * 1e-9);
             }
-            let here = world.positions()[i];
-            positions.push(if s.has_fix(i) { s.positions[i] } else { [here.x, here.y] });
-            headings.push(if s.has_fix(i) { s.headings[i] } else { world.headings()[i] });
+            positions.push(at);
+            headings.push(heading);
         }
         world
             .place(&positions, &headings, unheard)
@@ -409,6 +417,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         newest: None,
         unheard: 0,
         speed_per_real_s,
+        last_fix: Vec::new(),
     });
     if let Some(swarm) = swarm.as_mut() {
         wait_for_autopilots(&mut node, swarm, scenario.uav_count(), args.connect_timeout_s)?;

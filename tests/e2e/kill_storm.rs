@@ -530,3 +530,70 @@ fn emitter_sim_killed_while_the_planner_restarts_is_not_the_end_of_the_run() {
     assert_nothing_left(&d);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The storm with aircraft: simulated autopilots fly a real-time launch (`--autopilot`) while the bridge
+/// is killed three times and the planner, the estimator and the monitor once each; the launcher restarts
+/// them and the run localises as `simulate` does. A killed emitter-sim is not restarted with aircraft
+/// (the steps flown cannot be measured again): the launch fails at once, saying so.
+#[test]
+fn aircraft_storm_kills_the_bridge_three_times_and_every_restartable_process() {
+    use common::autopilots::{Autopilots, GEO, TIME_SCALE, endpoints, ports};
+    let _scenario = common::scenario(module_path!());
+    let dir = scratch("storm-aircraft");
+    let aircraft = Autopilots::start(ports(5), [&[], &[], &[]], &dir);
+    let d = domain("storm", "aircraft");
+    let steps = "40";
+    let mut flags = vec!["--scenario", GEO, "--steps", steps, "--mode", "realtime", "--time-scale", TIME_SCALE];
+    let eps = endpoints(ports(5));
+    let mut first = flags.clone();
+    first.extend(eps.iter().map(String::as_str));
+    let mut launch = Launch::start(&d, &dir, &first);
+    let kills = [(4, "bridge"), (8, "planner"), (12, "bridge"), (16, "estimator"), (20, "monitor"), (26, "bridge")];
+    for (step, role) in kills {
+        launch.wait_for_step(step, STEP_TIMEOUT);
+        // The previous kill's successor must be up before the next kill of its role.
+        let deadline = Instant::now() + READY_TIMEOUT;
+        let pid = loop {
+            if let Some(pid) = pid_of(&d, role) {
+                break pid;
+            }
+            assert!(Instant::now() < deadline, "no {role} to kill at step {step}:\n{}", launch.stderr_text());
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        kill(pid, libc::SIGKILL);
+        eprintln!("aircraft storm: killed the {role} (pid {pid}) at step {step}");
+    }
+    let run = launch.finish_json();
+    // Kept beside the log when an assertion fails (the directory is removed at the end otherwise).
+    std::fs::write(dir.join("run.json"), run.to_string()).unwrap();
+    assert_eq!(run["steps"].as_array().unwrap().len(), 41, "every step");
+    assert_eq!(run["restarts"], kills.len(), "each kill restarted once: {}", run["processes"]);
+    let bridges = run["processes"].as_array().unwrap().iter().filter(|p| p["role"] == "bridge").count();
+    assert_eq!(bridges, 4, "three killed, the fourth ran to the end");
+    let flown = run["steps"][40]["estimate_error_m"].as_f64().unwrap();
+    let simulated =
+        json_of(&["simulate", "--json", "--scenario", GEO, "--steps", steps])["steps"][40]["estimate_error_m"]
+            .as_f64()
+            .unwrap();
+    eprintln!("aircraft storm: terminal error {flown:.1} m, simulate {simulated:.1} m");
+    assert!(flown < 2.0 * simulated + 20.0, "flown {flown:.1} m vs simulated {simulated:.1} m");
+    assert_nothing_left(&d);
+
+    drop(aircraft);
+
+    // emitter-sim killed with aircraft: the launch fails at once, naming why (fresh aircraft at their starts).
+    let second = dir.join("world");
+    std::fs::create_dir_all(&second).unwrap();
+    let _aircraft = Autopilots::start(ports(6), [&[], &[], &[]], &second);
+    let d = domain("storm", "aircraft-world");
+    let eps = endpoints(ports(6));
+    flags.extend(eps.iter().map(String::as_str));
+    let mut launch = Launch::start(&d, &second, &flags);
+    launch.wait_for_step(4, STEP_TIMEOUT);
+    kill(pid_of(&d, "emitter-sim").expect("emitter-sim runs"), libc::SIGKILL);
+    let (status, _, stderr) = launch.finish();
+    assert!(!status.success(), "{stderr}");
+    assert!(stderr.contains("with aircraft (--autopilot) it is not restarted"), "{stderr}");
+    assert_nothing_left(&d);
+    std::fs::remove_dir_all(&dir).ok();
+}
