@@ -21,6 +21,7 @@ pub mod locate;
 pub mod output;
 pub mod paper;
 pub mod process_cmd;
+pub mod map;
 pub mod replay;
 pub mod rmse;
 pub mod simulate;
@@ -118,6 +119,9 @@ pub enum Command {
         after_help = replay::AFTER_HELP
     )]
     Replay(replay::ReplayArgs),
+    /// Draw the map of a recorded run placed on the Earth: tracks, 95 % ellipse, L_min circle, emitter.
+    #[command(long_about = map::LONG_ABOUT, after_help = map::AFTER_HELP)]
+    Map(map::MapArgs),
     /// Reproduce the paper's experiments (Tables 2–10, Figures 4–17) with the paper's numbers beside ours.
     #[command(
         long_about = paper::LONG_ABOUT,

@@ -41,6 +41,7 @@ fn main() -> ExitCode {
         Command::Launch(a) => emit(launch::run_from_cli(a, json), json),
         Command::Swap(a) => emit(swap::run(a, &swap::given_flags(&matches)), json),
         Command::Replay(a) => emit(replay::run(a), json),
+        Command::Map(a) => emit(uavloc::map::run(a), json),
         Command::Paper(a) => emit(paper::run(a), json),
         Command::Bench(a) => match &a.what {
             bench::BenchCommand::Latency(a) => emit(bench::latency::run_latency(a), json),

@@ -91,7 +91,7 @@ pub struct LiveState {
     pub truth: Option<[f64; 2]>,
     /// The latest estimate and its covariance, metres and m².
     pub estimate: Option<([f64; 2], [[f64; 2]; 2])>,
-    /// The standoff radius L_min around the estimate, metres (0: none).
+    /// The standoff radius L_min circle, metres (0: none).
     pub standoff_m: f64,
     /// RMSE per step, metres (step, value).
     pub rmse: Vec<(f64, f64)>,

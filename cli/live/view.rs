@@ -1,6 +1,6 @@
 //! Draws a [`LiveState`] into a ratatui frame: the map on the left (UAV tracks, their current positions
 //! `U0`, `U1`, …, the true emitter `T`, the estimate `E` with its 95 % ellipse, the standoff circle of
-//! radius L_min around the estimate), on the right the error series (RMSE, PCRLB, CRLB at the truth, m,
+//! radius L_min circle), on the right the error series (RMSE, PCRLB, CRLB at the truth, m,
 //! per step), the processes and the last hop latencies.
 
 use ratatui::Frame;

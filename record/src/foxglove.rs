@@ -301,7 +301,7 @@ fn geojson(
             features.push(feature(format!("UAV {i} track"), json!({"type": "LineString", "coordinates": coords})));
         }
     }
-    for (name, ring) in [("95 % ellipse", ellipse), ("L_min around the estimate", standoff)] {
+    for (name, ring) in [("95 % ellipse", ellipse), ("L_min circle", standoff)] {
         if let Some(coords) = ring.and_then(lon_lat) {
             features.push(feature(name.to_string(), json!({"type": "Polygon", "coordinates": [coords]})));
         }
@@ -356,7 +356,7 @@ mod tests {
                 "UAV 1 track",
                 "UAV 2 track",
                 "95 % ellipse",
-                "L_min around the estimate",
+                "L_min circle",
                 "emitter (truth)"
             ]
         );

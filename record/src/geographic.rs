@@ -1,8 +1,8 @@
 //! A run's positions as WGS84 latitude/longitude, for a run whose scenario has an origin
-//! (`model::geo`): each step's UAVs, estimate, truth and the estimate's 95 % ellipse as a polygon, and
-//! the run's L_min circle around the emitter. Filled by [`crate::annotate`]; absent without an origin.
+//! (`model::geo`): each step's UAVs, estimate, truth and the estimate's 95 % ellipse as a polygon.
+//! Filled by [`crate::annotate`]; absent without an origin.
 
-use model::geo::{LocalFrame, circle, confidence_ellipse};
+use model::geo::{LocalFrame, confidence_ellipse};
 use serde::{Deserialize, Serialize};
 
 /// Probability of the ellipse drawn around an estimate.
@@ -42,11 +42,6 @@ impl StepGeo {
             truth_lat_lon_deg: truth.and_then(at),
         }
     }
-}
-
-/// The L_min circle around a point, a closed `[lat, lon]` polygon.
-pub fn standoff_circle(frame: &LocalFrame, centre: [f64; 2], l_min: f64) -> Option<Vec<[f64; 2]>> {
-    frame.pairs(&circle(centre, l_min, POLYGON_POINTS))
 }
 
 /// Fills every step's [`StepGeo`] when the run's scenario has an origin (clears them otherwise).

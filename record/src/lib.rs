@@ -10,6 +10,7 @@
 //! - [`export`]: a run's files (run.json, steps.csv, trajectory.csv, figures);
 //! - [`plot`], [`chart`]: a run's figures and generic report charts (curves with confidence bands,
 //!   grouped bars), SVG and PNG ([`png`]);
+//! - [`map`]: a map of a run placed on the Earth, from its recording's map layer;
 //! - [`recording`]: a run's messages as MCAP, with [`foxglove`]'s channels for Foxglove's own panels.
 //!
 //! Units: metres, seconds, radians.
@@ -20,6 +21,7 @@ pub mod chart;
 pub mod export;
 pub mod foxglove;
 pub mod geographic;
+pub mod map;
 pub mod metrics;
 pub mod plot;
 pub mod png;

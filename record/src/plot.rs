@@ -61,7 +61,7 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(0x17, 0xbe, 0xcf),
     RGBColor(0xbc, 0xbd, 0x22),
 ];
-const EMITTER_RED: RGBColor = RGBColor(0xd6, 0x27, 0x28);
+pub(crate) const EMITTER_RED: RGBColor = RGBColor(0xd6, 0x27, 0x28);
 const ESTIMATE_GREY: RGBColor = RGBColor(0x80, 0x80, 0x80);
 pub(crate) const MARKER_EDGE: RGBColor = RGBColor(0x20, 0x20, 0x20);
 
@@ -271,7 +271,7 @@ macro_rules! star_marker {
 }
 
 /// The vertices of a five-pointed star of outer radius `r` (pixels) centred on the origin, point up.
-fn star_points(r: f64) -> Vec<(i32, i32)> {
+pub(crate) fn star_points(r: f64) -> Vec<(i32, i32)> {
     (0..10)
         .map(|k| {
             let radius = if k % 2 == 0 { r } else { 0.42 * r };
@@ -392,7 +392,7 @@ struct Trajectories<'a> {
 }
 
 /// The colour of the estimate's confidence ellipses.
-const ELLIPSE_COLOR: RGBColor = RGBColor(0x9a, 0x40, 0xc0);
+pub(crate) const ELLIPSE_COLOR: RGBColor = RGBColor(0x9a, 0x40, 0xc0);
 
 /// The 95 % confidence ellipse `{ẑ + sqrt(χ²₂(0.95)) M^{1/2} u : |u| = 1}` of an estimate (72 points,
 /// closed), or `None` for a covariance that is not positive definite or numbers that are not finite.
@@ -427,13 +427,13 @@ fn finite_point(p: [f64; 2]) -> Option<(f64, f64)> {
 
 /// An axis-aligned box of points.
 #[derive(Debug, Clone, Copy)]
-struct Bounds {
-    x: (f64, f64),
-    y: (f64, f64),
+pub(crate) struct Bounds {
+    pub(crate) x: (f64, f64),
+    pub(crate) y: (f64, f64),
 }
 
 impl Bounds {
-    fn of(points: impl IntoIterator<Item = (f64, f64)>) -> Option<Self> {
+    pub(crate) fn of(points: impl IntoIterator<Item = (f64, f64)>) -> Option<Self> {
         points.into_iter().fold(None, |b: Option<Bounds>, (x, y)| {
             Some(match b {
                 None => Bounds { x: (x, x), y: (y, y) },
@@ -458,7 +458,7 @@ impl Bounds {
 
     /// Pads the box by 6 % of its larger side (at least 250 m) on every side, then widens the shorter
     /// dimension so that one metre has the same length in pixels on both axes of a `w`×`h` area.
-    fn equal_aspect(&self, w: u32, h: u32) -> Bounds {
+    pub(crate) fn equal_aspect(&self, w: u32, h: u32) -> Bounds {
         let pad = (0.06 * self.span()).max(250.0);
         let (dx, dy) = (self.x.1 - self.x.0 + 2.0 * pad, self.y.1 - self.y.0 + 2.0 * pad);
         let (w, h) = (f64::from(w.max(1)), f64::from(h.max(1)));

@@ -111,12 +111,18 @@ fn a_pipeline_recording_draws_on_foxglove_map_and_3d_panels() {
     let names: Vec<&str> = read["features"].as_array().unwrap().iter().map(|f| f["name"].as_str().unwrap()).collect();
     assert_eq!(
         names,
-        ["UAV 0 track", "UAV 1 track", "UAV 2 track", "95 % ellipse", "L_min around the estimate", "emitter (truth)"]
+        ["UAV 0 track", "UAV 1 track", "UAV 2 track", "95 % ellipse", "L_min circle", "emitter (truth)"]
     );
     let track = &read["features"][0]["coordinates"];
     assert_eq!(track.as_array().unwrap().len() as u64, steps + 1, "one point per step");
     let start = &run["steps"][0]["geo"]["uavs_lat_lon_deg"][0];
     assert_eq!((&track[0][0], &track[0][1]), (&start[1], &start[0]), "GeoJSON is [lon, lat]");
+    // The map of the recording (what Foxglove's Map panel draws), as a figure.
+    let map = dir.join("map.svg");
+    let drawn = common::json_of(&["--json", "map", file.to_str().unwrap(), "--out", map.to_str().unwrap()]);
+    assert_eq!(drawn["step"], steps, "{drawn}");
+    let svg = std::fs::read_to_string(&map).unwrap();
+    assert!(svg.contains("UAV 2") && svg.contains("latitude"), "the map's legend and axes");
     // The CSV files give latitude/longitude columns.
     let csv = std::fs::read_to_string(out.join("trajectory.csv")).unwrap();
     assert!(csv.starts_with("step,uav,x_m,y_m,heading_rad,lat_deg,lon_deg\n"), "{csv}");
