@@ -127,7 +127,7 @@ pub struct UavArgs {
         help_heading = "Geometry"
     )]
     pub uav_lat_lon: Vec<model::geo::LatLon>,
-    /// The origin of the local plane, LAT,LON[,ALT] (degrees, metres above the WGS84 ellipsoid): x is
+    /// The origin of the local plane, `LAT,LON[,ALT]` (degrees, metres above the WGS84 ellipsoid): x is
     /// metres east of it, y metres north. With it, results also give positions as latitude/longitude.
     #[arg(long, value_name = "LAT,LON[,ALT]", allow_hyphen_values = true, value_parser = parse_origin, help_heading = "Geometry")]
     pub origin: Option<model::geo::Origin>,

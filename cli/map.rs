@@ -73,14 +73,20 @@ pub fn run(args: &MapArgs) -> Result<MapReport, CliError> {
                 record::foxglove::GEOJSON_TOPIC
             ))
         })?;
-    let layer: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| CliError::input_because(format!("{}: the map layer", args.file.display()), e))?;
+    let layer: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| CliError::input_because(format!("{}: the map layer", args.file.display()), e))?;
     let features: Vec<String> = layer["features"]
         .as_array()
         .map(|f| f.iter().filter_map(|f| f["properties"]["name"].as_str().map(str::to_string)).collect())
         .unwrap_or_default();
-    let steps = recording.messages.iter().filter(|m| m.topic == "/estimate").filter_map(|m| m.json["step"].as_u64()).max();
-    let title = format!("{} — step {}", args.file.file_name().map_or("map".into(), |n| n.to_string_lossy()), steps.unwrap_or(step));
-    record::map::plot_map(&layer, &title, &args.out).map_err(|e| CliError::Failed(format!("--out {}: {e}", args.out.display())))?;
+    let steps =
+        recording.messages.iter().filter(|m| m.topic == "/estimate").filter_map(|m| m.json["step"].as_u64()).max();
+    let title = format!(
+        "{} — step {}",
+        args.file.file_name().map_or("map".into(), |n| n.to_string_lossy()),
+        steps.unwrap_or(step)
+    );
+    record::map::plot_map(&layer, &title, &args.out)
+        .map_err(|e| CliError::Failed(format!("--out {}: {e}", args.out.display())))?;
     Ok(MapReport { written: args.out.clone(), step: steps.unwrap_or(step), features })
 }

@@ -158,7 +158,7 @@ pub struct LaunchArgs {
     /// udpout:HOST:PORT, tcpout:HOST:PORT, serial:DEVICE:BAUD). The launch starts the MAVLink bridge,
     /// which streams each command to the autopilots as guided targets, and emitter-sim measures from
     /// where they report the UAVs (`--uavs autopilots`). Needs --mode realtime and a scenario with an
-    /// [origin] (docs/flying.md).
+    /// `[origin]` (docs/flying.md).
     #[arg(long = "autopilot", value_name = "ENDPOINT")]
     pub autopilots: Vec<String>,
 }

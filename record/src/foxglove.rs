@@ -25,7 +25,7 @@ use model::Scenario;
 use model::geo::{LocalFrame, circle, confidence_ellipse, course_deg};
 use serde_json::{Value, json};
 
-use crate::geographic::{ELLIPSE_PROBABILITY, POLYGON_POINTS};
+use crate::geographic::ELLIPSE_PROBABILITY;
 
 /// A Foxglove schema: its name and its JSON schema, as published in `@foxglove/schemas`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -109,6 +109,16 @@ fn colour(c: [f64; 3], a: f64) -> Value {
     json!({"r": c[0], "g": c[1], "b": c[2], "a": a})
 }
 
+/// A plane coordinate as drawn: to the centimetre (the display channels; uavloc's own keep every bit).
+fn cm(v: f64) -> f64 {
+    (v * 100.0).round() / 100.0
+}
+
+/// Degrees as drawn: to 1e-7° (1 cm), as MAVLink's degE7.
+fn deg7(v: f64) -> f64 {
+    (v * 1e7).round() / 1e7
+}
+
 fn time(ns: u64) -> Value {
     json!({"sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000})
 }
@@ -127,7 +137,7 @@ fn pairs(v: &Value) -> Vec<[f64; 2]> {
 
 fn pose(p: [f64; 2], heading: f64) -> Value {
     let h = 0.5 * heading;
-    json!({"position": {"x": p[0], "y": p[1], "z": 0.0}, "orientation": {"x": 0.0, "y": 0.0, "z": h.sin(), "w": h.cos()}})
+    json!({"position": {"x": cm(p[0]), "y": cm(p[1]), "z": 0.0}, "orientation": {"x": 0.0, "y": 0.0, "z": h.sin(), "w": h.cos()}})
 }
 
 fn sphere(p: [f64; 2], size: f64, c: [f64; 3]) -> Value {
@@ -137,7 +147,7 @@ fn sphere(p: [f64; 2], size: f64, c: [f64; 3]) -> Value {
 fn line(points: &[[f64; 2]], kind: u8, thickness: f64, c: [f64; 3]) -> Value {
     json!({
         "type": kind, "pose": pose([0.0, 0.0], 0.0), "thickness": thickness, "scale_invariant": true,
-        "points": points.iter().map(|p| json!({"x": p[0], "y": p[1], "z": 0.0})).collect::<Vec<_>>(),
+        "points": points.iter().map(|p| json!({"x": cm(p[0]), "y": cm(p[1]), "z": 0.0})).collect::<Vec<_>>(),
         "color": colour(c, 1.0), "colors": [], "indices": [],
     })
 }
@@ -189,11 +199,20 @@ impl FoxgloveView {
         {
             self.tracks.insert(step, uavs.clone());
         }
-        let ellipse =
-            estimate.zip(cov).and_then(|(z, m)| confidence_ellipse(z, m, ELLIPSE_PROBABILITY, POLYGON_POINTS));
-        let standoff = estimate.map(|z| circle(z, self.l_min, POLYGON_POINTS));
-        let tracks: Vec<Vec<[f64; 2]>> =
-            (0..uavs.len()).map(|i| self.tracks.values().filter_map(|step| step.get(i).copied()).collect()).collect();
+        let ellipse = estimate.zip(cov).and_then(|(z, m)| confidence_ellipse(z, m, ELLIPSE_PROBABILITY, RING_POINTS));
+        let standoff = estimate.map(|z| circle(z, self.l_min, RING_POINTS));
+        // The map layer's tracks, thinned to at most MAP_TRACK_POINTS each (the message is re-sent whole
+        // every step; the LocationFix channels carry every point).
+        let tracks: Vec<Vec<[f64; 2]>> = (0..uavs.len())
+            .map(|i| thinned(self.tracks.values().filter_map(|step| step.get(i).copied()).collect(), MAP_TRACK_POINTS))
+            .collect();
+        // The scene's track grows by one segment per step: an entity of its own, kept by Foxglove (lifetime
+        // 0), so no message holds the whole track.
+        let step = msg["step"].as_u64().unwrap_or(0);
+        let segment = |i: usize| -> Option<Vec<[f64; 2]>> {
+            let before = self.tracks.range(..step).next_back()?.1.get(i).copied()?;
+            Some(vec![before, *uavs.get(i)?])
+        };
         let mut out = Vec::new();
         if let Some(frame) = &self.frame {
             for (i, p) in uavs.iter().enumerate().take(UAV_TOPICS.len()) {
@@ -216,9 +235,13 @@ impl FoxgloveView {
         let mut entities: Vec<Value> = uavs
             .iter()
             .enumerate()
-            .map(|(i, p)| {
-                let track = line(&tracks[i], 0, 2.0, COLOURS[i % COLOURS.len()]);
-                entity(&stamp, &format!("uav{i}"), vec![sphere(*p, 300.0, COLOURS[i % COLOURS.len()])], vec![track])
+            .flat_map(|(i, p)| {
+                let colour = COLOURS[i % COLOURS.len()];
+                let uav = entity(&stamp, &format!("uav{i}"), vec![sphere(*p, 300.0, colour)], Vec::new());
+                let track = segment(i).map(|seg| {
+                    entity(&stamp, &format!("uav{i}-track-{step}"), Vec::new(), vec![line(&seg, 0, 2.0, colour)])
+                });
+                std::iter::once(uav).chain(track)
             })
             .collect();
         if let Some(z) = estimate {
@@ -246,13 +269,27 @@ impl FoxgloveView {
                 schema: FRAME_TRANSFORM,
                 json: json!({
                     "timestamp": stamp, "parent_frame_id": LOCAL_FRAME, "child_frame_id": format!("uav{i}"),
-                    "translation": {"x": p[0], "y": p[1], "z": 0.0},
+                    "translation": {"x": cm(p[0]), "y": cm(p[1]), "z": 0.0},
                     "rotation": {"x": 0.0, "y": 0.0, "z": h.sin(), "w": h.cos()},
                 }),
             });
         }
         out
     }
+}
+
+/// Points of a track in one map layer, at most.
+pub const MAP_TRACK_POINTS: usize = 60;
+/// Points of a drawn ellipse or circle (closed with the first again).
+pub const RING_POINTS: usize = 32;
+
+/// At most `most` points of `track`, evenly spaced, the first and the last kept.
+fn thinned(track: Vec<[f64; 2]>, most: usize) -> Vec<[f64; 2]> {
+    if track.len() <= most || most < 2 {
+        return track;
+    }
+    let last = track.len() - 1;
+    (0..most).map(|k| track[(k * last).div_ceil(most - 1).min(last)]).collect()
 }
 
 /// A `foxglove.LocationFix` at `p` in the plane (altitude: the origin's), with `cov` (the plane's 2×2
@@ -291,7 +328,7 @@ fn geojson(
     truth: Option<[f64; 2]>,
 ) -> Value {
     let lon_lat = |points: &[[f64; 2]]| -> Option<Vec<[f64; 2]>> {
-        points.iter().map(|p| frame.to_geodetic(*p).ok().map(|q| [q.lon_deg, q.lat_deg])).collect()
+        points.iter().map(|p| frame.to_geodetic(*p).ok().map(|q| [deg7(q.lon_deg), deg7(q.lat_deg)])).collect()
     };
     let feature =
         |name: String, geometry: Value| json!({"type": "Feature", "properties": {"name": name}, "geometry": geometry});
@@ -315,6 +352,16 @@ fn geojson(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_long_track_is_thinned_evenly_keeping_its_ends() {
+        let track: Vec<[f64; 2]> = (0..1000).map(|k| [k as f64, 0.0]).collect();
+        let t = thinned(track.clone(), 256);
+        assert_eq!(t.len(), 256);
+        assert_eq!((t[0], t[255]), (track[0], track[999]));
+        assert!(t.windows(2).all(|w| w[1][0] > w[0][0]), "in order, no repeats");
+        assert_eq!(thinned(track[..10].to_vec(), 256).len(), 10);
+    }
 
     fn estimate_json(step: u64, z: Option<[f64; 2]>) -> Value {
         json!({
@@ -351,14 +398,7 @@ mod tests {
             layer["features"].as_array().unwrap().iter().map(|f| f["properties"]["name"].as_str().unwrap()).collect();
         assert_eq!(
             names,
-            [
-                "UAV 0 track",
-                "UAV 1 track",
-                "UAV 2 track",
-                "95 % ellipse",
-                "L_min circle",
-                "emitter (truth)"
-            ]
+            ["UAV 0 track", "UAV 1 track", "UAV 2 track", "95 % ellipse", "L_min circle", "emitter (truth)"]
         );
         // A track is [lon, lat] and has one point per step seen; the polygons close.
         let track = layer["features"][0]["geometry"]["coordinates"].as_array().unwrap();
@@ -366,6 +406,10 @@ mod tests {
         assert!((track[0][0].as_f64().unwrap() - 8.565_470_406).abs() < 1e-8, "lon first");
         let ring = layer["features"][4]["geometry"]["coordinates"][0].as_array().unwrap();
         assert_eq!(ring.first(), ring.last());
+        // The scene: each UAV, its track's newest segment (an entity of its own), the estimate.
+        let ids: Vec<&str> =
+            out[5].json["entities"].as_array().unwrap().iter().map(|e| e["id"].as_str().unwrap()).collect();
+        assert_eq!(ids, ["uav0", "uav0-track-1", "uav1", "uav1-track-1", "uav2", "uav2-track-1", "estimate", "truth"]);
         // A step seen again (a restart) replaces its positions instead of adding a point.
         view.derive("/estimate", &estimate_json(1, Some([24500.0, 14500.0])));
         let again = view.derive("/estimate", &estimate_json(1, Some([24500.0, 14500.0])));
@@ -383,7 +427,7 @@ mod tests {
         let out = view.derive("/estimate", &estimate_json(0, None));
         assert!(out.iter().all(|m| m.topic != ESTIMATE_TOPIC));
         let scene = &out.iter().find(|m| m.topic == SCENE_TOPIC).unwrap().json;
-        assert_eq!(scene["entities"].as_array().unwrap().len(), 3, "the UAVs only");
+        assert_eq!(scene["entities"].as_array().unwrap().len(), 3, "the UAVs only (no track before step 1)");
         assert!(view.derive("/measurement", &json!({})).is_empty());
     }
 }

@@ -98,7 +98,10 @@ pub fn plot_map(layer: &Value, title: &str, path: &Path) -> Result<(), PlotError
 }
 
 impl Figure for MapFigure {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
         root.fill(&WHITE)?;
         let body = root.titled(&self.title, font(TITLE_PX))?;
         let (w, h) = body.dim_in_pixel();
@@ -139,7 +142,9 @@ impl Figure for MapFigure {
                     chart.draw_series(LineSeries::new(p.iter().copied(), c.stroke_width(2)))?;
                     if let Some(&last) = p.last() {
                         chart.draw_series(std::iter::once(
-                            EmptyElement::at(last) + Circle::new((0, 0), 6, MARKER_EDGE.filled()) + Circle::new((0, 0), 4, c.filled()),
+                            EmptyElement::at(last)
+                                + Circle::new((0, 0), 6, MARKER_EDGE.filled())
+                                + Circle::new((0, 0), 4, c.filled()),
                         ))?;
                     }
                     entries.push(LegendEntry { glyph: Glyph::LineDot(c), label: name.replace(" track", "") });

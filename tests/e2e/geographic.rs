@@ -109,10 +109,7 @@ fn a_pipeline_recording_draws_on_foxglove_map_and_3d_panels() {
     assert_eq!((fix["latitude"].as_f64(), fix["longitude"].as_f64()), (Some(lat), Some(lon)));
     assert_eq!(fix["position_covariance"][0], last["estimate_cov"][0][0]);
     let names: Vec<&str> = read["features"].as_array().unwrap().iter().map(|f| f["name"].as_str().unwrap()).collect();
-    assert_eq!(
-        names,
-        ["UAV 0 track", "UAV 1 track", "UAV 2 track", "95 % ellipse", "L_min circle", "emitter (truth)"]
-    );
+    assert_eq!(names, ["UAV 0 track", "UAV 1 track", "UAV 2 track", "95 % ellipse", "L_min circle", "emitter (truth)"]);
     let track = &read["features"][0]["coordinates"];
     assert_eq!(track.as_array().unwrap().len() as u64, steps + 1, "one point per step");
     let start = &run["steps"][0]["geo"]["uavs_lat_lon_deg"][0];
