@@ -39,8 +39,9 @@ pub struct BridgeArgs {
     #[command(flatten)]
     #[serde(flatten)]
     pub process: ProcessArgs,
-    /// A UAV's MAVLink endpoint (see below); once per UAV, UAV0 first.
-    #[arg(long = "autopilot", value_name = "ENDPOINT", required = true, value_delimiter = ',')]
+    /// A UAV's MAVLink endpoint (see below); once per UAV, UAV0 first (default: the scenario's
+    /// `autopilots`).
+    #[arg(long = "autopilot", value_name = "ENDPOINT", value_delimiter = ',')]
     #[serde(rename = "autopilot")]
     pub autopilots: Vec<String>,
     /// The MAVLink system id of each UAV's autopilot, comma-separated (default 1, 2, 3, … in UAV order).
@@ -82,7 +83,8 @@ impl BridgeArgs {
     pub fn check(&self, uavs: usize) -> Result<(), String> {
         if self.autopilots.len() != uavs {
             return Err(format!(
-                "--autopilot given {} time(s); the scenario has {uavs} UAVs (one endpoint per UAV, UAV0 first)",
+                "--autopilot given {} time(s); the scenario has {uavs} UAVs (one endpoint per UAV, UAV0 first, with \
+                 --autopilot or the scenario's `autopilots`)",
                 self.autopilots.len()
             ));
         }

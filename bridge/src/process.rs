@@ -219,6 +219,11 @@ pub fn run(args: &BridgeArgs) -> Result<BridgeSummary, ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::input_because("--scenario", e))?;
     let frame = frame_of(&scenario)?;
+    // The endpoints: the flags', else the scenario's.
+    let args = &BridgeArgs {
+        autopilots: if args.autopilots.is_empty() { scenario.autopilots.clone() } else { args.autopilots.clone() },
+        ..args.clone()
+    };
     args.check(scenario.uavs.len()).map_err(ProcessError::Input)?;
     let (tx, rx) = channel();
     let autopilots = args

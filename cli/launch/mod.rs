@@ -53,6 +53,34 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let start = Instant::now();
     let sc = args.run.scenario()?;
     planner::args::check_scenario(&sc).map_err(CliError::Input)?;
+    // The aircraft: --autopilot, else the scenario's `autopilots`.
+    let args = &LaunchArgs {
+        autopilots: if args.autopilots.is_empty() { sc.autopilots.clone() } else { args.autopilots.clone() },
+        ..args.clone()
+    };
+    if !args.autopilots.is_empty() {
+        if args.source == runtime::Source::External {
+            return Err(CliError::Input(
+                "--autopilot flies aircraft for emitter-sim's world; with --source external the front end \
+                 places its UAVs (it may read the bridge's <domain>/swarm, docs/flying.md)"
+                    .into(),
+            ));
+        }
+        if sc.frame().is_none() {
+            return Err(CliError::Input(
+                "--autopilot needs a scenario with an [origin]: the autopilots take latitude/longitude targets \
+                 (see scenarios/geo.toml)"
+                    .into(),
+            ));
+        }
+        if args.autopilots.len() != sc.uavs.len() {
+            return Err(CliError::Input(format!(
+                "--autopilot given {} time(s); the scenario has {} UAVs (one endpoint per UAV, UAV0 first)",
+                args.autopilots.len(),
+                sc.uavs.len()
+            )));
+        }
+    }
     if args.source == runtime::Source::External
         && (args.mode != Mode::Lockstep || args.time_scale.is_some() || args.step_delay_ms > 0)
     {

@@ -187,6 +187,11 @@ pub struct Scenario {
     /// gives it as latitude/longitude. The run itself is the same in the plane. Default: none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub origin: Option<Origin>,
+    /// Each UAV's autopilot as a MAVLink endpoint (`udpin:HOST:PORT`, `udpout:…`, `tcpout:…`,
+    /// `serial:DEVICE:BAUD`), UAV0 first: what the MAVLink bridge connects to when no `--autopilot` is
+    /// given (docs/flying.md). Default: none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub autopilots: Vec<String>,
     /// The UAVs' positions at step 0 as `[lat, lon]` in degrees (needs `[origin]`; instead of `uavs`).
     /// Read from TOML only: loading converts them into `uavs` ([`Scenario::from_toml_str`]).
     #[serde(skip_serializing)]
@@ -254,6 +259,7 @@ impl Default for Scenario {
             velocity_prior_sigma: 20.0,
             emitter_velocity: [0.0, 0.0],
             origin: None,
+            autopilots: Vec::new(),
             uavs_lat_lon_deg: None,
             emitter_lat_lon_deg: None,
             standoff_confidence: 0.99,
@@ -436,6 +442,23 @@ impl Scenario {
         let n = self.uavs.len();
         if !(3..=MAX_UAVS).contains(&n) {
             return Err(invalid("uavs", format!("need 3 to {MAX_UAVS} UAVs, got {n}")));
+        }
+        if !self.autopilots.is_empty() {
+            if self.autopilots.len() != n {
+                return Err(invalid(
+                    "autopilots",
+                    format!("{} endpoints for {n} UAVs: one MAVLink endpoint per UAV, UAV0 first", self.autopilots.len()),
+                ));
+            }
+            if self.origin.is_none() {
+                return Err(invalid("autopilots", "aircraft need an `[origin]`: their targets are latitude/longitude"));
+            }
+            if let Some(i) = self.autopilots.iter().position(|e| !e.contains(':') || e.trim() != e) {
+                return Err(invalid(
+                    &format!("autopilots[{i}]"),
+                    format!("{:?} is not an endpoint (udpin:HOST:PORT, udpout:HOST:PORT, tcpout:HOST:PORT, serial:DEVICE:BAUD)", self.autopilots[i]),
+                ));
+            }
         }
         for (i, p) in self.uavs.iter().enumerate() {
             within_extent(&format!("uavs[{i}]"), p)?;
@@ -898,6 +921,13 @@ mod tests {
         assert_eq!(key_of("[origin]\nlat_deg = 10.0\nlon_deg = 0.0\nalt_m = nan"), "origin");
         assert_eq!(key_of("[origin]\nlat_deg = 10.0"), "origin");
         assert_eq!(key_of("[origin]\nlat_deg = 10.0\nlon_deg = 0.0\nheight = 3"), "origin.height");
+        // Autopilot endpoints: one per UAV, with an origin, each an endpoint.
+        let geo = |extra: &str| format!("autopilots = {extra}\n{GEO}");
+        let ok = Scenario::from_toml_str(&geo(r#"["udpin:0.0.0.0:14550", "udpin:0.0.0.0:14551", "tcpout:10.0.0.2:5760"]"#)).unwrap();
+        assert_eq!(ok.autopilots.len(), 3);
+        assert_eq!(key_of(&geo(r#"["udpin:0.0.0.0:14550"]"#)), "autopilots");
+        assert_eq!(key_of(&geo(r#"["udpin:0.0.0.0:14550", "x", "udpin:0.0.0.0:14552"]"#)), "autopilots[1]");
+        assert_eq!(key_of(r#"autopilots = ["udpin:a:1", "udpin:a:2", "udpin:a:3"]"#), "autopilots", "no origin");
     }
 
     #[test]

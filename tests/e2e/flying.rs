@@ -127,6 +127,19 @@ fn the_bridge_refuses_bad_autopilots_with_a_clear_error() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("[origin]"));
 
+    // The launch checks its aircraft flags before anything starts.
+    for (flags, says) in [
+        (vec!["--mode", "realtime"], "[origin]"),
+        (vec!["--scenario", GEO, "--autopilot", "udpin:127.0.0.1:1", "--autopilot", "udpin:127.0.0.1:2"], "--mode realtime"),
+        (vec!["--scenario", GEO, "--mode", "realtime", "--autopilot", "udpin:127.0.0.1:1"], "given 2 time(s)"),
+    ] {
+        let mut args = vec!["launch", "--headless", "--autopilot", "udpin:127.0.0.1:0"];
+        args.extend(flags);
+        let out = uavloc(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
     for (case, (bad, says)) in [
         (&["--never-arm"][..], "never armed"),
         (&["--system-id-sent", "7"][..], "system 7"),
