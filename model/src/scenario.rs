@@ -447,7 +447,10 @@ impl Scenario {
             if self.autopilots.len() != n {
                 return Err(invalid(
                     "autopilots",
-                    format!("{} endpoints for {n} UAVs: one MAVLink endpoint per UAV, UAV0 first", self.autopilots.len()),
+                    format!(
+                        "{} endpoints for {n} UAVs: one MAVLink endpoint per UAV, UAV0 first",
+                        self.autopilots.len()
+                    ),
                 ));
             }
             if self.origin.is_none() {
@@ -456,7 +459,10 @@ impl Scenario {
             if let Some(i) = self.autopilots.iter().position(|e| !e.contains(':') || e.trim() != e) {
                 return Err(invalid(
                     &format!("autopilots[{i}]"),
-                    format!("{:?} is not an endpoint (udpin:HOST:PORT, udpout:HOST:PORT, tcpout:HOST:PORT, serial:DEVICE:BAUD)", self.autopilots[i]),
+                    format!(
+                        "{:?} is not an endpoint (udpin:HOST:PORT, udpout:HOST:PORT, tcpout:HOST:PORT, serial:DEVICE:BAUD)",
+                        self.autopilots[i]
+                    ),
                 ));
             }
         }
@@ -923,7 +929,9 @@ mod tests {
         assert_eq!(key_of("[origin]\nlat_deg = 10.0\nlon_deg = 0.0\nheight = 3"), "origin.height");
         // Autopilot endpoints: one per UAV, with an origin, each an endpoint.
         let geo = |extra: &str| format!("autopilots = {extra}\n{GEO}");
-        let ok = Scenario::from_toml_str(&geo(r#"["udpin:0.0.0.0:14550", "udpin:0.0.0.0:14551", "tcpout:10.0.0.2:5760"]"#)).unwrap();
+        let ok =
+            Scenario::from_toml_str(&geo(r#"["udpin:0.0.0.0:14550", "udpin:0.0.0.0:14551", "tcpout:10.0.0.2:5760"]"#))
+                .unwrap();
         assert_eq!(ok.autopilots.len(), 3);
         assert_eq!(key_of(&geo(r#"["udpin:0.0.0.0:14550"]"#)), "autopilots");
         assert_eq!(key_of(&geo(r#"["udpin:0.0.0.0:14550", "x", "udpin:0.0.0.0:14552"]"#)), "autopilots[1]");

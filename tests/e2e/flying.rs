@@ -130,7 +130,10 @@ fn the_bridge_refuses_bad_autopilots_with_a_clear_error() {
     // The launch checks its aircraft flags before anything starts.
     for (flags, says) in [
         (vec!["--mode", "realtime"], "[origin]"),
-        (vec!["--scenario", GEO, "--autopilot", "udpin:127.0.0.1:1", "--autopilot", "udpin:127.0.0.1:2"], "--mode realtime"),
+        (
+            vec!["--scenario", GEO, "--autopilot", "udpin:127.0.0.1:1", "--autopilot", "udpin:127.0.0.1:2"],
+            "--mode realtime",
+        ),
         (vec!["--scenario", GEO, "--mode", "realtime", "--autopilot", "udpin:127.0.0.1:1"], "given 2 time(s)"),
     ] {
         let mut args = vec!["launch", "--headless", "--autopilot", "udpin:127.0.0.1:0"];

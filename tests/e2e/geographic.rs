@@ -112,8 +112,10 @@ fn a_pipeline_recording_draws_on_foxglove_map_and_3d_panels() {
     assert_eq!(names, ["UAV 0 track", "UAV 1 track", "UAV 2 track", "95 % ellipse", "L_min circle", "emitter (truth)"]);
     let track = &read["features"][0]["coordinates"];
     assert_eq!(track.as_array().unwrap().len() as u64, steps + 1, "one point per step");
+    // GeoJSON is [lon, lat], drawn to 1e-7° (1 cm).
     let start = &run["steps"][0]["geo"]["uavs_lat_lon_deg"][0];
-    assert_eq!((&track[0][0], &track[0][1]), (&start[1], &start[0]), "GeoJSON is [lon, lat]");
+    let near = |a: &Value, b: &Value| (a.as_f64().unwrap() - b.as_f64().unwrap()).abs() <= 0.6e-7;
+    assert!(near(&track[0][0], &start[1]) && near(&track[0][1], &start[0]), "{track} vs {start}");
     // The map of the recording (what Foxglove's Map panel draws), as a figure.
     let map = dir.join("map.svg");
     let drawn = common::json_of(&["--json", "map", file.to_str().unwrap(), "--out", map.to_str().unwrap()]);

@@ -2,7 +2,7 @@
 //! is one bash script (`set -e`) in a scratch directory, where `uavloc` is this build and `python3` the
 //! test venv's; `cargo run --release --` is `uavloc`; a line ending in `&` runs in the background (the
 //! next line comes a moment later, as typed) and must end with success too; `cargo test` lines are not run
-//! (they are this run). Sizes: `--steps` at most 200, `--runs` 2, domains made unique to this test. A
+//! (they are this run); `scenarios/…` are the repository's files. Sizes: `--steps` at most 200, `--runs` 2, domains made unique to this test. A
 //! README command that no longer runs — a flag renamed, a file moved — fails CI here.
 
 use crate::common;
@@ -40,6 +40,8 @@ fn sh_blocks(text: &str) -> Vec<Vec<String>> {
 /// The line as the test runs it: `uavloc` for `cargo run --release --`, smaller sizes, its own domains.
 fn adapt(line: &str, domain: &str) -> String {
     let line = line.replace("cargo run --release --", "uavloc");
+    // The repository's scenario files, from the scratch directory.
+    let line = line.replace(" scenarios/", &format!(" {}/scenarios/", env!("CARGO_MANIFEST_DIR")));
     let words: Vec<&str> = line.split(' ').filter(|w| !w.is_empty()).collect();
     let mut out: Vec<String> = Vec::new();
     let mut i = 0;
