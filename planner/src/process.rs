@@ -143,17 +143,9 @@ impl Planner<'_> {
         Ok(())
     }
 
-    /// The scenario step `step` is planned with: the noise the measurement stated (an external front
-    /// end's σ) and, with --stated-position-margins, its largest stated position σ as the GNSS σ of the
-    /// safety margins when that is larger than the scenario's.
+    /// The scenario step `step` is planned with ([`wire::scenario_for`]).
     fn scenario_of(&self, step: u64, range_sigmas: Option<&[f64]>) -> Option<Scenario> {
-        let stated = wire::scenario_with_sigmas(&self.scenario, range_sigmas);
-        let sigma = self.position_sigmas.get(&step).copied().unwrap_or(0.0);
-        let base = stated.as_ref().unwrap_or(&self.scenario);
-        if sigma <= base.receiver.gnss_sigma_m {
-            return stated;
-        }
-        Some(Scenario { receiver: model::ReceiverModel { gnss_sigma_m: sigma, ..base.receiver }, ..base.clone() })
+        wire::scenario_for(&self.scenario, range_sigmas, self.position_sigmas.get(&step).copied())
     }
 
     /// The hold command of a step whose estimate missed the deadline ([`wire::hold_command`]).

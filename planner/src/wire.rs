@@ -99,9 +99,44 @@ pub fn hold_command(
 
 pub use planning::scenario_with_sigmas;
 
+/// The scenario a step is planned with, when it is not the run's own: the range σ the measurement stated
+/// (an external front end's) and, with `--stated-position-margins`, the step's largest stated UAV position
+/// σ as the GNSS σ of the safety margins when it is larger than the scenario's (a quiet link's reach:
+/// the certificate then keeps `D_min` from everywhere that UAV could be, or says it cannot).
+pub fn scenario_for(
+    scenario: &Scenario,
+    range_sigmas: Option<&[f64]>,
+    position_sigma: Option<f64>,
+) -> Option<Scenario> {
+    let stated = scenario_with_sigmas(scenario, range_sigmas);
+    let base = stated.as_ref().unwrap_or(scenario);
+    match position_sigma {
+        Some(sigma) if sigma > base.receiver.gnss_sigma_m => {
+            Some(Scenario { receiver: model::ReceiverModel { gnss_sigma_m: sigma, ..base.receiver }, ..base.clone() })
+        }
+        _ => stated,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A quiet UAV stated with the σ of a 1.5 km reach widens the certificate's spacing to D_min + 1.5 km;
+    /// a σ below the scenario's changes nothing; the stated range σ still applies.
+    #[test]
+    fn a_stated_position_sigma_widens_the_safety_margins() {
+        let sc = Scenario::default();
+        assert!(scenario_for(&sc, None, None).is_none());
+        assert!(scenario_for(&sc, None, Some(0.0)).is_none(), "exact positions: the run's own scenario");
+        let sigma = model::safety::position_sigma_of_reach(1500.0);
+        let wide = scenario_for(&sc, None, Some(sigma)).unwrap();
+        let limits = planning::shield::safety_limits(&wide);
+        assert!((limits.d_min - (sc.d_min + 1500.0)).abs() < 1e-9, "{}", limits.d_min);
+        let both = scenario_for(&sc, Some(&[10.0, 20.0, 30.0]), Some(sigma)).unwrap();
+        assert_eq!(both.range_sigmas(), vec![10.0, 20.0, 30.0]);
+        assert_eq!(both.receiver.gnss_sigma_m, sigma);
+    }
 
     #[test]
     fn a_hold_flies_straight_on_flagged_with_no_value() {
