@@ -42,6 +42,7 @@ pub(super) fn child_flags(
             process: runtime::ProcessArgs { node: node(args.headless || args.live), run: run.clone() },
             log: Some(log.to_path_buf()),
             out: args.out.clone(),
+            links: !args.autopilots.is_empty(),
             ..defaults()
         }),
         Role::Planner => to_flags(&planner::args::PlannerArgs {

@@ -124,6 +124,8 @@ pub struct LiveState {
     /// The posterior CRLB as the steps come in (the records' `pcrlb_m` is computed only at the end of a
     /// run); see [`LiveState::with_bound`].
     bound: Option<record::RunningBound>,
+    /// With aircraft: each UAV's link as the bridge last reported it (`flying`, `not_guided`, `quiet`).
+    pub links: Vec<String>,
     /// The run's local plane when its scenario has an origin: the estimate is also shown as
     /// latitude/longitude.
     pub frame: Option<model::geo::LocalFrame>,
@@ -241,6 +243,18 @@ impl LiveState {
                     (e["role"].as_str(), e["instance"].as_u64(), e["rejected"].as_u64())
                 {
                     self.rejected_by.insert((role.to_string(), instance), n);
+                }
+            }
+            Some("link") => {
+                if let (Some(i), Some(state)) = (e["uav"].as_u64(), e["state"].as_str()) {
+                    let i = i as usize;
+                    if self.links.len() <= i {
+                        self.links.resize(i + 1, "unknown".into());
+                    }
+                    self.links[i] = state.to_string();
+                    if state == "quiet" {
+                        self.note = format!("UAV {i}: link quiet (step {}): not heard, its margins widened", e["step"]);
+                    }
                 }
             }
             Some("start") => {

@@ -195,6 +195,15 @@ fn draw_processes(frame: &mut Frame, area: Rect, s: &LiveState) {
             2.0 * axis(e[1])
         )));
     }
+    if !s.links.is_empty() {
+        let links: Vec<String> = s
+            .links
+            .iter()
+            .enumerate()
+            .map(|(i, l)| if l == "quiet" { format!("U{i} QUIET") } else { format!("U{i} {l}") })
+            .collect();
+        lines.push(Line::from(format!("links: {}", links.join(", "))));
+    }
     lines.push(Line::from("map: U0… UAVs, T true emitter, E estimate; red the 95 % ellipse, grey the L_min circle"));
     if !s.note.is_empty() {
         lines.push(Line::from(s.note.clone()));
@@ -232,6 +241,24 @@ mod tests {
 
     fn text_at(b: &ratatui::buffer::Buffer, (x, y): (u16, u16), len: u16) -> String {
         (x..x + len).map(|x| b[(x, y)].symbol().to_string()).collect()
+    }
+
+    /// With aircraft the autopilot links are listed, a quiet one in capitals, and its going quiet is the
+    /// note.
+    #[test]
+    fn the_links_of_the_aircraft_are_shown() {
+        let whole = |s: &LiveState| {
+            let (b, _) = render(s);
+            (0..b.area.height).map(|y| text_at(&b, (0, y), b.area.width)).collect::<Vec<_>>().join("\n")
+        };
+        let mut s = state();
+        assert!(!whole(&s).contains("links:"));
+        for (uav, state) in [(0, "flying"), (1, "flying"), (2, "flying"), (1, "quiet")] {
+            s.apply_event(&serde_json::json!({"event": "link", "uav": uav, "state": state, "step": 18}));
+        }
+        let text = whole(&s);
+        assert!(text.contains("links: U0 flying, U1 QUIET, U2 flying"), "{text}");
+        assert!(s.note.contains("UAV 1: link quiet (step 18)"), "{}", s.note);
     }
 
     /// With an origin the estimate's line also gives it as latitude/longitude; without, it does not.

@@ -57,6 +57,10 @@ pub struct MonitorArgs {
     /// emitter-sim replay the rest of the run.
     #[arg(long)]
     pub resume: bool,
+    /// With aircraft (`launch --autopilot`): follow the MAVLink bridge's swarm state and log each change of
+    /// a UAV's link (`link` events: flying, not_guided, quiet; the live view shows them).
+    #[arg(long)]
+    pub links: bool,
 }
 
 impl MonitorArgs {
@@ -116,6 +120,7 @@ mod tests {
             out: Some("-o".into()),
             print_record: true,
             resume: true,
+            links: true,
         };
         assert_eq!(runtime::flags::round_trip(&m).unwrap(), m);
     }

@@ -45,8 +45,8 @@ use std::time::Instant;
 use model::load_scenario;
 use protocol::services;
 use protocol::{
-    Command, Control, ControlKind, Estimate, EstimatorState, Measurement, MeasurementGate, MessageKind, Topic,
-    TopicPublisher, TopicSubscriber, Truth, Waitable,
+    Command, Control, ControlKind, Estimate, EstimatorState, LinkState, Measurement, MeasurementGate, MessageKind,
+    SwarmState, Topic, TopicPublisher, TopicSubscriber, Truth, Waitable,
 };
 use runtime::recovery::{Lost, LostMessages, STALL_STEPS, StalledStep};
 use runtime::{Flow, Handler, IDLE_WAKEUP, Join, Node, ProcessError};
@@ -102,6 +102,36 @@ struct MonitorNode<'a> {
     progress_sent: Option<(u64, Instant)>,
     /// With an external source: the front end's presence.
     front_end: Option<FrontEndWatch>,
+    /// With `--links`: the bridge's swarm states and each UAV's link state as last logged.
+    links: Option<Links<'a>>,
+}
+
+/// The UAVs' links as the bridge reports them (`--links`).
+struct Links<'a> {
+    states: &'a TopicSubscriber<SwarmState>,
+    last_seq: Option<u64>,
+    logged: Vec<Option<LinkState>>,
+}
+
+impl Links<'_> {
+    /// Logs every change of a UAV's link (`link` events) since the last one logged.
+    fn take(&mut self, node: &mut Node, session: &mut Session) -> Result<(), ProcessError> {
+        let (batch, _) = node.receive(self.states, &mut self.last_seq, "a swarm state")?;
+        for s in batch {
+            self.logged.resize(s.len(), None);
+            for (i, logged) in self.logged.iter_mut().enumerate() {
+                let Some(now) = s.link_of(i) else { continue };
+                if *logged != Some(now) {
+                    session.log.write("link", json!({"uav": i, "state": now.name(), "step": s.header.step}));
+                    if *logged == Some(LinkState::Flying) || now == LinkState::Quiet {
+                        node.say(format_args!("UAV {i}: link {} (step {})", now.name(), s.header.step));
+                    }
+                    *logged = Some(now);
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl MonitorNode<'_> {
@@ -210,6 +240,9 @@ impl MonitorNode<'_> {
     /// Takes every message waiting on the four data topics into the session, answers the estimator's state
     /// requests it can, and records the steps completed.
     fn take_messages(&mut self, node: &mut Node) -> Result<(), ProcessError> {
+        if let Some(links) = self.links.as_mut() {
+            links.take(node, &mut self.session)?;
+        }
         self.drain(node, self.truths, Session::add_truth)?;
         self.drain_measurements(node)?;
         self.drain(node, self.estimates, Session::add_estimate)?;
@@ -286,6 +319,8 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let replays = external
         .then(|| Topic::<Measurement>::publisher(node.link(), &services::measurement_replay(&domain)))
         .transpose()?;
+    let swarm =
+        args.links.then(|| Topic::<SwarmState>::subscriber(node.link(), &services::swarm(&domain))).transpose()?;
     let mut monitor = MonitorNode {
         last_seq: [None; MessageKind::ALL.len()],
         gate: MeasurementGate::default(),
@@ -300,6 +335,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         stalled: StalledStep::default(),
         progress_sent: None,
         front_end: external.then(FrontEndWatch::default),
+        links: swarm.as_ref().map(|states| Links { states, last_seq: None, logged: Vec::new() }),
     };
     let session = &mut monitor.session;
     match resumed {
@@ -327,7 +363,10 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     }
     session.flush_outputs()?;
     if !session.assembler.is_done() {
-        let inputs: [&dyn Waitable; 4] = [&truths, &measurements, &estimates, &commands];
+        let mut inputs: Vec<&dyn Waitable> = vec![&truths, &measurements, &estimates, &commands];
+        if let Some(s) = &swarm {
+            inputs.push(s);
+        }
         node.run(&inputs, &mut monitor)?;
     }
     let mut session = monitor.session;

@@ -36,7 +36,17 @@ fn simulated_autopilots_fly_the_plan_to_a_fix_through_a_bridge_killed_once_and_a
     launch.wait_for_step(5, Duration::from_secs(60));
     let bridge = pid_of(&d, "bridge").expect("the bridge runs");
     kill(bridge, libc::SIGKILL);
+    let log = launch.log.clone();
     let run = launch.finish_json();
+    // The monitor logged the links as the bridge reported them (what the live view shows): UAV 1 quiet
+    // during its drop, and flying again after it.
+    let links: Vec<(u64, String)> = common::read_events(&log)
+        .iter()
+        .filter(|e| e["event"] == "link" && e["uav"] == 1)
+        .map(|e| (e["step"].as_u64().unwrap(), e["state"].as_str().unwrap().to_string()))
+        .collect();
+    let quiet = links.iter().position(|(_, s)| s == "quiet").unwrap_or_else(|| panic!("no quiet link: {links:?}"));
+    assert!(links[quiet + 1..].iter().any(|(_, s)| s == "flying"), "back after the drop: {links:?}");
 
     let steps = run["steps"].as_array().unwrap();
     assert_eq!(steps.len(), 25, "every step of the scenario");

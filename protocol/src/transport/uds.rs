@@ -99,12 +99,27 @@ fn io_failed(op: &'static str, service: &str, e: io::Error) -> TransportError {
 }
 
 /// Creates `dir` with mode 0700 if needed; refuses one owned by another user or open to others.
+///
+/// The mode is set again after the creation: the process's umask applies to it, and iceoryx2 sets the
+/// umask for a moment while it binds a socket (`iceoryx2-bb-posix`'s `UnixDatagramSocket`), so a
+/// directory created by another thread at that moment came out 0600 — without the search bit.
 fn private_dir(dir: &Path, service: &str) -> Result<(), TransportError> {
     match std::fs::DirBuilder::new().recursive(true).mode(0o700).create(dir) {
         Ok(()) => {}
         Err(e) => return Err(io_failed("creating the socket directory", service, e)),
     }
-    let meta = std::fs::metadata(dir).map_err(|e| io_failed("checking the socket directory", service, e))?;
+    let mut meta = std::fs::metadata(dir).map_err(|e| io_failed("checking the socket directory", service, e))?;
+    // SAFETY: getuid has no preconditions and cannot fail.
+    if meta.is_dir()
+        && meta.uid() == unsafe { libc::getuid() }
+        && meta.mode() & 0o777 != 0o700
+        && meta.mode() & 0o077 == 0
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700))
+            .map_err(|e| io_failed("setting the socket directory's mode", service, e))?;
+        meta = std::fs::metadata(dir).map_err(|e| io_failed("checking the socket directory", service, e))?;
+    }
     // SAFETY: getuid has no preconditions and cannot fail.
     let uid = unsafe { libc::getuid() };
     if !meta.is_dir() || meta.uid() != uid || meta.mode() & 0o077 != 0 {

@@ -215,6 +215,22 @@ fn socket_directories_are_private_to_the_user() {
     }
 }
 
+/// A topic directory created without its search bit — what a umask set for a moment by iceoryx2's
+/// socket binding in another thread made of it — is set to 0700 and used, not left unusable.
+#[test]
+fn a_topic_directory_made_0600_by_a_racing_umask_is_set_to_0700() {
+    let link = link();
+    let name = unique("umask");
+    let dir = uds::topic_dir(&name);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let sub = Topic::<Truth>::subscriber(&link, &name).unwrap();
+    assert_eq!(std::fs::metadata(&dir).unwrap().permissions().mode() & 0o777, 0o700);
+    let publisher = Topic::<Truth>::publisher(&link, &name).unwrap();
+    assert_eq!(publisher.send(&Truth::new(0, 1, [0.0, 0.0])).unwrap().subscribers, 1);
+    drop(sub);
+}
+
 #[test]
 fn iceoryx2_and_socket_topics_of_one_name_do_not_meet() {
     let uds_link = link();
