@@ -163,6 +163,7 @@ impl Bridge<'_> {
             }
         }
         self.swarm.send(&state)?;
+        node.summary().published += 1;
         self.summary.swarm_states += 1;
         if !self.ready {
             if self.states.iter().all(|s| *s == LinkState::Flying) {

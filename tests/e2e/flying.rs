@@ -11,6 +11,9 @@ use crate::common;
 use std::time::Duration;
 
 use common::autopilots::{Autopilots, GEO, TIME_SCALE, endpoints, ports};
+use std::path::Path;
+use std::process::Command;
+
 use common::{Launch, domain, json_of, kill, pid_of, scratch, uavloc};
 use serde_json::Value;
 
@@ -33,6 +36,20 @@ fn simulated_autopilots_fly_the_plan_to_a_fix_through_a_bridge_killed_once_and_a
     let eps = endpoints(ports);
     flags.extend(eps.iter().map(String::as_str));
     let mut launch = Launch::start(&d, &dir, &flags);
+    launch.wait_for_step(2, Duration::from_secs(60));
+    // A foreign client reads the swarm state as a receiver front end on aircraft would: iceoryx2's
+    // official Python bindings, the ctypes layout of examples/python/uavloc_messages.py.
+    let reader = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/python/read_swarm.py");
+    let out = Command::new(common::python()).arg(reader).args(["--domain", &d, "--seconds", "1"]).output().unwrap();
+    let swarm: Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stderr)));
+    assert!(swarm["states"].as_u64().unwrap() >= 5, "about 10 a second: {swarm}");
+    for (i, u) in swarm["uavs"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(u["link"], "flying", "UAV {i}: {swarm}");
+        assert!(u["fix_age_s"].as_f64().unwrap() < 0.5, "UAV {i}: a fresh fix: {swarm}");
+        let lat = u["lat_lon_deg"][0].as_f64().unwrap();
+        assert!((47.39..47.6).contains(&lat), "UAV {i} over the scenario's area: {swarm}");
+    }
     launch.wait_for_step(5, Duration::from_secs(60));
     let bridge = pid_of(&d, "bridge").expect("the bridge runs");
     kill(bridge, libc::SIGKILL);

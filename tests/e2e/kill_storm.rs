@@ -18,7 +18,8 @@
 //! `--monitor-window`) and lingers after the last step, so a monitor restarted late still gets the run.
 //!
 //! `cargo test` runs the quick storm (2 kills per process and 1 pair over 300 steps at 10 ms per step),
-//! two deterministic cases the storms found, and then, alone, the long storm (10 kills per process and 3
+//! the storm with a receiver's every impairment, two deterministic cases the storms found, the storm with
+//! aircraft (simulated MAVLink autopilots; the bridge killed three times), and then, alone, the long storm (10 kills per process and 3
 //! pairs over 1500 steps at 5 ms, 46 kills; about 85 s on 2 cores). One of them:
 //!
 //! ```text
