@@ -268,7 +268,8 @@ impl EmitterNode<'_> {
             }
         }
         let z = self.world.truth();
-        let mut truth = Truth::new(k, 0, [z.x, z.y]).with_previous_command(self.previous);
+        let mut truth =
+            Truth::new(k, 0, [z.x, z.y]).with_previous_command(self.previous).with_multipath(meas.multipath);
         if let Some((cmd, received_ns)) = &self.trigger {
             message = message.carrying(cmd, *received_ns);
             // The monitor learns from the truth when the previous step's command reached the world.

@@ -29,14 +29,14 @@ extern "C" {
 #define UAVLOC_MEASUREMENT_VERSION 2u
 #define UAVLOC_ESTIMATE_VERSION 7u
 #define UAVLOC_COMMAND_VERSION 6u
-#define UAVLOC_TRUTH_VERSION 2u
+#define UAVLOC_TRUTH_VERSION 3u
 #define UAVLOC_SWARM_VERSION 1u
 #define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v2"
 #define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v7"
 #define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v6"
-#define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v2"
+#define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v3"
 #define UAVLOC_TYPE_NAME_SWARM "uavloc::SwarmState/v1"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
 
@@ -183,7 +183,7 @@ typedef struct uavloc_truth {
     uavloc_header header;
     double position[2];        /* m */
     uint32_t previous_command; /* what became of step k-1's command: UAVLOC_PREVIOUS_* */
-    uint32_t reserved;
+    uint32_t multipath;        /* bit i: UAV i's arrival came by a reflection (the world's truth) */
 } uavloc_truth;
 
 /* uavloc_swarm_state.link[i] */

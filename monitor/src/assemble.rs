@@ -375,8 +375,15 @@ impl Assembler {
             },
             estimator: Some(if e.estimator == 1 { "fused" } else { "snapshot" }.to_string()),
             safety: None,
-            receiver: StepReceiver::from_masks(m.len(), m.heard, e.outliers, Some(m.is_silent()), None)
-                .unless_complete(m.len()),
+            // The reflections are the world's truth (absent with an external front end).
+            receiver: StepReceiver::from_masks(
+                m.len(),
+                m.heard,
+                e.outliers,
+                Some(m.is_silent()),
+                t.map(|t| (t.multipath & 0xff) as u8),
+            )
+            .unless_complete(m.len()),
         };
         let mut planner = None;
         let chain = c.map_or(e.header.stamps, |c| c.header.stamps);

@@ -399,6 +399,9 @@ impl Truth {
             return Err(Rejection::UnknownKind { field: "previous_command", kind: self.previous_command });
         }
         check_finite("position", &self.position)?;
+        if self.multipath > 0xff {
+            return Err(Rejection::UnknownKind { field: "multipath", kind: self.multipath });
+        }
         check_seq(self.header.seq, last_seq)
     }
 }
@@ -803,7 +806,12 @@ mod tests {
             assert_eq!(t.validate(None), Err(Rejection::UnknownKind { field: "previous_command", kind: bad }));
             assert_eq!(t.previous_command(), None);
         }
-        assert_eq!(with(truth(), |t| t.reserved = 9).validate(None), Ok(()), "padding is ignored");
+        // The multipath mask: one bit per UAV (at most 8).
+        assert_eq!(with(truth(), |t| t.multipath = 0b101).validate(None), Ok(()));
+        assert_eq!(
+            with(truth(), |t| t.multipath = 0x100).validate(None),
+            Err(Rejection::UnknownKind { field: "multipath", kind: 0x100 })
+        );
     }
 
     #[test]

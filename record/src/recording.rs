@@ -184,10 +184,11 @@ impl Recordable for Truth {
             Some(protocol::CommandOutcome::Missed) => "missed",
             _ => "none",
         };
-        with_header(self, json!({"position": self.position, "previous_command": previous}))
+        let multipath: Vec<u32> = (0..8).filter(|i| self.multipath & (1 << i) != 0).collect();
+        with_header(self, json!({"position": self.position, "previous_command": previous, "multipath": multipath}))
     }
     fn schema_properties() -> Value {
-        json!({"position": numbers(), "previous_command": string()})
+        json!({"position": numbers(), "previous_command": string(), "multipath": {"type": "array", "items": integer()}})
     }
 }
 

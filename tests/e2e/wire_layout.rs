@@ -140,7 +140,7 @@ fn layouts() -> Vec<Layout> {
                 alt_bias_sensitivity
             ]
         ),
-        layout!(Truth, "uavloc_truth", [header, position, previous_command, reserved]),
+        layout!(Truth, "uavloc_truth", [header, position, previous_command, multipath]),
         layout!(
             SwarmState,
             "uavloc_swarm_state",

@@ -42,7 +42,7 @@ fn layout_has_no_implicit_padding() {
     assert_eq!(offset_of!(StateEcho, bias_sensitivity) + 4 * 8 * MAX_UAVS, offset_of!(StateEcho, alt_mean));
     assert_eq!(offset_of!(StateEcho, alt_bias_sensitivity) + 4 * 8 * MAX_UAVS, size_of::<StateEcho>());
     assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));
-    assert_eq!(offset_of!(Truth, reserved) + 4, size_of::<Truth>());
+    assert_eq!(offset_of!(Truth, multipath) + 4, size_of::<Truth>());
     assert_eq!(offset_of!(Control, run), 88 + 24);
     assert_eq!(offset_of!(Control, role), 88 + 32);
     assert_eq!(offset_of!(Control, detail) + 16, size_of::<Control>());

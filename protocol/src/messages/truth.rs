@@ -16,11 +16,12 @@ wire_enum! {
 }
 
 /// emitter-sim → monitor only: the true emitter position of a step (never seen by estimator or planner),
-/// and what the world did in the interval before it — whether the command of the step before was flown or
-/// missed ([`CommandOutcome`]). Only emitter-sim knows the latter for sure: in real-time mode a command
-/// may reach the monitor and still be too late for the world.
+/// what the world did in the interval before it — whether the command of the step before was flown or
+/// missed ([`CommandOutcome`]) — and which of the step's arrivals came by a reflection (the world's
+/// multipath truth, for the monitor's identification counts). Only emitter-sim knows these for sure: in
+/// real-time mode a command may reach the monitor and still be too late for the world.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Truth/v2")]
+#[type_name("uavloc::Truth/v3")]
 #[repr(C)]
 pub struct Truth {
     /// Common header (step of the measurement it belongs to).
@@ -29,11 +30,11 @@ pub struct Truth {
     pub position: [f64; 2],
     /// [`CommandOutcome`] of the command of step `header.step − 1`, as `u32`.
     pub previous_command: u32,
-    /// Explicit padding; 0 when sent.
-    pub reserved: u32,
+    /// Bit i: UAV i's arrival of this step came by a reflection (late); 0 for a direct-path world.
+    pub multipath: u32,
 }
 
-impl_message!(Truth, MessageKind::Truth, 2, "uavloc::Truth/v2");
+impl_message!(Truth, MessageKind::Truth, 3, "uavloc::Truth/v3");
 
 impl Truth {
     /// The truth of `step` (previous command: [`CommandOutcome::None`]).
@@ -42,8 +43,14 @@ impl Truth {
             header: Header::new(Self::VERSION, step, seq),
             position,
             previous_command: CommandOutcome::None as u32,
-            reserved: 0,
+            multipath: 0,
         }
+    }
+
+    /// The same truth, saying which arrivals came by a reflection (bit i: UAV i).
+    pub fn with_multipath(mut self, mask: u8) -> Self {
+        self.multipath = u32::from(mask);
+        self
     }
 
     /// The same truth, saying what became of the command of the step before.

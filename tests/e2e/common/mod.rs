@@ -87,7 +87,9 @@ pub fn assert_same_steps(sim: &Value, launch: &Value, label: &str) {
         }
         // The labels are equal, `violated` / `binding` included (both runs record the wire form).
         assert_eq!(s["active_constraints"], l["active_constraints"], "{label}: step {k} active_constraints");
-        for key in ["pcrlb_m", "estimate_error_m", "nees", "min_true_distance_m", "truth"] {
+        // What the receivers delivered: heard, outliers, silent, and the world's reflections (the truth
+        // carries them to the monitor).
+        for key in ["pcrlb_m", "estimate_error_m", "nees", "min_true_distance_m", "truth", "receiver"] {
             assert_eq!(s[key], l[key], "{label}: step {k} {key}");
         }
         // The safety of the interval to the next step (none after a record's last step: a partial run's
