@@ -107,7 +107,7 @@ impl GeoFix {
     /// The fix at `xy` with covariance `cov` (metres, m²) in `frame`; `None` when it is too far.
     pub fn of(frame: &model::geo::LocalFrame, xy: [f64; 2], cov: [[f64; 2]; 2]) -> Option<Self> {
         let at = frame.to_geodetic(xy).ok()?;
-        let ring = model::geo::confidence_ellipse(xy, cov, 0.95, 64).and_then(|r| frame.pairs(&r));
+        let ring = record::geographic::ellipse_95_lat_lon(frame, xy, cov);
         Some(Self { lat_deg: at.lat_deg, lon_deg: at.lon_deg, ellipse_95_lat_lon_deg: ring })
     }
 

@@ -79,8 +79,15 @@ pub struct BridgeArgs {
 }
 
 impl BridgeArgs {
-    /// Checks the values clap cannot; the error names the flag.
-    pub fn check(&self, uavs: usize) -> Result<(), String> {
+    /// Checks the values clap cannot against the run's scenario (also what `uavloc launch` checks of the
+    /// bridge it starts); the error names the flag.
+    pub fn check(&self, scenario: &model::Scenario) -> Result<(), String> {
+        if scenario.frame().is_none() {
+            return Err("--scenario: the bridge needs an [origin] (lat_deg, lon_deg, alt_m): autopilots take \
+                        latitude/longitude targets (see scenarios/geo.toml)"
+                .into());
+        }
+        let uavs = scenario.uavs.len();
         if self.autopilots.len() != uavs {
             return Err(format!(
                 "--autopilot given {} time(s); the scenario has {uavs} UAVs (one endpoint per UAV, UAV0 first, with \

@@ -17,7 +17,7 @@ use std::sync::mpsc::{Receiver, channel};
 use std::time::{Duration, Instant};
 
 use model::geo::LocalFrame;
-use model::{Scenario, load_scenario};
+use model::load_scenario;
 use protocol::{Command, LinkState, SwarmState, Topic, TopicPublisher, TopicSubscriber, services};
 use runtime::{Flow, Handler, Join, Node, ProcessError};
 
@@ -204,28 +204,17 @@ impl Handler for Bridge<'_> {
     }
 }
 
-/// The scenario's plane; the bridge needs an origin.
-fn frame_of(scenario: &Scenario) -> Result<LocalFrame, ProcessError> {
-    scenario.frame().ok_or_else(|| {
-        ProcessError::Input(
-            "--scenario: the bridge needs an [origin] (lat_deg, lon_deg, alt_m): autopilots take latitude/longitude \
-             targets (see scenarios/geo.toml)"
-                .into(),
-        )
-    })
-}
-
 /// Runs the bridge until SIGINT/SIGTERM or a shutdown.
 pub fn run(args: &BridgeArgs) -> Result<BridgeSummary, ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::input_because("--scenario", e))?;
-    let frame = frame_of(&scenario)?;
     // The endpoints: the flags', else the scenario's.
     let args = &BridgeArgs {
         autopilots: if args.autopilots.is_empty() { scenario.autopilots.clone() } else { args.autopilots.clone() },
         ..args.clone()
     };
-    args.check(scenario.uavs.len()).map_err(ProcessError::Input)?;
+    args.check(&scenario).map_err(ProcessError::Input)?;
+    let frame = scenario.frame().ok_or_else(|| ProcessError::Input("--scenario: no [origin]".into()))?;
     let (tx, rx) = channel();
     let autopilots = args
         .autopilots
@@ -309,6 +298,7 @@ pub fn main_with(args: &BridgeArgs) -> ExitCode {
 mod tests {
     use super::*;
     use clap::Parser;
+    use model::Scenario;
 
     #[derive(Parser, Debug)]
     struct Cli {
@@ -337,11 +327,14 @@ mod tests {
         assert_eq!(cli.args.autopilots.len(), 3);
         assert_eq!(cli.args.system_id(1), 5);
         assert_eq!(runtime::flags::round_trip(&cli.args).unwrap(), cli.args);
-        cli.args.check(3).unwrap();
-        assert!(cli.args.check(4).unwrap_err().contains("--autopilot given 3"));
+        let geo = Scenario::from_toml_str(include_str!("../../scenarios/geo.toml")).unwrap();
+        cli.args.check(&geo).unwrap();
+        assert!(cli.args.check(&Scenario::default()).unwrap_err().contains("[origin]"));
+        let four = BridgeArgs { autopilots: vec!["udpin:127.0.0.1:1".into(); 4], ..cli.args.clone() };
+        assert!(four.check(&geo).unwrap_err().contains("--autopilot given 4"));
         let slow = BridgeArgs { rate_hz: 1.0, ..cli.args.clone() };
-        assert!(slow.check(3).unwrap_err().contains("--rate-hz"));
+        assert!(slow.check(&geo).unwrap_err().contains("--rate-hz"));
         let broadcast = BridgeArgs { system_ids: vec![0, 1, 2], ..cli.args };
-        assert!(broadcast.check(3).unwrap_err().contains("broadcast"));
+        assert!(broadcast.check(&geo).unwrap_err().contains("broadcast"));
     }
 }

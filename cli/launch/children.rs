@@ -67,15 +67,7 @@ pub(super) fn child_flags(
         }),
         Role::Bridge => to_flags(&bridge::args::BridgeArgs {
             process: runtime::ProcessArgs { node: node(true), run },
-            autopilots: args.autopilots.clone(),
-            system_ids: Vec::new(),
-            rate_hz: 10.0,
-            link_timeout_ms: 1500,
-            ready_timeout_ms: 15_000,
-            max_start_offset_m: 5_000.0,
-            altitude_m: 120.0,
-            rejoin: false,
-            time_scale: args.time_scale.unwrap_or(1.0),
+            ..bridge_args(args)
         }),
         Role::EmitterSim => to_flags(&emitter_sim::args::EmitterSimArgs {
             process: runtime::ProcessArgs { node: node(true), run },
@@ -105,6 +97,16 @@ pub(super) fn emitter_args(args: &LaunchArgs) -> emitter_sim::args::EmitterSimAr
         } else {
             emitter_sim::args::UavSource::Autopilots
         },
+        ..defaults()
+    }
+}
+
+/// The bridge's flags in this launch (aircraft, `--autopilot`), but its node and run.
+pub(super) fn bridge_args(args: &LaunchArgs) -> bridge::args::BridgeArgs {
+    bridge::args::BridgeArgs {
+        autopilots: args.autopilots.clone(),
+        // The autopilots' simulated time runs with the world's.
+        time_scale: args.time_scale.unwrap_or(1.0),
         ..defaults()
     }
 }

@@ -66,20 +66,8 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
                     .into(),
             ));
         }
-        if sc.frame().is_none() {
-            return Err(CliError::Input(
-                "--autopilot needs a scenario with an [origin]: the autopilots take latitude/longitude targets \
-                 (see scenarios/geo.toml)"
-                    .into(),
-            ));
-        }
-        if args.autopilots.len() != sc.uavs.len() {
-            return Err(CliError::Input(format!(
-                "--autopilot given {} time(s); the scenario has {} UAVs (one endpoint per UAV, UAV0 first)",
-                args.autopilots.len(),
-                sc.uavs.len()
-            )));
-        }
+        // The bridge's flags as it will get them, checked by the bridge's own rules.
+        children::bridge_args(args).check(&sc).map_err(CliError::Input)?;
     }
     if args.source == runtime::Source::External
         && (args.mode != Mode::Lockstep || args.time_scale.is_some() || args.step_delay_ms > 0)

@@ -239,6 +239,12 @@ mod tests {
         (buffer, map)
     }
 
+    /// The whole screen of `s`, line by line.
+    fn whole(s: &LiveState) -> String {
+        let (b, _) = render(s);
+        (0..b.area.height).map(|y| text_at(&b, (0, y), b.area.width)).collect::<Vec<_>>().join("\n")
+    }
+
     fn text_at(b: &ratatui::buffer::Buffer, (x, y): (u16, u16), len: u16) -> String {
         (x..x + len).map(|x| b[(x, y)].symbol().to_string()).collect()
     }
@@ -247,10 +253,6 @@ mod tests {
     /// note.
     #[test]
     fn the_links_of_the_aircraft_are_shown() {
-        let whole = |s: &LiveState| {
-            let (b, _) = render(s);
-            (0..b.area.height).map(|y| text_at(&b, (0, y), b.area.width)).collect::<Vec<_>>().join("\n")
-        };
         let mut s = state();
         assert!(!whole(&s).contains("links:"));
         for (uav, state) in [(0, "flying"), (1, "flying"), (2, "flying"), (1, "quiet")] {
@@ -264,10 +266,6 @@ mod tests {
     /// With an origin the estimate's line also gives it as latitude/longitude; without, it does not.
     #[test]
     fn a_run_with_an_origin_shows_the_estimate_as_latitude_longitude() {
-        let whole = |s: &LiveState| {
-            let (b, _) = render(s);
-            (0..b.area.height).map(|y| text_at(&b, (0, y), b.area.width)).collect::<Vec<_>>().join("\n")
-        };
         let mut s = state();
         assert!(!whole(&s).contains('°'));
         let sc = model::Scenario::from_toml_str(include_str!("../../scenarios/geo.toml")).unwrap();

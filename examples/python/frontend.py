@@ -97,16 +97,7 @@ class Link:
         self.listener = self._event(f"{domain}/command").listener_builder().create()
 
     def _pubsub(self, name, t):
-        return (
-            self.node.service_builder(iox2.ServiceName.new(name))
-            .publish_subscribe(t)
-            .max_publishers(msg.MAX_PUBLISHERS)
-            .max_subscribers(msg.MAX_SUBSCRIBERS)
-            .subscriber_max_buffer_size(msg.SUBSCRIBER_BUFFER)
-            .history_size(msg.HISTORY)
-            .enable_safe_overflow(True)
-            .open_or_create()
-        )
+        return msg.open_topic(self.node, name, t)
 
     def _event(self, name):
         return (

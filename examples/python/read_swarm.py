@@ -27,16 +27,7 @@ def main():
     msg.check_layout()
     iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
     node = iox2.NodeBuilder.new().name(iox2.NodeName.new(f"{a.domain}/swarm-reader")).create(iox2.ServiceType.Ipc)
-    service = (
-        node.service_builder(iox2.ServiceName.new(f"{a.domain}/swarm"))
-        .publish_subscribe(msg.SwarmState)
-        .max_publishers(msg.MAX_PUBLISHERS)
-        .max_subscribers(msg.MAX_SUBSCRIBERS)
-        .subscriber_max_buffer_size(msg.SUBSCRIBER_BUFFER)
-        .history_size(msg.HISTORY)
-        .enable_safe_overflow(True)
-        .open_or_create()
-    )
+    service = msg.open_topic(node, f"{a.domain}/swarm", msg.SwarmState)
     subscriber = service.subscriber_builder().buffer_size(msg.SUBSCRIBER_BUFFER).create()
     newest, count = None, 0
     deadline = time.monotonic() + a.seconds

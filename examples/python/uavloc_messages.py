@@ -29,6 +29,24 @@ MAX_SUBSCRIBERS = 16
 SUBSCRIBER_BUFFER = 64
 HISTORY = 0
 
+
+def open_topic(node, name, message_type):
+    """The iceoryx2 publish-subscribe service `name` of `message_type` on `node`, opened (or created) with
+    the settings every uavloc topic has."""
+    import iceoryx2 as iox2
+
+    return (
+        node.service_builder(iox2.ServiceName.new(name))
+        .publish_subscribe(message_type)
+        .max_publishers(MAX_PUBLISHERS)
+        .max_subscribers(MAX_SUBSCRIBERS)
+        .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+        .history_size(HISTORY)
+        .enable_safe_overflow(True)
+        .open_or_create()
+    )
+
+
 COMMAND_FLAG_HOLD = 1
 COMMAND_FLAG_CERTIFIED = 2  # the plan carries a safety certificate
 COMMAND_FLAG_UNCERTIFIED = 4  # no certified plan existed: the one with the largest minimum margin

@@ -19,8 +19,6 @@
 //! The schemas are the registry package's own files (`record/foxglove/`, `@foxglove/schemas` 2.1.0, MIT
 //! licence), embedded as the channels' schema data.
 
-use std::collections::BTreeMap;
-
 use model::Scenario;
 use model::geo::{LocalFrame, circle, confidence_ellipse, course_deg};
 use serde_json::{Value, json};
@@ -87,8 +85,9 @@ pub struct FoxgloveMessage {
 pub struct FoxgloveView {
     frame: Option<LocalFrame>,
     l_min: f64,
-    /// The UAVs' positions by step (a step seen again, after a restart, replaces its positions).
-    tracks: BTreeMap<u64, Vec<[f64; 2]>>,
+    /// The UAVs' positions by step, in step order (a step seen again, after a restart, replaces its
+    /// positions): indexed, so that a thinned track and the newest segment cost no walk over the run.
+    tracks: Vec<(u64, Vec<[f64; 2]>)>,
     truth: Option<[f64; 2]>,
 }
 
@@ -163,7 +162,7 @@ fn entity(stamp: &Value, id: &str, spheres: Vec<Value>, lines: Vec<Value>) -> Va
 impl FoxgloveView {
     /// The view of a run of `scenario` (the map channels only when it has an origin).
     pub fn new(scenario: &Scenario) -> Self {
-        Self { frame: scenario.frame(), l_min: scenario.l_min, tracks: BTreeMap::new(), truth: None }
+        Self { frame: scenario.frame(), l_min: scenario.l_min, tracks: Vec::new(), truth: None }
     }
 
     /// The Foxglove messages of one recorded uavloc message (its topic and JSON, see
@@ -197,20 +196,25 @@ impl FoxgloveView {
         if let Some(step) = msg["step"].as_u64()
             && !uavs.is_empty()
         {
-            self.tracks.insert(step, uavs.clone());
+            match self.tracks.binary_search_by_key(&step, |(k, _)| *k) {
+                Ok(at) => self.tracks[at].1 = uavs.clone(),
+                Err(at) => self.tracks.insert(at, (step, uavs.clone())),
+            }
         }
         let ellipse = estimate.zip(cov).and_then(|(z, m)| confidence_ellipse(z, m, ELLIPSE_PROBABILITY, RING_POINTS));
         let standoff = estimate.map(|z| circle(z, self.l_min, RING_POINTS));
         // The map layer's tracks, thinned to at most MAP_TRACK_POINTS each (the message is re-sent whole
         // every step; the LocationFix channels carry every point).
+        let picked: Vec<usize> = thinned(self.tracks.len(), MAP_TRACK_POINTS).collect();
         let tracks: Vec<Vec<[f64; 2]>> = (0..uavs.len())
-            .map(|i| thinned(self.tracks.values().filter_map(|step| step.get(i).copied()).collect(), MAP_TRACK_POINTS))
+            .map(|i| picked.iter().filter_map(|&k| self.tracks[k].1.get(i).copied()).collect())
             .collect();
         // The scene's track grows by one segment per step: an entity of its own, kept by Foxglove (lifetime
         // 0), so no message holds the whole track.
         let step = msg["step"].as_u64().unwrap_or(0);
         let segment = |i: usize| -> Option<Vec<[f64; 2]>> {
-            let before = self.tracks.range(..step).next_back()?.1.get(i).copied()?;
+            let at = self.tracks.partition_point(|(k, _)| *k < step);
+            let before = self.tracks[..at].last()?.1.get(i).copied()?;
             Some(vec![before, *uavs.get(i)?])
         };
         let mut out = Vec::new();
@@ -283,13 +287,12 @@ pub const MAP_TRACK_POINTS: usize = 60;
 /// Points of a drawn ellipse or circle (closed with the first again).
 pub const RING_POINTS: usize = 32;
 
-/// At most `most` points of `track`, evenly spaced, the first and the last kept.
-fn thinned(track: Vec<[f64; 2]>, most: usize) -> Vec<[f64; 2]> {
-    if track.len() <= most || most < 2 {
-        return track;
-    }
-    let last = track.len() - 1;
-    (0..most).map(|k| track[(k * last).div_ceil(most - 1).min(last)]).collect()
+/// The indices of at most `most` of `len` points, evenly spaced, the first and the last kept.
+fn thinned(len: usize, most: usize) -> impl Iterator<Item = usize> {
+    let last = len.saturating_sub(1);
+    let all = len <= most || most < 2;
+    let n = if all { len } else { most };
+    (0..n).map(move |k| if all { k } else { (k * last).div_ceil(most - 1).min(last) })
 }
 
 /// A `foxglove.LocationFix` at `p` in the plane (altitude: the origin's), with `cov` (the plane's 2×2
@@ -355,12 +358,12 @@ mod tests {
 
     #[test]
     fn a_long_track_is_thinned_evenly_keeping_its_ends() {
-        let track: Vec<[f64; 2]> = (0..1000).map(|k| [k as f64, 0.0]).collect();
-        let t = thinned(track.clone(), 256);
+        let t: Vec<usize> = thinned(1000, 256).collect();
         assert_eq!(t.len(), 256);
-        assert_eq!((t[0], t[255]), (track[0], track[999]));
-        assert!(t.windows(2).all(|w| w[1][0] > w[0][0]), "in order, no repeats");
-        assert_eq!(thinned(track[..10].to_vec(), 256).len(), 10);
+        assert_eq!((t[0], t[255]), (0, 999));
+        assert!(t.windows(2).all(|w| w[1] > w[0]), "in order, no repeats");
+        assert_eq!(thinned(10, 256).collect::<Vec<_>>(), (0..10).collect::<Vec<_>>());
+        assert_eq!(thinned(0, 256).count(), 0);
     }
 
     fn estimate_json(step: u64, z: Option<[f64; 2]>) -> Value {

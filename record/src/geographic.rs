@@ -37,11 +37,17 @@ impl StepGeo {
         Self {
             uavs_lat_lon_deg: uavs.iter().filter_map(|p| at(*p)).collect(),
             estimate_lat_lon_deg: at(estimate),
-            ellipse_95_lat_lon_deg: confidence_ellipse(estimate, cov, ELLIPSE_PROBABILITY, POLYGON_POINTS)
-                .and_then(|ring| frame.pairs(&ring)),
+            ellipse_95_lat_lon_deg: ellipse_95_lat_lon(frame, estimate, cov),
             truth_lat_lon_deg: truth.and_then(at),
         }
     }
+}
+
+/// The 95 % ellipse of an estimate at `centre` with covariance `cov` (plane, m²) as a closed polygon of
+/// `[lat, lon]` (degrees); `None` for a covariance that is not positive semi-definite or a place off the
+/// plane.
+pub fn ellipse_95_lat_lon(frame: &LocalFrame, centre: [f64; 2], cov: [[f64; 2]; 2]) -> Option<Vec<[f64; 2]>> {
+    confidence_ellipse(centre, cov, ELLIPSE_PROBABILITY, POLYGON_POINTS).and_then(|ring| frame.pairs(&ring))
 }
 
 /// Fills every step's [`StepGeo`] when the run's scenario has an origin (clears them otherwise).
