@@ -11,8 +11,8 @@ use plotters::prelude::*;
 use serde_json::Value;
 
 use crate::plot::{
-    Bounds, CHART_MARGIN, DESC_PX, ELLIPSE_COLOR, EMITTER_RED, Figure, Glyph, LABEL_PX, LEGEND_WIDTH, LegendEntry,
-    MARKER_EDGE, PlotError, TITLE_PX, X_LABEL_AREA, Y_LABEL_AREA, draw_legend, font, palette, render, star_points,
+    Bounds, ELLIPSE_COLOR, EMITTER_RED, Figure, Glyph, LEGEND_WIDTH, LegendEntry, MARKER_EDGE, PlaneAxes, PlotError,
+    TITLE_PX, draw_legend, font, palette, plane_chart, render, star_points,
 };
 
 /// Metres per degree of latitude (WGS84, mid-latitudes; the view's scale, not a measurement).
@@ -111,27 +111,15 @@ impl Figure for MapFigure {
             Shape::Point(_, p) => vec![*p],
         });
         let frame = Bounds::of(points).unwrap_or(Bounds { x: (-1000.0, 1000.0), y: (-1000.0, 1000.0) });
-        let plot_w = (w.saturating_sub(LEGEND_WIDTH)).saturating_sub(2 * CHART_MARGIN + Y_LABEL_AREA);
-        let plot_h = h.saturating_sub(2 * CHART_MARGIN + X_LABEL_AREA);
-        let range = frame.equal_aspect(plot_w, plot_h);
-        let mut chart = ChartBuilder::on(&chart_area)
-            .margin(CHART_MARGIN)
-            .x_label_area_size(X_LABEL_AREA)
-            .y_label_area_size(Y_LABEL_AREA)
-            .build_cartesian_2d(range.x.0..range.x.1, range.y.0..range.y.1)?;
-        chart
-            .configure_mesh()
-            .x_desc("longitude (°E)")
-            .y_desc("latitude (°N)")
-            .label_style(font(LABEL_PX))
-            .axis_desc_style(font(DESC_PX))
-            .x_label_formatter(&|x| format!("{:.3}", self.view.lon(*x)))
-            .y_label_formatter(&|y| format!("{:.3}", self.view.lat(*y)))
-            .x_labels(6)
-            .y_labels(8)
-            .light_line_style(RGBColor(0xf0, 0xf0, 0xf0))
-            .bold_line_style(RGBColor(0xd8, 0xd8, 0xd8))
-            .draw()?;
+        let axes = PlaneAxes {
+            x_desc: "longitude (°E)",
+            y_desc: "latitude (°N)",
+            x_label: &|x| format!("{:.3}", self.view.lon(*x)),
+            y_label: &|y| format!("{:.3}", self.view.lat(*y)),
+            x_labels: 6,
+            light_lines: None,
+        };
+        let (mut chart, _) = plane_chart(&chart_area, (w, h), frame, &axes)?;
         let mut entries = Vec::new();
         let mut tracks = 0;
         for s in &self.shapes {

@@ -19,6 +19,7 @@ use std::sync::OnceLock;
 
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::register_font;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
@@ -469,6 +470,52 @@ impl Bounds {
     }
 }
 
+/// The axes of a chart of the plane at equal scale: descriptions, tick labels, the number of x labels
+/// and of light grid lines between them (`None`: plotters' default).
+pub(crate) struct PlaneAxes<'f> {
+    pub(crate) x_desc: &'f str,
+    pub(crate) y_desc: &'f str,
+    pub(crate) x_label: &'f dyn Fn(&f64) -> String,
+    pub(crate) y_label: &'f dyn Fn(&f64) -> String,
+    pub(crate) x_labels: usize,
+    pub(crate) light_lines: Option<usize>,
+}
+
+/// A chart of the plane in `area` (the body of a `w`×`h` figure, legend panel aside) framing `frame` at
+/// equal scale on both axes, its mesh drawn; the chart and the range it shows.
+pub(crate) fn plane_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    (w, h): (u32, u32),
+    frame: Bounds,
+    axes: &PlaneAxes<'_>,
+) -> Result<
+    (ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>, Bounds),
+    DrawingAreaErrorKind<DB::ErrorType>,
+> {
+    let plot_w = (w.saturating_sub(LEGEND_WIDTH)).saturating_sub(2 * CHART_MARGIN + Y_LABEL_AREA);
+    let plot_h = h.saturating_sub(2 * CHART_MARGIN + X_LABEL_AREA);
+    let range = frame.equal_aspect(plot_w, plot_h);
+    let mut chart = ChartBuilder::on(area)
+        .margin(CHART_MARGIN)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(Y_LABEL_AREA)
+        .build_cartesian_2d(range.x.0..range.x.1, range.y.0..range.y.1)?;
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(axes.x_desc)
+        .y_desc(axes.y_desc)
+        .label_style(font(LABEL_PX))
+        .axis_desc_style(font(DESC_PX))
+        .x_label_formatter(axes.x_label)
+        .y_label_formatter(axes.y_label)
+        .x_labels(axes.x_labels)
+        .y_labels(8);
+    if let Some(n) = axes.light_lines {
+        mesh.max_light_lines(n);
+    }
+    mesh.light_line_style(RGBColor(0xf0, 0xf0, 0xf0)).bold_line_style(RGBColor(0xd8, 0xd8, 0xd8)).draw()?;
+    Ok((chart, range))
+}
+
 impl Figure for Trajectories<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
         let run = self.run;
@@ -500,30 +547,16 @@ impl Figure for Trajectories<'_> {
                 Bounds::of(estimates.iter().copied()).unwrap_or(Bounds { x: (-1000.0, 1000.0), y: (-1000.0, 1000.0) })
             }
         };
-        let plot_w = (w.saturating_sub(LEGEND_WIDTH)).saturating_sub(2 * CHART_MARGIN + Y_LABEL_AREA);
-        let plot_h = h.saturating_sub(2 * CHART_MARGIN + X_LABEL_AREA);
-        let range = frame.equal_aspect(plot_w, plot_h);
+        let axes = PlaneAxes {
+            x_desc: "x (m)",
+            y_desc: "y (m)",
+            x_label: &|v| fmt_axis(*v),
+            y_label: &|v| fmt_axis(*v),
+            x_labels: 8,
+            light_lines: Some(4),
+        };
+        let (mut chart, range) = plane_chart(&chart_area, (w, h), frame, &axes)?;
         let (on_chart, off_chart): (Vec<_>, Vec<_>) = estimates.iter().partition(|&&p| range.contains(p));
-
-        let mut chart = ChartBuilder::on(&chart_area)
-            .margin(CHART_MARGIN)
-            .x_label_area_size(X_LABEL_AREA)
-            .y_label_area_size(Y_LABEL_AREA)
-            .build_cartesian_2d(range.x.0..range.x.1, range.y.0..range.y.1)?;
-        chart
-            .configure_mesh()
-            .x_desc("x (m)")
-            .y_desc("y (m)")
-            .label_style(font(LABEL_PX))
-            .axis_desc_style(font(DESC_PX))
-            .x_label_formatter(&|v| fmt_axis(*v))
-            .y_label_formatter(&|v| fmt_axis(*v))
-            .x_labels(8)
-            .y_labels(8)
-            .max_light_lines(4)
-            .light_line_style(RGBColor(0xf0, 0xf0, 0xf0))
-            .bold_line_style(RGBColor(0xd8, 0xd8, 0xd8))
-            .draw()?;
 
         chart.draw_series(on_chart.iter().map(|&&p| Circle::new(p, 2, ESTIMATE_GREY.filled())))?;
         // The estimate track and its 95 % ellipses every few steps (about eight per run).
