@@ -481,6 +481,9 @@ pub(crate) struct PlaneAxes<'f> {
     pub(crate) light_lines: Option<usize>,
 }
 
+/// A chart of the plane, metres on both axes.
+pub(crate) type PlaneChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
 /// A chart of the plane in `area` (the body of a `w`×`h` figure, legend panel aside) framing `frame` at
 /// equal scale on both axes, its mesh drawn; the chart and the range it shows.
 pub(crate) fn plane_chart<'a, DB: DrawingBackend>(
@@ -488,10 +491,7 @@ pub(crate) fn plane_chart<'a, DB: DrawingBackend>(
     (w, h): (u32, u32),
     frame: Bounds,
     axes: &PlaneAxes<'_>,
-) -> Result<
-    (ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>, Bounds),
-    DrawingAreaErrorKind<DB::ErrorType>,
-> {
+) -> Result<(PlaneChart<'a, DB>, Bounds), DrawingAreaErrorKind<DB::ErrorType>> {
     let plot_w = (w.saturating_sub(LEGEND_WIDTH)).saturating_sub(2 * CHART_MARGIN + Y_LABEL_AREA);
     let plot_h = h.saturating_sub(2 * CHART_MARGIN + X_LABEL_AREA);
     let range = frame.equal_aspect(plot_w, plot_h);
