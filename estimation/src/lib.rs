@@ -44,7 +44,9 @@ pub const REJECTED_RUN_RESTART: u8 = 3;
 /// track — a first fix that a reflection corrupted (three UAVs leave no redundancy to see it) is not kept
 /// alive by the subsets that happen to agree with it, and is restarted after [`REJECTED_RUN_RESTART`]
 /// rejections. Only arrivals the burst itself shows to be outliers (its own Chan residual, five or more
-/// arrivals: [`outliers::fuse_self_checked`]) are dropped from a provisional track's bursts.
+/// arrivals: [`outliers::fuse_self_checked`]), or a late minority of a burst that shows an outlier by
+/// itself ([`outliers::shows_an_outlier`], [`outliers::fuse_without_late`]), are dropped from a
+/// provisional track's bursts.
 pub const CONFIRM_BURSTS: u8 = 3;
 
 /// How an estimate came about.
@@ -559,6 +561,15 @@ impl Estimator {
             && let Some(self_checked) = outliers::fuse_self_checked(predicted, a, |m| config.gate(m))?
         {
             up = self_checked;
+        }
+        if provisional
+            && config.outliers == OutlierPolicy::Arrival
+            && matches!(up.update.outcome, Outcome::Rejected { .. })
+            && outliers::shows_an_outlier(a, Some(predicted.position()), |m| config.gate(m))
+            && let Some(late) =
+                outliers::fuse_without_late(predicted, a, |m| config.gate(m), 0, (a.heard_count() - 1) / 2)?
+        {
+            up = late;
         }
         let (status, nis) = match up.update.outcome {
             Outcome::Fused { nis, .. } => (EstimateStatus::Ok, nis),

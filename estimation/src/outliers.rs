@@ -5,13 +5,17 @@
 //! - `snapshot`: a burst whose innovation fails the χ² gate is not fused at all (every arrival of it lost);
 //! - `arrival` (default): in a burst that passes the gate, an arrival whose own share of the NIS
 //!   (`NIS(all) − NIS(all but it)`, χ²₁) exceeds the one-degree gate and that is late is dropped; a burst
-//!   that fails the gate is fused again without one arrival at a time
-//!   (leave-one-out) against the same prediction; the subset that passes its own gate with the largest
-//!   p-value, and whose left-out arrival is **late** (a positive residual: a reflection only lengthens the
-//!   path), is fused and the arrival reported as an outlier. When none passes, the arrival whose removal
-//!   helps most is dropped and the search goes on, at most `⌊(K − 1)/2⌋` arrivals of K heard (the
-//!   arrivals kept are always a majority). Chan's first fix of a burst heard by four or more UAVs is
-//!   checked the same way against its own residual (`m − 2` degrees of freedom).
+//!   that fails the gate is fused without the smallest set of arrivals whose removal makes the rest pass
+//!   its own gate against the same prediction, every arrival removed being **late** against the rest's
+//!   fit (a reflection only lengthens the path) — exhaustive over the sets of each size, the best fit
+//!   among those of the smallest size ([`fuse_without_late`]). A confirmed track may keep as few as two
+//!   arrivals of K: beyond a minority, each arrival removed must be late beyond the one-degree gate
+//!   ([`lateness_score`]), so that a burst whose majority came by reflections keeps its earliest,
+//!   direct arrivals. Chan's first fix of a burst heard by four or more UAVs is checked the same way
+//!   against its own residual (`m − 2` degrees of freedom). A provisional track (see the estimator)
+//!   drops arrivals only from a burst that shows an outlier by itself ([`shows_an_outlier`]), and at
+//!   most a minority of them: a wrong first fix is not kept alive by dropping the arrivals of clean
+//!   bursts that disagree with it.
 //!
 //! Pure functions over plain data.
 
@@ -85,43 +89,95 @@ pub fn fuse_burst(
             None => BurstUpdate { update: whole, dropped: 0 },
         });
     }
-    let max_drop = (a.heard_count() - 1) / 2;
-    let mut current = *a;
-    let mut dropped = 0u8;
-    for _ in 0..max_drop {
-        // (p-value, UAV, update) of the best subset that passes, and of the best that does not.
-        let mut passed: Option<(f64, usize, Update)> = None;
-        let mut failed: Option<(f64, usize)> = None;
-        for j in (0..current.len()).filter(|&j| current.heard_mask() & bit(j) != 0) {
-            let without = current.without(j);
-            let Some((up, m)) = fuse(&without)? else { continue };
-            match up.outcome {
-                Outcome::Fused { nis, .. } => {
-                    let late = lateness(&current, j, &up.posterior.position()).is_some_and(|r| r > 0.0);
-                    let p = fit_score(m, nis);
-                    if late && passed.is_none_or(|(q, _, _)| p > q) {
-                        passed = Some((p, j, up));
-                    }
-                }
-                Outcome::Rejected { nis, .. } => {
-                    let p = fit_score(m, nis);
-                    if failed.is_none_or(|(q, _)| p > q) {
-                        failed = Some((p, j));
-                    }
-                }
+    // The burst fails as a whole.
+    let minority = (a.heard_count() - 1) / 2;
+    let all_but_two = a.heard_count().saturating_sub(2);
+    Ok(fuse_without_late(predicted, a, gate, minority, all_but_two)?
+        .unwrap_or(BurstUpdate { update: whole, dropped: 0 }))
+}
+
+/// Fuses the burst `a`, which fails its gate as a whole, without the smallest set of arrivals whose
+/// removal makes the rest pass its own gate, every arrival removed being late against the rest's fit:
+/// exhaustive over the sets of each size up to `max_drop` (at most K − 2 of K arrivals, so that one
+/// range difference is kept), the best fit among the sets of the smallest size that works. Sets larger than `loose_up_to`
+/// (a minority of the burst, for a confirmed track; 0 for a provisional one) must have each arrival late
+/// beyond the one-degree gate ([`lateness_score`]), not merely late: a reflection only lengthens the
+/// path, so the earliest arrivals that agree with the prediction are the direct ones even when most of
+/// the burst is reflected. `None` when no set works.
+pub fn fuse_without_late(
+    predicted: &Posterior,
+    a: &Arrivals,
+    gate: impl Fn(usize) -> f64,
+    loose_up_to: usize,
+    max_drop: usize,
+) -> Result<Option<BurstUpdate>, TdoaError> {
+    let heard = a.heard_mask();
+    let max_drop = max_drop.min(a.heard_count().saturating_sub(2));
+    let threshold = gate(1).sqrt();
+    for size in 1..=max_drop {
+        let mut best: Option<(f64, u8, Update)> = None;
+        for drop in subsets_of(heard, size) {
+            let kept = (0..a.len()).filter(|&j| drop & bit(j) != 0).fold(*a, |k, j| k.without(j));
+            let Some(h) = kept.heard()? else { continue };
+            let m = h.diffs.as_slice().len();
+            let up = fusion::fuse(predicted, &h.sensors, &h.diffs, gate(m))?;
+            let Outcome::Fused { nis, .. } = up.outcome else { continue };
+            let z = up.posterior.position();
+            let pos_cov = up.posterior.position_cov();
+            let late_enough = (0..a.len()).filter(|&j| drop & bit(j) != 0).all(|j| {
+                lateness_score(a, kept.heard_mask(), j, &z, &pos_cov)
+                    .is_some_and(|t| if size <= loose_up_to { t > 0.0 } else { t > threshold })
+            });
+            let p = fit_score(m, nis);
+            if late_enough && best.as_ref().is_none_or(|(q, ..)| p > *q) {
+                best = Some((p, drop, up));
             }
         }
-        if let Some((_, j, update)) = passed {
-            return Ok(BurstUpdate { update, dropped: dropped | bit(j) });
-        }
-        let Some((_, j)) = failed else { break };
-        current = current.without(j);
-        dropped |= bit(j);
-        if current.heard_count() < 3 {
-            break;
+        if let Some((_, drop, update)) = best {
+            return Ok(Some(BurstUpdate { update, dropped: drop }));
         }
     }
-    Ok(BurstUpdate { update: whole, dropped: 0 })
+    Ok(None)
+}
+
+/// Every subset of the bits of `mask` with exactly `size` bits, in increasing order.
+fn subsets_of(mask: u8, size: usize) -> impl Iterator<Item = u8> {
+    (1u16..256).map(|s| s as u8).filter(move |s| s & !mask == 0 && s.count_ones() as usize == size)
+}
+
+/// How late UAV `j`'s arrival is against the arrivals of `kept` (a heard mask) fitted at `z`, in units of
+/// its standard deviation: `(e_j − t̂₀) / σ`, with `e_i = a_i − |z − s_i|` (metres; the common offset plus
+/// the noise, plus a reflection's bias) and `t̂₀` the σ⁻²-weighted mean of the kept `e_i`. The variance
+/// is that of the difference: `σ_j² + 1/Σσ_i⁻² + gᵀ P g`, `g = u_j − ū` (unit vectors from the UAVs to
+/// `z`, `ū` their weighted mean over the kept UAVs) and `P` the fit's position covariance (m²).
+pub fn lateness_score(
+    a: &Arrivals,
+    kept: u8,
+    j: usize,
+    z: &Vector2<f64>,
+    pos_cov: &nalgebra::Matrix2<f64>,
+) -> Option<f64> {
+    let p = a.positions();
+    let unit = |i: usize| {
+        let d = z - p[i];
+        let r = d.norm();
+        (r > 0.0 && r.is_finite()).then(|| d / r)
+    };
+    let (mut w_sum, mut t0, mut u_bar) = (0.0, 0.0, Vector2::zeros());
+    for i in (0..a.len()).filter(|&i| kept & bit(i) != 0) {
+        let w = a.sigmas()[i].powi(-2);
+        w_sum += w;
+        t0 += w * (a.arrival(i)? - (z - p[i]).norm());
+        u_bar += w * unit(i)?;
+    }
+    if w_sum <= 0.0 {
+        return None;
+    }
+    t0 /= w_sum;
+    u_bar /= w_sum;
+    let g = unit(j)? - u_bar;
+    let var = a.sigmas()[j].powi(2) + 1.0 / w_sum + (g.transpose() * pos_cov * g)[(0, 0)];
+    Some((a.arrival(j)? - (z - p[j]).norm() - t0) / var.sqrt())
 }
 
 /// Fuses the burst `a` into the predicted posterior without the arrivals the burst **itself** shows to
@@ -150,6 +206,18 @@ pub fn fuse_self_checked(
     }
     let update = fuse_burst(predicted, &kept, gate, OutlierPolicy::Snapshot)?.update;
     Ok(matches!(update.outcome, Outcome::Fused { .. }).then_some(BurstUpdate { update, dropped }))
+}
+
+/// Whether the burst `a` shows an outlier by itself: four or more arrivals whose Chan fix (with `prior`
+/// for the two-root case) fails its own residual gate `gate(m − 2)`. A burst that does not (or cannot,
+/// with three arrivals) is no evidence against any of its arrivals.
+pub fn shows_an_outlier(a: &Arrivals, prior: Option<Vector2<f64>>, gate: impl Fn(usize) -> f64) -> bool {
+    if a.heard_count() < 4 {
+        return false;
+    }
+    let Ok((sol, h, _)) = chan_burst(a, prior, &gate, OutlierPolicy::Snapshot) else { return false };
+    let dof = h.diffs.as_slice().len().saturating_sub(2);
+    dof > 0 && residual_chi2(&h, &sol.position) > gate(dof)
 }
 
 /// `rᵀ Q⁻¹ r` of the residual `r = d − h(z)` of the heard arrivals at `z` (χ²_{m−2} at Chan's fix).
@@ -337,6 +405,56 @@ mod tests {
         let up = fuse_burst(&predicted(z), &a, gate, OutlierPolicy::Arrival).unwrap();
         assert_eq!(up.dropped, bit(1) | bit(3));
         assert!((up.update.posterior.position() - z).norm() < 20.0);
+    }
+
+    fn tight(z: Vector2<f64>) -> Posterior {
+        let mut cov = Matrix4::zeros();
+        cov[(0, 0)] = 30.0f64.powi(2);
+        cov[(1, 1)] = 30.0f64.powi(2);
+        Posterior::new(EmitterModel::Static, Vector4::new(z.x + 20.0, z.y - 10.0, 0.0, 0.0), cov).unwrap()
+    }
+
+    #[test]
+    fn a_reflected_majority_leaves_the_earliest_arrivals_to_a_confirmed_track() {
+        // Three of five arrivals came by reflections: no majority of the burst is direct, but each reflected
+        // arrival is late against the two direct ones at a tight prediction.
+        let z = Vector2::new(25000.0, 15000.0);
+        for late in [[0usize, 2, 3], [1, 3, 4], [0, 1, 4]] {
+            let a = arrivals(z, &[(late[0], 400.0), (late[1], 700.0), (late[2], 300.0)]);
+            let want = late.iter().fold(0u8, |m, &j| m | bit(j));
+            let up = fuse_burst(&tight(z), &a, gate, OutlierPolicy::Arrival).unwrap();
+            assert_eq!(up.dropped, want, "{late:?}");
+            assert!(matches!(up.update.outcome, Outcome::Fused { .. }));
+            assert!((up.update.posterior.position() - z).norm() < 30.0, "{late:?}");
+            // Limited to a minority (a provisional track), the burst is not made to fit.
+            assert!(fuse_without_late(&tight(z), &a, gate, 0, 2).unwrap().is_none(), "{late:?}");
+        }
+    }
+
+    #[test]
+    fn lateness_is_measured_against_the_arrivals_kept() {
+        let z = Vector2::new(25000.0, 15000.0);
+        let a = arrivals(z, &[(1, 500.0), (4, 300.0)]);
+        let kept = 0b01101;
+        let cov = nalgebra::Matrix2::identity() * 100.0;
+        // Noise-free at the truth: a reflected arrival is late by its bias over its σ (20 m, the offset's
+        // own variance and the position's added); a direct one is not late at all.
+        let t1 = lateness_score(&a, kept, 1, &z, &cov).unwrap();
+        let t4 = lateness_score(&a, kept, 4, &z, &cov).unwrap();
+        assert!(t1 > 500.0 / 40.0 && t1 < 500.0 / 20.0, "{t1}");
+        assert!(t4 > 300.0 / 40.0 && t4 < 300.0 / 20.0, "{t4}");
+        assert!(lateness_score(&a, 0b01100 | bit(1), 0, &z, &cov).unwrap() < 0.0, "direct against a reflected one");
+    }
+
+    #[test]
+    fn only_a_burst_that_disagrees_with_itself_shows_an_outlier() {
+        let z = Vector2::new(25000.0, 15000.0);
+        assert!(!shows_an_outlier(&arrivals(z, &[]), None, gate));
+        assert!(shows_an_outlier(&arrivals(z, &[(2, 400.0)]), None, gate));
+        assert!(shows_an_outlier(&arrivals(z, &[(0, 300.0), (3, 700.0)]), None, gate));
+        // Three arrivals fit any point: no evidence either way.
+        let three = arrivals(z, &[(1, 600.0)]).without(3).without(4);
+        assert!(!shows_an_outlier(&three, None, gate));
     }
 
     #[test]
