@@ -404,11 +404,17 @@ impl Estimator {
             |s: Option<BiasSensitivity>| s.map_or(BiasSensitivity::zero(), |s| s.predict(&dynamics, elapsed));
         let s_pred = predicted_s(self.sensitivity);
         let result = match (self.config.kind, self.posterior, self.alternative.take()) {
-            (EstimatorKind::Fused, Some(post), Some((other, other_s))) => self.resolve(
-                (&post.predict(&dynamics, elapsed), &s_pred),
-                (&other.predict(&dynamics, elapsed), &predicted_s(other_s)),
-                a,
-            ),
+            (EstimatorKind::Fused, Some(post), Some((other, other_s))) => {
+                let resolved = self.resolve(
+                    (&post.predict(&dynamics, elapsed), &s_pred),
+                    (&other.predict(&dynamics, elapsed), &predicted_s(other_s)),
+                    a,
+                );
+                resolved.map(|(out, pending)| {
+                    self.alternative = pending;
+                    out
+                })
+            }
             (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), &s_pred, a),
             _ => self.solve(a).map(|(out, other)| {
                 self.alternative = other;
@@ -416,13 +422,14 @@ impl Estimator {
             }),
         };
         self.last_step = Some(step);
-        // Too many rejections in a row: the posterior has lost the emitter; start again from Chan (its
-        // ambiguity resolved by the lost posterior's position, then by the next snapshot as at the start).
+        // Too many rejections in a row: the posterior has lost the emitter; start again from Chan. The
+        // lost posterior's position is no evidence for either of Chan's two roots (three arrivals): both
+        // are kept and the next burst chooses, as at the start.
         let result = match result {
             Ok(out) if matches!(out.status, EstimateStatus::Rejected { .. }) => {
                 self.rejected_run = self.rejected_run.saturating_add(1);
                 if self.rejected_run >= REJECTED_RUN_RESTART {
-                    self.prior = Some(out.position);
+                    self.prior = None;
                     self.previous = None;
                     match self.solve(a) {
                         Ok((fresh, other)) => {
@@ -603,21 +610,31 @@ impl Estimator {
 
     /// After an ambiguous start: fuses the snapshot into both roots' posteriors and keeps the one whose
     /// innovation is smaller (the likelier root given both snapshots). The status is that of the
-    /// update of the root kept.
+    /// update of the root kept. A burst heard by two UAVs only (one range difference: a hyperbola that
+    /// may pass near both roots) does not decide: the other root, updated too, stays pending (returned
+    /// beside the estimate) until a burst of three or more arrivals chooses.
     fn resolve(
         &self,
         first: (&Posterior, &BiasSensitivity),
         other: (&Posterior, &BiasSensitivity),
         a: &Arrivals,
-    ) -> Result<EstimateOut, TdoaError> {
+    ) -> Result<(EstimateOut, Option<PendingRoot>), TdoaError> {
         let nis = |o: &EstimateOut| match o.status {
             EstimateStatus::Rejected { nis, .. } => nis,
             _ => o.nis.unwrap_or(f64::INFINITY),
         };
+        let decides = a.heard_count() >= 3;
+        let pending = |o: &EstimateOut| (!decides).then_some(()).and_then(|_| o.posterior.map(|p| (p, o.sensitivity)));
         match (self.fuse(first.0, first.1, a), self.fuse(other.0, other.1, a)) {
-            (Ok(x), Ok(y)) => Ok(if nis(&y) < nis(&x) { y } else { x }),
-            (Ok(x), Err(_)) => Ok(x),
-            (Err(_), Ok(y)) => Ok(y),
+            (Ok(x), Ok(y)) => Ok(if nis(&y) < nis(&x) {
+                let p = pending(&x);
+                (y, p)
+            } else {
+                let p = pending(&y);
+                (x, p)
+            }),
+            (Ok(x), Err(_)) => Ok((x, None)),
+            (Err(_), Ok(y)) => Ok((y, None)),
             (Err(e), Err(_)) => Err(e),
         }
     }
@@ -760,6 +777,30 @@ mod tests {
         assert!((second.position - z).norm() < 1e-3, "picked {:?}, truth {z:?}, other {other:?}", second.position);
         assert_eq!(second.status, EstimateStatus::Ok);
         assert!(est.alternative.is_none());
+    }
+
+    #[test]
+    fn a_burst_of_two_arrivals_leaves_both_roots_pending() {
+        // One range difference is a hyperbola that may pass near both roots: it does not decide, the next
+        // burst of three arrivals does.
+        let (uavs, z, other) = ambiguous_case();
+        let burst = |pos: &[Vector2<f64>], heard: u8| {
+            let p: Vec<[f64; 2]> = pos.iter().map(|u| [u.x, u.y]).collect();
+            let r: Vec<f64> = pos.iter().map(|u| (z - u).norm()).collect();
+            Arrivals::new(&p, &r, heard, &[28.7712; 3], &[0.0; 3]).unwrap()
+        };
+        let mut est = Estimator::with_config(EstimatorConfig::fused(Dynamics::fixed()));
+        let first = est.estimate_burst(0, &burst(&uavs, 0b111)).unwrap();
+        assert_eq!(first.status, EstimateStatus::Ambiguous);
+        let moved: Vec<Vector2<f64>> = uavs.iter().map(|p| p + Vector2::new(500.0, 300.0)).collect();
+        est.estimate_burst(1, &burst(&moved, 0b011)).unwrap();
+        let (pending, _) = est.alternative().expect("two arrivals do not decide");
+        let roots = [est.posterior().unwrap().position(), pending.position()];
+        assert!(roots.iter().any(|r| (r - z).norm() < 50.0), "{roots:?} vs truth {z:?}");
+        assert!(roots.iter().any(|r| (r - other).norm() < 50.0), "{roots:?} vs other root {other:?}");
+        let third = est.estimate_burst(2, &burst(&moved, 0b111)).unwrap();
+        assert!(est.alternative().is_none());
+        assert!((third.position - z).norm() < 1e-3, "picked {:?}, truth {z:?}", third.position);
     }
 
     #[test]
