@@ -99,11 +99,11 @@ pub fn fuse_burst(
 /// Fuses the burst `a`, which fails its gate as a whole, without the smallest set of arrivals whose
 /// removal makes the rest pass its own gate, every arrival removed being late against the rest's fit:
 /// exhaustive over the sets of each size up to `max_drop` (at most K − 2 of K arrivals, so that one
-/// range difference is kept), the best fit among the sets of the smallest size that works. Sets larger than `loose_up_to`
-/// (a minority of the burst, for a confirmed track; 0 for a provisional one) must have each arrival late
-/// beyond the one-degree gate ([`lateness_score`]), not merely late: a reflection only lengthens the
-/// path, so the earliest arrivals that agree with the prediction are the direct ones even when most of
-/// the burst is reflected. `None` when no set works.
+/// range difference is kept), the best fit among the sets of the smallest size that works. Sets larger
+/// than `loose_up_to` (a minority of the burst, for a confirmed track; 0 for a provisional one) must
+/// have each arrival late beyond the one-degree gate ([`lateness_score`]), not merely late: a reflection
+/// only lengthens the path, so the earliest arrivals that agree with the prediction are the direct ones
+/// even when most of the burst is reflected. `None` when no set works.
 pub fn fuse_without_late(
     predicted: &Posterior,
     a: &Arrivals,
