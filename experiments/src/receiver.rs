@@ -13,7 +13,7 @@
 //!
 //! The bound of a cell is the PCRLB of the arrivals the receivers delivered (with the stated σ as
 //! effective noise), and with persistent errors its square plus the trace of the bias's consider
-//! covariance along the run at the truth ([`bounds`]): the part no number of steps averages out.
+//! covariance along the run at the truth (`bounds`): the part no number of steps averages out.
 //! Per cell and estimator: `RMSE_k / bound_k` over the runs from step 5 (median, and the share of steps
 //! within 0.9–1.25), the share of steps whose mean NEES lies in the 95 % band, the terminal RMSE and
 //! bound, what the receivers lost, and the outliers: multipath arrivals dropped, good arrivals dropped,
