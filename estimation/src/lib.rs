@@ -422,14 +422,13 @@ impl Estimator {
             }),
         };
         self.last_step = Some(step);
-        // Too many rejections in a row: the posterior has lost the emitter; start again from Chan. The
-        // lost posterior's position is no evidence for either of Chan's two roots (three arrivals): both
-        // are kept and the next burst chooses, as at the start.
+        // Too many rejections in a row: the posterior has lost the emitter; start again from Chan (its
+        // ambiguity resolved by the lost posterior's position, then by the next snapshot as at the start).
         let result = match result {
             Ok(out) if matches!(out.status, EstimateStatus::Rejected { .. }) => {
                 self.rejected_run = self.rejected_run.saturating_add(1);
                 if self.rejected_run >= REJECTED_RUN_RESTART {
-                    self.prior = None;
+                    self.prior = Some(out.position);
                     self.previous = None;
                     match self.solve(a) {
                         Ok((fresh, other)) => {
