@@ -564,18 +564,18 @@ impl Estimator {
         if provisional
             && config.outliers == OutlierPolicy::Arrival
             && matches!(up.update.outcome, Outcome::Rejected { .. })
-            && let Some(self_checked) = outliers::fuse_self_checked(predicted, a, |m| config.gate(m))?
         {
-            up = self_checked;
-        }
-        if provisional
-            && config.outliers == OutlierPolicy::Arrival
-            && matches!(up.update.outcome, Outcome::Rejected { .. })
-            && outliers::shows_an_outlier(a, Some(predicted.position()), |m| config.gate(m))
-            && let Some(late) =
-                outliers::fuse_without_late(predicted, a, |m| config.gate(m), 0, (a.heard_count() - 1) / 2)?
-        {
-            up = late;
+            let gate = |m| config.gate(m);
+            let rescued = match outliers::fuse_self_checked(predicted, a, gate)? {
+                Some(checked) => Some(checked),
+                None if outliers::shows_an_outlier(a, Some(predicted.position()), gate) => {
+                    outliers::fuse_without_late(predicted, a, gate, 0, (a.heard_count() - 1) / 2)?
+                }
+                None => None,
+            };
+            if let Some(rescued) = rescued {
+                up = rescued;
+            }
         }
         let (status, nis) = match up.update.outcome {
             Outcome::Fused { nis, .. } => (EstimateStatus::Ok, nis),
@@ -583,7 +583,7 @@ impl Estimator {
         };
         let post = up.update.posterior;
         // The arrivals fused: those heard less those dropped.
-        let used = (0..a.len()).filter(|&j| up.dropped & tdoa::arrivals::bit(j) != 0).fold(*a, |u, j| u.without(j));
+        let used = a.without_all(up.dropped);
         let sensitivity = match status {
             EstimateStatus::Ok => used
                 .heard()?
@@ -623,15 +623,13 @@ impl Estimator {
             _ => o.nis.unwrap_or(f64::INFINITY),
         };
         let decides = a.heard_count() >= 3;
-        let pending = |o: &EstimateOut| (!decides).then_some(()).and_then(|_| o.posterior.map(|p| (p, o.sensitivity)));
+        let pending = |o: &EstimateOut| if decides { None } else { o.posterior.map(|p| (p, o.sensitivity)) };
         match (self.fuse(first.0, first.1, a), self.fuse(other.0, other.1, a)) {
-            (Ok(x), Ok(y)) => Ok(if nis(&y) < nis(&x) {
-                let p = pending(&x);
-                (y, p)
-            } else {
-                let p = pending(&y);
-                (x, p)
-            }),
+            (Ok(x), Ok(y)) => {
+                let (kept, other) = if nis(&y) < nis(&x) { (y, x) } else { (x, y) };
+                let pending = pending(&other);
+                Ok((kept, pending))
+            }
             (Ok(x), Err(_)) => Ok((x, None)),
             (Err(_), Ok(y)) => Ok((y, None)),
             (Err(e), Err(_)) => Err(e),

@@ -117,7 +117,7 @@ pub fn fuse_without_late(
     for size in 1..=max_drop {
         let mut best: Option<(f64, u8, Update)> = None;
         for drop in subsets_of(heard, size) {
-            let kept = (0..a.len()).filter(|&j| drop & bit(j) != 0).fold(*a, |k, j| k.without(j));
+            let kept = a.without_all(drop);
             let Some(h) = kept.heard()? else { continue };
             let m = h.diffs.as_slice().len();
             let up = fusion::fuse(predicted, &h.sensors, &h.diffs, gate(m))?;
@@ -200,11 +200,7 @@ pub fn fuse_self_checked(
     if dropped == 0 {
         return Ok(None);
     }
-    let mut kept = *a;
-    for j in (0..a.len()).filter(|&j| dropped & bit(j) != 0) {
-        kept = kept.without(j);
-    }
-    let update = fuse_burst(predicted, &kept, gate, OutlierPolicy::Snapshot)?.update;
+    let update = fuse_burst(predicted, &a.without_all(dropped), gate, OutlierPolicy::Snapshot)?.update;
     Ok(matches!(update.outcome, Outcome::Fused { .. }).then_some(BurstUpdate { update, dropped }))
 }
 
@@ -329,11 +325,16 @@ mod tests {
         fusion::gate_threshold(m, fusion::DEFAULT_GATE_PROBABILITY)
     }
 
-    fn predicted(z: Vector2<f64>) -> Posterior {
+    /// A static prediction at `z + offset` with σ `sigma` (m) per axis.
+    fn prediction(z: Vector2<f64>, offset: [f64; 2], sigma: f64) -> Posterior {
         let mut cov = Matrix4::zeros();
-        cov[(0, 0)] = 200.0f64.powi(2);
-        cov[(1, 1)] = 200.0f64.powi(2);
-        Posterior::new(EmitterModel::Static, Vector4::new(z.x + 50.0, z.y - 80.0, 0.0, 0.0), cov).unwrap()
+        cov[(0, 0)] = sigma * sigma;
+        cov[(1, 1)] = sigma * sigma;
+        Posterior::new(EmitterModel::Static, Vector4::new(z.x + offset[0], z.y + offset[1], 0.0, 0.0), cov).unwrap()
+    }
+
+    fn predicted(z: Vector2<f64>) -> Posterior {
+        prediction(z, [50.0, -80.0], 200.0)
     }
 
     #[test]
@@ -356,12 +357,7 @@ mod tests {
         // 95 m late (≈ 5 σ) in one arrival of five: the burst as a whole passes its χ²₄ gate, the arrival's
         // own χ²₁ share does not.
         let z = Vector2::new(25000.0, 15000.0);
-        let tight = |z: Vector2<f64>| {
-            let mut cov = Matrix4::zeros();
-            cov[(0, 0)] = 30.0f64.powi(2);
-            cov[(1, 1)] = 30.0f64.powi(2);
-            Posterior::new(EmitterModel::Static, Vector4::new(z.x, z.y, 0.0, 0.0), cov).unwrap()
-        };
+        let tight = |z: Vector2<f64>| prediction(z, [0.0, 0.0], 30.0);
         for j in 0..5 {
             let a = arrivals(z, &[(j, 95.0)]);
             let whole = fuse_burst(&tight(z), &a, gate, OutlierPolicy::Snapshot).unwrap();
@@ -408,10 +404,7 @@ mod tests {
     }
 
     fn tight(z: Vector2<f64>) -> Posterior {
-        let mut cov = Matrix4::zeros();
-        cov[(0, 0)] = 30.0f64.powi(2);
-        cov[(1, 1)] = 30.0f64.powi(2);
-        Posterior::new(EmitterModel::Static, Vector4::new(z.x + 20.0, z.y - 10.0, 0.0, 0.0), cov).unwrap()
+        prediction(z, [20.0, -10.0], 30.0)
     }
 
     #[test]

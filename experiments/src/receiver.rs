@@ -114,14 +114,14 @@ fn bounds(sc: &Scenario, steps: &[record::StepRecord]) -> Vec<Option<f64>> {
     let bias = vec![e.bias_variance().sqrt(); sigmas.len()];
     let mut info: Option<Matrix2<f64>> = None;
     let mut sens: Option<BiasSensitivity> = None;
+    // The heard set matters, not the arrival times; no receiver record: a complete burst.
+    let zeros = vec![0.0; sigmas.len()];
+    let all = (0..sigmas.len()).fold(0u8, |m, i| m | (1u8 << i));
     steps
         .iter()
         .map(|s| {
             let truth = Vector2::from(s.truth?);
-            // No receiver record: a complete burst.
-            let all = (0..s.uavs.len()).fold(0u8, |m, i| m | (1u8 << i));
             let mask = s.receiver.as_ref().map_or(all, |r| r.heard.iter().fold(0u8, |m, &i| m | (1u8 << i)));
-            let zeros = vec![0.0; sigmas.len()];
             let heard =
                 Arrivals::new(&s.uavs, &zeros, mask, &sigmas, &bias).ok().and_then(|a| a.heard().ok().flatten());
             if let Some(h) = heard {

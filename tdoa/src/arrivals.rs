@@ -277,6 +277,11 @@ impl Arrivals {
         a
     }
 
+    /// The same burst without the arrivals of the UAVs in `mask` (bit i: UAV i).
+    pub fn without_all(&self, mask: u8) -> Self {
+        (0..self.n).filter(|&j| mask & bit(j) != 0).fold(*self, |a, j| a.without(j))
+    }
+
     /// The whole swarm's geometry with the effective noise (what a planner or a bound of the swarm
     /// uses, whoever heard this burst).
     pub fn swarm(&self) -> Result<Sensors, TdoaError> {
