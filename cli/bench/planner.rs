@@ -270,6 +270,10 @@ pub struct WorstCase {
     /// The fitness of each plan.
     pub violation: f64,
     pub pso_violation: f64,
+    /// The violations by priority tier of each plan (certified: collision, the step's own limits, the
+    /// certificate, the deficits summed, the reserve, the heading cone).
+    pub violation_tiers: [f64; planning::TIERS],
+    pub pso_violation_tiers: [f64; planning::TIERS],
     pub objective_m2: f64,
     pub pso_objective_m2: f64,
     /// Relative excess: of the violation when either plan violates a constraint, else of the criterion.
@@ -585,6 +589,8 @@ pub fn quality(combos: &[Combo], fitness: &[Vec<planning::Fitness>], inputs: &[P
                 regime: if b.is_feasible() { "approach" } else { "standoff" },
                 violation: a.violation(),
                 pso_violation: b.violation(),
+                violation_tiers: a.tiers(),
+                pso_violation_tiers: b.tiers(),
                 objective_m2: a.objective(),
                 pso_objective_m2: b.objective(),
                 excess,
