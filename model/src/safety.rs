@@ -432,35 +432,6 @@ impl<'a> Certifier<'a> {
         part
     }
 
-    /// The UAVs of every pair whose spacing fails for the plan `phi` — along the arcs or on the
-    /// backup circles, the part of the certificate that couples the UAVs — as a bit mask (bit `i`:
-    /// UAV `i`); 0 when every pair keeps `D_min` (with the position margin). The pairs are the ones
-    /// [`Certifier::check`] computes (and caches).
-    pub fn spacing_conflicts(&mut self, phi: &[f64]) -> u64 {
-        let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
-        let d = self.limits.d_min;
-        if d <= 0.0 {
-            return 0;
-        }
-        let need = d + MIN_TOLERANCE_M;
-        let mut parts = [None::<UavPart>; tdoa::MAX_UAVS];
-        for i in 0..n {
-            parts[i] = Some(self.uav(i, phi[i]));
-        }
-        let mut mask = 0u64;
-        for i in 0..n {
-            for j in i + 1..n {
-                let (a, b) = (parts[i].expect("computed above"), parts[j].expect("computed above"));
-                let p = self.pair(i, j, &a, &b);
-                // The deficits of `check`, NaN counted as a conflict.
-                if !(p.along >= d && p.backup >= need) {
-                    mask |= 1 << i | 1 << j;
-                }
-            }
-        }
-        mask
-    }
-
     /// The certificate of the plan `phi` (see [`certify`]).
     pub fn check(&mut self, phi: &[f64], exact: bool) -> SafetyReport {
         let limits = self.limits;
@@ -680,35 +651,6 @@ mod tests {
             let bs = rep.backup_standoff_margin_m.unwrap() + lim.l_min;
             assert!(bs <= standoff + 1e-6 && standoff <= bs + 2.0, "case {case}: {bs} vs {standoff}");
         }
-    }
-
-    #[test]
-    fn the_spacing_conflicts_are_the_pairs_the_certificate_finds_too_close() {
-        // Random swarms and plans: a UAV is in the mask exactly when a pair of it fails the spacing
-        // along the arcs or on the backup circles, as certifying that pair alone says.
-        let mut r = Lcg(31);
-        let lim = SafetyLimits { l_min: 0.0, ..limits() };
-        let e = EmitterPrediction::fixed(Vector2::new(3000.0, 3000.0), &Matrix2::zeros());
-        let (mut some, mut none) = (0, 0);
-        for case in 0..300 {
-            let n = 2 + (case % 5);
-            let p: Vec<_> = (0..n).map(|_| Vector2::new(r.next() * 3000.0, r.next() * 3000.0)).collect();
-            let psi: Vec<_> = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
-            let phi: Vec<_> = psi.iter().map(|h| h + (r.next() - 0.5) * 0.4).collect();
-            let mask = Certifier::new(&p, &psi, e, lim).spacing_conflicts(&phi);
-            let mut expected = 0u64;
-            for i in 0..n {
-                for j in i + 1..n {
-                    let (pp, ps, pf) = ([p[i], p[j]], [psi[i], psi[j]], [phi[i], phi[j]]);
-                    if !certify(&pp, &ps, &pf, &e, &lim, false).certified {
-                        expected |= 1 << i | 1 << j;
-                    }
-                }
-            }
-            assert_eq!(mask, expected, "case {case}");
-            if mask == 0 { none += 1 } else { some += 1 }
-        }
-        assert!(some > 30 && none > 30, "the cases must hold both: {some} with conflicts, {none} without");
     }
 
     #[test]
