@@ -186,14 +186,24 @@ impl<'a> Shield<'a> {
     }
 
     /// The largest deficit of UAV `i`'s own limits (standoff along its arc, its backup's standoff; the
-    /// turn radius holds in reach) if it flies the heading `phi` — 0 when they hold: the gradient
-    /// planner's per-UAV box ([`crate::heading_interval::heading_interval_of`]).
+    /// turn radius holds in reach) and of its standoff reserve if it flies the heading `phi` — 0 when
+    /// they hold: the gradient planner's per-UAV box ([`crate::heading_interval::heading_interval_of`]).
     ///
-    /// In the order of the shield's tiers: a heading whose own step breaks a limit scores `1 + ` that
-    /// deficit, above every heading whose step holds (their backup's deficit is at most 1).
+    /// In the order of the shield's tiers: a heading whose own step breaks a limit scores `3 + ` that
+    /// deficit, one whose backup breaks a limit `1 + ` that deficit (at most 2), and a certified heading
+    /// its reserve shortfall (at most 1). So the box keeps the reserve (tier 5) where a heading can, and
+    /// gives up the heading cone (tier 6) for it, as the joint search's order does: a UAV on the standoff
+    /// ring is pinned to the heading nearest its cone that keeps the reserve, and the backup step (every
+    /// UAV turning away, far outside its cone) no longer wins over the box plan on the reserve alone.
     pub fn own_deficit(&self, i: usize, phi: f64) -> f64 {
         let r = certify(&self.positions[i..=i], &self.headings[i..=i], &[phi], &self.emitter, &self.limits, false);
-        if r.step_deficit > 0.0 { 1.0 + r.step_deficit } else { r.deficit() }
+        if r.step_deficit > 0.0 {
+            3.0 + r.step_deficit
+        } else if r.deficit() > 0.0 {
+            1.0 + r.deficit().min(1.0)
+        } else {
+            r.reserve_deficit.min(1.0)
+        }
     }
 
     /// The backup step from the current state: every UAV turns right by `θ_b`.

@@ -634,6 +634,43 @@ mod tests {
         case
     }
 
+    /// On the standoff ring, where every heading of the cone leads inwards, the certified gradient plan
+    /// ranks at least as well as PSO's in the shield's order, whatever the UAVs' distances and headings:
+    /// a UAV's box keeps its standoff reserve before the cone, so the backup step (every UAV turning
+    /// away, far out of its cone) does not win over a plan that keeps the reserve nearer the cone.
+    #[test]
+    fn on_the_ring_the_certified_gradient_plan_ranks_at_least_as_well_as_pso() {
+        let mut compared = 0;
+        for (k, extra) in [30.0, 150.0, 400.0, 900.0].into_iter().enumerate() {
+            for turn in [-0.4, -0.15, 0.0, 0.2, 0.45] {
+                let mut case = orbiting();
+                case.sc.safety = SafetyMode::Certified;
+                // A settled estimate (σ 50 m), so that the ring is where the UAVs are.
+                case.m = Matrix2::identity() * 2500.0;
+                let r = case.sc.l_min + extra;
+                for i in 0..3 {
+                    let a = 2.0 * std::f64::consts::PI * i as f64 / 3.0 + 0.2 * k as f64;
+                    case.pos[i] = case.z + Vector2::new(a.cos(), a.sin()) * r;
+                    case.psi[i] = wrap_angle(a + std::f64::consts::FRAC_PI_2 + turn);
+                }
+                let gradient = plan_step(&case.request(ObjectiveKind::Analytical, SolverKind::Gradient)).unwrap();
+                let pso = plan_step(&case.request(ObjectiveKind::Analytical, SolverKind::Pso)).unwrap();
+                if !pso.safety.is_some_and(|s| s.certified) {
+                    continue;
+                }
+                compared += 1;
+                let label = format!("{extra} m outside L_min, turned {turn} rad");
+                assert!(
+                    gradient.fitness <= pso.fitness,
+                    "{label}: gradient {:?} vs PSO {:?}",
+                    gradient.fitness,
+                    pso.fitness
+                );
+            }
+        }
+        assert!(compared >= 10, "only {compared} of the states had a certified PSO plan to compare with");
+    }
+
     /// With arrivals lost (receiver.loss 0.3), the posterior criterion is the expected posterior trace
     /// over the arrivals received: the step reports that value at its waypoints, and its plan is at least
     /// as good under it as the plan made for a perfect receiver — which the loss changes.
