@@ -11,7 +11,8 @@
 //! 1. the *reachable* headings `[ψ − θ_max, ψ + θ_max]` (unwrapped around the current heading ψ);
 //! 2. in them, the headings that keep the approach distance: the approach violation is sampled at
 //!    [`SAMPLES`] + 1 evenly spaced headings and every change between allowed and not is bisected to
-//!    [`BISECTIONS`] halvings (the allowed side kept), so each end is exact to ≈ 1e-12 rad;
+//!    [`BISECTIONS`] halvings (the allowed side kept), so each end is exact to ≈ 1e-12 rad (the
+//!    certificate's own part, costlier to evaluate, [`CERTIFIED_BISECTIONS`]: ≤ 3e-9 rad);
 //! 3. the allowed headings in the cone (the cone taken modulo 2π): when there are some, that interval
 //!    — the one holding the current heading moved into the cone, else the widest — is the UAV's box;
 //! 4. else the UAV is *pinned* to the allowed heading nearest the cone (the least cone violation that
@@ -35,6 +36,11 @@ use model::kinematics::{bearing, next_position, turn_angle};
 pub const SAMPLES: usize = 32;
 /// Halvings of each bracket of a change between allowed and not (2θ_max/32/2⁴⁰ ≈ 1e-14 rad).
 pub const BISECTIONS: usize = 40;
+/// Halvings for a box whose violation is costly to evaluate (the safety certificate's own part,
+/// [`crate::shield::Shield::own_deficit`]): 2θ_max/32/2²⁶ ≤ 3e-9 rad, a few micrometres of a step's
+/// arc — far below what the criterion or the certificate's own brackets resolve — in 14 fewer
+/// evaluations per end.
+pub const CERTIFIED_BISECTIONS: usize = 26;
 /// Golden-section iterations of the least approach violation when no heading keeps it.
 pub const GOLDEN_STEPS: usize = 40;
 
@@ -71,8 +77,8 @@ impl Uav {
 
 /// The interval of allowed headings (`v(φ) = 0`) around one of the samples: the sample run `[a, b]` of
 /// allowed samples, each end moved out by bisection towards its disallowed neighbour.
-fn refine(v: &dyn Fn(f64) -> f64, mut inside: f64, mut outside: f64) -> f64 {
-    for _ in 0..BISECTIONS {
+fn refine(v: &dyn Fn(f64) -> f64, mut inside: f64, mut outside: f64, bisections: usize) -> f64 {
+    for _ in 0..bisections {
         let mid = 0.5 * (inside + outside);
         if mid == inside || mid == outside {
             break;
@@ -93,17 +99,18 @@ fn cone_distance(phi: f64, alpha: f64, delta_alpha: f64) -> f64 {
 
 /// The heading box of one UAV (see the module docs).
 pub fn heading_interval(c: &Constraints, uav: &Uav, estimate: Vector2<f64>) -> HeadingInterval {
-    heading_interval_of(c, uav, estimate, &|phi| uav.violation(c, estimate, phi))
+    heading_interval_of(c, uav, estimate, &|phi| uav.violation(c, estimate, phi), BISECTIONS)
 }
 
 /// The heading box of one UAV for any per-UAV violation `v(φ)` (0 where the UAV's own limits hold):
 /// the approach distance ([`heading_interval`]) or the UAV's own part of the safety certificate
-/// ([`crate::shield`]).
+/// ([`crate::shield`]), each end bisected `bisections` times ([`BISECTIONS`], [`CERTIFIED_BISECTIONS`]).
 pub fn heading_interval_of(
     c: &Constraints,
     uav: &Uav,
     estimate: Vector2<f64>,
     v: &dyn Fn(f64) -> f64,
+    bisections: usize,
 ) -> HeadingInterval {
     let psi = uav.heading;
     let theta = c.max_turn();
@@ -125,8 +132,8 @@ pub fn heading_interval_of(
         while k < SAMPLES && samples[k + 1].1 == 0.0 {
             k += 1;
         }
-        let a = if start == 0 { lo } else { refine(v, samples[start].0, samples[start - 1].0) };
-        let b = if k == SAMPLES { hi } else { refine(v, samples[k].0, samples[k + 1].0) };
+        let a = if start == 0 { lo } else { refine(v, samples[start].0, samples[start - 1].0, bisections) };
+        let b = if k == SAMPLES { hi } else { refine(v, samples[k].0, samples[k + 1].0, bisections) };
         allowed.push((a, b));
         k += 1;
     }

@@ -50,7 +50,7 @@ use crate::constraints::{ActiveConstraint, ConstraintKind, Constraints};
 use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
 use crate::gradient::Gradient;
-use crate::heading_interval::{HeadingInterval, Uav, heading_interval, heading_interval_of};
+use crate::heading_interval::{CERTIFIED_BISECTIONS, HeadingInterval, Uav, heading_interval, heading_interval_of};
 use crate::objective::{ObjectiveKind, Sampling};
 use crate::shield::{EmitterMotion, PositionMargin, Shield, prediction, safety_limits};
 use crate::solver::{SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult};
@@ -197,7 +197,7 @@ fn gradient_search(
         .map(|i| {
             let uav = Uav { position: pos[i], heading: psi[i], speed: sc.speed, dt: sc.dt };
             match own {
-                Some(v) => heading_interval_of(constraints, &uav, z, &|phi| v(i, phi)),
+                Some(v) => heading_interval_of(constraints, &uav, z, &|phi| v(i, phi), CERTIFIED_BISECTIONS),
                 None => heading_interval(constraints, &uav, z),
             }
         })
