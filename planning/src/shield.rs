@@ -50,6 +50,11 @@ pub struct EmitterMotion {
 
 pub use model::safety::SPACING_POSITION_SIGMAS;
 
+/// Halvings of a UAV's pull towards its cone ([`Shield::pull_into_cones`]) before it gives up.
+pub const CONE_PULL_HALVINGS: usize = 8;
+/// Rounds over the UAVs of [`Shield::pull_into_cones`] at most.
+pub const CONE_PULL_ROUNDS: usize = 2;
+
 /// What the UAVs' own position errors cost the safety constraints: the planner knows each UAV where its
 /// GNSS reports it, `σ_g` per axis per step and `σ_gb` for the flight (the scenario's `receiver.gnss_*`),
 /// so the true distance between two UAVs differs from the reported one by a Gaussian of variance
@@ -206,8 +211,153 @@ impl<'a> Shield<'a> {
         }
     }
 
+    /// Pulls each UAV whose heading lies outside its cone (eq. 58) towards the nearest edge of the cone,
+    /// within its reach `ψ ± θ_max`: the whole way, or the largest of [`CONE_PULL_HALVINGS`] halvings
+    /// of it that makes `fitness` lexicographically smaller (`current` is the fitness of `plan`); UAV by
+    /// UAV, in rounds while one moves (at most [`CONE_PULL_ROUNDS`]). The cone is the last tier and a sum over the UAVs, so one UAV's move
+    /// lowers it alone, and the fitness keeps every earlier tier from paying for it: a certified plan
+    /// stays certified with its reserve. What a joint search over every reachable heading leaves of the
+    /// cone where the UAVs' boxes conflict (8 UAVs on a small ring) is taken back here in a few
+    /// evaluations per UAV. Returns the plan, its fitness and the evaluations spent.
+    pub fn pull_into_cones(
+        &self,
+        plan: &[f64],
+        current: Fitness,
+        fitness: &mut dyn FnMut(&[f64]) -> Fitness,
+    ) -> (Vec<f64>, Fitness, usize) {
+        let (mut x, mut best, mut evaluations) = (plan.to_vec(), current, 0);
+        let n = x.len();
+        for _ in 0..CONE_PULL_ROUNDS {
+            let mut moved = false;
+            for i in 0..n {
+                moved |= self.pull(&mut x, i, &mut best, fitness, &mut evaluations);
+            }
+            if !moved {
+                break;
+            }
+        }
+        (x, best, evaluations)
+    }
+
+    /// The target heading of UAV `i` from `phi`: the nearest edge of its cone within its reach, `None`
+    /// when `phi` is in the cone.
+    fn cone_target(&self, i: usize, phi: f64) -> Option<f64> {
+        let (theta, half) = (self.constraints.max_turn(), self.constraints.delta_alpha);
+        let off = wrap_angle(phi - self.cone_centres[i]);
+        if off.abs() <= half {
+            return None;
+        }
+        let edge = phi - off + off.signum() * half;
+        Some(edge.clamp(self.headings[i] - theta, self.headings[i] + theta)).filter(|t| *t != phi)
+    }
+
+    /// One pull of [`Self::pull_into_cones`]: UAV `i` (outside its cone) moved the largest of the
+    /// halvings of the way to its target that lowers `best`; `false` (and `x` unchanged) when none does.
+    fn pull(
+        &self,
+        x: &mut [f64],
+        i: usize,
+        best: &mut Fitness,
+        fitness: &mut dyn FnMut(&[f64]) -> Fitness,
+        evaluations: &mut usize,
+    ) -> bool {
+        let from = x[i];
+        let Some(target) = self.cone_target(i, from) else { return false };
+        let mut t = 1.0;
+        for _ in 0..=CONE_PULL_HALVINGS {
+            x[i] = from + t * (target - from);
+            let f = fitness(x);
+            *evaluations += 1;
+            if f < *best {
+                *best = f;
+                return true;
+            }
+            t *= 0.5;
+        }
+        x[i] = from;
+        false
+    }
+
     /// The backup step from the current state: every UAV turns right by `θ_b`.
     pub fn backup(&self) -> Vec<f64> {
         self.limits.backup_headings(self.headings)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model::safety::SafetyMode;
+
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// The paper's nominal state (certified), the estimate at the emitter with σ = 50 m.
+    fn nominal() -> (Scenario, Vec<Vector2<f64>>, Vec<f64>, Vector2<f64>, Matrix2<f64>) {
+        let sc = Scenario { safety: SafetyMode::Certified, ..Scenario::default() };
+        let (pos, psi, z) = (sc.uav_positions(), sc.initial_headings(), sc.emitter_position());
+        (sc, pos, psi, z, Matrix2::identity() * 2500.0)
+    }
+
+    #[test]
+    fn pulling_into_the_cones_never_ranks_a_plan_lower_and_keeps_its_certificate() {
+        let (sc, pos, psi, z, m) = nominal();
+        let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
+        let shield = Shield::new(&pos, &psi, safety_limits(&sc), prediction(&sc, z, &m, None), &constraints, z);
+        // A criterion that prefers turning left, away from the cone for some UAVs.
+        let mut fitness = |phi: &[f64]| shield.fitness(phi, || phi.iter().map(|p| (p - 3.0).powi(2)).sum());
+        let theta = constraints.max_turn();
+        let mut r = Lcg(5);
+        let (mut pulled, mut outside) = (0, 0);
+        for case in 0..300 {
+            let plan: Vec<f64> = psi.iter().map(|p| p + (2.0 * r.next() - 1.0) * theta).collect();
+            let before = fitness(&plan);
+            let (after_plan, after, evaluations) = shield.pull_into_cones(&plan, before, &mut fitness);
+            assert!(after <= before, "case {case}: {after:?} above {before:?}");
+            assert_eq!(after, fitness(&after_plan), "case {case}: the fitness returned is the plan's");
+            assert!(evaluations <= CONE_PULL_ROUNDS * plan.len() * (CONE_PULL_HALVINGS + 1));
+            for (a, p) in after_plan.iter().zip(&psi) {
+                assert!((a - p).abs() <= theta + 1e-12, "case {case}: {a} beyond the reach of {p}");
+            }
+            if shield.check(&plan).certified {
+                assert!(shield.check(&after_plan).certified, "case {case}: a certified plan lost its certificate");
+            }
+            if after < before {
+                pulled += 1;
+                assert!(shield.cone_excess(&after_plan) < shield.cone_excess(&plan), "case {case}");
+                assert_eq!(shield.cone_excess(&after_plan), 0.0, "case {case}: {after_plan:?}");
+            }
+            if shield.check(&plan).certified && shield.cone_excess(&plan) > 0.0 {
+                outside += 1;
+            }
+        }
+        // Far from the emitter every UAV can reach its cone and nothing else binds: every certified plan
+        // outside the cones is pulled into them.
+        assert_eq!(pulled, outside, "{pulled} of the {outside} certified plans outside their cones pulled");
+        assert!(outside >= 50, "only {outside} of 300 random plans left their cones");
+    }
+
+    #[test]
+    fn a_uav_freed_outside_a_reachable_cone_is_pulled_back_into_it() {
+        let (sc, pos, psi, z, m) = nominal();
+        let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
+        // The initial headings point at the emitter (the cones' centres); UAV 1 flies straight on, off
+        // its cone by 0.8 θ_max, where a turn of θ_max would take it back in.
+        let mut psi = psi;
+        psi[1] += constraints.delta_alpha + 0.8 * constraints.max_turn();
+        let shield = Shield::new(&pos, &psi, safety_limits(&sc), prediction(&sc, z, &m, None), &constraints, z);
+        let mut fitness = |phi: &[f64]| shield.fitness(phi, || 0.0);
+        let plan = psi.clone();
+        assert!(shield.cone_excess(&plan) > 0.0, "UAV 1 was meant to leave its cone");
+        let before = fitness(&plan);
+        let (after_plan, after, _) = shield.pull_into_cones(&plan, before, &mut fitness);
+        assert_eq!(shield.cone_excess(&after_plan), 0.0, "{after_plan:?}");
+        assert!(after < before && shield.check(&after_plan).certified);
+        assert_eq!((after_plan[0], after_plan[2]), (plan[0], plan[2]), "the UAVs in their cones stay");
     }
 }

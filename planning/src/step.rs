@@ -29,8 +29,10 @@
 //!    ([`crate::heading_interval`]: its box of the reachable headings that keep the approach distance in
 //!    the cone, or the one heading that keeps it closest to the cone), then [`Gradient`] minimises the
 //!    tiered fitness of step 4 over the product of those boxes (the criterion, with the spacing as a
-//!    constraint; a second search over every reachable heading when the spacing cannot hold there). The
-//!    tiers being the same, its plans rank by the same order as the two searches'. With
+//!    constraint; a second search over every reachable heading when the spacing cannot hold there —
+//!    certified, followed by [`Shield::pull_into_cones`], which takes back UAV by UAV what that joint
+//!    search left of the heading cone). The tiers being the same, its plans rank by the same order as
+//!    the two searches'. With
 //!    `safety = "certified"`, when the local search ends without a certified plan, PSO searches every
 //!    reachable heading too (seeded `(run_seed, step, StandoffSolver)`, started from the local best) and
 //!    the better of the two is kept: the plan with the largest minimum margin, or a certified one the
@@ -189,15 +191,15 @@ fn gradient_search(
     sc: &Scenario,
     tiered: &mut dyn FnMut(&[f64]) -> Fitness,
     hard_tiers: usize,
-    own: Option<&dyn Fn(usize, f64) -> f64>,
+    shield: Option<&Shield<'_>>,
 ) -> Result<SolverResult, PlanError> {
     let n = pos.len();
     let solver = Gradient { config: sc.gradient };
     let boxes: Vec<HeadingInterval> = (0..n)
         .map(|i| {
             let uav = Uav { position: pos[i], heading: psi[i], speed: sc.speed, dt: sc.dt };
-            match own {
-                Some(v) => heading_interval_of(constraints, &uav, z, &|phi| v(i, phi), CERTIFIED_BISECTIONS),
+            match shield {
+                Some(sh) => heading_interval_of(constraints, &uav, z, &|phi| sh.own_deficit(i, phi), CERTIFIED_BISECTIONS),
                 None => heading_interval(constraints, &uav, z),
             }
         })
@@ -223,7 +225,17 @@ fn gradient_search(
         (0..n).map(|i| psi[i] + turn_angle(psi[i], bearing(pos[i], z)).clamp(-theta, theta)).collect();
     let backup: Vec<f64> = psi.iter().map(|p| p - model::safety::backup_turn(theta)).collect();
     let second = solver.minimize_from(tiered, &reach, &[first.best.clone(), psi.to_vec(), centre, backup]);
-    Ok(better_of(first, second))
+    let found = better_of(first, second);
+    // Certified: what the joint search left of the heading cone, taken back UAV by UAV (a UAV the
+    // boxes kept is already as near its cone as its own limits allow; one the joint search freed may
+    // not be).
+    match shield {
+        Some(sh) if is_certified(&found.fitness) => {
+            let (best, fitness, extra) = sh.pull_into_cones(&found.best, found.fitness, tiered);
+            Ok(SolverResult { best, fitness, evaluations: found.evaluations + extra, ..found })
+        }
+        _ => Ok(found),
+    }
 }
 
 /// The better of two searches' results (the first on a tie), with the iterations and evaluations of
@@ -301,16 +313,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
                 psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect();
             SolverResult { fitness: safe(&best), best, iterations: 0, evaluations: 0 }
         } else if req.solver == SolverKind::Gradient {
-            let local = gradient_search(
-                &constraints,
-                pos,
-                psi,
-                z,
-                sc,
-                &mut safe,
-                3,
-                Some(&|i, phi| shield.own_deficit(i, phi)),
-            )?;
+            let local = gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&shield))?;
             if is_certified(&local.fitness) {
                 local
             } else {
@@ -719,8 +722,7 @@ mod tests {
         let constraints = Constraints::from_scenario(sc).with_covariance(case.m).for_step(pos, z);
         let shield = Shield::new(pos, psi, safety_limits(sc), prediction(sc, z, &case.m, None), &constraints, z);
         let mut safe = |phi: &[f64]| shield.fitness(phi, || 0.0);
-        let own = |i: usize, phi: f64| shield.own_deficit(i, phi);
-        let found = gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&own)).unwrap();
+        let found = gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&shield)).unwrap();
         let (local, local_evaluations) = (found.best, found.evaluations);
         let local_report = shield.check(&local);
         assert!(!local_report.certified, "the state was meant to be uncertifiable: {local_report:?}");
