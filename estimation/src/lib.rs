@@ -428,13 +428,15 @@ impl Estimator {
             }),
         };
         self.last_step = Some(step);
-        // Too many rejections in a row: the posterior has lost the emitter; start again from Chan (its
-        // ambiguity resolved by the lost posterior's position, then by the next snapshot as at the start).
+        // Too many rejections in a row: the posterior has lost the emitter; start again from Chan as at the
+        // start, without a prior — the lost posterior's position would pick the root nearest the track
+        // that was just refuted (a wrong root, found again): an ambiguous fix keeps both roots pending
+        // until a burst decides.
         let result = match result {
             Ok(out) if matches!(out.status, EstimateStatus::Rejected { .. }) => {
                 self.rejected_run = self.rejected_run.saturating_add(1);
                 if self.rejected_run >= REJECTED_RUN_RESTART {
-                    self.prior = Some(out.position);
+                    self.prior = None;
                     self.previous = None;
                     match self.solve(a) {
                         Ok((fresh, other)) => {
@@ -831,6 +833,56 @@ mod tests {
         let third = est.estimate_burst(2, &burst(&moved, 0b111)).unwrap();
         assert!(est.alternative().is_none());
         assert!((third.position - z).norm() < 1e-3, "picked {:?}, truth {z:?}", third.position);
+    }
+
+    #[test]
+    fn a_track_lost_on_the_wrong_root_restarts_with_both_roots_pending() {
+        // Three UAVs, a tight posterior on the mirror root: bursts from a geometry that tells the roots
+        // apart reject it; the restart's burst comes from a geometry where both roots fit, so Chan's fix is
+        // ambiguous. Resolved by the lost track's position it would find the mirror root again; without a
+        // prior both stay pending and the next telling burst takes the track to the truth.
+        let (uavs, z, other) = ambiguous_case();
+        let moved: Vec<Vector2<f64>> = uavs.iter().map(|p| p + Vector2::new(500.0, 300.0)).collect();
+        let post = tdoa::Posterior::new(
+            EmitterModel::Static,
+            nalgebra::Vector4::new(other.x, other.y, 0.0, 0.0),
+            nalgebra::Matrix4::identity() * 100.0,
+        )
+        .unwrap();
+        let config = EstimatorConfig::fused(Dynamics::fixed());
+        let mut est = Estimator::resume(config, 0, other, Matrix2::identity() * 100.0, Some(post));
+        for k in 1..=2u64 {
+            let out = est.estimate(k, &moved, &diffs(&moved, z), &noise(3)).unwrap();
+            assert!(matches!(out.status, EstimateStatus::Rejected { .. }), "{:?}", out.status);
+        }
+        // The restart's burst: from a geometry where Chan's fix is ambiguous, its mirror root nearer the
+        // lost track than the truth is, and the lost track rejected.
+        let mirror_of = |pos: &[Vector2<f64>]| {
+            let p: Vec<[f64; 2]> = pos.iter().map(|u| [u.x, u.y]).collect();
+            let sensors = Sensors::new(&p, noise(3)).ok()?;
+            let sol = chan(&sensors, &diffs(pos, z), None).ok()?;
+            let far = sol.candidates.iter().copied().find(|c| (c - z).norm() > 1000.0)?;
+            (sol.ambiguous && sol.candidates.len() == 2).then_some(far)
+        };
+        let telling = (0..400)
+            .map(|k| {
+                let a = 0.37 * k as f64;
+                let shift = Vector2::new(a.cos(), a.sin()) * (100.0 + 10.0 * k as f64);
+                uavs.iter().map(|p| p + shift).collect::<Vec<_>>()
+            })
+            .find(|pos| {
+                let p: Vec<[f64; 2]> = pos.iter().map(|u| [u.x, u.y]).collect();
+                let sensors = Sensors::new(&p, noise(3)).unwrap();
+                let rejected = tdoa::fusion::fuse(&post, &sensors, &diffs(pos, z), config.gate(2))
+                    .is_ok_and(|u| matches!(u.outcome, tdoa::fusion::Outcome::Rejected { .. }));
+                rejected && mirror_of(pos).is_some_and(|m| (m - other).norm() < (z - other).norm())
+            })
+            .expect("a geometry whose mirror root lies nearer the lost track, which it rejects");
+        let restart = est.estimate(3, &telling, &diffs(&telling, z), &noise(3)).unwrap();
+        assert_eq!(restart.status, EstimateStatus::Ambiguous, "the restart chose a root: {:?}", restart.position);
+        assert!(est.alternative.is_some());
+        let next = est.estimate(4, &moved, &diffs(&moved, z), &noise(3)).unwrap();
+        assert!((next.position - z).norm() < 1e-3, "picked {:?}, truth {z:?}, mirror {other:?}", next.position);
     }
 
     #[test]
