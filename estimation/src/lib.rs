@@ -639,7 +639,9 @@ impl Estimator {
                 // The root the track follows (`first`) is kept until the other fits decisively better.
                 let switch = nis(&y) + RESOLVE_NIS_MARGIN <= nis(&x);
                 let (kept, other) = if switch { (y, x) } else { (x, y) };
-                let decides = a.heard_count() >= 3 && !(nis(&other) - nis(&kept) < RESOLVE_NIS_MARGIN);
+                // (Two roots without a finite NIS give NaN: nothing to keep the other for.)
+                let gap = nis(&other) - nis(&kept);
+                let decides = a.heard_count() >= 3 && (gap.is_nan() || gap >= RESOLVE_NIS_MARGIN);
                 let pending = if decides { None } else { other.posterior.map(|p| (p, other.sensitivity)) };
                 Ok((kept, pending))
             }

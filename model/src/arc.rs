@@ -514,7 +514,7 @@ mod tests {
             let dd = a.turn - b.turn;
             let slope =
                 |s0: f64, s1: f64| 1000.0 * (0.5 * (d0 + dd * s0)).abs().max((0.5 * (d0 + dd * s1)).abs()).min(1.0);
-            let mut bracket = |accel: Option<f64>, calls: &mut usize| {
+            let bracket = |accel: Option<f64>, calls: &mut usize| {
                 let mut f = |s: f64| {
                     *calls += 1;
                     (a.at(s) - b.at(s)).norm()

@@ -297,8 +297,11 @@ mod tests {
         }
     }
 
+    /// A scenario, the UAVs' positions and headings, the estimate and its covariance.
+    type State = (Scenario, Vec<Vector2<f64>>, Vec<f64>, Vector2<f64>, Matrix2<f64>);
+
     /// The paper's nominal state (certified), the estimate at the emitter with σ = 50 m.
-    fn nominal() -> (Scenario, Vec<Vector2<f64>>, Vec<f64>, Vector2<f64>, Matrix2<f64>) {
+    fn nominal() -> State {
         let sc = Scenario { safety: SafetyMode::Certified, ..Scenario::default() };
         let (pos, psi, z) = (sc.uav_positions(), sc.initial_headings(), sc.emitter_position());
         (sc, pos, psi, z, Matrix2::identity() * 2500.0)

@@ -199,7 +199,9 @@ fn gradient_search(
         .map(|i| {
             let uav = Uav { position: pos[i], heading: psi[i], speed: sc.speed, dt: sc.dt };
             match shield {
-                Some(sh) => heading_interval_of(constraints, &uav, z, &|phi| sh.own_deficit(i, phi), CERTIFIED_BISECTIONS),
+                Some(sh) => {
+                    heading_interval_of(constraints, &uav, z, &|phi| sh.own_deficit(i, phi), CERTIFIED_BISECTIONS)
+                }
                 None => heading_interval(constraints, &uav, z),
             }
         })
