@@ -22,6 +22,9 @@
 //!
 //! The criterion decides among the rest; for an uncertified plan it is not evaluated.
 //!
+//! Where the gradient planner's joint search freed the UAVs from their own boxes,
+//! [`Shield::pull_into_cones`] then takes back what it left of the heading cone, UAV by UAV.
+//!
 //! Every solver's result is compared with the **backup step** (every UAV turns right by `θ_b`, the first
 //! step of the backup orbits of `model::safety`), which is certified whenever the previous step's plan
 //! was and the estimate has not moved its margins away: so a certified plan is found at every step
@@ -214,9 +217,9 @@ impl<'a> Shield<'a> {
     /// Pulls each UAV whose heading lies outside its cone (eq. 58) towards the nearest edge of the cone,
     /// within its reach `ψ ± θ_max`: the whole way, or the largest of [`CONE_PULL_HALVINGS`] halvings
     /// of it that makes `fitness` lexicographically smaller (`current` is the fitness of `plan`); UAV by
-    /// UAV, in rounds while one moves (at most [`CONE_PULL_ROUNDS`]). The cone is the last tier and a sum over the UAVs, so one UAV's move
-    /// lowers it alone, and the fitness keeps every earlier tier from paying for it: a certified plan
-    /// stays certified with its reserve. What a joint search over every reachable heading leaves of the
+    /// UAV, in rounds while one moves (at most [`CONE_PULL_ROUNDS`]). The cone is the last tier and a
+    /// sum over the UAVs, so one UAV's move lowers it alone, and the fitness keeps every earlier tier
+    /// from paying for it: a certified plan stays certified with its reserve. What a joint search over every reachable heading leaves of the
     /// cone where the UAVs' boxes conflict (8 UAVs on a small ring) is taken back here in a few
     /// evaluations per UAV. Returns the plan, its fitness and the evaluations spent.
     pub fn pull_into_cones(
