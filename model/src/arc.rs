@@ -121,8 +121,9 @@ fn curvature_bound(fa: f64, fb: f64, h: f64, slope: f64, accel: f64) -> f64 {
 
 /// [`lipschitz_min`] bracketing to `tolerance` metres instead of [`MIN_TOLERANCE_M`] (reports that must
 /// tell a minimum on a bound from one just below it). With `accel = Some(A)`, `f = |r(s)|` is a
-/// distance whose vector's second derivative is at most `A` (per unit of `s`, squared), and
-/// [`curvature_bound`] tightens the slope bound: the same certified bracket in far fewer samples.
+/// distance whose vector's second derivative is at most `A` (per unit of `s`, squared), and the
+/// curvature of `|r|²` (`curvature_bound`) tightens the slope bound: the same certified bracket in far
+/// fewer samples.
 pub fn lipschitz_min_within(
     f: &mut dyn FnMut(f64) -> f64,
     slope: &dyn Fn(f64, f64) -> f64,
