@@ -859,10 +859,10 @@ mod tests {
         }
         // The restart's burst: from a geometry where Chan's fix is ambiguous, its mirror root nearer the
         // lost track than the truth is, and the lost track rejected.
+        let sensors_at =
+            |pos: &[Vector2<f64>]| Sensors::new(&pos.iter().map(|u| [u.x, u.y]).collect::<Vec<_>>(), noise(3)).unwrap();
         let mirror_of = |pos: &[Vector2<f64>]| {
-            let p: Vec<[f64; 2]> = pos.iter().map(|u| [u.x, u.y]).collect();
-            let sensors = Sensors::new(&p, noise(3)).ok()?;
-            let sol = chan(&sensors, &diffs(pos, z), None).ok()?;
+            let sol = chan(&sensors_at(pos), &diffs(pos, z), None).ok()?;
             let far = sol.candidates.iter().copied().find(|c| (c - z).norm() > 1000.0)?;
             (sol.ambiguous && sol.candidates.len() == 2).then_some(far)
         };
@@ -873,9 +873,7 @@ mod tests {
                 uavs.iter().map(|p| p + shift).collect::<Vec<_>>()
             })
             .find(|pos| {
-                let p: Vec<[f64; 2]> = pos.iter().map(|u| [u.x, u.y]).collect();
-                let sensors = Sensors::new(&p, noise(3)).unwrap();
-                let rejected = tdoa::fusion::fuse(&post, &sensors, &diffs(pos, z), config.gate(2))
+                let rejected = tdoa::fusion::fuse(&post, &sensors_at(pos), &diffs(pos, z), config.gate(2))
                     .is_ok_and(|u| matches!(u.outcome, tdoa::fusion::Outcome::Rejected { .. }));
                 rejected && mirror_of(pos).is_some_and(|m| (m - other).norm() < (z - other).norm())
             })

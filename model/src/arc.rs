@@ -196,6 +196,29 @@ pub fn pair_min_distance_from(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64
     pair_bracket(a, b, f0, f1, threshold, MIN_TOLERANCE_M)
 }
 
+/// The bounds on two UAVs' relative motion over their arcs that [`lipschitz_min_within`] takes: the
+/// relative speed on `[s0, s1]` and the relative acceleration, both per unit of `s`.
+///
+/// The relative speed is 2L|sin(Δh/2)| with Δh linear in s (equal speeds, as the planner's UAVs fly),
+/// bounded by 2L·min(1, |Δh/2|) with Δh(0) wrapped into (−π, π] (no sine: tight where it matters, for UAVs
+/// flying nearly parallel); `L_a + L_b` for unequal lengths. `|r''| ≤ L_a|θ_a| + L_b|θ_b|` (each UAV's
+/// acceleration, constant along its arc).
+fn pair_motion_bounds(a: &Arc, b: &Arc) -> (impl Fn(f64, f64) -> f64 + use<>, f64) {
+    let (la, lb) = (a.length, b.length);
+    let length = la.max(lb);
+    let d0 = crate::kinematics::wrap_angle(a.heading - b.heading);
+    let dd = a.turn - b.turn;
+    let slope = move |s0: f64, s1: f64| {
+        if la == lb {
+            let x = (0.5 * (d0 + dd * s0)).abs().max((0.5 * (d0 + dd * s1)).abs());
+            2.0 * length * x.min(1.0)
+        } else {
+            la + lb
+        }
+    };
+    (slope, la * a.turn.abs() + lb * b.turn.abs())
+}
+
 fn pair_bracket(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64, tolerance: f64) -> MinBracket {
     // Far apart: the relative speed is at most L_a + L_b, so the Piyavskii bound over the whole interval
     // with that slope certifies the pair without a single sine.
@@ -203,23 +226,7 @@ fn pair_bracket(a: &Arc, b: &Arc, f0: f64, f1: f64, threshold: f64, tolerance: f
     if coarse >= threshold {
         return MinBracket { lower: coarse, upper: f0.min(f1) };
     }
-    let length = a.length.max(b.length);
-    // The relative speed: 2L|sin(Δh/2)| with Δh linear in s (equal speeds, as the planner's UAVs fly),
-    // bounded by 2L·min(1, |Δh/2|) with Δh(0) wrapped into (−π, π] (no sine: tight where it matters,
-    // for UAVs flying nearly parallel).
-    let d0 = crate::kinematics::wrap_angle(a.heading - b.heading);
-    let dd = a.turn - b.turn;
-    let equal = a.length == b.length;
-    let slope = move |s0: f64, s1: f64| {
-        if equal {
-            let x = (0.5 * (d0 + dd * s0)).abs().max((0.5 * (d0 + dd * s1)).abs());
-            2.0 * length * x.min(1.0)
-        } else {
-            a.length + b.length
-        }
-    };
-    // |r''| ≤ L_a|θ_a| + L_b|θ_b| (each UAV's acceleration per unit of s², constant along its arc).
-    let accel = a.length * a.turn.abs() + b.length * b.turn.abs();
+    let (slope, accel) = pair_motion_bounds(a, b);
     lipschitz_min_within(&mut |s| (a.at(s) - b.at(s)).norm(), &slope, Some(accel), f0, f1, threshold, tolerance)
 }
 
@@ -511,10 +518,7 @@ mod tests {
             let a = on_ring(angle, ring);
             let b = on_ring(angle + 0.2 + 1.5 * r.next(), ring * (1.0 + 0.1 * (r.next() - 0.5)));
             let (f0, f1) = ((a.start - b.start).norm(), (a.end() - b.end()).norm());
-            let d0 = crate::kinematics::wrap_angle(a.heading - b.heading);
-            let dd = a.turn - b.turn;
-            let slope =
-                |s0: f64, s1: f64| 1000.0 * (0.5 * (d0 + dd * s0)).abs().max((0.5 * (d0 + dd * s1)).abs()).min(1.0);
+            let (slope, accel) = pair_motion_bounds(&a, &b);
             let bracket = |accel: Option<f64>, calls: &mut usize| {
                 let mut f = |s: f64| {
                     *calls += 1;
@@ -522,7 +526,7 @@ mod tests {
                 };
                 lipschitz_min_within(&mut f, &slope, accel, f0, f1, f64::INFINITY, MIN_TOLERANCE_M)
             };
-            let fast = bracket(Some(500.0 * (a.turn.abs() + b.turn.abs())), &mut with);
+            let fast = bracket(Some(accel), &mut with);
             let slow = bracket(None, &mut without);
             let fine = sampled(|s| (a.at(s) - b.at(s)).norm());
             for m in [fast, slow] {

@@ -219,9 +219,10 @@ impl<'a> Shield<'a> {
     /// of it that makes `fitness` lexicographically smaller (`current` is the fitness of `plan`); UAV by
     /// UAV, in rounds while one moves (at most [`CONE_PULL_ROUNDS`]). The cone is the last tier and a
     /// sum over the UAVs, so one UAV's move lowers it alone, and the fitness keeps every earlier tier
-    /// from paying for it: a certified plan stays certified with its reserve. What a joint search over every reachable heading leaves of the
-    /// cone where the UAVs' boxes conflict (8 UAVs on a small ring) is taken back here in a few
-    /// evaluations per UAV. Returns the plan, its fitness and the evaluations spent.
+    /// from paying for it: a certified plan stays certified with its reserve. What a joint search over
+    /// every reachable heading leaves of the cone where the UAVs' boxes conflict (8 UAVs on a small
+    /// ring) is taken back here in a few evaluations per UAV. Returns the plan, its fitness and the
+    /// evaluations spent.
     pub fn pull_into_cones(
         &self,
         plan: &[f64],
