@@ -103,7 +103,8 @@ pub struct LaunchArgs {
     /// removed at the end). The step records are kept there during the run, not in memory.
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
-    /// emitter-sim gives up when a step's command has not arrived after this many seconds.
+    /// emitter-sim gives up when a step's command has not arrived after this many seconds; the monitor
+    /// has as long after the run's end to record the last step.
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     pub command_timeout_s: f64,
     /// Transport and waiting of every process.

@@ -141,7 +141,7 @@ pub(super) fn start_and_run(
             d
         );
     }
-    let grace = Duration::from_secs_f64(args.command_timeout_s);
+    let grace = super::supervisor::EndGrace::new(Duration::from_secs_f64(args.command_timeout_s), sc.steps);
     if !args.live {
         return sup.wait_for_the_end(grace, &mut |_| {});
     }

@@ -87,6 +87,24 @@ impl Proc {
     }
 }
 
+/// How long the end of a run may take ([`Supervisor::wait_for_the_end`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct EndGrace {
+    /// From emitter-sim's end until the monitor has recorded the last step (its `finished`).
+    pub(super) record: Duration,
+    /// From the monitor's `finished` until it has handed the run record over and exited: it reads the
+    /// steps back from its log, annotates them and writes its files, work that grows with the run.
+    pub(super) write: Duration,
+}
+
+impl EndGrace {
+    /// `record` for the last step, and for the record's writing 30 s plus 1 ms per step (≈ 15 × the
+    /// 60–70 µs per step it takes on 2 cores).
+    pub(super) fn new(record: Duration, steps: usize) -> Self {
+        Self { record, write: Duration::from_secs(30) + Duration::from_millis(steps as u64) }
+    }
+}
+
 /// The running children and the lines they print on stdout.
 pub(super) struct Supervisor {
     pub(super) procs: Vec<Proc>,
@@ -314,15 +332,18 @@ impl Supervisor {
     }
 
     /// Runs until emitter-sim and the monitor have finished, restarting the processes that crash; the
-    /// monitor gets `monitor_grace` after emitter-sim's end (its `finished`, or its exit) to record the
-    /// last step. A lingering emitter-sim (`--linger`) replays the run to a monitor that fell behind or was
-    /// restarted while the run ended, and is stopped with the others afterwards.
+    /// monitor gets `grace.record` after emitter-sim's end (its `finished`, or its exit) to record the
+    /// last step (its own `finished`), and then `grace.write` to build the run record from its log, write
+    /// its files and hand the record over. A lingering emitter-sim (`--linger`) replays the run to a
+    /// monitor that fell behind or was restarted while the run ended, and is stopped with the others
+    /// afterwards.
     pub(super) fn wait_for_the_end(
         &mut self,
-        monitor_grace: Duration,
+        grace: EndGrace,
         on_tick: &mut dyn FnMut(&Supervisor),
     ) -> Result<(), CliError> {
         let mut emitter_done_at = None;
+        let mut monitor_done_at = None;
         let mut checked_swapped = Instant::now();
         loop {
             self.pump()?;
@@ -343,14 +364,23 @@ impl Supervisor {
                 }
                 continue;
             };
-            if ended(emitter) || self.procs[emitter].finished {
-                let since = *emitter_done_at.get_or_insert_with(Instant::now);
-                if ended(monitor) {
-                    return Ok(());
-                }
-                if since.elapsed() > monitor_grace {
+            if ended(monitor) {
+                return Ok(());
+            }
+            if self.procs[monitor].finished {
+                let since = *monitor_done_at.get_or_insert_with(Instant::now);
+                if since.elapsed() > grace.write {
                     return Err(CliError::Failed(format!(
-                        "the monitor did not record the last step within {monitor_grace:?} of the end of the run"
+                        "the monitor recorded the last step but did not hand over the run record within {:?}",
+                        grace.write
+                    )));
+                }
+            } else if ended(emitter) || self.procs[emitter].finished {
+                let since = *emitter_done_at.get_or_insert_with(Instant::now);
+                if since.elapsed() > grace.record {
+                    return Err(CliError::Failed(format!(
+                        "the monitor did not record the last step within {:?} of the end of the run",
+                        grace.record
                     )));
                 }
             }

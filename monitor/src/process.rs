@@ -374,6 +374,10 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
 
     // What the last wake-up gathered (a run ended by a signal or a shutdown ends between two).
     session.flush_outputs()?;
+    if session.assembler.is_done() {
+        // Every step is recorded: what is left (the record from the log, the files) is the end's work.
+        runtime::tell(args.process.node.supervised, &runtime::SupervisorLine::Finished);
+    }
     let mut run = session.assembler.record();
     if let Some(path) = &args.log {
         // The records are in the log (this instance's and its predecessors').

@@ -205,15 +205,50 @@ pub fn state_from_hex(text: &str) -> Option<StateEcho> {
     StateEcho::from_bytes(&bytes?).filter(|e| e.validate().is_ok() && e.decode().is_some())
 }
 
+/// The fields of a `step` line that [`read_log`] uses, parsed in one pass without a `serde_json::Value`
+/// tree; the state's hex text is borrowed from the line and decoded only if it is among the last ones.
+#[derive(serde::Deserialize)]
+struct StepLine<'a> {
+    #[serde(borrow)]
+    event: std::borrow::Cow<'a, str>,
+    record: StepRecord,
+    /// (A coordinate that is not a number is written as `null`.)
+    #[serde(default)]
+    truth: Option<[Option<f64>; 2]>,
+    #[serde(default)]
+    planner: Option<PlannerNames>,
+    #[serde(default, borrow)]
+    state: Option<std::borrow::Cow<'a, str>>,
+}
+
+/// The planner's names in a `step` line.
+#[derive(serde::Deserialize)]
+struct PlannerNames {
+    objective: Option<String>,
+    solver: Option<String>,
+}
+
 /// Reads a monitor's log back, line by line (a missing file is an empty log); lines that do not parse are
 /// skipped (e.g. the last one of a killed monitor). The step records are kept only with `keep_steps`.
+///
+/// A log grows by ≈ 3.5 kB per step (most of it the echoed estimator state, in hex), so this is written
+/// for 100 000-step logs: one reused line buffer, a typed parse of the step lines only, and the state text
+/// of the last [`HISTORY_STEPS`](runtime::recovery::HISTORY_STEPS) steps kept and decoded at the end.
 pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
     use std::io::BufRead as _;
+    let history = runtime::recovery::HISTORY_STEPS as usize;
     let mut run = LoggedRun::default();
     let Ok(file) = File::open(path) else { return run };
     let (mut truth, mut names) = (None, None);
-    for line in std::io::BufReader::new(file).lines() {
-        let Ok(line) = line else { break };
+    let mut hexes: std::collections::VecDeque<String> = std::collections::VecDeque::with_capacity(history + 1);
+    let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
+    let mut line = String::new();
+    loop {
+        line.clear();
+        match reader.read_line(&mut line) {
+            Ok(0) | Err(_) => break,
+            Ok(_) => {}
+        }
         if run.start.is_none() && line.contains("\"event\":\"start\"") {
             run.start = serde_json::from_str::<RunStart>(&line).ok();
             continue;
@@ -221,28 +256,29 @@ pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
         if !line.contains("\"event\":\"step\"") {
             continue;
         }
-        let Ok(e) = serde_json::from_str::<serde_json::Value>(&line) else { continue };
-        if e["event"] != "step" {
+        let Ok(e) = serde_json::from_str::<StepLine>(&line) else { continue };
+        if e.event != "step" {
             continue;
         }
-        let Ok(record) = serde_json::from_value::<StepRecord>(e["record"].clone()) else { continue };
+        let record = e.record;
         if record.step != run.count {
             continue; // a duplicate, or a gap: keep the steps from 0 without gaps
         }
-        if truth.is_none() {
-            truth = serde_json::from_value::<[f64; 2]>(e["truth"].clone()).ok();
+        if truth.is_none()
+            && let Some([Some(x), Some(y)]) = e.truth
+        {
+            truth = Some([x, y]);
         }
         if names.is_none()
-            && let (Some(objective), Some(solver)) =
-                (e["planner"]["objective"].as_str(), e["planner"]["solver"].as_str())
+            && let Some(PlannerNames { objective: Some(objective), solver: Some(solver) }) = e.planner
         {
-            names = Some((objective.to_string(), solver.to_string()));
+            names = Some((objective, solver));
         }
-        if let Some(echo) = e["state"].as_str().and_then(state_from_hex) {
-            run.states.push(echo);
-            if run.states.len() > 2 * runtime::recovery::HISTORY_STEPS as usize {
-                run.states.drain(..runtime::recovery::HISTORY_STEPS as usize);
+        if let Some(hex) = e.state {
+            if hexes.len() == history {
+                hexes.pop_front();
             }
+            hexes.push_back(hex.into_owned());
         }
         run.count += 1;
         if keep_steps {
@@ -250,6 +286,8 @@ pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
         }
         run.last = Some(record);
     }
+    // A state that does not decode is left out (a line of a killed monitor parses only if whole).
+    run.states = hexes.iter().filter_map(|h| state_from_hex(h)).collect();
     LoggedRun { truth, names, ..run }
 }
 
@@ -341,6 +379,52 @@ pub(crate) mod tests {
         let mut nan = echo(3);
         nan.covariance[0][0] = f64::NAN;
         assert_eq!(state_from_hex(&state_to_hex(&nan)), None);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A log longer than the history: the last `HISTORY_STEPS` states, oldest first; the truth of the
+    /// first step that has a whole one (a coordinate that is not a number is logged as `null`); the
+    /// planner's names; a line of another event that mentions a step is not a step.
+    #[test]
+    fn a_long_log_reads_back_the_last_states_the_truth_and_the_names() {
+        let history = runtime::recovery::HISTORY_STEPS;
+        let (dir, path) = scratch_log("log-long");
+        let mut log = EventLog::open(Some(&path), false).unwrap();
+        let echo = |k: u64| StateEcho {
+            step: k,
+            kind: StateEcho::STATE,
+            estimator: 1,
+            position: [k as f64, 2.0],
+            covariance: [[4.0, 0.0], [0.0, 5.0]],
+            ..StateEcho::default()
+        };
+        let n = history + 10;
+        for k in 0..n {
+            let record = record::StepRecord { step: k, crlb_true_m: Some(10.0), ..Default::default() };
+            let truth = if k == 0 { json!([f64::NAN, 1.0]) } else { json!([k as f64, 1.0]) };
+            let planner = json!({"objective": "analytical", "solver": "pso"});
+            log.write(
+                "step",
+                json!({"step": k, "record": record, "truth": truth, "planner": planner, "state": state_to_hex(&echo(k))}),
+            );
+            log.write("message", json!({"kind": "command", "step": k, "note": "\"event\":\"step\""}));
+        }
+        log.flush();
+        for keep in [false, true] {
+            let run = read_log(&path, keep);
+            assert_eq!(run.count, n);
+            assert_eq!(run.steps.len() as u64, if keep { n } else { 0 });
+            assert_eq!(run.last.as_ref().map(|r| r.step), Some(n - 1));
+            let expected: Vec<StateEcho> = (n - history..n).map(echo).collect();
+            assert!(
+                run.states == expected,
+                "{} states, from step {:?}",
+                run.states.len(),
+                run.states.first().map(|e| e.step)
+            );
+            assert_eq!(run.truth, Some([1.0, 1.0]));
+            assert_eq!(run.names, Some(("analytical".to_string(), "pso".to_string())));
+        }
         std::fs::remove_dir_all(&dir).ok();
     }
 

@@ -60,7 +60,7 @@ pub enum SupervisorLine {
         /// The first step it handles.
         from_step: u64,
     },
-    /// emitter-sim published the last step.
+    /// emitter-sim published the last step; the monitor recorded it.
     Finished,
     /// The process's summary.
     Summary(Value),

@@ -7,7 +7,7 @@
 //!   process sampled at step 5 000 (after the history and the estimator's echoed states are full) and
 //!   [`END_MARGIN`] steps before the end.
 //! - `soak_100k_steps` (in `cargo test` too, alone: `cargo test --release --test e2e soak_100k`): the same
-//!   over 100 000 steps (≈ 25 s on 2 cores; the monitor's log grows to ≈ 170 MB on disk, in the test's
+//!   over 100 000 steps (≈ 25 s on 2 cores; the monitor's log grows to ≈ 350 MB on disk, in the test's
 //!   scratch directory, removed at the end).
 //! - `a_crash_after_the_history_wrapped_resumes_from_the_states_the_messages_carry`: 5 000 steps; the estimator, the
 //!   planner, emitter-sim and the monitor are each killed once after step 4 096 — a replay from step 0 is
