@@ -368,7 +368,11 @@ impl Supervisor {
                 return Ok(());
             }
             if self.procs[monitor].finished {
-                let since = *monitor_done_at.get_or_insert_with(Instant::now);
+                // Timed per monitor process: one restarted after its predecessor's `finished` has its own.
+                let since = match monitor_done_at {
+                    Some((i, at)) if i == monitor => at,
+                    _ => monitor_done_at.insert((monitor, Instant::now())).1,
+                };
                 if since.elapsed() > grace.write {
                     return Err(CliError::Failed(format!(
                         "the monitor recorded the last step but did not hand over the run record within {:?}",

@@ -282,9 +282,13 @@ pub fn read_log(path: &Path, keep_steps: bool) -> LoggedRun {
         }
         run.count += 1;
         if keep_steps {
-            run.steps.push(record.clone());
+            run.steps.push(record);
+        } else {
+            run.last = Some(record);
         }
-        run.last = Some(record);
+    }
+    if keep_steps {
+        run.last = run.steps.last().cloned();
     }
     // A state that does not decode is left out (a line of a killed monitor parses only if whole).
     run.states = hexes.iter().filter_map(|h| state_from_hex(h)).collect();
@@ -350,18 +354,16 @@ pub(crate) mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
+    /// An estimator state of step `k` with this position and covariance.
+    fn state_echo(k: u64, position: [f64; 2], covariance: [[f64; 2]; 2]) -> StateEcho {
+        StateEcho { step: k, kind: StateEcho::STATE, estimator: 1, position, covariance, ..StateEcho::default() }
+    }
+
     #[test]
     fn the_states_in_the_log_read_back_bit_for_bit() {
         let (dir, path) = scratch_log("log-states");
         let mut log = EventLog::open(Some(&path), false).unwrap();
-        let echo = |k: u64| StateEcho {
-            step: k,
-            kind: StateEcho::STATE,
-            estimator: 1,
-            position: [0.1 + 0.2 + k as f64, -1e-300],
-            covariance: [[4.0, 1e-12], [1e-12, 5.0]],
-            ..StateEcho::default()
-        };
+        let echo = |k: u64| state_echo(k, [0.1 + 0.2 + k as f64, -1e-300], [[4.0, 1e-12], [1e-12, 5.0]]);
         let empty = StateEcho { step: 1, kind: StateEcho::EMPTY, ..StateEcho::default() };
         for (k, e) in [(0u64, Some(echo(0))), (1, Some(empty)), (2, None), (3, Some(echo(3)))] {
             let record = record::StepRecord { step: k, crlb_true_m: Some(10.0), ..Default::default() };
@@ -390,14 +392,7 @@ pub(crate) mod tests {
         let history = runtime::recovery::HISTORY_STEPS;
         let (dir, path) = scratch_log("log-long");
         let mut log = EventLog::open(Some(&path), false).unwrap();
-        let echo = |k: u64| StateEcho {
-            step: k,
-            kind: StateEcho::STATE,
-            estimator: 1,
-            position: [k as f64, 2.0],
-            covariance: [[4.0, 0.0], [0.0, 5.0]],
-            ..StateEcho::default()
-        };
+        let echo = |k: u64| state_echo(k, [k as f64, 2.0], [[4.0, 0.0], [0.0, 5.0]]);
         let n = history + 10;
         for k in 0..n {
             let record = record::StepRecord { step: k, crlb_true_m: Some(10.0), ..Default::default() };
