@@ -2,8 +2,9 @@
 """Summarise a uavloc MCAP recording (`uavloc launch --record run.mcap`) with the `mcap` package alone —
 no uavloc needed: the channels are JSON with JSON schemas.
 
-Prints one JSON object: the run's metadata, per channel its schema name and encodings and message count,
-and the recorded estimates per step (the first one of each step).
+Prints one JSON object: the run's metadata, per channel its schema name and encodings, message count and
+number of distinct steps (a step the pipeline published again — a retry or a replay after a crash — is
+recorded again, as it went over the wire), and the recorded estimates per step (the first one of each step).
 
     python3 examples/python/read_recording.py run.mcap
 """
@@ -26,11 +27,16 @@ def main(path):
                 "schema_encoding": schema.encoding,
                 "message_encoding": channel.message_encoding,
                 "count": 0,
+                "steps": set(),
             })
             c["count"] += 1
             body = json.loads(message.data)
+            if isinstance(body, dict) and isinstance(body.get("step"), int):
+                c["steps"].add(body["step"])
             if channel.topic == "/estimate":
                 estimates.setdefault(str(body["step"]), {"position": body["position"], "status": body["status"]})
+    for c in channels.values():
+        c["steps"] = len(c["steps"])
     print(json.dumps({"metadata": metadata, "channels": channels, "estimates": estimates}))
 
 

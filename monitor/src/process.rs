@@ -373,6 +373,7 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     let counter = node.counter().clone();
 
     // What the last wake-up gathered (a run ended by a signal or a shutdown ends between two).
+    session.log_unlogged_rejections();
     session.flush_outputs()?;
     if session.assembler.is_done() {
         // Every step is recorded: what is left (the record from the log, the files) is the end's work.

@@ -126,6 +126,15 @@ impl Session {
         }
     }
 
+    /// The rejections left out of the log since its last `rejected` line, said once at the end of the run
+    /// (so that the `rejected` and `rejected_unlogged` lines add up to the node's count).
+    pub(crate) fn log_unlogged_rejections(&mut self) {
+        let unlogged = std::mem::take(&mut self.rejections_logged).unlogged();
+        if unlogged > 0 {
+            self.log.write("rejected_unlogged", json!({"count": unlogged}));
+        }
+    }
+
     /// A message that failed validation: logged within the budget of [`runtime::LogBudget`] (it is
     /// counted by the node, exactly).
     pub(crate) fn rejected(&mut self, kind: MessageKind, r: &Rejection, seq: u64) {

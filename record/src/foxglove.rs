@@ -85,10 +85,13 @@ pub struct FoxgloveMessage {
 pub struct FoxgloveView {
     frame: Option<LocalFrame>,
     l_min: f64,
-    /// The UAVs' positions by step, in step order (a step seen again, after a restart, replaces its
-    /// positions): indexed, so that a thinned track and the newest segment cost no walk over the run.
+    /// The UAVs' positions by step, in step order (a step seen again is not drawn again, see `drawn`):
+    /// indexed, so that a thinned track and the newest segment cost no walk over the run.
     tracks: Vec<(u64, Vec<[f64; 2]>)>,
     truth: Option<[f64; 2]>,
+    /// The newest step drawn from the truth and from the estimates: a copy of a step already drawn (a
+    /// retry, a replay after a crash — recorded again as it went over the wire) draws nothing again.
+    drawn: [Option<u64>; 2],
 }
 
 const COLOURS: [[f64; 3]; 8] = [
@@ -162,14 +165,26 @@ fn entity(stamp: &Value, id: &str, spheres: Vec<Value>, lines: Vec<Value>) -> Va
 impl FoxgloveView {
     /// The view of a run of `scenario` (the map channels only when it has an origin).
     pub fn new(scenario: &Scenario) -> Self {
-        Self { frame: scenario.frame(), l_min: scenario.l_min, tracks: Vec::new(), truth: None }
+        Self { frame: scenario.frame(), l_min: scenario.l_min, tracks: Vec::new(), truth: None, drawn: [None; 2] }
     }
 
     /// The Foxglove messages of one recorded uavloc message (its topic and JSON, see
     /// `crate::recording`): nothing for most; for an estimate the map, the scene and the frames of its
-    /// step. Values that are not finite (a failed estimate) draw nothing.
+    /// step; for a truth its map point. Values that are not finite (a failed estimate) draw nothing, nor
+    /// does a step already drawn from the same topic.
     pub fn derive(&mut self, topic: &str, msg: &Value) -> Vec<FoxgloveMessage> {
         let ns = msg["stamps"]["published_ns"].as_u64().unwrap_or(0);
+        let source = match topic {
+            "/truth" => 0,
+            "/estimate" => 1,
+            _ => return Vec::new(),
+        };
+        if let Some(step) = msg["step"].as_u64() {
+            if self.drawn[source].is_some_and(|newest| step <= newest) {
+                return Vec::new();
+            }
+            self.drawn[source] = Some(step);
+        }
         match topic {
             "/truth" => {
                 self.truth = pair(&msg["position"]);
@@ -413,11 +428,16 @@ mod tests {
         let ids: Vec<&str> =
             out[5].json["entities"].as_array().unwrap().iter().map(|e| e["id"].as_str().unwrap()).collect();
         assert_eq!(ids, ["uav0", "uav0-track-1", "uav1", "uav1-track-1", "uav2", "uav2-track-1", "estimate", "truth"]);
-        // A step seen again (a restart) replaces its positions instead of adding a point.
-        view.derive("/estimate", &estimate_json(1, Some([24500.0, 14500.0])));
-        let again = view.derive("/estimate", &estimate_json(1, Some([24500.0, 14500.0])));
-        let layer: Value = serde_json::from_str(again[4].json["geojson"].as_str().unwrap()).unwrap();
-        assert_eq!(layer["features"][0]["geometry"]["coordinates"].as_array().unwrap().len(), 2);
+        // A step seen again (a retry, a replay after a restart) draws nothing again, from either topic; the
+        // next step adds one point to the track.
+        assert!(view.derive("/estimate", &estimate_json(1, Some([24500.0, 14500.0]))).is_empty());
+        assert!(view.derive("/estimate", &estimate_json(0, Some([24000.0, 14000.0]))).is_empty());
+        let truth = |k: u64| json!({"step": k, "position": [25000.0, 15000.0], "stamps": {}});
+        assert_eq!(view.derive("/truth", &truth(1)).len(), 1);
+        assert!(view.derive("/truth", &truth(1)).is_empty());
+        let next = view.derive("/estimate", &estimate_json(2, Some([24600.0, 14600.0])));
+        let layer: Value = serde_json::from_str(next[4].json["geojson"].as_str().unwrap()).unwrap();
+        assert_eq!(layer["features"][0]["geometry"]["coordinates"].as_array().unwrap().len(), 3);
     }
 
     #[test]

@@ -220,40 +220,58 @@ fn a_flood_of_bad_messages_is_logged_at_a_bounded_rate_with_exact_counts() {
     let _scenario = common::scenario(module_path!());
     let d = domain("bad-msg", "flood");
     let dir = scratch("bad-flood");
-    let mut launch = Launch::start(&d, &dir, &["--steps", "120", "--step-delay-ms", "30"]);
+    let mut launch = Launch::start(&d, &dir, &["--steps", "300", "--step-delay-ms", "30"]);
     launch.wait_for_step(2, Duration::from_secs(30));
+    let log = dir.join("run.jsonl");
+    let said_left_out = || common::read_events(&log).iter().any(|e| e["event"] == "rejected_unlogged");
     {
         protocol::transport::quiet_logs();
         let domain = Domain::new(&d).unwrap();
         let node = protocol::Link::open(protocol::TransportKind::Iceoryx2, &format!("{d}-flood")).unwrap();
         let m = Topic::<Measurement>::publisher(&node, &services::measurement(&domain)).unwrap();
         let bad = with(measurement(), |m| m.arrivals[1] = f64::NAN);
-        for k in 0..20_000 {
-            m.send(&bad).unwrap();
-            // Bursts the receivers' buffers (64) can hold, so that most of the flood reaches them.
-            if k % 16 == 15 {
-                std::thread::sleep(Duration::from_micros(200));
+        // A flood, then one more a second later, whose line says how many of the flood were left out. A
+        // loaded machine may starve the monitor so that fewer than its budget reach it (the buffers hold
+        // 64): then the flood comes again, until the monitor said it left some out.
+        for round in 1..=5 {
+            for k in 0..20_000 {
+                m.send(&bad).unwrap();
+                // Bursts the receivers' buffers (64) can hold, so that most of the flood reaches them.
+                if k % 16 == 15 {
+                    std::thread::sleep(Duration::from_micros(200));
+                }
             }
+            std::thread::sleep(Duration::from_millis(1100));
+            m.send(&bad).unwrap();
+            let deadline = std::time::Instant::now() + Duration::from_secs(2);
+            while !said_left_out() && std::time::Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            if said_left_out() {
+                break;
+            }
+            assert!(round < 5, "five floods and the monitor never left a line out:\n{}", launch.stderr_text());
         }
-        // One more, a second later: its line says how many of the flood were left out.
-        std::thread::sleep(Duration::from_millis(1100));
-        m.send(&bad).unwrap();
-        std::thread::sleep(Duration::from_millis(50));
     }
     let stderr_path = launch.stderr.clone();
     let run = launch.finish_json();
     let stderr = std::fs::read_to_string(stderr_path).unwrap();
     let monitor = run["rejected_by"]["monitor"].as_u64().unwrap();
-    assert!(monitor > 2 * runtime::LogBudget::PER_SECOND, "the flood did not reach the monitor: {monitor}");
+    assert!(monitor > runtime::LogBudget::PER_SECOND, "the flood did not reach the monitor: {monitor}");
     let events = common::read_events(&dir.join("run.jsonl"));
-    let logged = events.iter().filter(|e| e["event"] == "rejected").count() as u64;
+    let times: Vec<u64> =
+        events.iter().filter(|e| e["event"] == "rejected").map(|e| e["t_ns"].as_u64().unwrap()).collect();
+    let logged = times.len() as u64;
     let unlogged: u64 =
         events.iter().filter(|e| e["event"] == "rejected_unlogged").filter_map(|e| e["count"].as_u64()).sum();
-    // Bounded (the flood took well under a second, the last one came a second later), and exact.
-    assert!(logged <= 2 * runtime::LogBudget::PER_SECOND + 1, "{logged} lines logged of {monitor}");
+    // Bounded: any one second of the log holds at most two budget windows' lines, however long a loaded
+    // machine took over the flood. Exact: the lines and the counts left out add up to the node's count.
+    let busiest = (0..times.len()).map(|i| times[i..].partition_point(|t| *t < times[i] + 1_000_000_000)).max();
+    assert!(busiest.unwrap_or(0) as u64 <= 2 * runtime::LogBudget::PER_SECOND, "{busiest:?} lines in one second");
+    assert!(unlogged > 0 && logged < monitor, "{logged} lines logged of {monitor}: the flood was not summarised");
     assert_eq!(logged + unlogged, monitor, "{logged} logged + {unlogged} left out");
     assert!(stderr.len() < 200_000, "{} bytes of stderr", stderr.len());
-    assert_eq!(run["steps"].as_array().unwrap().len(), 121);
+    assert_eq!(run["steps"].as_array().unwrap().len(), 301);
     assert_nothing_left(&d);
     let _ = std::fs::remove_dir_all(&dir);
 }

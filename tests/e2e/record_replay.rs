@@ -37,7 +37,10 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
     for (topic, count) in
         [("/measurement", STEPS + 1), ("/estimate", STEPS + 1), ("/truth", STEPS + 1), ("/command", STEPS)]
     {
-        assert_eq!(channels[topic]["count"], count, "{topic}: {channels}");
+        // A step published again (emitter-sim's retry when a loaded machine is slow to answer) is recorded
+        // again: each step once at least.
+        assert_eq!(channels[topic]["steps"], count, "{topic}: {channels}");
+        assert!(channels[topic]["count"].as_u64().unwrap() >= count, "{topic}: {channels}");
         assert_eq!(channels[topic]["message_encoding"], "json");
         assert_eq!(channels[topic]["schema_encoding"], "jsonschema");
     }
