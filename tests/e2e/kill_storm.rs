@@ -195,7 +195,22 @@ fn check_running(launch: &mut Launch, tail: &LogTail, what: &str) {
     if let Ok(Some(status)) = launch.child.try_wait() {
         panic!("the launch ended ({status}) while {what}:\n{}", launch.stderr_text());
     }
-    assert!(!tail.ended, "the run ended while {what}:\n{}", launch.stderr_text());
+    if tail.ended {
+        // The launcher ends once its report is read: read it, wait for the end (bounded) and show why the
+        // run ended — the launcher says so only after the monitor has logged the end.
+        if let Some(mut out) = launch.child.stdout.take() {
+            std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
+        }
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let status = loop {
+            match launch.child.try_wait() {
+                Ok(Some(status)) => break Some(status),
+                _ if Instant::now() > deadline => break None,
+                _ => std::thread::sleep(Duration::from_millis(50)),
+            }
+        };
+        panic!("the run ended (launch: {status:?}) while {what}:\n{}", launch.stderr_text());
+    }
 }
 
 /// Waits until the monitor has logged step `step`.
