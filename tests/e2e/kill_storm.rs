@@ -209,7 +209,15 @@ fn check_running(launch: &mut Launch, tail: &LogTail, what: &str) {
                 _ => std::thread::sleep(Duration::from_millis(50)),
             }
         };
-        panic!("the run ended (launch: {status:?}) while {what}:\n{}", launch.stderr_text());
+        panic!(
+            "the run ended (launch: {status:?}) while {what}; the log showed hellos {:?}, restarts {:?}, newest \
+             sequence numbers {:?}, {} monitor resumes:\n{}",
+            tail.hellos,
+            tail.restarted_at,
+            tail.newest_seq,
+            tail.resumes,
+            launch.stderr_text()
+        );
     }
 }
 
