@@ -250,6 +250,7 @@ fn no_fix_yet(a: &tdoa::Arrivals, reason: String) -> estimation::EstimateOut {
         nis: None,
         rejected_run: 0,
         confirmed: 0,
+        drop_streak: estimation::DropStreak::default(),
         heard: a.heard_mask(),
         outliers: 0,
         bias_cov: Matrix2::zeros(),

@@ -49,6 +49,41 @@ pub const REJECTED_RUN_RESTART: u8 = 3;
 /// provisional track's bursts.
 pub const CONFIRM_BURSTS: u8 = 3;
 
+/// A confirmed track that drops the same UAV's arrival from this many fused bursts in a row (bursts
+/// that heard it) is made provisional again: a reflection lasts one burst (independent per burst, 15 %
+/// at the worst cell studied: four in a row from one UAV is a 5·10⁻⁴ event), a track confirmed on a
+/// corrupted first fix disagrees with the same direct arrival burst after burst and would otherwise
+/// drop it for the rest of the run. Made provisional, the track fuses only whole bursts and is
+/// restarted from Chan after [`REJECTED_RUN_RESTART`] rejections.
+pub const DEMOTE_DROP_RUN: u8 = 4;
+
+/// The UAVs whose arrival a track has dropped from every fused burst that heard them, and for how many
+/// bursts in a row (see [`DEMOTE_DROP_RUN`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DropStreak {
+    /// The UAVs dropped in each of the last `run` bursts that heard them (bit i: UAV i).
+    pub uavs: u8,
+    /// How many fused bursts in a row dropped them.
+    pub run: u8,
+}
+
+impl DropStreak {
+    /// The streak after a fused burst that heard `heard` and dropped `dropped` (bit masks).
+    pub fn after(self, heard: u8, dropped: u8) -> Self {
+        let common = self.uavs & dropped;
+        if common != 0 {
+            Self { uavs: common, run: self.run.saturating_add(1) }
+        } else if dropped != 0 {
+            Self { uavs: dropped, run: 1 }
+        } else if self.uavs & heard != 0 {
+            // A streak UAV heard and kept: the streak ends.
+            Self::default()
+        } else {
+            self
+        }
+    }
+}
+
 /// How much larger (χ², one burst) the NIS of one of an ambiguous fix's two roots must be than the
 /// other's for the burst to drop it: a likelihood ratio of `e^(9/2)` ≈ 90. Below it both roots stay
 /// pending. (Decided by the smaller NIS alone, one of 200 random three-UAV runs kept the mirror root
@@ -113,6 +148,9 @@ pub struct EstimateOut {
     pub rejected_run: u8,
     /// Fused: bursts fused whole since the track started, up to this one (see [`CONFIRM_BURSTS`]).
     pub confirmed: u8,
+    /// Fused: the arrivals the track has dropped burst after burst, up to this one (see
+    /// [`DEMOTE_DROP_RUN`]).
+    pub drop_streak: DropStreak,
     /// The UAVs whose arrival the step held (bit i: UAV i).
     pub heard: u8,
     /// The arrivals dropped as outliers (bit i: UAV i; see [`outliers`]).
@@ -228,6 +266,8 @@ pub struct Estimator {
     rejected_run: u8,
     /// Fused: bursts fused whole since the track started (saturating at [`CONFIRM_BURSTS`]).
     confirmed: u8,
+    /// Fused: the arrivals dropped burst after burst ([`DEMOTE_DROP_RUN`]).
+    drop_streak: DropStreak,
     last_step: Option<u64>,
     /// Fused: the posterior's dependence on the flight-long biases ([`tdoa::consider`]).
     sensitivity: Option<BiasSensitivity>,
@@ -250,6 +290,7 @@ impl Estimator {
             alternative: None,
             rejected_run: 0,
             confirmed: 0,
+            drop_streak: DropStreak::default(),
             last_step: None,
             sensitivity: None,
         }
@@ -291,6 +332,7 @@ impl Estimator {
             alternative: None,
             rejected_run: 0,
             confirmed: 0,
+            drop_streak: DropStreak::default(),
             last_step: Some(step),
             sensitivity: None,
         }
@@ -339,6 +381,18 @@ impl Estimator {
     /// Fused: bursts fused whole since the track started (saturating at [`CONFIRM_BURSTS`]).
     pub fn confirmed(&self) -> u8 {
         self.confirmed
+    }
+
+    /// This estimator with the drop streak `s` behind its track (the state of an estimate's
+    /// `drop_uavs` and `drop_run`).
+    pub fn with_drop_streak(mut self, s: DropStreak) -> Self {
+        self.drop_streak = s;
+        self
+    }
+
+    /// Fused: the arrivals the track has dropped burst after burst ([`DEMOTE_DROP_RUN`]).
+    pub fn drop_streak(&self) -> DropStreak {
+        self.drop_streak
     }
 
     /// The configuration.
@@ -443,6 +497,7 @@ impl Estimator {
                             self.alternative = other;
                             self.rejected_run = 0;
                             self.confirmed = 0;
+                            self.drop_streak = DropStreak::default();
                             Ok(fresh)
                         }
                         Err(_) => Ok(out),
@@ -456,8 +511,17 @@ impl Estimator {
                 // A fused burst with nothing dropped confirms the track; a new Chan fix starts one.
                 if out.nis.is_none() {
                     self.confirmed = 0;
-                } else if out.outliers == 0 {
-                    self.confirmed = self.confirmed.saturating_add(1).min(CONFIRM_BURSTS);
+                    self.drop_streak = DropStreak::default();
+                } else {
+                    if out.outliers == 0 {
+                        self.confirmed = self.confirmed.saturating_add(1).min(CONFIRM_BURSTS);
+                    }
+                    // The same UAV dropped burst after burst: the track, not the arrival, is wrong.
+                    self.drop_streak = self.drop_streak.after(a.heard_mask(), out.outliers);
+                    if self.drop_streak.run >= DEMOTE_DROP_RUN {
+                        self.confirmed = 0;
+                        self.drop_streak = DropStreak::default();
+                    }
                 }
                 Ok(out)
             }
@@ -466,6 +530,7 @@ impl Estimator {
         .map(|mut out| {
             out.rejected_run = self.rejected_run;
             out.confirmed = self.confirmed;
+            out.drop_streak = self.drop_streak;
             out.heard = a.heard_mask();
             out.bias_cov = bias_cov(out.sensitivity.as_ref(), a);
             out
@@ -503,6 +568,7 @@ impl Estimator {
             nis: None,
             rejected_run: self.rejected_run,
             confirmed: self.confirmed,
+            drop_streak: self.drop_streak,
             heard,
             outliers: 0,
             bias_cov: Matrix2::zeros(),
@@ -546,6 +612,7 @@ impl Estimator {
                     nis: None,
                     rejected_run: self.rejected_run,
                     confirmed: self.confirmed,
+                    drop_streak: self.drop_streak,
                     heard: a.heard_mask(),
                     outliers: 0,
                     bias_cov: bias_cov(self.sensitivity.as_ref(), a),
@@ -607,6 +674,7 @@ impl Estimator {
             nis: Some(nis),
             rejected_run: 0,
             confirmed: 0,
+            drop_streak: DropStreak::default(),
             heard: a.heard_mask(),
             outliers: up.dropped,
             bias_cov: Matrix2::zeros(),
@@ -684,6 +752,7 @@ impl Estimator {
             nis: None,
             rejected_run: 0,
             confirmed: 0,
+            drop_streak: DropStreak::default(),
             heard: a.heard_mask(),
             outliers: dropped,
             bias_cov: Matrix2::zeros(),
@@ -961,5 +1030,85 @@ mod tests {
             Estimator::new().estimate(0, &line, &diffs(&line, z), &noise(3)),
             Err(EstimatorError::NoEstimate(_))
         ));
+    }
+
+    #[test]
+    fn a_drop_streak_follows_one_uav_and_ends_when_it_is_kept() {
+        let s = DropStreak::default().after(0b111, 0b001);
+        assert_eq!(s, DropStreak { uavs: 0b001, run: 1 });
+        // Not heard: the streak waits; heard and kept: it ends; another UAV dropped: a new streak.
+        assert_eq!(s.after(0b110, 0), s);
+        assert_eq!(s.after(0b111, 0), DropStreak::default());
+        assert_eq!(s.after(0b111, 0b010), DropStreak { uavs: 0b010, run: 1 });
+        assert_eq!(s.after(0b111, 0b011), DropStreak { uavs: 0b001, run: 2 });
+    }
+
+    #[test]
+    fn a_confirmed_track_that_drops_the_same_uav_burst_after_burst_is_made_provisional_and_restarted() {
+        // A confirmed track 3 km off on the hyperbola of UAVs 1 and 2 through the truth (inside the
+        // triangle of the UAVs, where a burst sees 3 km clearly): every clean burst
+        // fails its gate, and dropping UAV0's (direct) arrival makes the other two fit the wrong track.
+        let z = Vector2::new(6000.0, 4000.0);
+        let uavs = nominal();
+        let rd12 = |w: Vector2<f64>| (w - uavs[1]).norm() - (w - uavs[2]).norm();
+        let config = EstimatorConfig::fused(Dynamics::fixed());
+        let track_at = |w: Vector2<f64>| {
+            let post = tdoa::Posterior::new(
+                EmitterModel::Static,
+                nalgebra::Vector4::new(w.x, w.y, 0.0, 0.0),
+                nalgebra::Matrix4::identity() * 100.0,
+            )
+            .unwrap();
+            Estimator::resume(config, 0, w, Matrix2::identity() * 100.0, Some(post)).with_confirmed(CONFIRM_BURSTS)
+        };
+        let d = diffs(&uavs, z);
+        // The points 3 km from the truth on that hyperbola (bisection of rd12 around the circle); the one
+        // whose first burst drops UAV0 is the wrong track of a corrupted first fix.
+        let on_circle = |t: f64| z + Vector2::new(t.cos(), t.sin()) * 3000.0;
+        let wrong = (0..360)
+            .filter_map(|k| {
+                let (mut lo, mut hi) = (k as f64 * 1f64.to_radians(), (k + 1) as f64 * 1f64.to_radians());
+                let f = |t| rd12(on_circle(t)) - rd12(z);
+                if f(lo) * f(hi) > 0.0 {
+                    return None;
+                }
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if f(lo) * f(mid) <= 0.0 { hi = mid } else { lo = mid }
+                }
+                Some(on_circle(lo))
+            })
+            .find(|&w| track_at(w).estimate(1, &uavs, &d, &noise(3)).is_ok_and(|o| o.outliers == 0b001))
+            .expect("a point of the hyperbola whose track drops UAV0");
+        let mut est = track_at(wrong);
+        for k in 1..DEMOTE_DROP_RUN {
+            let out = est.estimate(u64::from(k), &uavs, &d, &noise(3)).unwrap();
+            assert_eq!((out.status.clone(), out.outliers), (EstimateStatus::Ok, 0b001), "burst {k}");
+            assert_eq!((out.confirmed, out.drop_streak), (CONFIRM_BURSTS, DropStreak { uavs: 0b001, run: k }));
+            assert!((out.position - wrong).norm() < 50.0, "the wrong track holds: {:?}", out.position);
+        }
+        let demoted = est.estimate(u64::from(DEMOTE_DROP_RUN), &uavs, &d, &noise(3)).unwrap();
+        assert_eq!((demoted.confirmed, demoted.drop_streak), (0, DropStreak::default()));
+        // Provisional, it drops no arrival: rejected, then restarted from Chan of the clean burst.
+        let mut k = u64::from(DEMOTE_DROP_RUN);
+        for run in 1..REJECTED_RUN_RESTART {
+            k += 1;
+            let out = est.estimate(k, &uavs, &d, &noise(3)).unwrap();
+            assert!(matches!(out.status, EstimateStatus::Rejected { .. }), "{:?}", out.status);
+            assert_eq!(out.rejected_run, run);
+        }
+        let restart = est.estimate(k + 1, &uavs, &d, &noise(3)).unwrap();
+        let near = |p: Vector2<f64>| (p - z).norm() < 1e-3;
+        assert!(
+            near(restart.position) || restart.alternative.is_some_and(|(p, _)| near(p.position())),
+            "restarted at {:?} (alternative {:?}), truth {z:?}",
+            restart.position,
+            restart.alternative.map(|(p, _)| p.position())
+        );
+        // A resumed estimator carries the streak.
+        let resumed = track_at(wrong).with_drop_streak(DropStreak { uavs: 0b001, run: DEMOTE_DROP_RUN - 1 });
+        let mut resumed = resumed;
+        let out = resumed.estimate(1, &uavs, &d, &noise(3)).unwrap();
+        assert_eq!(out.confirmed, 0, "the streak's last drop demotes the resumed track");
     }
 }

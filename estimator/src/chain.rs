@@ -22,7 +22,7 @@ use runtime::recovery::StateStore;
 use tdoa::consider::BiasSensitivity;
 use tdoa::{Arrivals, Posterior};
 
-use estimation::{EmitterModel, EstimateStatus, Estimator, EstimatorConfig, PendingRoot};
+use estimation::{DropStreak, EmitterModel, EstimateStatus, Estimator, EstimatorConfig, PendingRoot};
 
 /// The wire form of the fused posterior beyond the position, with its bias sensitivity `sensitivity`
 /// and the pending second root `alternative`.
@@ -32,10 +32,18 @@ pub fn extra_of(
     alternative: Option<&PendingRoot>,
     rejected_run: u8,
     confirmed: u8,
+    drop: DropStreak,
 ) -> PosteriorExtra {
     let Some(p) = posterior else { return PosteriorExtra::default() };
-    let mut extra =
-        PosteriorExtra { estimator: 1, model: p.model().code(), rejected_run, confirmed, ..PosteriorExtra::default() };
+    let mut extra = PosteriorExtra {
+        estimator: 1,
+        model: p.model().code(),
+        rejected_run,
+        confirmed,
+        drop_uavs: drop.uavs,
+        drop_run: drop.run,
+        ..PosteriorExtra::default()
+    };
     if let Some(s) = sensitivity {
         extra.bias_sensitivity = s.rows();
     }
@@ -118,6 +126,7 @@ impl Chain {
                 let estimator = Estimator::resume(config, step, z, m, posterior)
                     .with_rejected_run(extra.rejected_run)
                     .with_confirmed(extra.confirmed)
+                    .with_drop_streak(DropStreak { uavs: extra.drop_uavs, run: extra.drop_run })
                     .with_sensitivity(sensitivity)
                     .with_alternative(pending_of(&extra));
                 Self { estimator, last_step: Some(step) }
@@ -305,6 +314,7 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply
                 estimator.alternative().as_ref(),
                 estimator.rejected_run(),
                 estimator.confirmed(),
+                estimator.drop_streak(),
             ),
             standing: estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c)),
             outliers: 0,
@@ -329,6 +339,7 @@ pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
         out.alternative.as_ref(),
         out.rejected_run,
         out.confirmed,
+        out.drop_streak,
     );
     let fix = match out.status {
         EstimateStatus::Ok => Fix::Ok { position, covariance },

@@ -11,8 +11,8 @@ MAX_UAVS = 8
 MIN_UAVS = 3
 
 MEASUREMENT_VERSION = 2
-COMMAND_VERSION = 4
-CONTROL_VERSION = 4
+COMMAND_VERSION = 7
+CONTROL_VERSION = 5
 
 # Event id of "a sample was published" on a topic's companion event service (protocol::transport::event_id).
 EVENT_SAMPLE = 1
@@ -133,7 +133,8 @@ class StateEcho(ctypes.Structure):
         ("rejected_run", ctypes.c_uint8),
         ("confirmed", ctypes.c_uint8),
         ("alternative", ctypes.c_uint8),
-        ("reserved", ctypes.c_uint8 * 2),
+        ("drop_uavs", ctypes.c_uint8),
+        ("drop_run", ctypes.c_uint8),
         ("position", ctypes.c_double * 2),
         ("covariance", (ctypes.c_double * 2) * 2),
         ("velocity", ctypes.c_double * 2),
@@ -167,7 +168,7 @@ class Command(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "uavloc::Command/v6"
+        return "uavloc::Command/v7"
 
 
 class SwarmState(ctypes.Structure):

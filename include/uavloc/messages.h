@@ -27,15 +27,15 @@ extern "C" {
 
 /* Layout versions (the header's `version` must equal the type's). */
 #define UAVLOC_MEASUREMENT_VERSION 2u
-#define UAVLOC_ESTIMATE_VERSION 7u
-#define UAVLOC_COMMAND_VERSION 6u
+#define UAVLOC_ESTIMATE_VERSION 8u
+#define UAVLOC_COMMAND_VERSION 7u
 #define UAVLOC_TRUTH_VERSION 3u
 #define UAVLOC_SWARM_VERSION 1u
 #define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v2"
-#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v7"
-#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v6"
+#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v8"
+#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v7"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v3"
 #define UAVLOC_TYPE_NAME_SWARM "uavloc::SwarmState/v1"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
@@ -109,7 +109,9 @@ typedef struct uavloc_estimate {
     uint8_t outliers;                 /* bit i: UAV i's arrival dropped as an outlier */
     uint8_t confirmed;                /* fused: bursts fused whole since the track started (saturating) */
     uint8_t alternative;              /* fused: 1 when Chan's other root is pending (alt_* below) */
-    uint8_t reserved[4];
+    uint8_t drop_uavs;                /* fused: UAVs dropped burst after burst (bit i: UAV i; v8) */
+    uint8_t drop_run;                 /* fused: how many bursts in a row dropped them (v8) */
+    uint8_t reserved[2];
     double position[2];               /* m; failed: the standing estimate, or NaN */
     double covariance[2][2];          /* m^2, row-major */
     double uavs[UAVLOC_MAX_UAVS][2];  /* m */
@@ -144,7 +146,8 @@ typedef struct uavloc_state_echo {
     uint8_t rejected_run;
     uint8_t confirmed;                  /* as uavloc_estimate (0: a provisional track) */
     uint8_t alternative;                /* as uavloc_estimate */
-    uint8_t reserved[2];                /* 0 */
+    uint8_t drop_uavs;                  /* as uavloc_estimate (v7 command) */
+    uint8_t drop_run;                   /* as uavloc_estimate (v7 command) */
     double position[2];                 /* m */
     double covariance[2][2];            /* m^2 */
     double velocity[2];                 /* m/s */
@@ -170,7 +173,7 @@ typedef struct uavloc_command {
     double waypoints[UAVLOC_MAX_UAVS][2]; /* where they lead after one interval, m */
     uavloc_name16 solver;               /* e.g. "pso" */
     uavloc_name16 objective_name;       /* e.g. "analytical" */
-    uavloc_state_echo state;            /* the estimator's state it was planned from (v4; v5 bias_sensitivity; v6 alt_*) */
+    uavloc_state_echo state;            /* the estimator's state it was planned from (v4; v5 bias_sensitivity; v6 alt_*; v7 drop_*) */
 } uavloc_command;
 
 /* uavloc_truth.previous_command */

@@ -831,6 +831,8 @@ mod tests {
             model: 1,
             rejected_run: 2,
             confirmed: 3,
+            drop_uavs: 0b100,
+            drop_run: 2,
             velocity: [1.0, -2.0],
             cross_cov: [[0.1, 0.2], [0.3, 0.4]],
             velocity_cov: [[5.0, 0.5], [0.5, 6.0]],

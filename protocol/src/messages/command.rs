@@ -25,7 +25,7 @@ pub struct PlanInfo<'a> {
 
 /// planner → emitter-sim, monitor: the headings to fly for the next step.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Command/v6")]
+#[type_name("uavloc::Command/v7")]
 #[repr(C)]
 pub struct Command {
     /// Common header (step of the estimate it was planned from).
@@ -60,7 +60,7 @@ pub struct Command {
     pub state: StateEcho,
 }
 
-impl_message!(Command, MessageKind::Command, 6, "uavloc::Command/v6");
+impl_message!(Command, MessageKind::Command, 7, "uavloc::Command/v7");
 
 impl_per_uav!(Command {
     /// Headings in use.
@@ -75,7 +75,7 @@ impl_per_uav!(Command {
 /// continues the chain at step `step + 1` exactly as the one that made the estimate would have
 /// (`uavloc-estimator`), so no estimator keeps its answers or needs a checkpoint to answer a replay.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::StateEcho/v3")]
+#[type_name("uavloc::StateEcho/v4")]
 #[repr(C)]
 pub struct StateEcho {
     /// The step of the estimate.
@@ -94,8 +94,10 @@ pub struct StateEcho {
     pub confirmed: u8,
     /// As [`Estimate::alternative`] (v3).
     pub alternative: u8,
-    /// Explicit padding; 0 when sent.
-    pub reserved: [u8; 2],
+    /// As [`Estimate::drop_uavs`] (v4).
+    pub drop_uavs: u8,
+    /// As [`Estimate::drop_run`] (v4).
+    pub drop_run: u8,
     /// The estimate, metres.
     pub position: [f64; 2],
     /// Its covariance, m², row-major.

@@ -102,6 +102,12 @@ pub struct PosteriorExtra {
     /// Bursts fused whole since the track started (saturating; a provisional track drops no outlier).
     #[serde(default)]
     pub confirmed: u8,
+    /// The UAVs the track has dropped burst after burst (bit i: UAV i).
+    #[serde(default)]
+    pub drop_uavs: u8,
+    /// How many bursts in a row dropped them.
+    #[serde(default)]
+    pub drop_run: u8,
     /// Velocity estimate, m/s.
     pub velocity: [f64; 2],
     /// Position–velocity cross-covariance (rows: x, y; columns: vx, vy), m²/s.
@@ -128,7 +134,7 @@ pub struct PosteriorExtra {
 }
 
 /// The fused posterior's fields beyond the position, as every message that carries an estimator state
-/// lays them out (`estimator`, `model`, `rejected_run`, `confirmed`, `velocity`, `cross_cov`,
+/// lays them out (`estimator`, `model`, `rejected_run`, `confirmed`, `drop_uavs`, `drop_run`, `velocity`, `cross_cov`,
 /// `velocity_cov`, `bias_sensitivity`, the pending root's `alternative`, `alt_mean`, `alt_cov`,
 /// `alt_bias_sensitivity`): one
 /// mapping to and from [`PosteriorExtra`] for [`Estimate`] and [`StateEcho`].
@@ -142,6 +148,8 @@ macro_rules! impl_posterior_fields {
                     model: self.model,
                     rejected_run: self.rejected_run,
                     confirmed: self.confirmed,
+                    drop_uavs: self.drop_uavs,
+                    drop_run: self.drop_run,
                     velocity: self.velocity,
                     cross_cov: self.cross_cov,
                     velocity_cov: self.velocity_cov,
@@ -159,6 +167,8 @@ macro_rules! impl_posterior_fields {
                 self.model = extra.model;
                 self.rejected_run = extra.rejected_run;
                 self.confirmed = extra.confirmed;
+                self.drop_uavs = extra.drop_uavs;
+                self.drop_run = extra.drop_run;
                 self.velocity = extra.velocity;
                 self.cross_cov = extra.cross_cov;
                 self.velocity_cov = extra.velocity_cov;
@@ -177,7 +187,7 @@ impl_posterior_fields!(StateEcho);
 
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v7")]
+#[type_name("uavloc::Estimate/v8")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -205,8 +215,14 @@ pub struct Estimate {
     /// Fused: 1 when the posterior of Chan's other root is pending after an ambiguous fix (v7; see
     /// `alt_mean`).
     pub alternative: u8,
+    /// Fused: the UAVs whose arrival the track has dropped from every burst that heard them, `drop_run`
+    /// bursts in a row (bit i: UAV i; v8): the same UAV dropped burst after burst makes a confirmed
+    /// track provisional again (see `uavloc-estimation`).
+    pub drop_uavs: u8,
+    /// Fused: how many bursts in a row dropped `drop_uavs` (v8).
+    pub drop_run: u8,
     /// Explicit padding; 0 when sent.
-    pub reserved: [u8; 4],
+    pub reserved: [u8; 2],
     /// Estimated emitter position, metres. Failed: the *standing* estimate — the last usable one, which
     /// the estimator keeps and the next step is planned from — or NaN when there is none yet (v3; in v2 a
     /// failed estimate carried no position).
@@ -243,7 +259,7 @@ pub struct Estimate {
     pub alt_bias_sensitivity: [[f64; MAX_UAVS]; 4],
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 7, "uavloc::Estimate/v7");
+impl_message!(Estimate, MessageKind::Estimate, 8, "uavloc::Estimate/v8");
 
 impl_per_uav!(Estimate {
     /// UAV positions in use.
@@ -277,7 +293,9 @@ impl Estimate {
             outliers: 0,
             confirmed: 0,
             alternative: 0,
-            reserved: [0; 4],
+            drop_uavs: 0,
+            drop_run: 0,
+            reserved: [0; 2],
             position,
             covariance,
             uavs: [[0.0; 2]; MAX_UAVS],

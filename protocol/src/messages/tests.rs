@@ -33,11 +33,12 @@ fn layout_has_no_implicit_padding() {
     assert_eq!(offset_of!(Estimate, bias_cov) + 32, offset_of!(Estimate, bias_sensitivity));
     assert_eq!(offset_of!(Estimate, bias_sensitivity) + 4 * 8 * MAX_UAVS, offset_of!(Estimate, alt_mean));
     assert_eq!(offset_of!(Estimate, alt_bias_sensitivity) + 4 * 8 * MAX_UAVS, size_of::<Estimate>());
-    assert_eq!(offset_of!(Estimate, reserved) + 4, offset_of!(Estimate, position));
+    assert_eq!(offset_of!(Estimate, drop_run) + 1, offset_of!(Estimate, reserved));
+    assert_eq!(offset_of!(Estimate, reserved) + 2, offset_of!(Estimate, position));
     assert_eq!(offset_of!(Command, objective), 88 + 40);
     assert_eq!(offset_of!(Command, objective_name) + 16, offset_of!(Command, state));
     assert_eq!(offset_of!(Command, state) + size_of::<StateEcho>(), size_of::<Command>());
-    assert_eq!(offset_of!(StateEcho, reserved) + 2, offset_of!(StateEcho, position));
+    assert_eq!(offset_of!(StateEcho, drop_run) + 1, offset_of!(StateEcho, position));
     assert_eq!(offset_of!(StateEcho, velocity_cov) + 32, offset_of!(StateEcho, bias_sensitivity));
     assert_eq!(offset_of!(StateEcho, bias_sensitivity) + 4 * 8 * MAX_UAVS, offset_of!(StateEcho, alt_mean));
     assert_eq!(offset_of!(StateEcho, alt_bias_sensitivity) + 4 * 8 * MAX_UAVS, size_of::<StateEcho>());
