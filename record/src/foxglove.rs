@@ -85,13 +85,27 @@ pub struct FoxgloveMessage {
 pub struct FoxgloveView {
     frame: Option<LocalFrame>,
     l_min: f64,
-    /// The UAVs' positions by step, in step order (a step seen again is not drawn again, see `drawn`):
-    /// indexed, so that a thinned track and the newest segment cost no walk over the run.
+    /// The UAVs' positions by step, in step order (a step seen again is not drawn again, see
+    /// `drawn_estimate`): indexed, so that a thinned track and the newest segment cost no walk over the
+    /// run.
     tracks: Vec<(u64, Vec<[f64; 2]>)>,
     truth: Option<[f64; 2]>,
-    /// The newest step drawn from the truth and from the estimates: a copy of a step already drawn (a
-    /// retry, a replay after a crash — recorded again as it went over the wire) draws nothing again.
-    drawn: [Option<u64>; 2],
+    /// The newest step drawn from the truth: a copy of a step already drawn (a retry, a replay after a
+    /// crash — recorded again as it went over the wire) draws nothing again ([`first_drawing`]).
+    drawn_truth: Option<u64>,
+    /// The same for the estimates.
+    drawn_estimate: Option<u64>,
+}
+
+/// Whether `msg` is the first of its step to be drawn from its topic, whose newest step drawn is
+/// `newest` (then `newest` becomes its step); a message without a step is always drawn.
+fn first_drawing(newest: &mut Option<u64>, msg: &Value) -> bool {
+    let Some(step) = msg["step"].as_u64() else { return true };
+    if newest.is_some_and(|n| step <= n) {
+        return false;
+    }
+    *newest = Some(step);
+    true
 }
 
 const COLOURS: [[f64; 3]; 8] = [
@@ -165,7 +179,14 @@ fn entity(stamp: &Value, id: &str, spheres: Vec<Value>, lines: Vec<Value>) -> Va
 impl FoxgloveView {
     /// The view of a run of `scenario` (the map channels only when it has an origin).
     pub fn new(scenario: &Scenario) -> Self {
-        Self { frame: scenario.frame(), l_min: scenario.l_min, tracks: Vec::new(), truth: None, drawn: [None; 2] }
+        Self {
+            frame: scenario.frame(),
+            l_min: scenario.l_min,
+            tracks: Vec::new(),
+            truth: None,
+            drawn_truth: None,
+            drawn_estimate: None,
+        }
     }
 
     /// The Foxglove messages of one recorded uavloc message (its topic and JSON, see
@@ -174,26 +195,15 @@ impl FoxgloveView {
     /// does a step already drawn from the same topic.
     pub fn derive(&mut self, topic: &str, msg: &Value) -> Vec<FoxgloveMessage> {
         let ns = msg["stamps"]["published_ns"].as_u64().unwrap_or(0);
-        let source = match topic {
-            "/truth" => 0,
-            "/estimate" => 1,
-            _ => return Vec::new(),
-        };
-        if let Some(step) = msg["step"].as_u64() {
-            if self.drawn[source].is_some_and(|newest| step <= newest) {
-                return Vec::new();
-            }
-            self.drawn[source] = Some(step);
-        }
         match topic {
-            "/truth" => {
+            "/truth" if first_drawing(&mut self.drawn_truth, msg) => {
                 self.truth = pair(&msg["position"]);
                 let (Some(frame), Some(z)) = (&self.frame, self.truth) else { return Vec::new() };
                 location_fix(frame, z, None, None, ns, TRUTH_COLOUR)
                     .map(|json| vec![FoxgloveMessage { topic: TRUTH_TOPIC, schema: LOCATION_FIX, json }])
                     .unwrap_or_default()
             }
-            "/estimate" => self.of_estimate(msg, ns),
+            "/estimate" if first_drawing(&mut self.drawn_estimate, msg) => self.of_estimate(msg, ns),
             _ => Vec::new(),
         }
     }
@@ -211,10 +221,8 @@ impl FoxgloveView {
         if let Some(step) = msg["step"].as_u64()
             && !uavs.is_empty()
         {
-            match self.tracks.binary_search_by_key(&step, |(k, _)| *k) {
-                Ok(at) => self.tracks[at].1 = uavs.clone(),
-                Err(at) => self.tracks.insert(at, (step, uavs.clone())),
-            }
+            // Newer than every step drawn so far (`first_drawing`): the track stays in step order.
+            self.tracks.push((step, uavs.clone()));
         }
         let ellipse = estimate.zip(cov).and_then(|(z, m)| confidence_ellipse(z, m, ELLIPSE_PROBABILITY, RING_POINTS));
         let standoff = estimate.map(|z| circle(z, self.l_min, RING_POINTS));
