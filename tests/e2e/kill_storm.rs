@@ -201,14 +201,7 @@ fn check_running(launch: &mut Launch, tail: &LogTail, what: &str) {
         if let Some(mut out) = launch.child.stdout.take() {
             std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
         }
-        let deadline = Instant::now() + Duration::from_secs(60);
-        let status = loop {
-            match launch.child.try_wait() {
-                Ok(Some(status)) => break Some(status),
-                _ if Instant::now() > deadline => break None,
-                _ => std::thread::sleep(Duration::from_millis(50)),
-            }
-        };
+        let status = common::exit_within(&mut launch.child, Duration::from_secs(60));
         panic!(
             "the run ended (launch: {status:?}) while {what}; the log showed hellos {:?}, restarts {:?}, newest \
              sequence numbers {:?}, {} monitor resumes:\n{}",

@@ -271,17 +271,11 @@ impl Launch {
             let _ = stdout.read_to_end(&mut out);
             out
         });
-        let deadline = Instant::now() + FINISH_TIMEOUT;
-        let status = loop {
-            if let Some(status) = self.child.try_wait().expect("wait for the launch") {
-                break status;
-            }
-            if Instant::now() > deadline {
+        let status = match exit_within(&mut self.child, FINISH_TIMEOUT) {
+            Some(status) => status,
+            None => {
                 kill(self.child.id(), libc::SIGTERM);
-                let stopped = Instant::now() + Duration::from_secs(10);
-                while self.child.try_wait().expect("wait for the launch").is_none() && Instant::now() < stopped {
-                    std::thread::sleep(Duration::from_millis(20));
-                }
+                let _ = exit_within(&mut self.child, Duration::from_secs(10));
                 let _ = self.child.kill();
                 let _ = self.child.wait();
                 let log = std::fs::read_to_string(&self.log).unwrap_or_default();
@@ -292,7 +286,6 @@ impl Launch {
                     lines[lines.len().saturating_sub(40)..].join("\n")
                 );
             }
-            std::thread::sleep(Duration::from_millis(20));
         };
         let out = reader.join().unwrap_or_default();
         (status, String::from_utf8_lossy(&out).to_string(), self.stderr_text())
@@ -338,12 +331,19 @@ fn start_supervised(role: &str, d: &str, extra: &[&str], stderr: Stdio) -> Child
 
 /// Waits at most `timeout` for `child` to exit.
 pub fn wait_exit(child: &mut Child, timeout: Duration, what: &str) -> std::process::ExitStatus {
+    exit_within(child, timeout).unwrap_or_else(|| panic!("{what} did not exit within {timeout:?}"))
+}
+
+/// The exit status of `child` if it exits within `timeout`; `None` if it is still running then.
+pub fn exit_within(child: &mut Child, timeout: Duration) -> Option<std::process::ExitStatus> {
     let deadline = Instant::now() + timeout;
     loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            return status;
+        if let Some(status) = child.try_wait().expect("wait for a child") {
+            return Some(status);
         }
-        assert!(Instant::now() < deadline, "{what} did not exit within {timeout:?}");
+        if Instant::now() >= deadline {
+            return None;
+        }
         std::thread::sleep(Duration::from_millis(10));
     }
 }
