@@ -11,6 +11,7 @@
 //! - [`constraint`]: the four motion constraints by name and one active instance;
 //! - [`active_mask`]: the active constraints as the wire bitmask of a `protocol::Command`;
 //! - [`arc`]: the arc a UAV flies over one interval and certified minimum distances along it;
+//! - [`backup`]: a UAV's backup manoeuvre (a circle, or flying away from a moving emitter) and its minima;
 //! - [`safety`]: the safety certificate of a plan (spacing and standoff along the arcs, a backup for ever);
 //! - [`world`]: the simulated world of a run (the truth, its noisy TDOA, the UAVs flown).
 //!
@@ -18,6 +19,7 @@
 
 pub mod active_mask;
 pub mod arc;
+pub mod backup;
 pub mod constraint;
 pub mod geo;
 pub mod kinematics;

@@ -25,7 +25,12 @@
 //!    the bound `σ̄(Δt + H)`. The extra `k·σ_p` is room for the next estimate: an update moves ẑ by at
 //!    most `k·σ_p` along any direction with probability `c` (its covariance `M_k − M_{k+1}` is below
 //!    `M_k`), so the backup still holds from where the next step's estimate puts the emitter — for a moving emitter whose velocity is uncertain no orbit is safe for ever, so
-//!    the certificate there is for the horizon `H`, renewed every step.
+//!    the certificate there is for the horizon `H`, renewed every step. Where a moving emitter comes
+//!    at a UAV's circle, that UAV's backup may **fly away** instead ([`crate::backup`]: turn either way
+//!    to the heading that opens the distance in the emitter's frame, then straight), its standoff
+//!    bracketed along the whole path over the horizon and every pair's spacing bounded for all future
+//!    time. A plan certified only with a fly-away ranks below every plan the circles certify
+//!    (`reserve_deficit > 1`), and the circles' spacing stays the collision tier.
 //!
 //! **Why the certificate carries over (static emitter).** If step t's plan is certified, the step
 //! after it has at least one certified plan: the backup's first step itself (every UAV turns right by
@@ -44,6 +49,7 @@ use nalgebra::{Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 
 use crate::arc::{Arc, MIN_TOLERANCE_M, moving_point_min_distance, pair_min_distance_from};
+use crate::backup::{BackupPath, pair_min};
 use crate::kinematics::max_turn;
 
 /// Standard deviations of the relative position error two UAVs' spacing is certified beyond: `D_min`
@@ -295,7 +301,7 @@ pub fn certify(
     Certifier::new(positions, psi, *emitter, *limits).check(phi, exact)
 }
 
-/// What one UAV's heading φ_i alone decides: its arc, its standoff along it, its backup circle.
+/// What one UAV's heading φ_i alone decides: its arc, its standoff along it, its backup.
 #[derive(Debug, Clone, Copy)]
 struct UavPart {
     phi_bits: u64,
@@ -303,19 +309,29 @@ struct UavPart {
     end: Vector2<f64>,
     /// The standoff along the arc, checked against `B + reserve` (a lower bound), metres.
     standoff: f64,
-    centre: Vector2<f64>,
+    /// The backup circle from the arc's end.
+    circle: BackupPath,
+    /// Its distance to the predicted emitter over the backup's time, metres.
+    to_circle: f64,
+    /// The backup the standoff prefers: the circle, or flying away from a moving emitter.
+    path: BackupPath,
     /// sin(φ/2), cos(φ/2) of the wrapped φ.
     half: (f64, f64),
-    /// Distance of the backup circle to the predicted emitter over the backup's time, metres.
-    to_circle: f64,
+    /// Distance of the preferred backup to the predicted emitter over the backup's time, metres.
+    to_backup: f64,
 }
 
 /// What a pair's two headings decide: their spacing along the arcs and on the backup circles.
 #[derive(Debug, Clone, Copy)]
 struct PairPart {
     bits: (u64, u64),
+    /// Computed for a report (no threshold).
+    exact: bool,
     along: f64,
+    /// The backup circles' minimum, for ever (closed form), metres.
     backup: f64,
+    /// The preferred backups' minimum (the circles' when neither flies away), metres.
+    preferred: f64,
 }
 
 /// [`certify`] for many plans of one planning step: the parts of a plan that depend on one UAV's
@@ -394,27 +410,74 @@ impl<'a> Certifier<'a> {
         } else {
             f64::INFINITY
         };
-        let radius = limits.backup_radius();
-        let (sin, cos) = phi.sin_cos();
-        let centre = end + Vector2::new(sin, -cos) * radius;
+        let cos = phi.cos();
         // sin(φ/2), cos(φ/2) from the full angle's (half-angle formulas): φ/2 for the wrapped φ ∈ (−π, π]
         // lies in (−π/2, π/2], so the cosine is ≥ 0 and the sine has φ's sign.
         let hc = (0.5 * (1.0 + cos)).max(0.0).sqrt();
         let hs = (0.5 * (1.0 - cos)).max(0.0).sqrt();
         let half = (if crate::kinematics::wrap_angle(phi) < 0.0 { -hs } else { hs }, hc);
-        let (t0, t1) = self.backup_window();
-        let (dmin, dmax) = segment_distance_range(centre, e.at(t0), e.at(t1));
-        let to_circle =
-            if (dmin..=dmax).contains(&radius) { 0.0 } else { (dmin - radius).abs().min((dmax - radius).abs()) };
-        let part = UavPart { phi_bits: phi.to_bits(), arc, end, standoff, centre, half, to_circle };
+        let ((circle, to_circle), (path, to_backup)) = self.backup_from(end, phi, self.backup_window().0);
+        let part = UavPart { phi_bits: phi.to_bits(), arc, end, standoff, circle, to_circle, path, half, to_backup };
         self.uavs[i] = Some(part);
         part
     }
 
-    fn pair(&mut self, i: usize, j: usize, a: &UavPart, b: &UavPart) -> PairPart {
+    /// The backup circle of a UAV at `end` with heading `phi`, `t0` seconds after the plan's start, and
+    /// the backup its standoff prefers, each with its distance to the predicted emitter over the
+    /// backup's window: the circle, unless the emitter moves and the circle does not keep the standoff
+    /// with its reserve while flying away (either sense) keeps more.
+    fn backup_from(&self, end: Vector2<f64>, phi: f64, t0: f64) -> ((BackupPath, f64), (BackupPath, f64)) {
+        let (limits, e) = (self.limits, self.emitter);
+        let (radius, speed) = (limits.backup_radius(), limits.arc_len / limits.dt);
+        let circle = BackupPath::circle(end, phi, radius, speed);
+        if limits.l_min <= 0.0 {
+            return ((circle, f64::INFINITY), (circle, f64::INFINITY));
+        }
+        let t1 = self.backup_window().1.max(t0);
+        let to_circle = circle.standoff_min(e.at(t0), e.velocity, t1 - t0, f64::INFINITY);
+        let kept = self.backup_bound() + MIN_TOLERANCE_M + self.reserve();
+        if e.is_static() || to_circle >= kept {
+            return ((circle, to_circle), (circle, to_circle));
+        }
+        let mut best = (circle, to_circle);
+        for sense in [-1.0, 1.0] {
+            let away = BackupPath::fly_away(end, phi, radius, speed, sense, e.at(t0), e.velocity);
+            let to_away = away.standoff_min(e.at(t0), e.velocity, t1 - t0, kept);
+            if to_away > best.1 {
+                best = (away, to_away);
+            }
+        }
+        ((circle, to_circle), best)
+    }
+
+    /// Every UAV's backup from the end of the plan `phi` (what the certificate of `phi` relies on).
+    pub fn backups(&mut self, phi: &[f64]) -> Vec<BackupPath> {
+        let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
+        let preferred = self.check_choosing(phi, false).1;
+        (0..n).map(|i| if preferred { self.uav(i, phi[i]).path } else { self.uav(i, phi[i]).circle }).collect()
+    }
+
+    /// The first step of every UAV's backup from where the UAVs are now (the backup of the plan that
+    /// brought them here, as far as the estimate still agrees): a right turn of `θ_b` on the circle, or
+    /// a turn in the fly-away's sense towards its exit heading, as far as it reaches in one step.
+    pub fn backup_plan(&self) -> Vec<f64> {
+        let n = self.positions.len().min(self.psi.len()).min(tdoa::MAX_UAVS);
+        let theta_b = self.limits.backup_turn();
+        (0..n)
+            .map(|i| {
+                let psi = self.psi[i];
+                let (_, (path, _)) = self.backup_from(self.positions[i], psi, 0.0);
+                let turn = path.exit.map_or(theta_b, |x| theta_b.min(x.time * path.omega()));
+                psi + path.sense * turn
+            })
+            .collect()
+    }
+
+    fn pair(&mut self, i: usize, j: usize, a: &UavPart, b: &UavPart, exact: bool) -> PairPart {
         let bits = (a.phi_bits, b.phi_bits);
         if let Some(p) = self.pairs[pair_index(i, j)]
             && p.bits == bits
+            && p.exact == exact
         {
             return p;
         }
@@ -426,14 +489,54 @@ impl<'a> Certifier<'a> {
         // only flips its sign, and |·| is taken).
         let sin_half = a.half.0 * b.half.1 - a.half.1 * b.half.0;
         let chord = 2.0 * self.limits.backup_radius() * sin_half.abs();
-        let backup = ((a.centre - b.centre).norm() - chord).abs();
-        let part = PairPart { bits, along, backup };
+        let backup = ((a.circle.centre - b.circle.centre).norm() - chord).abs();
+        let preferred = if a.path.exit.is_none() && b.path.exit.is_none() {
+            backup
+        } else {
+            let kept = d + MIN_TOLERANCE_M + self.limits.position_margin_m;
+            pair_min(&a.path, &b.path, if exact { f64::INFINITY } else { kept })
+        };
+        let part = PairPart { bits, exact, along, backup, preferred };
         self.pairs[pair_index(i, j)] = Some(part);
         part
     }
 
-    /// The certificate of the plan `phi` (see [`certify`]).
+    /// The certificate of the plan `phi` (see [`certify`]): with the backup circles of all UAVs, or,
+    /// where they do not keep the standoff of a moving emitter, with every UAV's preferred backup (some
+    /// flying away), whichever ranks better. Either way the collision tier is the circles': their
+    /// spacing does not depend on the emitter and holds by induction from a safe start (the circles'
+    /// first step is always a candidate), so a fly-away never costs it, and a plan certified with
+    /// fly-aways keeps the circles' spacing too.
     pub fn check(&mut self, phi: &[f64], exact: bool) -> SafetyReport {
+        self.check_choosing(phi, exact).0
+    }
+
+    /// [`Self::check`], and whether the report is the preferred backups' (not all circles').
+    fn check_choosing(&mut self, phi: &[f64], exact: bool) -> (SafetyReport, bool) {
+        let circles = self.check_with(phi, exact, false);
+        let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
+        if circles.certified || (0..n).all(|i| self.uav(i, phi[i]).path.exit.is_none()) {
+            return (circles, false);
+        }
+        let mut preferred = self.check_with(phi, exact, true);
+        preferred.collision_deficit = circles.collision_deficit;
+        preferred.certified &= circles.collision_deficit <= 0.0;
+        let rank = |r: &SafetyReport| {
+            [r.collision_deficit, r.step_deficit, r.deficit(), r.total_deficit, r.reserve_deficit]
+                .map(|x| if x.is_nan() { f64::INFINITY } else { x })
+        };
+        if preferred.certified || rank(&preferred).partial_cmp(&rank(&circles)) == Some(std::cmp::Ordering::Less) {
+            // A certificate that needs a fly-away holds over the horizon only, and only while the
+            // velocity estimate does: it ranks below every plan the circles certify, and nearer to
+            // theirs first, so that the swarm goes back to circles it can keep for ever.
+            preferred.reserve_deficit = preferred.reserve_deficit.max(1.0 + circles.deficit().min(1.0));
+            (preferred, true)
+        } else {
+            (circles, false)
+        }
+    }
+
+    fn check_with(&mut self, phi: &[f64], exact: bool, preferred: bool) -> SafetyReport {
         let limits = self.limits;
         let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
         let mut parts = [None::<UavPart>; tdoa::MAX_UAVS];
@@ -476,7 +579,7 @@ impl<'a> Certifier<'a> {
         if limits.d_min > 0.0 {
             for i in 0..n {
                 for j in i + 1..n {
-                    self.pair(i, j, &part(i), &part(j));
+                    self.pair(i, j, &part(i), &part(j), exact);
                 }
             }
         }
@@ -524,7 +627,7 @@ impl<'a> Certifier<'a> {
             let need = limits.d_min + delta;
             for i in 0..n {
                 for j in i + 1..n {
-                    let m = pair(i, j).backup;
+                    let m = if preferred { pair(i, j).preferred } else { pair(i, j).backup };
                     backup_pair = Some(backup_pair.map_or(m, |p| p.min(m)));
                     let hard = hard_d + delta;
                     note(SafetyLimit::BackupSpacing, i, Some(j), (need - m) / need, (hard - m) / hard);
@@ -542,7 +645,7 @@ impl<'a> Certifier<'a> {
         if limits.l_min > 0.0 {
             let need = self.backup_bound();
             for i in 0..n {
-                let to_circle = part(i).to_circle;
+                let to_circle = if preferred { part(i).to_backup } else { part(i).to_circle };
                 let margin = to_circle - need;
                 backup_standoff = Some(backup_standoff.map_or(margin, |s| s.min(margin)));
                 note(SafetyLimit::BackupStandoff, i, None, (need + delta - to_circle) / (need + delta), 0.0);
@@ -564,16 +667,6 @@ impl<'a> Certifier<'a> {
             tightest,
         }
     }
-}
-
-/// The smallest and largest distance from `c` to the segment `[q0, q1]`, metres.
-fn segment_distance_range(c: Vector2<f64>, q0: Vector2<f64>, q1: Vector2<f64>) -> (f64, f64) {
-    let d = q1 - q0;
-    let len2 = d.norm_squared();
-    let t = if len2 > 0.0 { ((c - q0).dot(&d) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    let dmin = (q0 + d * t - c).norm();
-    let dmax = (q0 - c).norm().max((q1 - c).norm());
-    (dmin, dmax)
 }
 
 #[cfg(test)]
@@ -654,22 +747,58 @@ mod tests {
     }
 
     #[test]
-    fn a_moving_emitter_is_kept_over_the_horizon() {
+    fn a_moving_emitter_is_kept_over_the_horizon_by_the_backup_flown() {
+        // Three UAVs around an emitter moving at up to 10 m/s: the backups the certificate relies on (a
+        // circle, or flying away), flown over the horizon, keep the reported standoff and pair minima.
         let mut r = Lcg(23);
         let lim = SafetyLimits { standoff_k: 0.0, ..limits() };
-        let steps = (lim.horizon_s / lim.dt) as usize;
-        for case in 0..100 {
-            let p = vec![Vector2::new(r.next() * 8000.0, r.next() * 8000.0)];
-            let psi = vec![(r.next() - 0.5) * 2.0 * PI];
-            let v = Vector2::new((r.next() - 0.5) * 20.0, (r.next() - 0.5) * 20.0);
-            let e =
-                EmitterPrediction::moving(Vector2::new(4000.0, 4000.0), &Matrix2::zeros(), v, &Matrix2::zeros(), 0.0);
+        let mut flying_away = 0;
+        for case in 0..300 {
+            let z = Vector2::new(4000.0, 4000.0);
+            let p: Vec<_> = (0..3)
+                .map(|_| z + Vector2::new(r.next() - 0.5, r.next() - 0.5).normalize() * (3500.0 + r.next() * 4000.0))
+                .collect();
+            let psi: Vec<_> = (0..3).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+            let v = Vector2::new(r.next() - 0.5, r.next() - 0.5) * 20.0;
+            let e = EmitterPrediction::moving(z, &Matrix2::zeros(), v, &Matrix2::zeros(), 0.0);
             let rep = certify(&p, &psi, &psi, &e, &lim, true);
-            let end = Arc::new(p[0], psi[0], psi[0], lim.arc_len).end();
-            let (_, standoff) = fly_backup(&[end], &psi, &lim, &e, steps);
+            let backups = Certifier::new(&p, &psi, e, lim).backups(&psi);
+            flying_away += backups.iter().filter(|b| b.exit.is_some()).count();
+            let (mut standoff, mut pair) = (f64::INFINITY, f64::INFINITY);
+            for k in 0..=60_000 {
+                let t = lim.horizon_s * k as f64 / 60_000.0;
+                for (i, b) in backups.iter().enumerate() {
+                    standoff = standoff.min((b.at(t) - e.at(lim.dt + t)).norm());
+                    for c in &backups[i + 1..] {
+                        pair = pair.min((b.at(t) - c.at(t)).norm());
+                    }
+                }
+            }
             let bs = rep.backup_standoff_margin_m.unwrap() + lim.l_min;
-            assert!(bs <= standoff + 1e-6, "case {case}: bound {bs} above the flown {standoff}");
+            assert!(bs <= standoff + 0.01, "case {case}: bound {bs} above the flown {standoff}");
+            let bp = rep.backup_pair_m.unwrap();
+            assert!(bp <= pair + 0.01, "case {case}: pair bound {bp} above the flown {pair}");
         }
+        assert!(flying_away >= 100, "only {flying_away} of 900 backups fly away");
+    }
+
+    #[test]
+    fn flying_away_certifies_a_uav_that_an_approaching_emitter_takes_its_circle_from() {
+        // A UAV on the ring, circling clockwise, with the emitter coming at it at 10 m/s: over the
+        // horizon the emitter crosses the circle, so the circle alone is not a backup; flying away is.
+        let lim = SafetyLimits { horizon_s: 600.0, ..limits() };
+        let z = Vector2::new(0.0, 0.0);
+        let p = [Vector2::new(0.0, 4500.0)];
+        let psi = [0.0];
+        let e = EmitterPrediction::moving(z, &Matrix2::zeros(), Vector2::new(0.0, 10.0), &Matrix2::zeros(), 0.0);
+        let rep = certify(&p, &psi, &psi, &e, &lim, true);
+        assert!(rep.certified, "{rep:?}");
+        let backup = Certifier::new(&p, &psi, e, lim).backups(&psi)[0];
+        let exit = backup.exit.expect("flies away");
+        assert!(exit.heading.sin() > 0.9, "flies away from the emitter, north: {}", exit.heading);
+        let circle = BackupPath::circle(backup.at(0.0), psi[0], lim.backup_radius(), lim.arc_len / lim.dt);
+        let to_circle = circle.standoff_min(e.at(lim.dt), e.velocity, lim.horizon_s, f64::INFINITY);
+        assert!(to_circle < lim.l_min, "the circle alone would not do: {to_circle}");
     }
 
     #[test]
@@ -722,6 +851,51 @@ mod tests {
             assert!(again.certified, "{again:?}");
         }
         assert!(certified > 100, "only {certified} certified states");
+    }
+
+    #[test]
+    fn a_certified_plan_against_a_moving_emitter_leaves_a_certified_backup_step() {
+        // Random states around an emitter moving at up to 0.3 v: when a plan is certified, from its end
+        // (the prediction advanced by Δt) the backup's first step — the circles', or the fly-aways' — is
+        // certified again in at least 97 % of the states.
+        let mut r = Lcg(43);
+        let lim = limits();
+        let (mut certified, mut again, mut by_fly_away) = (0, 0, 0);
+        for _ in 0..6_000 {
+            let n = 2 + (r.next() * 5.0) as usize;
+            let v = Vector2::new(r.next() - 0.5, r.next() - 0.5) * 30.0;
+            let (cov, vcov) = (Matrix2::new(4e4, 1e4, 1e4, 9e4), Matrix2::identity() * 0.25);
+            let e = EmitterPrediction::moving(Vector2::zeros(), &cov, v, &vcov, 0.0);
+            let p: Vec<_> = (0..n)
+                .map(|_| {
+                    let a = r.next() * 2.0 * PI;
+                    Vector2::new(a.cos(), a.sin()) * (3500.0 + r.next() * 5000.0)
+                })
+                .collect();
+            let psi: Vec<_> = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+            let phi: Vec<_> = psi.iter().map(|h| h + (r.next() - 0.5) * 0.9).collect();
+            let mut certifier = Certifier::new(&p, &psi, e, lim);
+            if !certifier.check(&phi, false).certified {
+                continue;
+            }
+            certified += 1;
+            by_fly_away += usize::from(certifier.backups(&phi).iter().any(|b| b.exit.is_some()));
+            let ends: Vec<_> = (0..n).map(|i| Arc::new(p[i], psi[i], phi[i], lim.arc_len).end()).collect();
+            let next = EmitterPrediction { position: e.at(lim.dt), ..e };
+            let c = Certifier::new(&ends, &phi, next, lim);
+            let (fly, circles) = (c.backup_plan(), lim.backup_headings(&phi));
+            if certify(&ends, &phi, &fly, &next, &lim, false).certified
+                || certify(&ends, &phi, &circles, &next, &lim, false).certified
+            {
+                again += 1;
+            }
+        }
+        eprintln!("{again} of {certified} certified ({by_fly_away} by a fly-away)");
+        assert!(certified > 300 && by_fly_away > 30, "{certified} certified, {by_fly_away} by a fly-away");
+        // Not every time: a fly-away's continuation is recomputed from the new end (its exit heading
+        // from the emitter as now predicted), and its turn may bring two UAVs' backup circles — the
+        // spacing kept by induction — too close (1 435 of 1 455 here).
+        assert!(again * 100 >= certified * 97, "{again} of {certified}");
     }
 
     #[test]

@@ -282,8 +282,15 @@ impl<'a> Shield<'a> {
         false
     }
 
-    /// The backup step from the current state: every UAV turns right by `θ_b`.
+    /// The backup step from the current state: every UAV turns right by `θ_b` on its backup circle, or
+    /// towards the exit heading of its fly-away from a moving emitter (`Certifier::backup_plan`).
     pub fn backup(&self) -> Vec<f64> {
+        self.certifier.borrow().backup_plan()
+    }
+
+    /// The backup circles' step from the current state: every UAV turns right by `θ_b` (the spacing of
+    /// the circles holds by induction, whatever the emitter does).
+    pub fn circle_backup(&self) -> Vec<f64> {
         self.limits.backup_headings(self.headings)
     }
 }

@@ -329,12 +329,13 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             cone_then_reach(req, &constraints, &mut safe)?
         };
         let SolverResult { best: mut chosen, mut fitness, iterations, evaluations } = found;
-        // The backup step: certified whenever the previous plan was (see `crate::shield`).
-        let backup = shield.backup();
-        let fit_backup = safe(&backup);
-        if fit_backup < fitness {
-            chosen = backup;
-            fitness = fit_backup;
+        // The backup steps: certified whenever the previous plan was (see `crate::shield`).
+        for backup in [shield.backup(), shield.circle_backup()] {
+            let fit_backup = safe(&backup);
+            if fit_backup < fitness {
+                chosen = backup;
+                fitness = fit_backup;
+            }
         }
         let next = waypoints_of(pos, psi, &chosen, sc);
         let waypoints = next[..n].to_vec();
