@@ -136,18 +136,25 @@ impl BackupPath {
         }
     }
 
+    /// The distance of the circle to the segment `[from, to]` an emitter covers, metres (closed form;
+    /// whatever the timing).
+    #[inline]
+    pub fn circle_standoff_min(&self, from: Vector2<f64>, to: Vector2<f64>) -> f64 {
+        let (dmin, dmax) = segment_distance_range(self.centre, from, to);
+        if (dmin..=dmax).contains(&self.radius) {
+            0.0
+        } else {
+            (dmin - self.radius).abs().min((dmax - self.radius).abs())
+        }
+    }
+
     /// The smallest distance (a certified lower bound, metres) over backup times `t ∈ [0, horizon]` to an
     /// emitter at `emitter` at `t = 0` moving at `velocity`; only certified to be at least `threshold`
     /// when it is (pass `f64::INFINITY` for the bracket).
     pub fn standoff_min(&self, emitter: Vector2<f64>, velocity: Vector2<f64>, horizon: f64, threshold: f64) -> f64 {
         let z = |t: f64| emitter + velocity * t;
         let Some(exit) = self.exit else {
-            let (dmin, dmax) = segment_distance_range(self.centre, z(0.0), z(horizon));
-            return if (dmin..=dmax).contains(&self.radius) {
-                0.0
-            } else {
-                (dmin - self.radius).abs().min((dmax - self.radius).abs())
-            };
+            return self.circle_standoff_min(emitter, z(horizon));
         };
         let omega = self.omega();
         let turn_end = exit.time.min(horizon);

@@ -309,12 +309,13 @@ struct UavPart {
     end: Vector2<f64>,
     /// The standoff along the arc, checked against `B + reserve` (a lower bound), metres.
     standoff: f64,
-    /// The backup circle from the arc's end.
-    circle: BackupPath,
+    /// Centre of the backup circle from the arc's end, metres.
+    centre: Vector2<f64>,
     /// Its distance to the predicted emitter over the backup's time, metres.
     to_circle: f64,
-    /// The backup the standoff prefers: the circle, or flying away from a moving emitter.
-    path: BackupPath,
+    /// The backup the standoff prefers flies away from a moving emitter (kept in the certifier's
+    /// `aways`); otherwise it is the circle.
+    flies: bool,
     /// sin(φ/2), cos(φ/2) of the wrapped φ.
     half: (f64, f64),
     /// Distance of the preferred backup to the predicted emitter over the backup's time, metres.
@@ -344,6 +345,8 @@ pub struct Certifier<'a> {
     emitter: EmitterPrediction,
     limits: SafetyLimits,
     uavs: [Option<UavPart>; tdoa::MAX_UAVS],
+    /// The fly-away of UAV i at the heading its `uavs` entry holds, when its standoff prefers one.
+    aways: [Option<BackupPath>; tdoa::MAX_UAVS],
     /// Pair (i, j), i < j, at `j·(j − 1)/2 + i` (empty for one UAV).
     pairs: Vec<Option<PairPart>>,
 }
@@ -363,7 +366,7 @@ impl<'a> Certifier<'a> {
     ) -> Self {
         let n = positions.len().min(tdoa::MAX_UAVS);
         let pairs = if n >= 2 { vec![None; n * (n - 1) / 2] } else { Vec::new() };
-        Self { positions, psi, emitter, limits, uavs: [None; tdoa::MAX_UAVS], pairs }
+        Self { positions, psi, emitter, limits, uavs: [None; tdoa::MAX_UAVS], aways: [None; tdoa::MAX_UAVS], pairs }
     }
 
     /// The standoff bound along the step's arcs `B = L_min + k·σ̄(Δt)`, metres.
@@ -396,6 +399,7 @@ impl<'a> Certifier<'a> {
         self.limits.l_min + self.limits.standoff_k * (self.emitter.sigma_bound(t1) + self.emitter.sigma_position)
     }
 
+    #[inline]
     fn uav(&mut self, i: usize, phi: f64) -> UavPart {
         if let Some(u) = self.uavs[i]
             && u.phi_bits == phi.to_bits()
@@ -410,41 +414,65 @@ impl<'a> Certifier<'a> {
         } else {
             f64::INFINITY
         };
-        let cos = phi.cos();
+        let (sin, cos) = phi.sin_cos();
         // sin(φ/2), cos(φ/2) from the full angle's (half-angle formulas): φ/2 for the wrapped φ ∈ (−π, π]
         // lies in (−π/2, π/2], so the cosine is ≥ 0 and the sine has φ's sign.
         let hc = (0.5 * (1.0 + cos)).max(0.0).sqrt();
         let hs = (0.5 * (1.0 - cos)).max(0.0).sqrt();
         let half = (if crate::kinematics::wrap_angle(phi) < 0.0 { -hs } else { hs }, hc);
-        let ((circle, to_circle), (path, to_backup)) = self.backup_from(end, phi, self.backup_window().0);
-        let part = UavPart { phi_bits: phi.to_bits(), arc, end, standoff, circle, to_circle, path, half, to_backup };
+        let (radius, speed) = (limits.backup_radius(), limits.arc_len / limits.dt);
+        let circle = BackupPath {
+            centre: end + Vector2::new(sin, -cos) * radius,
+            radius,
+            speed,
+            heading: phi,
+            sense: -1.0,
+            exit: None,
+        };
+        let ((circle, to_circle), away) = self.backup_from(circle, self.backup_window().0);
+        let (flies, to_backup) = away.map_or((false, to_circle), |(_, d)| (true, d));
+        self.aways[i] = away.map(|(path, _)| path);
+        let part = UavPart {
+            phi_bits: phi.to_bits(),
+            arc,
+            end,
+            standoff,
+            centre: circle.centre,
+            to_circle,
+            flies,
+            half,
+            to_backup,
+        };
         self.uavs[i] = Some(part);
         part
     }
 
     /// The backup circle of a UAV at `end` with heading `phi`, `t0` seconds after the plan's start, and
-    /// the backup its standoff prefers, each with its distance to the predicted emitter over the
-    /// backup's window: the circle, unless the emitter moves and the circle does not keep the standoff
-    /// with its reserve while flying away (either sense) keeps more.
-    fn backup_from(&self, end: Vector2<f64>, phi: f64, t0: f64) -> ((BackupPath, f64), (BackupPath, f64)) {
+    /// the fly-away its standoff prefers, each with its distance to the predicted emitter over the
+    /// backup's window: none, unless the emitter moves and the circle does not keep the standoff with its
+    /// reserve while flying away (either sense) keeps more.
+    #[inline]
+    fn backup_from(&self, circle: BackupPath, t0: f64) -> ((BackupPath, f64), Option<(BackupPath, f64)>) {
         let (limits, e) = (self.limits, self.emitter);
-        let (radius, speed) = (limits.backup_radius(), limits.arc_len / limits.dt);
-        let circle = BackupPath::circle(end, phi, radius, speed);
         if limits.l_min <= 0.0 {
-            return ((circle, f64::INFINITY), (circle, f64::INFINITY));
+            return ((circle, f64::INFINITY), None);
         }
         let t1 = self.backup_window().1.max(t0);
-        let to_circle = circle.standoff_min(e.at(t0), e.velocity, t1 - t0, f64::INFINITY);
-        let kept = self.backup_bound() + MIN_TOLERANCE_M + self.reserve();
-        if e.is_static() || to_circle >= kept {
-            return ((circle, to_circle), (circle, to_circle));
+        let to_circle = circle.circle_standoff_min(e.at(t0), e.at(t0) + e.velocity * (t1 - t0));
+        if e.is_static() {
+            return ((circle, to_circle), None);
         }
-        let mut best = (circle, to_circle);
+        let kept = self.backup_bound() + MIN_TOLERANCE_M + self.reserve();
+        if to_circle >= kept {
+            return ((circle, to_circle), None);
+        }
+        let (end, phi, radius, speed) = (circle.at(0.0), circle.heading, circle.radius, circle.speed);
+        let mut best = None::<(BackupPath, f64)>;
         for sense in [-1.0, 1.0] {
             let away = BackupPath::fly_away(end, phi, radius, speed, sense, e.at(t0), e.velocity);
             let to_away = away.standoff_min(e.at(t0), e.velocity, t1 - t0, kept);
-            if to_away > best.1 {
-                best = (away, to_away);
+            if to_away > best.map_or(to_circle, |b| b.1) {
+                best = Some((away, to_away));
             }
         }
         ((circle, to_circle), best)
@@ -454,7 +482,16 @@ impl<'a> Certifier<'a> {
     pub fn backups(&mut self, phi: &[f64]) -> Vec<BackupPath> {
         let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
         let preferred = self.check_choosing(phi, false).1;
-        (0..n).map(|i| if preferred { self.uav(i, phi[i]).path } else { self.uav(i, phi[i]).circle }).collect()
+        let (radius, speed) = (self.limits.backup_radius(), self.limits.arc_len / self.limits.dt);
+        (0..n)
+            .map(|i| {
+                let part = self.uav(i, phi[i]);
+                match self.aways[i] {
+                    Some(away) if preferred && part.flies => away,
+                    _ => BackupPath::circle(part.end, phi[i], radius, speed),
+                }
+            })
+            .collect()
     }
 
     /// The first step of every UAV's backup from where the UAVs are now (the backup of the plan that
@@ -466,9 +503,18 @@ impl<'a> Certifier<'a> {
         (0..n)
             .map(|i| {
                 let psi = self.psi[i];
-                let (_, (path, _)) = self.backup_from(self.positions[i], psi, 0.0);
-                let turn = path.exit.map_or(theta_b, |x| theta_b.min(x.time * path.omega()));
-                psi + path.sense * turn
+                let circle = BackupPath::circle(
+                    self.positions[i],
+                    psi,
+                    self.limits.backup_radius(),
+                    self.limits.arc_len / self.limits.dt,
+                );
+                match self.backup_from(circle, 0.0).1 {
+                    Some((path, _)) => {
+                        psi + path.sense * path.exit.map_or(theta_b, |x| theta_b.min(x.time * path.omega()))
+                    }
+                    None => psi - theta_b,
+                }
             })
             .collect()
     }
@@ -489,12 +535,18 @@ impl<'a> Certifier<'a> {
         // only flips its sign, and |·| is taken).
         let sin_half = a.half.0 * b.half.1 - a.half.1 * b.half.0;
         let chord = 2.0 * self.limits.backup_radius() * sin_half.abs();
-        let backup = ((a.circle.centre - b.circle.centre).norm() - chord).abs();
-        let preferred = if a.path.exit.is_none() && b.path.exit.is_none() {
+        let backup = ((a.centre - b.centre).norm() - chord).abs();
+        let preferred = if !a.flies && !b.flies {
             backup
         } else {
+            let (radius, speed) = (self.limits.backup_radius(), self.limits.arc_len / self.limits.dt);
+            let path = |k: usize, part: &UavPart, phi_bits: u64| match self.aways[k] {
+                Some(away) if part.flies => away,
+                _ => BackupPath::circle(part.end, f64::from_bits(phi_bits), radius, speed),
+            };
+            let (pa, pb) = (path(i, a, a.phi_bits), path(j, b, b.phi_bits));
             let kept = d + MIN_TOLERANCE_M + self.limits.position_margin_m;
-            pair_min(&a.path, &b.path, if exact { f64::INFINITY } else { kept })
+            pair_min(&pa, &pb, if exact { f64::INFINITY } else { kept })
         };
         let part = PairPart { bits, exact, along, backup, preferred };
         self.pairs[pair_index(i, j)] = Some(part);
@@ -515,7 +567,7 @@ impl<'a> Certifier<'a> {
     fn check_choosing(&mut self, phi: &[f64], exact: bool) -> (SafetyReport, bool) {
         let circles = self.check_with(phi, exact, false);
         let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
-        if circles.certified || (0..n).all(|i| self.uav(i, phi[i]).path.exit.is_none()) {
+        if circles.certified || (0..n).all(|i| !self.uav(i, phi[i]).flies) {
             return (circles, false);
         }
         let mut preferred = self.check_with(phi, exact, true);
@@ -543,7 +595,7 @@ impl<'a> Certifier<'a> {
         for i in 0..n {
             parts[i] = Some(self.uav(i, phi[i]));
         }
-        let part = |i: usize| parts[i].expect("computed above");
+        let part = |i: usize| parts[i].as_ref().expect("computed above");
         let mut tightest: Option<Tightest> = None;
         let (mut total, mut step, mut collision) = (0.0, 0.0f64, 0.0f64);
         // `hard`: the deficit that counts as a collision (below D_min itself for the spacing limits).
@@ -579,7 +631,7 @@ impl<'a> Certifier<'a> {
         if limits.d_min > 0.0 {
             for i in 0..n {
                 for j in i + 1..n {
-                    self.pair(i, j, &part(i), &part(j), exact);
+                    self.pair(i, j, part(i), part(j), exact);
                 }
             }
         }
