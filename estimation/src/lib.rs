@@ -28,61 +28,13 @@ use tdoa::fusion::{self, DEFAULT_GATE_PROBABILITY, Outcome, Posterior};
 use tdoa::{Arrivals, Dynamics, NoiseModel, RangeDiffs, TdoaError};
 
 pub mod outliers;
+pub mod track;
 pub use outliers::OutlierPolicy;
 use thiserror::Error;
+pub use track::{CONFIRM_BURSTS, DEMOTE_DROP_RUN, DropStreak, REJECTED_RUN_RESTART, TrackCounters};
 
 pub use tdoa::EmitterModel;
 pub use tdoa::fusion::EstimatorKind;
-
-/// The fused estimator restarts from Chan's fix of the current snapshot after this many snapshots
-/// rejected in a row by its χ² gate: the posterior has lost the emitter (a wrong root, a jump), and
-/// gating alone would keep it lost forever.
-pub const REJECTED_RUN_RESTART: u8 = 3;
-
-/// A fused track is provisional until it has fused this many bursts whole (no arrival dropped): until
-/// then a burst that fails the gate is never made to fit by dropping the arrivals that disagree with the
-/// track — a first fix that a reflection corrupted (three UAVs leave no redundancy to see it) is not kept
-/// alive by the subsets that happen to agree with it, and is restarted after [`REJECTED_RUN_RESTART`]
-/// rejections. Only arrivals the burst itself shows to be outliers (its own Chan residual, five or more
-/// arrivals: [`outliers::fuse_self_checked`]), or a late minority of a burst that shows an outlier by
-/// itself ([`outliers::shows_an_outlier`], [`outliers::fuse_without_late`]), are dropped from a
-/// provisional track's bursts.
-pub const CONFIRM_BURSTS: u8 = 3;
-
-/// A confirmed track that drops the same UAV's arrival from this many fused bursts in a row (bursts
-/// that heard it) is made provisional again: a reflection lasts one burst (independent per burst, 15 %
-/// at the worst cell studied: four in a row from one UAV is a 5·10⁻⁴ event), a track confirmed on a
-/// corrupted first fix disagrees with the same direct arrival burst after burst and would otherwise
-/// drop it for the rest of the run. Made provisional, the track fuses only whole bursts and is
-/// restarted from Chan after [`REJECTED_RUN_RESTART`] rejections.
-pub const DEMOTE_DROP_RUN: u8 = 4;
-
-/// The UAVs whose arrival a track has dropped from every fused burst that heard them, and for how many
-/// bursts in a row (see [`DEMOTE_DROP_RUN`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct DropStreak {
-    /// The UAVs dropped in each of the last `run` bursts that heard them (bit i: UAV i).
-    pub uavs: u8,
-    /// How many fused bursts in a row dropped them.
-    pub run: u8,
-}
-
-impl DropStreak {
-    /// The streak after a fused burst that heard `heard` and dropped `dropped` (bit masks).
-    pub fn after(self, heard: u8, dropped: u8) -> Self {
-        let common = self.uavs & dropped;
-        if common != 0 {
-            Self { uavs: common, run: self.run.saturating_add(1) }
-        } else if dropped != 0 {
-            Self { uavs: dropped, run: 1 }
-        } else if self.uavs & heard != 0 {
-            // A streak UAV heard and kept: the streak ends.
-            Self::default()
-        } else {
-            self
-        }
-    }
-}
 
 /// How much larger (χ², one burst) the NIS of one of an ambiguous fix's two roots must be than the
 /// other's for the burst to drop it: a likelihood ratio of `e^(9/2)` ≈ 90. Below it both roots stay
@@ -144,13 +96,9 @@ pub struct EstimateOut {
     pub posterior: Option<Posterior>,
     /// Fused: the snapshot's normalised innovation squared at the prediction (`None` for a Chan fix).
     pub nis: Option<f64>,
-    /// Fused: snapshots rejected in a row up to this one (0 after a fused one or a restart).
-    pub rejected_run: u8,
-    /// Fused: bursts fused whole since the track started, up to this one (see [`CONFIRM_BURSTS`]).
-    pub confirmed: u8,
-    /// Fused: the arrivals the track has dropped burst after burst, up to this one (see
-    /// [`DEMOTE_DROP_RUN`]).
-    pub drop_streak: DropStreak,
+    /// Fused: the track's counters up to this one (rejections in a row, bursts fused whole, arrivals
+    /// dropped burst after burst; see [`track`]).
+    pub track: TrackCounters,
     /// The UAVs whose arrival the step held (bit i: UAV i).
     pub heard: u8,
     /// The arrivals dropped as outliers (bit i: UAV i; see [`outliers`]).
@@ -262,12 +210,8 @@ pub struct Estimator {
     /// Fused, after an ambiguous start: the posterior of Chan's other root (and its bias sensitivity),
     /// until the next snapshot decides between the two.
     alternative: Option<PendingRoot>,
-    /// Fused: snapshots rejected in a row.
-    rejected_run: u8,
-    /// Fused: bursts fused whole since the track started (saturating at [`CONFIRM_BURSTS`]).
-    confirmed: u8,
-    /// Fused: the arrivals dropped burst after burst ([`DEMOTE_DROP_RUN`]).
-    drop_streak: DropStreak,
+    /// Fused: the track's counters ([`track`]).
+    track: TrackCounters,
     last_step: Option<u64>,
     /// Fused: the posterior's dependence on the flight-long biases ([`tdoa::consider`]).
     sensitivity: Option<BiasSensitivity>,
@@ -288,9 +232,7 @@ impl Estimator {
             previous: None,
             posterior: None,
             alternative: None,
-            rejected_run: 0,
-            confirmed: 0,
-            drop_streak: DropStreak::default(),
+            track: TrackCounters::default(),
             last_step: None,
             sensitivity: None,
         }
@@ -330,9 +272,7 @@ impl Estimator {
             previous: Some((position, covariance)),
             posterior,
             alternative: None,
-            rejected_run: 0,
-            confirmed: 0,
-            drop_streak: DropStreak::default(),
+            track: TrackCounters::default(),
             last_step: Some(step),
             sensitivity: None,
         }
@@ -364,35 +304,16 @@ impl Estimator {
         self.alternative
     }
 
-    /// This estimator with `n` snapshots rejected in a row behind it (the state of an estimate's
-    /// `rejected_run`).
-    pub fn with_rejected_run(mut self, n: u8) -> Self {
-        self.rejected_run = n;
+    /// This estimator with the track counters `t` behind it (the state of an estimate's `track`;
+    /// `confirmed` clamped to [`CONFIRM_BURSTS`]).
+    pub fn with_track(mut self, t: TrackCounters) -> Self {
+        self.track = t.clamped();
         self
     }
 
-    /// This estimator with `n` bursts fused whole behind its track (the state of an estimate's
-    /// `confirmed`).
-    pub fn with_confirmed(mut self, n: u8) -> Self {
-        self.confirmed = n.min(CONFIRM_BURSTS);
-        self
-    }
-
-    /// Fused: bursts fused whole since the track started (saturating at [`CONFIRM_BURSTS`]).
-    pub fn confirmed(&self) -> u8 {
-        self.confirmed
-    }
-
-    /// This estimator with the drop streak `s` behind its track (the state of an estimate's
-    /// `drop_uavs` and `drop_run`).
-    pub fn with_drop_streak(mut self, s: DropStreak) -> Self {
-        self.drop_streak = s;
-        self
-    }
-
-    /// Fused: the arrivals the track has dropped burst after burst ([`DEMOTE_DROP_RUN`]).
-    pub fn drop_streak(&self) -> DropStreak {
-        self.drop_streak
+    /// Fused: the track's counters ([`track`]).
+    pub fn track(&self) -> TrackCounters {
+        self.track
     }
 
     /// The configuration.
@@ -413,11 +334,6 @@ impl Estimator {
     /// Fused: the posterior after the last step.
     pub fn posterior(&self) -> Option<Posterior> {
         self.posterior
-    }
-
-    /// Fused: snapshots rejected in a row.
-    pub fn rejected_run(&self) -> u8 {
-        self.rejected_run
     }
 
     /// The last step estimated.
@@ -488,16 +404,13 @@ impl Estimator {
         // until a burst decides.
         let result = match result {
             Ok(out) if matches!(out.status, EstimateStatus::Rejected { .. }) => {
-                self.rejected_run = self.rejected_run.saturating_add(1);
-                if self.rejected_run >= REJECTED_RUN_RESTART {
+                if self.track.rejected() {
                     self.prior = None;
                     self.previous = None;
                     match self.solve(a) {
                         Ok((fresh, other)) => {
                             self.alternative = other;
-                            self.rejected_run = 0;
-                            self.confirmed = 0;
-                            self.drop_streak = DropStreak::default();
+                            self.track = TrackCounters::default();
                             Ok(fresh)
                         }
                         Err(_) => Ok(out),
@@ -507,30 +420,14 @@ impl Estimator {
                 }
             }
             Ok(out) if out.posterior.is_some() => {
-                self.rejected_run = 0;
                 // A fused burst with nothing dropped confirms the track; a new Chan fix starts one.
-                if out.nis.is_none() {
-                    self.confirmed = 0;
-                    self.drop_streak = DropStreak::default();
-                } else {
-                    if out.outliers == 0 {
-                        self.confirmed = self.confirmed.saturating_add(1).min(CONFIRM_BURSTS);
-                    }
-                    // The same UAV dropped burst after burst: the track, not the arrival, is wrong.
-                    self.drop_streak = self.drop_streak.after(a.heard_mask(), out.outliers);
-                    if self.drop_streak.run >= DEMOTE_DROP_RUN {
-                        self.confirmed = 0;
-                        self.drop_streak = DropStreak::default();
-                    }
-                }
+                self.track.fused(out.nis.is_none(), a.heard_mask(), out.outliers);
                 Ok(out)
             }
             other => other,
         }
         .map(|mut out| {
-            out.rejected_run = self.rejected_run;
-            out.confirmed = self.confirmed;
-            out.drop_streak = self.drop_streak;
+            out.track = self.track;
             out.heard = a.heard_mask();
             out.bias_cov = bias_cov(out.sensitivity.as_ref(), a);
             out
@@ -566,9 +463,7 @@ impl Estimator {
             candidates: Vec::new(),
             posterior: None,
             nis: None,
-            rejected_run: self.rejected_run,
-            confirmed: self.confirmed,
-            drop_streak: self.drop_streak,
+            track: self.track,
             heard,
             outliers: 0,
             bias_cov: Matrix2::zeros(),
@@ -610,9 +505,7 @@ impl Estimator {
                     candidates: Vec::new(),
                     posterior: Some(pred),
                     nis: None,
-                    rejected_run: self.rejected_run,
-                    confirmed: self.confirmed,
-                    drop_streak: self.drop_streak,
+                    track: self.track,
                     heard: a.heard_mask(),
                     outliers: 0,
                     bias_cov: bias_cov(self.sensitivity.as_ref(), a),
@@ -633,7 +526,7 @@ impl Estimator {
         let config = self.config;
         // A provisional track drops only the arrivals the burst itself shows to be outliers (see
         // CONFIRM_BURSTS), never the ones that merely disagree with the track.
-        let provisional = self.confirmed < CONFIRM_BURSTS;
+        let provisional = self.track.provisional();
         let policy = if provisional { OutlierPolicy::Snapshot } else { config.outliers };
         let mut up = outliers::fuse_burst(predicted, a, |m| config.gate(m), policy)?;
         if provisional
@@ -672,9 +565,7 @@ impl Estimator {
             candidates: Vec::new(),
             posterior: Some(post),
             nis: Some(nis),
-            rejected_run: 0,
-            confirmed: 0,
-            drop_streak: DropStreak::default(),
+            track: TrackCounters::default(),
             heard: a.heard_mask(),
             outliers: up.dropped,
             bias_cov: Matrix2::zeros(),
@@ -750,9 +641,7 @@ impl Estimator {
             candidates: sol.candidates,
             posterior,
             nis: None,
-            rejected_run: 0,
-            confirmed: 0,
-            drop_streak: DropStreak::default(),
+            track: TrackCounters::default(),
             heard: a.heard_mask(),
             outliers: dropped,
             bias_cov: Matrix2::zeros(),
@@ -979,16 +868,16 @@ mod tests {
         for k in 1..=2u8 {
             let out = est.estimate(u64::from(k), &uavs, &d, &noise(4)).unwrap();
             assert!(matches!(out.status, EstimateStatus::Rejected { .. }), "{:?}", out.status);
-            assert_eq!(out.rejected_run, k);
+            assert_eq!(out.track.rejected_run, k);
             assert_eq!(out.position, wrong, "a rejected snapshot leaves the posterior");
         }
         let restart = est.estimate(3, &uavs, &d, &noise(4)).unwrap();
         assert_eq!(restart.status, EstimateStatus::Ok);
-        assert_eq!(restart.rejected_run, 0);
+        assert_eq!(restart.track.rejected_run, 0);
         assert!((restart.position - z).norm() < 1e-6);
         // And it fuses from there.
         let next = est.estimate(4, &uavs, &d, &noise(4)).unwrap();
-        assert_eq!((next.status, next.rejected_run), (EstimateStatus::Ok, 0));
+        assert_eq!((next.status, next.track.rejected_run), (EstimateStatus::Ok, 0));
         assert!((next.position - z).norm() < 1e-6);
         // The count rides the state: an estimator resumed with 2 rejections behind it restarts at the next.
         let mut resumed = Estimator::resume(
@@ -998,8 +887,8 @@ mod tests {
             Matrix2::identity() * 100.0,
             Some(post),
         )
-        .with_rejected_run(2);
-        assert_eq!(resumed.estimate(1, &uavs, &d, &noise(4)).unwrap().rejected_run, 0);
+        .with_track(TrackCounters { rejected_run: 2, ..TrackCounters::default() });
+        assert_eq!(resumed.estimate(1, &uavs, &d, &noise(4)).unwrap().track.rejected_run, 0);
     }
 
     #[test]
@@ -1033,17 +922,6 @@ mod tests {
     }
 
     #[test]
-    fn a_drop_streak_follows_one_uav_and_ends_when_it_is_kept() {
-        let s = DropStreak::default().after(0b111, 0b001);
-        assert_eq!(s, DropStreak { uavs: 0b001, run: 1 });
-        // Not heard: the streak waits; heard and kept: it ends; another UAV dropped: a new streak.
-        assert_eq!(s.after(0b110, 0), s);
-        assert_eq!(s.after(0b111, 0), DropStreak::default());
-        assert_eq!(s.after(0b111, 0b010), DropStreak { uavs: 0b010, run: 1 });
-        assert_eq!(s.after(0b111, 0b011), DropStreak { uavs: 0b001, run: 2 });
-    }
-
-    #[test]
     fn a_confirmed_track_that_drops_the_same_uav_burst_after_burst_is_made_provisional_and_restarted() {
         // A confirmed track 3 km off on the hyperbola of UAVs 1 and 2 through the truth (inside the
         // triangle of the UAVs, where a burst sees 3 km clearly): every clean burst
@@ -1059,7 +937,8 @@ mod tests {
                 nalgebra::Matrix4::identity() * 100.0,
             )
             .unwrap();
-            Estimator::resume(config, 0, w, Matrix2::identity() * 100.0, Some(post)).with_confirmed(CONFIRM_BURSTS)
+            Estimator::resume(config, 0, w, Matrix2::identity() * 100.0, Some(post))
+                .with_track(TrackCounters { confirmed: CONFIRM_BURSTS, ..TrackCounters::default() })
         };
         let d = diffs(&uavs, z);
         // The points 3 km from the truth on that hyperbola (bisection of rd12 around the circle); the one
@@ -1084,18 +963,21 @@ mod tests {
         for k in 1..DEMOTE_DROP_RUN {
             let out = est.estimate(u64::from(k), &uavs, &d, &noise(3)).unwrap();
             assert_eq!((out.status.clone(), out.outliers), (EstimateStatus::Ok, 0b001), "burst {k}");
-            assert_eq!((out.confirmed, out.drop_streak), (CONFIRM_BURSTS, DropStreak { uavs: 0b001, run: k }));
+            assert_eq!(
+                (out.track.confirmed, out.track.drop_streak),
+                (CONFIRM_BURSTS, DropStreak { uavs: 0b001, run: k })
+            );
             assert!((out.position - wrong).norm() < 50.0, "the wrong track holds: {:?}", out.position);
         }
         let demoted = est.estimate(u64::from(DEMOTE_DROP_RUN), &uavs, &d, &noise(3)).unwrap();
-        assert_eq!((demoted.confirmed, demoted.drop_streak), (0, DropStreak::default()));
+        assert_eq!((demoted.track.confirmed, demoted.track.drop_streak), (0, DropStreak::default()));
         // Provisional, it drops no arrival: rejected, then restarted from Chan of the clean burst.
         let mut k = u64::from(DEMOTE_DROP_RUN);
         for run in 1..REJECTED_RUN_RESTART {
             k += 1;
             let out = est.estimate(k, &uavs, &d, &noise(3)).unwrap();
             assert!(matches!(out.status, EstimateStatus::Rejected { .. }), "{:?}", out.status);
-            assert_eq!(out.rejected_run, run);
+            assert_eq!(out.track.rejected_run, run);
         }
         let restart = est.estimate(k + 1, &uavs, &d, &noise(3)).unwrap();
         let near = |p: Vector2<f64>| (p - z).norm() < 1e-3;
@@ -1106,9 +988,11 @@ mod tests {
             restart.alternative.map(|(p, _)| p.position())
         );
         // A resumed estimator carries the streak.
-        let resumed = track_at(wrong).with_drop_streak(DropStreak { uavs: 0b001, run: DEMOTE_DROP_RUN - 1 });
+        let resumed = track_at(wrong);
+        let streak = DropStreak { uavs: 0b001, run: DEMOTE_DROP_RUN - 1 };
+        let resumed = resumed.clone().with_track(TrackCounters { drop_streak: streak, ..resumed.track() });
         let mut resumed = resumed;
         let out = resumed.estimate(1, &uavs, &d, &noise(3)).unwrap();
-        assert_eq!(out.confirmed, 0, "the streak's last drop demotes the resumed track");
+        assert_eq!(out.track.confirmed, 0, "the streak's last drop demotes the resumed track");
     }
 }

@@ -22,7 +22,7 @@ use runtime::recovery::StateStore;
 use tdoa::consider::BiasSensitivity;
 use tdoa::{Arrivals, Posterior};
 
-use estimation::{DropStreak, EmitterModel, EstimateStatus, Estimator, EstimatorConfig, PendingRoot};
+use estimation::{DropStreak, EmitterModel, EstimateStatus, Estimator, EstimatorConfig, PendingRoot, TrackCounters};
 
 /// The wire form of the fused posterior beyond the position, with its bias sensitivity `sensitivity`
 /// and the pending second root `alternative`.
@@ -30,18 +30,16 @@ pub fn extra_of(
     posterior: Option<&Posterior>,
     sensitivity: Option<&BiasSensitivity>,
     alternative: Option<&PendingRoot>,
-    rejected_run: u8,
-    confirmed: u8,
-    drop: DropStreak,
+    track: TrackCounters,
 ) -> PosteriorExtra {
     let Some(p) = posterior else { return PosteriorExtra::default() };
     let mut extra = PosteriorExtra {
         estimator: 1,
         model: p.model().code(),
-        rejected_run,
-        confirmed,
-        drop_uavs: drop.uavs,
-        drop_run: drop.run,
+        rejected_run: track.rejected_run,
+        confirmed: track.confirmed,
+        drop_uavs: track.drop_streak.uavs,
+        drop_run: track.drop_streak.run,
         ..PosteriorExtra::default()
     };
     if let Some(s) = sensitivity {
@@ -124,9 +122,11 @@ impl Chain {
                 let sensitivity =
                     (extra.estimator == 1).then(|| BiasSensitivity::from_rows(&extra.bias_sensitivity).ok()).flatten();
                 let estimator = Estimator::resume(config, step, z, m, posterior)
-                    .with_rejected_run(extra.rejected_run)
-                    .with_confirmed(extra.confirmed)
-                    .with_drop_streak(DropStreak { uavs: extra.drop_uavs, run: extra.drop_run })
+                    .with_track(TrackCounters {
+                        rejected_run: extra.rejected_run,
+                        confirmed: extra.confirmed,
+                        drop_streak: DropStreak { uavs: extra.drop_uavs, run: extra.drop_run },
+                    })
                     .with_sensitivity(sensitivity)
                     .with_alternative(pending_of(&extra));
                 Self { estimator, last_step: Some(step) }
@@ -312,9 +312,7 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply
                 estimator.posterior().as_ref(),
                 estimator.sensitivity().as_ref(),
                 estimator.alternative().as_ref(),
-                estimator.rejected_run(),
-                estimator.confirmed(),
-                estimator.drop_streak(),
+                estimator.track(),
             ),
             standing: estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c)),
             outliers: 0,
@@ -333,14 +331,7 @@ pub fn arrivals_of(m: &Measurement) -> Result<Arrivals, tdoa::TdoaError> {
 /// The wire form of the library estimator's output.
 pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
     let (position, covariance) = tdoa::estimate_to_arrays(&out.position, &out.covariance);
-    let extra = extra_of(
-        out.posterior.as_ref(),
-        out.sensitivity.as_ref(),
-        out.alternative.as_ref(),
-        out.rejected_run,
-        out.confirmed,
-        out.drop_streak,
-    );
+    let extra = extra_of(out.posterior.as_ref(), out.sensitivity.as_ref(), out.alternative.as_ref(), out.track);
     let fix = match out.status {
         EstimateStatus::Ok => Fix::Ok { position, covariance },
         EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
