@@ -13,8 +13,8 @@ pub const REJECTED_RUN_RESTART: u8 = 3;
 /// track — a first fix that a reflection corrupted (three UAVs leave no redundancy to see it) is not kept
 /// alive by the subsets that happen to agree with it, and is restarted after [`REJECTED_RUN_RESTART`]
 /// rejections. Only arrivals the burst itself shows to be outliers (its own Chan residual, five or more
-/// arrivals: [`outliers::fuse_self_checked`]), or a late minority of a burst that shows an outlier by
-/// itself ([`outliers::shows_an_outlier`], [`outliers::fuse_without_late`]), are dropped from a
+/// arrivals: [`crate::outliers::fuse_self_checked`]), or a late minority of a burst that shows an outlier by
+/// itself ([`crate::outliers::shows_an_outlier`], [`crate::outliers::fuse_without_late`]), are dropped from a
 /// provisional track's bursts.
 pub const CONFIRM_BURSTS: u8 = 3;
 
