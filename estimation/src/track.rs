@@ -86,11 +86,11 @@ impl TrackCounters {
     /// (`fix`): a burst fused whole confirms the track, a fix starts one, and the same UAV dropped
     /// [`DEMOTE_DROP_RUN`] bursts in a row makes it provisional again.
     pub fn fused(&mut self, fix: bool, heard: u8, dropped: u8) {
-        self.rejected_run = 0;
         if fix {
             *self = Self::default();
             return;
         }
+        self.rejected_run = 0;
         if dropped == 0 {
             self.confirmed = self.confirmed.saturating_add(1).min(CONFIRM_BURSTS);
         }

@@ -316,19 +316,12 @@ pub fn moving_point_min_distance_within(
 mod tests {
     use super::*;
     use crate::kinematics::next_position;
+    use crate::testing::Lcg;
     use std::f64::consts::PI;
 
     /// The minimum of `f` over 200 001 samples of [0, 1].
     fn sampled(f: impl Fn(f64) -> f64) -> f64 {
         (0..=200_000).map(|k| f(k as f64 / 200_000.0)).fold(f64::INFINITY, f64::min)
-    }
-
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
     }
 
     #[test]

@@ -85,7 +85,13 @@ fn unit(h: f64) -> Vector2<f64> {
 impl BackupPath {
     /// Circling clockwise for ever from `end` with heading `phi` (radius `radius`, speed `speed`).
     pub fn circle(end: Vector2<f64>, phi: f64, radius: f64, speed: f64) -> Self {
-        Self::turning(end, phi, radius, speed, -1.0)
+        Self::circle_with(end, phi, phi.sin_cos(), radius, speed)
+    }
+
+    /// [`Self::circle`] with `(sin φ, cos φ)` given (a caller that needs them anyway).
+    pub fn circle_with(end: Vector2<f64>, phi: f64, (sin, cos): (f64, f64), radius: f64, speed: f64) -> Self {
+        let centre = end + Vector2::new(sin, -cos) * radius;
+        Self { centre, radius, speed, heading: phi, sense: -1.0, exit: None }
     }
 
     fn turning(end: Vector2<f64>, phi: f64, radius: f64, speed: f64, sense: f64) -> Self {
@@ -256,15 +262,8 @@ pub fn pair_min(a: &BackupPath, b: &BackupPath, threshold: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::Lcg;
     use std::f64::consts::PI;
-
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
 
     fn random_path(r: &mut Lcg, fly: bool) -> BackupPath {
         let end = Vector2::new(r.next() * 6000.0, r.next() * 6000.0);

@@ -27,6 +27,8 @@ pub mod receiver;
 pub mod safety;
 pub mod scenario;
 pub mod solver_config;
+#[cfg(test)]
+mod testing;
 pub mod world;
 
 pub use constraint::{ActiveConstraint, ConstraintKind};

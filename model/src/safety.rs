@@ -205,6 +205,11 @@ impl SafetyLimits {
         self.arc_len / self.backup_turn()
     }
 
+    /// The backup circle from `end` with heading `phi`: clockwise at radius `R_b` and the UAVs' speed.
+    pub fn backup_circle(&self, end: Vector2<f64>, phi: f64) -> BackupPath {
+        BackupPath::circle(end, phi, self.backup_radius(), self.arc_len / self.dt)
+    }
+
     /// The backup's commanded headings from `headings`: every UAV turns right by `θ_b`.
     pub fn backup_headings(&self, headings: &[f64]) -> Vec<f64> {
         let turn = self.backup_turn();
@@ -283,6 +288,12 @@ impl SafetyReport {
     /// relative to each bound, wins among uncertified plans).
     pub fn deficit(&self) -> f64 {
         self.tightest.map_or(0.0, |t| t.deficit.max(0.0))
+    }
+
+    /// The certificate's ranking of a plan, most important first: a collision now or one no
+    /// continuation avoids, the step's own limits, the largest deficit, their sum, the reserve.
+    pub fn tiers(&self) -> [f64; 5] {
+        [self.collision_deficit, self.step_deficit, self.deficit(), self.total_deficit, self.reserve_deficit]
     }
 }
 
@@ -420,16 +431,8 @@ impl<'a> Certifier<'a> {
         let hc = (0.5 * (1.0 + cos)).max(0.0).sqrt();
         let hs = (0.5 * (1.0 - cos)).max(0.0).sqrt();
         let half = (if crate::kinematics::wrap_angle(phi) < 0.0 { -hs } else { hs }, hc);
-        let (radius, speed) = (limits.backup_radius(), limits.arc_len / limits.dt);
-        let circle = BackupPath {
-            centre: end + Vector2::new(sin, -cos) * radius,
-            radius,
-            speed,
-            heading: phi,
-            sense: -1.0,
-            exit: None,
-        };
-        let ((circle, to_circle), away) = self.backup_from(circle, self.backup_window().0);
+        let circle = BackupPath::circle_with(end, phi, (sin, cos), limits.backup_radius(), limits.arc_len / limits.dt);
+        let (to_circle, away) = self.backup_from(circle, self.backup_window().0);
         let (flies, to_backup) = away.map_or((false, to_circle), |(_, d)| (true, d));
         self.aways[i] = away.map(|(path, _)| path);
         let part = UavPart {
@@ -447,24 +450,24 @@ impl<'a> Certifier<'a> {
         part
     }
 
-    /// The backup circle of a UAV at `end` with heading `phi`, `t0` seconds after the plan's start, and
-    /// the fly-away its standoff prefers, each with its distance to the predicted emitter over the
-    /// backup's window: none, unless the emitter moves and the circle does not keep the standoff with its
-    /// reserve while flying away (either sense) keeps more.
+    /// The distance to the predicted emitter over the backup's window of a UAV's backup `circle`
+    /// starting `t0` seconds after the plan's start, and the fly-away its standoff prefers with its
+    /// own: none, unless the emitter moves and the circle does not keep the standoff with its reserve
+    /// while flying away (either sense) keeps more.
     #[inline]
-    fn backup_from(&self, circle: BackupPath, t0: f64) -> ((BackupPath, f64), Option<(BackupPath, f64)>) {
+    fn backup_from(&self, circle: BackupPath, t0: f64) -> (f64, Option<(BackupPath, f64)>) {
         let (limits, e) = (self.limits, self.emitter);
         if limits.l_min <= 0.0 {
-            return ((circle, f64::INFINITY), None);
+            return (f64::INFINITY, None);
         }
         let t1 = self.backup_window().1.max(t0);
         let to_circle = circle.circle_standoff_min(e.at(t0), e.at(t0) + e.velocity * (t1 - t0));
         if e.is_static() {
-            return ((circle, to_circle), None);
+            return (to_circle, None);
         }
         let kept = self.backup_bound() + MIN_TOLERANCE_M + self.reserve();
         if to_circle >= kept {
-            return ((circle, to_circle), None);
+            return (to_circle, None);
         }
         let (end, phi, radius, speed) = (circle.at(0.0), circle.heading, circle.radius, circle.speed);
         let mut best = None::<(BackupPath, f64)>;
@@ -475,20 +478,19 @@ impl<'a> Certifier<'a> {
                 best = Some((away, to_away));
             }
         }
-        ((circle, to_circle), best)
+        (to_circle, best)
     }
 
     /// Every UAV's backup from the end of the plan `phi` (what the certificate of `phi` relies on).
     pub fn backups(&mut self, phi: &[f64]) -> Vec<BackupPath> {
         let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
         let preferred = self.check_choosing(phi, false).1;
-        let (radius, speed) = (self.limits.backup_radius(), self.limits.arc_len / self.limits.dt);
         (0..n)
             .map(|i| {
                 let part = self.uav(i, phi[i]);
                 match self.aways[i] {
                     Some(away) if preferred && part.flies => away,
-                    _ => BackupPath::circle(part.end, phi[i], radius, speed),
+                    _ => self.limits.backup_circle(part.end, phi[i]),
                 }
             })
             .collect()
@@ -503,13 +505,7 @@ impl<'a> Certifier<'a> {
         (0..n)
             .map(|i| {
                 let psi = self.psi[i];
-                let circle = BackupPath::circle(
-                    self.positions[i],
-                    psi,
-                    self.limits.backup_radius(),
-                    self.limits.arc_len / self.limits.dt,
-                );
-                match self.backup_from(circle, 0.0).1 {
+                match self.backup_from(self.limits.backup_circle(self.positions[i], psi), 0.0).1 {
                     Some((path, _)) => {
                         psi + path.sense * path.exit.map_or(theta_b, |x| theta_b.min(x.time * path.omega()))
                     }
@@ -539,12 +535,11 @@ impl<'a> Certifier<'a> {
         let preferred = if !a.flies && !b.flies {
             backup
         } else {
-            let (radius, speed) = (self.limits.backup_radius(), self.limits.arc_len / self.limits.dt);
-            let path = |k: usize, part: &UavPart, phi_bits: u64| match self.aways[k] {
+            let path = |k: usize, part: &UavPart| match self.aways[k] {
                 Some(away) if part.flies => away,
-                _ => BackupPath::circle(part.end, f64::from_bits(phi_bits), radius, speed),
+                _ => self.limits.backup_circle(part.end, f64::from_bits(part.phi_bits)),
             };
-            let (pa, pb) = (path(i, a, a.phi_bits), path(j, b, b.phi_bits));
+            let (pa, pb) = (path(i, a), path(j, b));
             let kept = d + MIN_TOLERANCE_M + self.limits.position_margin_m;
             pair_min(&pa, &pb, if exact { f64::INFINITY } else { kept })
         };
@@ -573,10 +568,7 @@ impl<'a> Certifier<'a> {
         let mut preferred = self.check_with(phi, exact, true);
         preferred.collision_deficit = circles.collision_deficit;
         preferred.certified &= circles.collision_deficit <= 0.0;
-        let rank = |r: &SafetyReport| {
-            [r.collision_deficit, r.step_deficit, r.deficit(), r.total_deficit, r.reserve_deficit]
-                .map(|x| if x.is_nan() { f64::INFINITY } else { x })
-        };
+        let rank = |r: &SafetyReport| r.tiers().map(|x| if x.is_nan() { f64::INFINITY } else { x });
         if preferred.certified || rank(&preferred).partial_cmp(&rank(&circles)) == Some(std::cmp::Ordering::Less) {
             // A certificate that needs a fly-away holds over the horizon only, and only while the
             // velocity estimate does: it ranks below every plan the circles certify, and nearer to
@@ -724,6 +716,7 @@ impl<'a> Certifier<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::Lcg;
     use std::f64::consts::PI;
 
     fn limits() -> SafetyLimits {
@@ -736,14 +729,6 @@ mod tests {
             l_min: 3000.0,
             standoff_k: 2.326,
             horizon_s: 300.0,
-        }
-    }
-
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
         }
     }
 
@@ -848,7 +833,7 @@ mod tests {
         let backup = Certifier::new(&p, &psi, e, lim).backups(&psi)[0];
         let exit = backup.exit.expect("flies away");
         assert!(exit.heading.sin() > 0.9, "flies away from the emitter, north: {}", exit.heading);
-        let circle = BackupPath::circle(backup.at(0.0), psi[0], lim.backup_radius(), lim.arc_len / lim.dt);
+        let circle = lim.backup_circle(backup.at(0.0), psi[0]);
         let to_circle = circle.standoff_min(e.at(lim.dt), e.velocity, lim.horizon_s, f64::INFINITY);
         assert!(to_circle < lim.l_min, "the circle alone would not do: {to_circle}");
     }

@@ -180,17 +180,8 @@ impl<'a> Shield<'a> {
         let report = self.check(phi);
         let cone = self.cone_excess(phi);
         let value = if report.certified { objective() } else { f64::INFINITY };
-        Fitness::tiered(
-            [
-                report.collision_deficit,
-                report.step_deficit,
-                report.deficit(),
-                report.total_deficit,
-                report.reserve_deficit,
-                cone,
-            ],
-            value,
-        )
+        let [collision, step, deficit, total, reserve] = report.tiers();
+        Fitness::tiered([collision, step, deficit, total, reserve, cone], value)
     }
 
     /// The largest deficit of UAV `i`'s own limits (standoff along its arc, its backup's standoff; the

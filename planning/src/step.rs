@@ -329,8 +329,11 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             cone_then_reach(req, &constraints, &mut safe)?
         };
         let SolverResult { best: mut chosen, mut fitness, iterations, evaluations } = found;
-        // The backup steps: certified whenever the previous plan was (see `crate::shield`).
-        for backup in [shield.backup(), shield.circle_backup()] {
+        // The backup steps: certified whenever the previous plan was (see `crate::shield`) — the
+        // fly-aways' and the circles', the same plan where no UAV flies away (evaluated once).
+        let (backup, circles) = (shield.backup(), shield.circle_backup());
+        let candidates = if backup == circles { vec![backup] } else { vec![backup, circles] };
+        for backup in candidates {
             let fit_backup = safe(&backup);
             if fit_backup < fitness {
                 chosen = backup;
