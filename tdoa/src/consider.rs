@@ -93,12 +93,25 @@ impl BiasSensitivity {
     /// block of a 4 × 4 matrix), the posterior's position `z`: `(I − K H) S̄ + K D`, with the gain at `z`
     /// as the update's final covariance takes it. `self` is the sensitivity of the prediction.
     pub fn after_update(&self, p_bar: &Matrix4<f64>, dim: usize, heard: &Heard, z: &Vector2<f64>) -> Option<Self> {
+        self.after_update_with(p_bar, dim, heard, z, &heard.sensors.noise().q())
+    }
+
+    /// [`after_update`](Self::after_update) for an update that fused with the noise `q` (m², the
+    /// burst's (N−1)-square; [`crate::fusion::update_noise`]) instead of the burst's `Q`.
+    pub fn after_update_with(
+        &self,
+        p_bar: &Matrix4<f64>,
+        dim: usize,
+        heard: &Heard,
+        z: &Vector2<f64>,
+        q: &DMatrix<f64>,
+    ) -> Option<Self> {
         let (g, d) = jacobians(heard, z)?;
         let m = g.nrows();
         let mut h = DMatrix::zeros(m, dim);
         h.view_mut((0, 0), (m, 2)).copy_from(&g);
         let p = DMatrix::from_fn(dim, dim, |i, j| p_bar[(i, j)]);
-        let s_inn = &h * &p * h.transpose() + heard.sensors.noise().q();
+        let s_inn = &h * &p * h.transpose() + q;
         let k = (s_inn.cholesky()?.solve(&(&h * &p))).transpose();
         let s_bar = DMatrix::from_fn(dim, MAX_UAVS, |i, j| self.s[(i, j)]);
         let next = (DMatrix::identity(dim, dim) - &k * &h) * s_bar + k * d;

@@ -17,11 +17,13 @@ pub mod fim;
 pub mod fusion;
 pub mod geometry;
 pub mod global;
+pub mod linearisation;
 pub mod loss;
 pub mod montecarlo;
 pub mod motion;
 pub mod pcrlb;
 pub mod rng;
+pub mod sigma_points;
 pub mod singular;
 pub mod support;
 
