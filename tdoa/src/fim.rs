@@ -43,6 +43,13 @@ impl Rays {
         Some(Self { u, r, n })
     }
 
+    /// The Hessian of UAV k's range `r_k = |z − w_k|` with respect to the emitter position,
+    /// `(I − u_k u_kᵀ)/r_k` (1/m): the derivative of its unit vector.
+    pub(crate) fn range_hessian(&self, k: usize) -> Matrix2<f64> {
+        let u = self.u[k];
+        (Matrix2::identity() - u * u.transpose()) / self.r[k]
+    }
+
     /// Jacobian rows `g_i = u_i − u_0`, i = 1..N−1 (stored at index i−1).
     fn jacobian(&self) -> [Vector2<f64>; MAX_UAVS] {
         let mut g = [Vector2::zeros(); MAX_UAVS];

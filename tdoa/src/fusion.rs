@@ -30,8 +30,9 @@
 //! ∇²h = (I − e₁e₁ᵀ)/r₁ − (I − e₀e₀ᵀ)/r₀      (e_i the unit vector from UAV i, r_i its range)
 //! ```
 //!
-//! so a single difference is fused with `Q + ½ tr(∇²h P̄ ∇²h P̄)` ([`linearisation_noise`], [`crate::linearisation`]): negligible once
-//! the prior is small beside the range (300 m at 15 km: 2 % of Q), dominant while it is not.
+//! so a single difference is fused with `Q + ½ tr(∇²h P̄ ∇²h P̄)` ([`linearisation_noise`],
+//! [`crate::linearisation`]): negligible once the prior is small beside the range (300 m at 15 km: 2 % of
+//! Q), dominant while it is not.
 //!
 //! **Start.** The first posterior is Chan's fix, with the velocity of the constant-velocity model at
 //! 0 ± `velocity_prior_sigma`; the fused estimator gives a fix of three arrivals the sigma-point
@@ -97,7 +98,7 @@ const MAX_ITERATIONS: usize = 25;
 const STEP_TOLERANCE_M: f64 = 1e-7;
 
 /// A range below this (metres) puts the emitter on a UAV: no Jacobian there.
-pub(crate) const MIN_RANGE_M: f64 = 1e-6;
+const MIN_RANGE_M: f64 = 1e-6;
 
 /// The Gaussian posterior of the emitter's state.
 ///

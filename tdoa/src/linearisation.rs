@@ -13,22 +13,15 @@
 use nalgebra::{DMatrix, Matrix2, Vector2};
 
 use crate::Sensors;
+use crate::fim::Rays;
 
 /// The second-order term `½ tr(∇²h_i P ∇²h_j P)` (m², (N−1)×(N−1)) of the range differences measured by
 /// `sensors` about the position `z` with position covariance `p`: the covariance of what the
 /// linearisation at `z` leaves out over `N(z, p)` (module docs). `None` when `z` is on a UAV.
 pub fn linearisation_noise(sensors: &Sensors, z: &Vector2<f64>, p: &Matrix2<f64>) -> Option<DMatrix<f64>> {
-    let w = sensors.positions();
-    let hessian = |u: &Vector2<f64>| -> Option<Matrix2<f64>> {
-        let d = z - u;
-        let r = d.norm();
-        (r.is_finite() && r >= crate::fusion::MIN_RANGE_M).then(|| {
-            let e = d / r;
-            (Matrix2::identity() - e * e.transpose()) / r
-        })
-    };
-    let h0 = hessian(&w[0])?;
-    let hp: Vec<Matrix2<f64>> = w[1..].iter().map(|u| hessian(u).map(|h| (h - h0) * p)).collect::<Option<_>>()?;
+    let rays = Rays::new(sensors, z).filter(|rays| rays.r[..rays.n].iter().all(|r| r.is_finite()))?;
+    let h0 = rays.range_hessian(0);
+    let hp: Vec<Matrix2<f64>> = (1..rays.n).map(|i| (rays.range_hessian(i) - h0) * p).collect();
     let m = hp.len();
     Some(DMatrix::from_fn(m, m, |i, j| 0.5 * (hp[i] * hp[j]).trace()))
 }
@@ -94,13 +87,8 @@ mod tests {
             (grad(z + Vector2::new(e, 0.0)) - grad(z - Vector2::new(e, 0.0))) / (2.0 * e),
             (grad(z + Vector2::new(0.0, e)) - grad(z - Vector2::new(0.0, e))) / (2.0 * e),
         ]);
-        let w = s.positions();
-        let hess = |u: &Vector2<f64>| {
-            let d = z - u;
-            let r = d.norm();
-            (Matrix2::identity() - d * d.transpose() / (r * r)) / r
-        };
-        let analytic = hess(&w[1]) - hess(&w[0]);
+        let rays = Rays::new(&s, &z).unwrap();
+        let analytic = rays.range_hessian(1) - rays.range_hessian(0);
         assert!((fd - analytic).norm() < 1e-6 * analytic.norm(), "{fd} vs {analytic}");
         let one = Sensors::heard(&[[1500.0, 500.0], [10_000.0, 1500.0]], NoiseModel::heard(&[28.7712; 2]).unwrap());
         let one = one.unwrap();
