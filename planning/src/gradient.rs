@@ -11,7 +11,8 @@
 //! non-zero violation tier that a free coordinate can still lower (a tier at its least within the box
 //! gives way to the next, which is then descended with the earlier ones as constraints), else the
 //! criterion (m²). Gradients are forward differences with step [`FD_STEP`] (backwards at an upper bound):
-//! `n` evaluations give the differences of every tier and the criterion at once. (The criterion's
+//! `n` evaluations (fewer with coordinates held at a bound, see below) give the differences of every tier
+//! and the criterion at once. (The criterion's
 //! analytic gradient through the arc kinematics is not used: every evaluation goes through the fitness.)
 //!
 //! **Starts.** Given by the caller ([`Gradient::minimize_from`]); as a [`Solver`]: the box's start, its
@@ -27,7 +28,13 @@
 //! slides along the constraint instead of zig-zagging into it; the set is cleared when a projected
 //! direction finds nothing. `H` is reset to the scaled identity whenever the free set or the merit
 //! changes, or a step shows no curvature. The search stops when no backtracked step improves, the step is
-//! below `tolerance` rad, or after `iterations` iterations.
+//! below `tolerance` rad, [`MAX_STALLED`] iterations in a row met a constraint without a step, or after
+//! `iterations` iterations.
+//!
+//! **Coordinates held at a bound** (a heading at the edge of its box that the gradient pushes outwards)
+//! are not probed again while the merit stays the same: a UAV pinned to its box edge costs no
+//! evaluation per iteration. Where the search would stop, or its merit changes, one full probe checks
+//! them first; a coordinate the gradient now pulls inwards is free again and the search goes on.
 //!
 //! **Polish.** The best point of all local searches then gets a compass search along the coordinates
 //! (doubling steps along a coordinate that improves, a quarter of the step after a pass that did not,
@@ -49,6 +56,9 @@ pub const MAX_BACKTRACKS: usize = 12;
 pub const POLISH_EVALUATIONS: usize = 60;
 /// Forward-difference step of the gradient, radians.
 pub const FD_STEP: f64 = 1e-7;
+/// Iterations in a row without an accepted step (a constraint met again and again) after which a
+/// local search stops: enough for the active set to gather a few normals, not for cycling between them.
+pub const MAX_STALLED: usize = 4;
 
 /// The gradient solver.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -104,11 +114,17 @@ struct Probe {
 }
 
 impl Probe {
-    fn at(f: &mut Counted<'_>, space: &SearchSpace, p: &Point) -> Self {
+    /// The differences at `p` along every coordinate but those `skip` marks (their gradient reads 0).
+    fn at(f: &mut Counted<'_>, space: &SearchSpace, p: &Point, skip: &[bool]) -> Self {
         let mut x = p.x.clone();
         let mut steps = Vec::with_capacity(x.len());
         let mut fitness = Vec::with_capacity(x.len());
         for i in 0..x.len() {
+            if skip.get(i).copied().unwrap_or(false) {
+                steps.push(0.0);
+                fitness.push(p.f);
+                continue;
+            }
             let h = if p.x[i] + FD_STEP <= space.hi()[i] { FD_STEP } else { -FD_STEP };
             x[i] = p.x[i] + h;
             fitness.push(f.eval(&x));
@@ -118,7 +134,8 @@ impl Probe {
         Self { steps, fitness }
     }
 
-    /// The gradient of `merit` at `p`; `None` where it or a difference is not finite.
+    /// The gradient of `merit` at `p` (0 along a skipped coordinate); `None` where it or a difference
+    /// is not finite.
     fn gradient(&self, p: &Point, merit: Merit) -> Option<Vec<f64>> {
         let m0 = merit.value(&p.f);
         if !m0.is_finite() {
@@ -127,8 +144,17 @@ impl Probe {
         self.steps
             .iter()
             .zip(&self.fitness)
-            .map(|(h, fi)| Some((merit.value(fi) - m0) / h).filter(|g| g.is_finite()))
+            .map(
+                |(h, fi)| {
+                    if *h == 0.0 { Some(0.0) } else { Some((merit.value(fi) - m0) / h).filter(|g| g.is_finite()) }
+                },
+            )
             .collect()
+    }
+
+    /// Whether coordinate `i` was probed.
+    fn probed(&self, i: usize) -> bool {
+        self.steps[i] != 0.0
     }
 }
 
@@ -143,7 +169,9 @@ fn descent(probe: &Probe, space: &SearchSpace, p: &Point) -> Option<(Merit, Vec<
     for merit in merits.filter(|m| *m >= first && (*m == Merit::Objective || m.value(&p.f) > 0.0)) {
         let Some(g) = probe.gradient(p, merit) else { continue };
         let free: Vec<bool> = (0..n)
-            .map(|i| !((p.x[i] <= space.lo()[i] && g[i] > 0.0) || (p.x[i] >= space.hi()[i] && g[i] < 0.0)))
+            .map(|i| {
+                probe.probed(i) && !((p.x[i] <= space.lo()[i] && g[i] > 0.0) || (p.x[i] >= space.hi()[i] && g[i] < 0.0))
+            })
             .collect();
         let gf: Vec<f64> = (0..n).map(|i| if free[i] { g[i] } else { 0.0 }).collect();
         if gf.iter().any(|v| *v != 0.0) {
@@ -228,11 +256,34 @@ impl Gradient {
         let mut step: Option<Vec<f64>> = None;
         let mut scale = 0.05f64;
         let mut iterations = 0;
+        let mut stalled = 0;
+        // Coordinates a full probe found held at a bound: not probed again until the search would stop
+        // (or its merit changes), when a full probe checks that they still are.
+        let mut pinned = vec![false; n];
+        // Where the search would stop: after a partial probe, one more iteration with a full one.
+        macro_rules! converged {
+            ($partial:expr) => {{
+                if $partial {
+                    pinned.fill(false);
+                    continue;
+                }
+                break;
+            }};
+        }
         while iterations < self.config.iterations {
             iterations += 1;
             // Coordinates held at a bound by the gradient are fixed this iteration.
-            let probe = Probe::at(f, space, &p);
-            let Some((merit, gf, free)) = descent(&probe, space, &p) else { break };
+            let partial = pinned.iter().any(|b| *b);
+            let probe = Probe::at(f, space, &p, &pinned);
+            let Some((merit, gf, free)) = descent(&probe, space, &p) else { converged!(partial) };
+            if partial && prev.as_ref().is_none_or(|(m, _, _)| *m != merit) {
+                // The merit changed: which coordinates its gradient holds at a bound is not known.
+                pinned.fill(false);
+                continue;
+            }
+            for i in 0..n {
+                pinned[i] = !free[i];
+            }
             let gnorm = gf.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             match (&prev, step.take()) {
                 (Some((m, fr, g0)), Some(s)) if *m == merit && *fr == free => {
@@ -263,9 +314,10 @@ impl Gradient {
             }
             match self.line_search(f, space, &p, &d, merit) {
                 Search::Better(q, met) => {
+                    stalled = 0;
                     // Cut short by a constraint: slide along it from now on.
                     if let Some(trial) = met
-                        && let Some(a) = Probe::at(f, space, &trial).gradient(&trial, Merit::of(&trial.f))
+                        && let Some(a) = Probe::at(f, space, &trial, &pinned).gradient(&trial, Merit::of(&trial.f))
                     {
                         update_normals(&mut normals, a, n);
                     }
@@ -275,18 +327,29 @@ impl Gradient {
                     p = q;
                     step = Some(s);
                     if moved < self.config.tolerance {
-                        break;
+                        converged!(partial);
                     }
                 }
                 Search::Blocked(trial) => {
+                    stalled += 1;
+                    if stalled > MAX_STALLED {
+                        converged!(partial);
+                    }
                     // A constraint of a higher priority was met: its normal joins (or refreshes) the active set.
-                    let Some(a) = Probe::at(f, space, &trial).gradient(&trial, Merit::of(&trial.f)) else { break };
+                    let Some(a) = Probe::at(f, space, &trial, &pinned).gradient(&trial, Merit::of(&trial.f)) else {
+                        converged!(partial)
+                    };
                     if !update_normals(&mut normals, a, n) {
-                        break;
+                        converged!(partial);
                     }
                 }
-                Search::Stuck if !normals.is_empty() => normals.clear(),
-                Search::Stuck => break,
+                Search::Stuck if !normals.is_empty() && stalled < MAX_STALLED => {
+                    stalled += 1;
+                    normals.clear()
+                }
+                Search::Stuck => {
+                    converged!(partial);
+                }
             }
         }
         (p, iterations, scale)
@@ -517,6 +580,44 @@ mod tests {
         }
         let rel = (got.fitness.objective() - best.1) / best.1;
         assert!(rel < 1e-6, "objective {} vs the constrained minimum {} ({rel:e})", got.fitness.objective(), best.1);
+    }
+
+    /// Six of eight coordinates have their minimum beyond the box's upper bound: held there, they are
+    /// probed only by the full probes that check them, while the two free ones take a curved valley
+    /// that needs many iterations. The minimum is still found exactly.
+    #[test]
+    fn coordinates_held_at_a_bound_are_not_probed_every_iteration() {
+        let valley = |x: &[f64]| 10.0 * (x[1] - x[0] * x[0]).powi(2) + (0.7 - x[0]).powi(2);
+        let beyond = |x: &[f64]| x[2..].iter().map(|v| (v - 2.0).powi(2)).sum::<f64>();
+        let space = SearchSpace::new(vec![-1.0; 8], vec![1.0; 8], vec![-0.5; 8]).unwrap();
+        let (mut evaluations, mut off_bound) = (0usize, 0usize);
+        let mut f = |x: &[f64]| {
+            evaluations += 1;
+            // An evaluation that moves a held coordinate off its bound is one of a probe's differences.
+            off_bound += usize::from(x[2..].iter().any(|v| *v < 1.0));
+            Fitness::feasible(valley(x) + beyond(x))
+        };
+        let g = Gradient { config: GradientConfig { starts: 1, ..GradientConfig::default() } };
+        let r = g.minimize_from(&mut f, &space, &[vec![-0.5, 0.9, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0]]);
+        assert!((r.best[0] - 0.7).abs() < 1e-4 && (r.best[1] - 0.49).abs() < 1e-4, "{:?}", r.best);
+        assert!(r.best[2..].iter().all(|v| *v == 1.0), "{:?}", r.best);
+        assert!(r.iterations >= 10, "the valley was meant to take many iterations: {}", r.iterations);
+        // Every full probe of the held coordinates costs 6 evaluations, and so does a pass of the polish:
+        // a handful of them, not one per iteration (a full probe per iteration: ≥ 6 × iterations).
+        assert!(off_bound <= 6 * 6, "{off_bound} evaluations off the bound in {} iterations", r.iterations);
+        assert_eq!(evaluations, r.evaluations);
+    }
+
+    /// A coordinate held at its lower bound at the start is pulled inwards once the other moves: the
+    /// full probe where the search would stop frees it, and the search reaches the interior minimum.
+    #[test]
+    fn a_held_coordinate_is_freed_when_the_gradient_turns_inwards() {
+        // At the start (−1, −1) ∂f/∂x₀ = 20·0.5 > 0 holds x₀ at its lower bound; the minimum is (0.4, 0.9).
+        let mut f = |x: &[f64]| Fitness::feasible((x[1] - 0.9).powi(2) + 10.0 * (x[0] - x[1] + 0.5).powi(2));
+        let space = SearchSpace::new(vec![-1.0; 2], vec![1.0; 2], vec![-1.0; 2]).unwrap();
+        let g = Gradient { config: GradientConfig { starts: 1, ..GradientConfig::default() } };
+        let r = g.minimize_from(&mut f, &space, &[vec![-1.0, -1.0]]);
+        assert!((r.best[0] - 0.4).abs() < 1e-5 && (r.best[1] - 0.9).abs() < 1e-5, "{:?}", r.best);
     }
 
     #[test]
