@@ -120,7 +120,7 @@ impl Probe {
         let mut steps = Vec::with_capacity(x.len());
         let mut fitness = Vec::with_capacity(x.len());
         for i in 0..x.len() {
-            if skip.get(i).copied().unwrap_or(false) {
+            if skip[i] {
                 steps.push(0.0);
                 fitness.push(p.f);
                 continue;
@@ -343,12 +343,15 @@ impl Gradient {
                         converged!(partial);
                     }
                 }
-                Search::Stuck if !normals.is_empty() && stalled < MAX_STALLED => {
-                    stalled += 1;
-                    normals.clear()
-                }
+                Search::Stuck if normals.is_empty() => converged!(partial),
                 Search::Stuck => {
-                    converged!(partial);
+                    // Blocked along the active constraints: once more without them, as long as the
+                    // search has not stalled too often.
+                    stalled += 1;
+                    if stalled > MAX_STALLED {
+                        converged!(partial);
+                    }
+                    normals.clear();
                 }
             }
         }
