@@ -17,7 +17,7 @@ impl SolverKind {
             SolverKind::Pso => Box::new(Pso { config: sc.pso, stop }),
             SolverKind::Ga => Box::new(Ga { config: sc.ga, stop }),
             SolverKind::Aco => Box::new(Aco { config: sc.aco, stop }),
-            SolverKind::Gradient => Box::new(Gradient { config: sc.gradient }),
+            SolverKind::Gradient => Box::new(Gradient::new(sc.gradient)),
         }
     }
 }

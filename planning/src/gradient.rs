@@ -41,6 +41,14 @@
 //! down to `tolerance`, at most [`POLISH_EVALUATIONS`] evaluations): the kinks where a constraint meets
 //! a bound, which quasi-Newton steps cannot resolve.
 //!
+//! **Handing over** ([`Handoff`], off by default). A caller with a later stage of its own can cut the
+//! search short: a local search stops at a point whose first non-zero tier is the one the caller lowers
+//! itself (the certified planner pulls the heading cone, a sum of per-UAV excesses, UAV by UAV:
+//! quasi-Newton steps on that piecewise-linear tier stall against the certificate at every step length);
+//! the local searches after one that reached a point with every tier 0 are skipped; and a local search
+//! descending a violation tier stops on a plateau above 0 (less than a given fraction lowered over
+//! [`PLATEAU_ITERATIONS`] iterations: a conflict the caller's other starts resolve).
+//!
 //! Deterministic: the seed is not used; the same inputs give the same evaluations.
 
 use crate::fitness::Fitness;
@@ -60,11 +68,42 @@ pub const FD_STEP: f64 = 1e-7;
 /// local search stops: enough for the active set to gather a few normals, not for cycling between them.
 pub const MAX_STALLED: usize = 4;
 
+/// Iterations over which [`Handoff::plateau`] measures a violation tier's progress.
+pub const PLATEAU_ITERATIONS: usize = 5;
+
 /// The gradient solver.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Gradient {
     /// Starts, iterations and tolerance.
     pub config: GradientConfig,
+    /// Where a local search hands over to its caller (none by default).
+    pub handoff: Handoff,
+}
+
+/// Where the local searches of a [`Gradient`] stop early because the caller takes over (see the
+/// module docs); the default runs every search to its own end.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Handoff {
+    /// A local search stops at a point whose first non-zero violation tier has this index or a larger
+    /// one (every earlier tier 0): lowering that tier is the caller's. The polish still runs.
+    pub from_tier: Option<usize>,
+    /// The local searches after one that ends at a point with every tier 0 are not run.
+    pub first_feasible: bool,
+    /// A local search descending a violation tier stops when the last [`PLATEAU_ITERATIONS`]
+    /// iterations lowered it by less than this fraction of its value (a plateau above 0).
+    pub plateau: Option<f64>,
+}
+
+impl Gradient {
+    /// The solver with `config`, running every search to its own end.
+    pub fn new(config: GradientConfig) -> Self {
+        Self { config, handoff: Handoff::default() }
+    }
+
+    /// The same solver with `handoff`.
+    pub fn with_handoff(self, handoff: Handoff) -> Self {
+        Self { handoff, ..self }
+    }
 }
 
 /// Which scalar of the fitness the search descends; ordered by priority (a tier before the later
@@ -260,6 +299,8 @@ impl Gradient {
         // Coordinates a full probe found held at a bound: not probed again until the search would stop
         // (or its merit changes), when a full probe checks that they still are.
         let mut pinned = vec![false; n];
+        // The merit and its value at each iteration's probe (for the plateau rule of the handoff).
+        let mut history: Vec<(Merit, f64)> = Vec::new();
         // Where the search would stop: after a partial probe, one more iteration with a full one.
         macro_rules! converged {
             ($partial:expr) => {{
@@ -276,6 +317,9 @@ impl Gradient {
             let partial = pinned.iter().any(|b| *b);
             let probe = Probe::at(f, space, &p, &pinned);
             let Some((merit, gf, free)) = descent(&probe, space, &p) else { converged!(partial) };
+            if self.hands_over(merit, &p.f, &mut history) {
+                break;
+            }
             if partial && prev.as_ref().is_none_or(|(m, _, _)| *m != merit) {
                 // The merit changed: which coordinates its gradient holds at a bound is not known.
                 pinned.fill(false);
@@ -356,6 +400,23 @@ impl Gradient {
             }
         }
         (p, iterations, scale)
+    }
+
+    /// Whether the local search stops at a point of fitness `f` whose merit is `merit` for the caller
+    /// to take over ([`Handoff`]); `history` gathers the merits seen.
+    fn hands_over(&self, merit: Merit, f: &Fitness, history: &mut Vec<(Merit, f64)>) -> bool {
+        let handoff = &self.handoff;
+        if handoff.from_tier.is_some_and(|t| merit >= Merit::Tier(t)) {
+            return true;
+        }
+        let (Some(fraction), Merit::Tier(_)) = (handoff.plateau, merit) else { return false };
+        let value = merit.value(f);
+        history.push((merit, value));
+        let k = history.len();
+        k > PLATEAU_ITERATIONS && {
+            let (m0, v0) = history[k - 1 - PLATEAU_ITERATIONS];
+            m0 == merit && value > (1.0 - fraction) * v0
+        }
     }
 
     /// Backtracks along `d` from `p`; see [`Search`].
@@ -495,6 +556,9 @@ impl Gradient {
             if q.f < best.0.f {
                 best = (q, scale);
             }
+            if self.handoff.first_feasible && best.0.f.tiers().iter().all(|t| *t == 0.0) {
+                break;
+            }
         }
         let best = self.polish(&mut f, space, best.0, best.1);
         SolverResult { best: best.x, fitness: best.f, iterations, evaluations: f.count }
@@ -522,10 +586,10 @@ mod tests {
         // half a tolerance of the minimum (the last step halves it), and one wider than the box still ends
         // in the box, better than where it started.
         for tolerance in [2e-3, 0.1, 0.5] {
-            let g = Gradient { config: GradientConfig { tolerance, ..GradientConfig::default() } };
+            let g = Gradient::new(GradientConfig { tolerance, ..GradientConfig::default() });
             common::finds_quadratic_minimum(&g, 0.5 * tolerance + 1e-12);
         }
-        let g = Gradient { config: GradientConfig { tolerance: std::f64::consts::PI, ..GradientConfig::default() } };
+        let g = Gradient::new(GradientConfig { tolerance: std::f64::consts::PI, ..GradientConfig::default() });
         let r = g.minimize(&mut common::quadratic, &common::cube(), 7);
         assert!(r.best.iter().all(|x| (-1.0..=1.0).contains(x)), "{:?}", r.best);
         let start = common::quadratic(&[-0.9, 0.9, -0.9]);
@@ -600,7 +664,7 @@ mod tests {
             off_bound += usize::from(x[2..].iter().any(|v| *v < 1.0));
             Fitness::feasible(valley(x) + beyond(x))
         };
-        let g = Gradient { config: GradientConfig { starts: 1, ..GradientConfig::default() } };
+        let g = Gradient::new(GradientConfig { starts: 1, ..GradientConfig::default() });
         let r = g.minimize_from(&mut f, &space, &[vec![-0.5, 0.9, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0]]);
         assert!((r.best[0] - 0.7).abs() < 1e-4 && (r.best[1] - 0.49).abs() < 1e-4, "{:?}", r.best);
         assert!(r.best[2..].iter().all(|v| *v == 1.0), "{:?}", r.best);
@@ -618,9 +682,66 @@ mod tests {
         // At the start (−1, −1) ∂f/∂x₀ = 20·0.5 > 0 holds x₀ at its lower bound; the minimum is (0.4, 0.9).
         let mut f = |x: &[f64]| Fitness::feasible((x[1] - 0.9).powi(2) + 10.0 * (x[0] - x[1] + 0.5).powi(2));
         let space = SearchSpace::new(vec![-1.0; 2], vec![1.0; 2], vec![-1.0; 2]).unwrap();
-        let g = Gradient { config: GradientConfig { starts: 1, ..GradientConfig::default() } };
+        let g = Gradient::new(GradientConfig { starts: 1, ..GradientConfig::default() });
         let r = g.minimize_from(&mut f, &space, &[vec![-1.0, -1.0]]);
         assert!((r.best[0] - 0.4).abs() < 1e-5 && (r.best[1] - 0.9).abs() < 1e-5, "{:?}", r.best);
+    }
+
+    /// A violation tier (`x₀ ≥ 0.5`), the last tier (`|x₁ − 1|`) and a criterion, over `[−2, 2]²`.
+    fn two_tiers(x: &[f64]) -> Fitness {
+        let mut tiers = [0.0; crate::fitness::TIERS];
+        tiers[0] = (0.5 - x[0]).max(0.0);
+        tiers[crate::fitness::TIERS - 1] = (x[1] - 1.0).abs();
+        Fitness::tiered(tiers, (x[0] - 1.0).powi(2) + x[1] * x[1])
+    }
+
+    #[test]
+    fn a_handoff_at_a_tier_stops_the_local_search_once_the_earlier_tiers_hold() {
+        let space = SearchSpace::new(vec![-2.0; 2], vec![2.0; 2], vec![0.0, 0.0]).unwrap();
+        let single = GradientConfig { starts: 1, ..GradientConfig::default() };
+        let last = crate::fitness::TIERS - 1;
+        let plain = Gradient::new(single).minimize_from(&mut two_tiers, &space, &[vec![0.0, 0.0]]);
+        let handoff = Handoff { from_tier: Some(last), ..Handoff::default() };
+        let handed =
+            Gradient::new(single).with_handoff(handoff).minimize_from(&mut two_tiers, &space, &[vec![0.0, 0.0]]);
+        // Both lower the first tier to 0; only the plain search goes on to the last tier and the criterion.
+        assert_eq!(handed.fitness.tiers()[0], 0.0, "{handed:?}");
+        assert_eq!(plain.fitness.tiers(), [0.0; crate::fitness::TIERS], "{plain:?}");
+        assert!((plain.best[0] - 1.0).abs() < 1e-4, "{plain:?}");
+        assert!(handed.iterations < plain.iterations, "{} vs {} iterations", handed.iterations, plain.iterations);
+    }
+
+    #[test]
+    fn a_plateau_above_zero_ends_a_local_search_but_never_a_descent_of_the_criterion() {
+        // A violation whose least value is 1 (at x = (5, 5)), approached slowly along a kink from (−9, −10).
+        let mut slow =
+            |x: &[f64]| Fitness::new(1.0 + 0.2 * (x[0] - x[1]).abs() + 1e-3 * (x[0] + x[1] - 10.0).powi(2), 0.0);
+        let start = vec![-9.0, -10.0];
+        let space = SearchSpace::new(vec![-10.0; 2], vec![10.0; 2], start.clone()).unwrap();
+        let single = Gradient::new(GradientConfig { starts: 1, ..GradientConfig::default() });
+        let plateau = Handoff { plateau: Some(0.05), ..Handoff::default() };
+        let plain = single.minimize_from(&mut slow, &space, std::slice::from_ref(&start));
+        let handed = single.with_handoff(plateau).minimize_from(&mut slow, &space, std::slice::from_ref(&start));
+        assert!((plain.best[0] - 5.0).abs() < 1e-2 && (plain.best[1] - 5.0).abs() < 1e-2, "{plain:?}");
+        // Less than 5 % lowered over five iterations: the handed-over search stops there, far from (5, 5).
+        assert!(handed.iterations <= 2 * PLATEAU_ITERATIONS && handed.iterations < plain.iterations, "{handed:?}");
+        assert!(handed.evaluations < plain.evaluations && handed.fitness < slow(&start), "{handed:?}");
+        // The criterion is not a violation tier: the rule leaves its descent alone.
+        common::finds_quadratic_minimum(&Gradient::default().with_handoff(plateau), 1e-5);
+    }
+
+    #[test]
+    fn after_a_feasible_local_search_the_next_starts_are_skipped_when_asked() {
+        let space = common::cube();
+        let starts = [vec![-0.9, 0.9, -0.9], vec![0.9, -0.9, 0.9]];
+        let plain = Gradient::default().minimize_from(&mut common::quadratic, &space, &starts);
+        let first = Handoff { first_feasible: true, ..Handoff::default() };
+        let handed = Gradient::default().with_handoff(first).minimize_from(&mut common::quadratic, &space, &starts);
+        for r in [&plain, &handed] {
+            let err = r.best.iter().zip(common::C).map(|(a, c)| (a - c).abs()).fold(0.0, f64::max);
+            assert!(err < 1e-5, "{r:?}");
+        }
+        assert!(handed.iterations < plain.iterations, "{} vs {}", handed.iterations, plain.iterations);
     }
 
     #[test]

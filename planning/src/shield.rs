@@ -57,6 +57,10 @@ pub use model::safety::SPACING_POSITION_SIGMAS;
 pub const CONE_PULL_HALVINGS: usize = 8;
 /// Rounds over the UAVs of [`Shield::pull_into_cones`] at most.
 pub const CONE_PULL_ROUNDS: usize = 2;
+/// Bisections of a UAV's pull between the accepted fraction of the way and the rejected one above it.
+pub const CONE_PULL_BISECTIONS: usize = 4;
+/// The index of the heading cone's tier in the shield's [`Fitness`] (the last one).
+pub const CONE_TIER: usize = 5;
 
 /// What the UAVs' own position errors cost the safety constraints: the planner knows each UAV where its
 /// GNSS reports it, `σ_g` per axis per step and `σ_gb` for the flight (the scenario's `receiver.gnss_*`),
@@ -265,6 +269,21 @@ impl<'a> Shield<'a> {
             *evaluations += 1;
             if f < *best {
                 *best = f;
+                // As far as bisection finds between this fraction and the rejected one above it.
+                let (mut ok, mut rejected) = (t, 2.0 * t);
+                for _ in 0..if t < 1.0 { CONE_PULL_BISECTIONS } else { 0 } {
+                    let mid = 0.5 * (ok + rejected);
+                    x[i] = from + mid * (target - from);
+                    let f = fitness(x);
+                    *evaluations += 1;
+                    if f < *best {
+                        *best = f;
+                        ok = mid;
+                    } else {
+                        rejected = mid;
+                    }
+                }
+                x[i] = from + ok * (target - from);
                 return true;
             }
             t *= 0.5;
@@ -325,7 +344,7 @@ mod tests {
             let (after_plan, after, evaluations) = shield.pull_into_cones(&plan, before, &mut fitness);
             assert!(after <= before, "case {case}: {after:?} above {before:?}");
             assert_eq!(after, fitness(&after_plan), "case {case}: the fitness returned is the plan's");
-            assert!(evaluations <= CONE_PULL_ROUNDS * plan.len() * (CONE_PULL_HALVINGS + 1));
+            assert!(evaluations <= CONE_PULL_ROUNDS * plan.len() * (CONE_PULL_HALVINGS + 1 + CONE_PULL_BISECTIONS));
             for (a, p) in after_plan.iter().zip(&psi) {
                 assert!((a - p).abs() <= theta + 1e-12, "case {case}: {a} beyond the reach of {p}");
             }
@@ -364,5 +383,30 @@ mod tests {
         assert_eq!(shield.cone_excess(&after_plan), 0.0, "{after_plan:?}");
         assert!(after < before && shield.check(&after_plan).certified);
         assert_eq!((after_plan[0], after_plan[2]), (plan[0], plan[2]), "the UAVs in their cones stay");
+    }
+
+    #[test]
+    fn a_pull_blocked_part_of_the_way_goes_as_far_as_bisection_finds() {
+        let (sc, pos, psi, z, m) = nominal();
+        let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
+        let mut psi = psi;
+        psi[1] += constraints.delta_alpha + 0.8 * constraints.max_turn();
+        let shield = Shield::new(&pos, &psi, safety_limits(&sc), prediction(&sc, z, &m, None), &constraints, z);
+        let plan = psi.clone();
+        let mut free = |phi: &[f64]| shield.fitness(phi, || 0.0);
+        let edge = shield.pull_into_cones(&plan, free(&plan), &mut free).0[1];
+        // A limit 70 % of the way to the cone's edge: halvings alone stop at half the way.
+        let fraction = |phi: f64| (phi - plan[1]) / (edge - plan[1]);
+        let mut blocked = |phi: &[f64]| {
+            if fraction(phi[1]) > 0.7 {
+                Fitness::tiered([1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0)
+            } else {
+                shield.fitness(phi, || 0.0)
+            }
+        };
+        let (after, _, evaluations) = shield.pull_into_cones(&plan, blocked(&plan), &mut blocked);
+        let got = fraction(after[1]);
+        assert!((0.65..=0.7).contains(&got), "pulled {got} of the way");
+        assert!(evaluations <= CONE_PULL_ROUNDS * (CONE_PULL_HALVINGS + 1 + CONE_PULL_BISECTIONS), "{evaluations}");
     }
 }

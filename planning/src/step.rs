@@ -32,7 +32,13 @@
 //!    constraint; a second search over every reachable heading when the spacing cannot hold there —
 //!    certified, followed by [`Shield::pull_into_cones`], which takes back UAV by UAV what that joint
 //!    search left of the heading cone). The tiers being the same, its plans rank by the same order as
-//!    the two searches'. With
+//!    the two searches'. Certified, the searches hand over to the shield ([`CERTIFIED_HANDOFF`],
+//!    [`Handoff`]): the joint search stops where the heading cone is the last tier left (the pull
+//!    lowers that piecewise-linear sum far more cheaply than quasi-Newton steps, which stall against
+//!    the certificate), runs a local search from the box plan of its own, skips a second start after a
+//!    certified one, and leaves a violation tier on a plateau; where that finds no certified plan, the
+//!    searches run again to their own ends (a plan's last digits count when it is ranked by its
+//!    margins). With
 //!    `safety = "certified"`, when the local search ends without a certified plan, PSO searches every
 //!    reachable heading too (seeded `(run_seed, step, StandoffSolver)`, started from the local best) and
 //!    the better of the two is kept: the plan with the largest minimum margin, or a certified one the
@@ -51,10 +57,10 @@ use thiserror::Error;
 use crate::constraints::{ActiveConstraint, ConstraintKind, Constraints};
 use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
-use crate::gradient::Gradient;
+use crate::gradient::{Gradient, GradientConfig, Handoff};
 use crate::heading_interval::{CERTIFIED_BISECTIONS, HeadingInterval, Uav, heading_interval, heading_interval_of};
 use crate::objective::{ObjectiveKind, Sampling};
-use crate::shield::{EmitterMotion, PositionMargin, Shield, prediction, safety_limits};
+use crate::shield::{CONE_TIER, EmitterMotion, PositionMargin, Shield, prediction, safety_limits};
 use crate::solver::{SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult};
 use model::kinematics::{bearing, next_position, turn_angle, wrap_angle};
 use model::safety::{SafetyMode, SafetyReport};
@@ -164,6 +170,12 @@ fn waypoints_of(
     next
 }
 
+/// How the certified planner's gradient searches hand over (see the module docs): the search after a
+/// certified one is skipped, and a local search that lowers a violation tier by less than 5 % over
+/// [`crate::gradient::PLATEAU_ITERATIONS`] iterations stops (the reach search, or its other starts, take
+/// the conflict on).
+pub const CERTIFIED_HANDOFF: Handoff = Handoff { from_tier: None, first_feasible: true, plateau: Some(0.05) };
+
 /// The priority tiers of the standoff search (see the module docs) from the violations by kind.
 fn standoff_tiers(by_kind: [f64; 4]) -> [f64; TIERS] {
     let v = |k: ConstraintKind| by_kind[k.index()];
@@ -192,9 +204,10 @@ fn gradient_search(
     tiered: &mut dyn FnMut(&[f64]) -> Fitness,
     hard_tiers: usize,
     shield: Option<&Shield<'_>>,
+    handoff: Option<Handoff>,
 ) -> Result<SolverResult, PlanError> {
     let n = pos.len();
-    let solver = Gradient { config: sc.gradient };
+    let solver = Gradient::new(sc.gradient).with_handoff(handoff.unwrap_or_default());
     let boxes: Vec<HeadingInterval> = (0..n)
         .map(|i| {
             let uav = Uav { position: pos[i], heading: psi[i], speed: sc.speed, dt: sc.dt };
@@ -226,7 +239,18 @@ fn gradient_search(
     let centre: Vec<f64> =
         (0..n).map(|i| psi[i] + turn_angle(psi[i], bearing(pos[i], z)).clamp(-theta, theta)).collect();
     let backup: Vec<f64> = psi.iter().map(|p| p - model::safety::backup_turn(theta)).collect();
-    let second = solver.minimize_from(tiered, &reach, &[first.best.clone(), psi.to_vec(), centre, backup]);
+    let second = match (shield, handoff) {
+        (Some(_), Some(handoff)) => {
+            // Handing over to the shield's pull (below): the joint search stops where the heading cone is
+            // the last tier left; the box plan, nearest the cones, always gets a local search of its own
+            // (it ranks below every certified start, and the certified plan nearest it is the one wanted).
+            let reach_solver = solver.with_handoff(Handoff { from_tier: Some(CONE_TIER), ..handoff });
+            let single = Gradient { config: GradientConfig { starts: 1, ..sc.gradient }, ..reach_solver };
+            let from_box = single.minimize_from(tiered, &reach, std::slice::from_ref(&first.best));
+            better_of(from_box, reach_solver.minimize_from(tiered, &reach, &[psi.to_vec(), centre, backup]))
+        }
+        _ => solver.minimize_from(tiered, &reach, &[first.best.clone(), psi.to_vec(), centre, backup]),
+    };
     let found = better_of(first, second);
     // Certified: what the joint search left of the heading cone, taken back UAV by UAV (a UAV the
     // boxes kept is already as near its cone as its own limits allow; one the joint search freed may
@@ -315,7 +339,14 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
                 psi.iter().zip(formation).map(|(p, f)| p + turn_angle(*p, f).clamp(-theta, theta)).collect();
             SolverResult { fitness: safe(&best), best, iterations: 0, evaluations: 0 }
         } else if req.solver == SolverKind::Gradient {
-            let local = gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&shield))?;
+            let mut local =
+                gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&shield), Some(CERTIFIED_HANDOFF))?;
+            if !is_certified(&local.fitness) {
+                // The handover trades the searches' last digits for time, which only a certified plan can
+                // spare: where none was found, the searches run to their own ends.
+                let full = gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&shield), None)?;
+                local = better_of(local, full);
+            }
             if is_certified(&local.fitness) {
                 local
             } else {
@@ -366,7 +397,7 @@ pub fn plan_step(req: &PlanRequest<'_>) -> Result<PlanOutput, PlanError> {
             let by_kind = constraints.violations_by_kind(pos, psi, z, phi, &next[..n]);
             Fitness::tiered(standoff_tiers(by_kind), objective.evaluate(&next[..n]))
         };
-        let r = gradient_search(&constraints, pos, psi, z, sc, &mut tiered, 1, None)?;
+        let r = gradient_search(&constraints, pos, psi, z, sc, &mut tiered, 1, None, None)?;
         (r.best, r.iterations, r.evaluations)
     } else if req.objective.is_optimised() {
         let space = cone_space(&constraints, pos, psi, z, None)?;
@@ -728,7 +759,7 @@ mod tests {
         let constraints = Constraints::from_scenario(sc).with_covariance(case.m).for_step(pos, z);
         let shield = Shield::new(pos, psi, safety_limits(sc), prediction(sc, z, &case.m, None), &constraints, z);
         let mut safe = |phi: &[f64]| shield.fitness(phi, || 0.0);
-        let found = gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&shield)).unwrap();
+        let found = gradient_search(&constraints, pos, psi, z, sc, &mut safe, 3, Some(&shield), None).unwrap();
         let (local, local_evaluations) = (found.best, found.evaluations);
         let local_report = shield.check(&local);
         assert!(!local_report.certified, "the state was meant to be uncertifiable: {local_report:?}");
