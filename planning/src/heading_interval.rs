@@ -12,7 +12,7 @@
 //! 2. in them, the headings that keep the approach distance: the approach violation is sampled at
 //!    [`SAMPLES`] + 1 evenly spaced headings and every change between allowed and not is bisected to
 //!    [`BISECTIONS`] halvings (the allowed side kept), so each end is exact to ≈ 1e-12 rad (the
-//!    certificate's own part, costlier to evaluate, [`CERTIFIED_BISECTIONS`]: ≤ 3e-9 rad);
+//!    certificate's own part, costlier to evaluate, at [`CERTIFIED_RESOLUTION`]: ≤ 3e-9 rad);
 //! 3. the allowed headings in the cone (the cone taken modulo 2π): when there are some, that interval
 //!    — the one holding the current heading moved into the cone, else the widest — is the UAV's box;
 //! 4. else the UAV is *pinned* to the allowed heading nearest the cone (the least cone violation that
@@ -36,11 +36,26 @@ use model::kinematics::{bearing, next_position, turn_angle};
 pub const SAMPLES: usize = 32;
 /// Halvings of each bracket of a change between allowed and not (2θ_max/32/2⁴⁰ ≈ 1e-14 rad).
 pub const BISECTIONS: usize = 40;
-/// Halvings for a box whose violation is costly to evaluate (the safety certificate's own part,
-/// [`crate::shield::Shield::own_deficit`]): 2θ_max/32/2²⁶ ≤ 3e-9 rad, a few micrometres of a step's
-/// arc — far below what the criterion or the certificate's own brackets resolve — in 14 fewer
-/// evaluations per end.
-pub const CERTIFIED_BISECTIONS: usize = 26;
+/// How finely a box's ends are found: the intervals the reachable headings are sampled in, and the
+/// halvings of each bracket of a change between allowed and not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Resolution {
+    /// Intervals of the samples (`samples + 1` evaluations).
+    pub samples: usize,
+    /// Halvings of each bracket.
+    pub bisections: usize,
+}
+
+/// The approach distance's boxes: [`SAMPLES`] intervals, [`BISECTIONS`] halvings (≈ 1e-14 rad).
+pub const EXACT_RESOLUTION: Resolution = Resolution { samples: SAMPLES, bisections: BISECTIONS };
+
+/// A box whose violation is costly to evaluate (the safety certificate's own part,
+/// [`crate::shield::Shield::own_deficit`]): 16 intervals and 27 halvings, 2θ_max/16/2²⁷ ≤ 3e-9 rad at
+/// the ends — a few micrometres of a step's arc, far below what the criterion or the certificate's own
+/// brackets resolve — in 16 + 26 fewer evaluations per UAV than [`EXACT_RESOLUTION`] would take. A run
+/// of allowed or refused headings narrower than 2θ_max/16 between two samples can be missed; the box only
+/// steers the search, every plan is certified whole (`crate::shield`).
+pub const CERTIFIED_RESOLUTION: Resolution = Resolution { samples: 16, bisections: 27 };
 /// Golden-section iterations of the least approach violation when no heading keeps it.
 pub const GOLDEN_STEPS: usize = 40;
 
@@ -99,41 +114,42 @@ fn cone_distance(phi: f64, alpha: f64, delta_alpha: f64) -> f64 {
 
 /// The heading box of one UAV (see the module docs).
 pub fn heading_interval(c: &Constraints, uav: &Uav, estimate: Vector2<f64>) -> HeadingInterval {
-    heading_interval_of(c, uav, estimate, &|phi| uav.violation(c, estimate, phi), BISECTIONS)
+    heading_interval_of(c, uav, estimate, &|phi| uav.violation(c, estimate, phi), EXACT_RESOLUTION)
 }
 
 /// The heading box of one UAV for any per-UAV violation `v(φ)` (0 where the UAV's own limits hold):
 /// the approach distance ([`heading_interval`]) or the UAV's own part of the safety certificate
-/// ([`crate::shield`]), each end bisected `bisections` times ([`BISECTIONS`], [`CERTIFIED_BISECTIONS`]).
+/// ([`crate::shield`]), at the `resolution` given ([`EXACT_RESOLUTION`], [`CERTIFIED_RESOLUTION`]).
 pub fn heading_interval_of(
     c: &Constraints,
     uav: &Uav,
     estimate: Vector2<f64>,
     v: &dyn Fn(f64) -> f64,
-    bisections: usize,
+    resolution: Resolution,
 ) -> HeadingInterval {
+    let Resolution { samples: intervals, bisections } = resolution;
     let psi = uav.heading;
     let theta = c.max_turn();
     let (lo, hi) = (psi - theta, psi + theta);
     let alpha = bearing(uav.position, estimate);
 
     // The allowed runs of the samples, their ends refined.
-    let step = (hi - lo) / SAMPLES as f64;
-    let at = |k: usize| if k == SAMPLES { hi } else { lo + k as f64 * step };
-    let samples: Vec<(f64, f64)> = (0..=SAMPLES).map(|k| (at(k), v(at(k)))).collect();
+    let step = (hi - lo) / intervals as f64;
+    let at = |k: usize| if k == intervals { hi } else { lo + k as f64 * step };
+    let samples: Vec<(f64, f64)> = (0..=intervals).map(|k| (at(k), v(at(k)))).collect();
     let mut allowed: Vec<(f64, f64)> = Vec::new();
     let mut k = 0;
-    while k <= SAMPLES {
+    while k <= intervals {
         if samples[k].1 != 0.0 {
             k += 1;
             continue;
         }
         let start = k;
-        while k < SAMPLES && samples[k + 1].1 == 0.0 {
+        while k < intervals && samples[k + 1].1 == 0.0 {
             k += 1;
         }
         let a = if start == 0 { lo } else { refine(v, samples[start].0, samples[start - 1].0, bisections) };
-        let b = if k == SAMPLES { hi } else { refine(v, samples[k].0, samples[k + 1].0, bisections) };
+        let b = if k == intervals { hi } else { refine(v, samples[k].0, samples[k + 1].0, bisections) };
         allowed.push((a, b));
         k += 1;
     }
@@ -169,8 +185,8 @@ pub fn heading_interval_of(
         return HeadingInterval { lo: best, hi: best, in_cone: false };
     }
     // No reachable heading keeps the approach distance: the least violation.
-    let kbest = (0..=SAMPLES).min_by(|x, y| samples[*x].1.total_cmp(&samples[*y].1)).expect("samples");
-    let (mut a, mut b) = (at(kbest.saturating_sub(1)), at((kbest + 1).min(SAMPLES)));
+    let kbest = (0..=intervals).min_by(|x, y| samples[*x].1.total_cmp(&samples[*y].1)).expect("samples");
+    let (mut a, mut b) = (at(kbest.saturating_sub(1)), at((kbest + 1).min(intervals)));
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
     let (mut f1, mut f2) = (v(x1), v(x2));

@@ -386,6 +386,49 @@ mod tests {
     }
 
     #[test]
+    fn certified_boxes_keep_each_uavs_own_limits_and_end_where_one_binds() {
+        use crate::heading_interval::{CERTIFIED_RESOLUTION, Uav, heading_interval_of};
+        let (sc, _, _, z, m) = nominal();
+        let mut r = Lcg(11);
+        let (mut ends, mut binding) = (0, 0);
+        for case in 0..1000 {
+            // Three UAVs near the standoff ring, at random bearings and headings.
+            let pos: Vec<Vector2<f64>> = (0..3)
+                .map(|_| {
+                    let (a, d) = (std::f64::consts::TAU * r.next(), sc.l_min * (1.1 + 0.5 * r.next()));
+                    z + Vector2::new(a.cos(), a.sin()) * d
+                })
+                .collect();
+            let psi: Vec<f64> = (0..3).map(|_| std::f64::consts::TAU * (r.next() - 0.5)).collect();
+            let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
+            let shield = Shield::new(&pos, &psi, safety_limits(&sc), prediction(&sc, z, &m, None), &constraints, z);
+            let theta = constraints.max_turn();
+            for i in 0..3 {
+                let uav = Uav { position: pos[i], heading: psi[i], speed: sc.speed, dt: sc.dt };
+                let own = |phi: f64| shield.own_deficit(i, phi);
+                let b = heading_interval_of(&constraints, &uav, z, &own, CERTIFIED_RESOLUTION);
+                if b.lo == b.hi {
+                    continue;
+                }
+                let alpha = shield.cone_centres[i];
+                for (end, outward) in [(b.lo, -1.0), (b.hi, 1.0)] {
+                    assert_eq!(own(end), 0.0, "case {case} UAV {i}: the box end {end} breaks the UAV's own limits");
+                    let at_reach = (end - psi[i]).abs() >= theta - 1e-12;
+                    let at_cone = b.in_cone && (wrap_angle(end - alpha).abs() - constraints.delta_alpha).abs() < 1e-9;
+                    ends += 1;
+                    if !at_reach && !at_cone {
+                        // Neither the turn nor the cone ends the box here: one of the UAV's own limits does,
+                        // found to the resolution's 3e-9 rad.
+                        binding += 1;
+                        assert!(own(end + outward * 1e-8) > 0.0, "case {case} UAV {i}: the box could go on past {end}");
+                    }
+                }
+            }
+        }
+        assert!(ends >= 300 && binding >= 100, "{binding} of {ends} box ends set by a limit");
+    }
+
+    #[test]
     fn a_pull_blocked_part_of_the_way_goes_as_far_as_bisection_finds() {
         let (sc, pos, psi, z, m) = nominal();
         let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);

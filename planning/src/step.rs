@@ -58,7 +58,7 @@ use crate::constraints::{ActiveConstraint, ConstraintKind, Constraints};
 use crate::fitness::{Fitness, TIERS};
 use crate::formation::formation_headings;
 use crate::gradient::{Gradient, GradientConfig, Handoff};
-use crate::heading_interval::{CERTIFIED_BISECTIONS, HeadingInterval, Uav, heading_interval, heading_interval_of};
+use crate::heading_interval::{CERTIFIED_RESOLUTION, HeadingInterval, Uav, heading_interval, heading_interval_of};
 use crate::objective::{ObjectiveKind, Sampling};
 use crate::shield::{CONE_TIER, EmitterMotion, PositionMargin, Shield, prediction, safety_limits};
 use crate::solver::{SearchSpace, SearchSpaceError, Solver, SolverKind, SolverResult};
@@ -213,7 +213,7 @@ fn gradient_search(
             let uav = Uav { position: pos[i], heading: psi[i], speed: sc.speed, dt: sc.dt };
             match shield {
                 Some(sh) => {
-                    heading_interval_of(constraints, &uav, z, &|phi| sh.own_deficit(i, phi), CERTIFIED_BISECTIONS)
+                    heading_interval_of(constraints, &uav, z, &|phi| sh.own_deficit(i, phi), CERTIFIED_RESOLUTION)
                 }
                 None => heading_interval(constraints, &uav, z),
             }
