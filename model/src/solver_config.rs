@@ -86,7 +86,7 @@ pub struct GradientConfig {
     /// Local searches, from the best of the evaluated starts (current headings, cone centre, cone
     /// corners) — 2.
     pub starts: usize,
-    /// Most quasi-Newton iterations per local search — 40.
+    /// Most quasi-Newton iterations per local search — 30.
     pub iterations: usize,
     /// A local search stops when its step moves no heading by more than this, radians — 1e-7.
     pub tolerance: f64,
@@ -94,7 +94,7 @@ pub struct GradientConfig {
 
 impl Default for GradientConfig {
     fn default() -> Self {
-        Self { starts: 2, iterations: 40, tolerance: 1e-7 }
+        Self { starts: 2, iterations: 30, tolerance: 1e-7 }
     }
 }
 
