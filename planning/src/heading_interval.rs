@@ -52,7 +52,7 @@ pub const EXACT_RESOLUTION: Resolution = Resolution { samples: SAMPLES, bisectio
 /// A box whose violation is costly to evaluate (the safety certificate's own part,
 /// [`crate::shield::Shield::own_deficit`]): 16 intervals and 27 halvings, 2θ_max/16/2²⁷ ≤ 3e-9 rad at
 /// the ends — a few micrometres of a step's arc, far below what the criterion or the certificate's own
-/// brackets resolve — in 16 + 26 fewer evaluations per UAV than [`EXACT_RESOLUTION`] would take. A run
+/// brackets resolve — with 16 fewer samples than [`EXACT_RESOLUTION`] and 13 fewer halvings per end. A run
 /// of allowed or refused headings narrower than 2θ_max/16 between two samples can be missed; the box only
 /// steers the search, every plan is certified whole (`crate::shield`).
 pub const CERTIFIED_RESOLUTION: Resolution = Resolution { samples: 16, bisections: 27 };

@@ -61,6 +61,7 @@ pub const CONE_PULL_ROUNDS: usize = 2;
 pub const CONE_PULL_BISECTIONS: usize = 4;
 /// The index of the heading cone's tier in the shield's [`Fitness`] (the last one).
 pub const CONE_TIER: usize = 5;
+const _: () = assert!(CONE_TIER == crate::fitness::TIERS - 1, "the cone is the shield's last tier");
 
 /// What the UAVs' own position errors cost the safety constraints: the planner knows each UAV where its
 /// GNSS reports it, `σ_g` per axis per step and `σ_gb` for the flight (the scenario's `receiver.gnss_*`),
@@ -366,14 +367,19 @@ mod tests {
         assert!(outside >= 50, "only {outside} of 300 random plans left their cones");
     }
 
+    /// The nominal state with UAV 1 flying straight on, off its cone by 0.8 θ_max (the initial headings
+    /// point at the emitter, the cones' centres), where a turn of θ_max would take it back in; and the
+    /// step's constraints.
+    fn uav_1_off_its_cone() -> (State, Constraints) {
+        let (sc, pos, mut psi, z, m) = nominal();
+        let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
+        psi[1] += constraints.delta_alpha + 0.8 * constraints.max_turn();
+        ((sc, pos, psi, z, m), constraints)
+    }
+
     #[test]
     fn a_uav_freed_outside_a_reachable_cone_is_pulled_back_into_it() {
-        let (sc, pos, psi, z, m) = nominal();
-        let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
-        // The initial headings point at the emitter (the cones' centres); UAV 1 flies straight on, off
-        // its cone by 0.8 θ_max, where a turn of θ_max would take it back in.
-        let mut psi = psi;
-        psi[1] += constraints.delta_alpha + 0.8 * constraints.max_turn();
+        let ((sc, pos, psi, z, m), constraints) = uav_1_off_its_cone();
         let shield = Shield::new(&pos, &psi, safety_limits(&sc), prediction(&sc, z, &m, None), &constraints, z);
         let mut fitness = |phi: &[f64]| shield.fitness(phi, || 0.0);
         let plan = psi.clone();
@@ -430,10 +436,7 @@ mod tests {
 
     #[test]
     fn a_pull_blocked_part_of_the_way_goes_as_far_as_bisection_finds() {
-        let (sc, pos, psi, z, m) = nominal();
-        let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
-        let mut psi = psi;
-        psi[1] += constraints.delta_alpha + 0.8 * constraints.max_turn();
+        let ((sc, pos, psi, z, m), constraints) = uav_1_off_its_cone();
         let shield = Shield::new(&pos, &psi, safety_limits(&sc), prediction(&sc, z, &m, None), &constraints, z);
         let plan = psi.clone();
         let mut free = |phi: &[f64]| shield.fitness(phi, || 0.0);
