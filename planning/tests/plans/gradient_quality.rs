@@ -4,11 +4,9 @@
 //! on recorded closed-loop problems). Ties count as "at least as good" within 1e-12 relative (two solvers reaching
 //! the same bound can differ in the last bits of the criterion).
 
-mod problems;
-
+use crate::problems::{PROBLEMS, plan};
 use model::Scenario;
 use planning::{Fitness, ObjectiveKind, SolverKind};
-use problems::{PROBLEMS, plan};
 
 fn at_most(a: Fitness, b: Fitness) -> bool {
     a <= b || (a.tiers() == b.tiers() && a.objective() <= b.objective() * (1.0 + 1e-12))

@@ -3,14 +3,12 @@
 //! value, iterations and evaluations — for every solver and criterion on 64 planning problems drawn in
 //! both regimes (approach from afar, and inside the standoff ring where the standoff search runs).
 //!
-//! `UAVLOC_WRITE_GOLDEN=1 cargo test --release -p uavloc-planning --test golden_plans` records them again
+//! `UAVLOC_WRITE_GOLDEN=1 cargo test --release -p uavloc-planning --test plans golden` records them again
 //! (only when a change of the plans is intended).
 
-mod problems;
-
+use crate::problems::{PROBLEMS, plan};
 use model::Scenario;
 use planning::{ObjectiveKind, SolverKind};
-use problems::{PROBLEMS, plan};
 
 const FILE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/golden_plans.txt");
 

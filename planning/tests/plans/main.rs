@@ -1,0 +1,8 @@
+//! The planner's solvers on recorded planning problems and random plans, in one test binary: the
+//! constraints against their definitions, the waypoint planner's recorded plans bit for bit, and the
+//! gradient solver against the paper's solvers.
+
+mod constraint_properties;
+mod golden_plans;
+mod gradient_quality;
+mod problems;
