@@ -40,14 +40,14 @@ pub const BISECTIONS: usize = 40;
 /// halvings of each bracket of a change between allowed and not.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Resolution {
-    /// Intervals of the samples (`samples + 1` evaluations).
-    pub samples: usize,
+    /// Intervals the reachable headings are sampled in (`intervals + 1` evaluations).
+    pub intervals: usize,
     /// Halvings of each bracket.
     pub bisections: usize,
 }
 
 /// The approach distance's boxes: [`SAMPLES`] intervals, [`BISECTIONS`] halvings (≈ 1e-14 rad).
-pub const EXACT_RESOLUTION: Resolution = Resolution { samples: SAMPLES, bisections: BISECTIONS };
+pub const EXACT_RESOLUTION: Resolution = Resolution { intervals: SAMPLES, bisections: BISECTIONS };
 
 /// A box whose violation is costly to evaluate (the safety certificate's own part,
 /// [`crate::shield::Shield::own_deficit`]): 16 intervals and 27 halvings, 2θ_max/16/2²⁷ ≤ 3e-9 rad at
@@ -55,7 +55,7 @@ pub const EXACT_RESOLUTION: Resolution = Resolution { samples: SAMPLES, bisectio
 /// brackets resolve — with 16 fewer samples than [`EXACT_RESOLUTION`] and 13 fewer halvings per end. A run
 /// of allowed or refused headings narrower than 2θ_max/16 between two samples can be missed; the box only
 /// steers the search, every plan is certified whole (`crate::shield`).
-pub const CERTIFIED_RESOLUTION: Resolution = Resolution { samples: 16, bisections: 27 };
+pub const CERTIFIED_RESOLUTION: Resolution = Resolution { intervals: 16, bisections: 27 };
 /// Golden-section iterations of the least approach violation when no heading keeps it.
 pub const GOLDEN_STEPS: usize = 40;
 
@@ -127,7 +127,7 @@ pub fn heading_interval_of(
     v: &dyn Fn(f64) -> f64,
     resolution: Resolution,
 ) -> HeadingInterval {
-    let Resolution { samples: intervals, bisections } = resolution;
+    let Resolution { intervals, bisections } = resolution;
     let psi = uav.heading;
     let theta = c.max_turn();
     let (lo, hi) = (psi - theta, psi + theta);
