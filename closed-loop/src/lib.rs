@@ -126,7 +126,7 @@ pub fn run_closed_loop_with(
         let (est, awaiting_fix) = match estimator.estimate_burst(k, &seen) {
             Ok(est) => (est, false),
             Err(e) if !planning::gives_up_without_fix(k, seen.heard_count()) => {
-                (no_fix_yet(&seen, e.to_string()), true)
+                (no_fix_yet(&seen, e.to_string(), estimator.held()), true)
             }
             Err(e) => return Err(failed(Some(k), "estimate")(e)),
         };
@@ -240,7 +240,7 @@ pub fn run_closed_loop_with(
 pub const HOLD_LABEL: &str = "estimate_stale";
 
 /// The estimator's output for a step without a first fix yet: no position (NaN), status `failed`.
-fn no_fix_yet(a: &tdoa::Arrivals, reason: String) -> estimation::EstimateOut {
+fn no_fix_yet(a: &tdoa::Arrivals, reason: String, held: &[estimation::HeldBurst]) -> estimation::EstimateOut {
     estimation::EstimateOut {
         position: Vector2::repeat(f64::NAN),
         covariance: Matrix2::repeat(f64::NAN),
@@ -254,6 +254,7 @@ fn no_fix_yet(a: &tdoa::Arrivals, reason: String) -> estimation::EstimateOut {
         bias_cov: Matrix2::zeros(),
         sensitivity: None,
         alternative: None,
+        held: held.to_vec(),
     }
 }
 

@@ -114,7 +114,13 @@ pub struct EstimateOut {
     /// Fused, after an ambiguous fix: the posterior of Chan's other root (with its bias sensitivity),
     /// pending until the next burst decides between the two — part of the state after this step.
     pub alternative: Option<PendingRoot>,
+    /// Fused, before the first fix: the two-arrival bursts held for it (the estimator's whole state
+    /// until then; empty once there is a fix).
+    pub held: Vec<HeldBurst>,
 }
+
+/// A burst heard by two UAVs before the first fix, with its step: held for the first fix.
+pub type HeldBurst = (u64, Arrivals);
 
 /// The posterior of Chan's other root after an ambiguous fix, with its bias sensitivity: pending until
 /// the next burst decides between the two roots.
@@ -215,7 +221,14 @@ pub struct Estimator {
     last_step: Option<u64>,
     /// Fused: the posterior's dependence on the flight-long biases ([`tdoa::consider`]).
     sensitivity: Option<BiasSensitivity>,
+    /// Fused, before the first fix: the bursts heard by two UAVs only (one range difference each, no
+    /// fix on their own), with their steps, fused into the first fix when it comes (the newest
+    /// [`MAX_HELD_BURSTS`]).
+    held: Vec<HeldBurst>,
 }
+
+/// The two-arrival bursts before the first fix an [`Estimator`] keeps for it (the newest).
+pub const MAX_HELD_BURSTS: usize = 4;
 
 impl Default for Estimator {
     fn default() -> Self {
@@ -235,6 +248,7 @@ impl Estimator {
             track: TrackCounters::default(),
             last_step: None,
             sensitivity: None,
+            held: Vec::new(),
         }
     }
 
@@ -275,6 +289,7 @@ impl Estimator {
             track: TrackCounters::default(),
             last_step: Some(step),
             sensitivity: None,
+            held: Vec::new(),
         }
     }
 
@@ -309,6 +324,20 @@ impl Estimator {
     pub fn with_track(mut self, t: TrackCounters) -> Self {
         self.track = t.clamped();
         self
+    }
+
+    /// This estimator with the two-arrival bursts `held` kept for its first fix (the state of an
+    /// estimate's `held`; fused only, the newest [`MAX_HELD_BURSTS`]).
+    pub fn with_held(mut self, held: &[HeldBurst]) -> Self {
+        if self.config.kind == EstimatorKind::Fused {
+            self.held = held[held.len().saturating_sub(MAX_HELD_BURSTS)..].to_vec();
+        }
+        self
+    }
+
+    /// Fused, before the first fix: the two-arrival bursts held for it.
+    pub fn held(&self) -> &[HeldBurst] {
+        &self.held
     }
 
     /// Fused: the track's counters ([`track`]).
@@ -371,7 +400,13 @@ impl Estimator {
             return self.silent(step, a);
         }
         if a.heard_count() < 3 && self.posterior.is_none() && self.previous.is_none() {
-            // Two arrivals and nothing to fuse them into: wait for a burst that gives a first fix.
+            // Two arrivals and nothing to fuse them into: kept for the first fix, which they then refine.
+            if self.config.kind == EstimatorKind::Fused {
+                if self.held.len() == MAX_HELD_BURSTS {
+                    self.held.remove(0);
+                }
+                self.held.push((step, *a));
+            }
             return self.silent(step, a);
         }
         let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
@@ -392,10 +427,29 @@ impl Estimator {
                 })
             }
             (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), &s_pred, a),
-            _ => self.solve(a).map(|(out, other)| {
-                self.alternative = other;
-                out
-            }),
+            _ => match self.solve(a) {
+                Ok((out, other)) => {
+                    let held = std::mem::take(&mut self.held);
+                    self.alternative = other.map(|(p, s)| {
+                        let (p, s) = self.fold_held(p, s, step, &held);
+                        (p, s)
+                    });
+                    Ok(match out.posterior {
+                        Some(p) if !held.is_empty() => {
+                            let (p, s) = self.fold_held(p, out.sensitivity, step, &held);
+                            EstimateOut {
+                                position: p.position(),
+                                covariance: p.position_cov(),
+                                posterior: Some(p),
+                                sensitivity: s,
+                                ..out
+                            }
+                        }
+                        _ => out,
+                    })
+                }
+                Err(e) => Err(e),
+            },
         };
         self.last_step = Some(step);
         // Too many rejections in a row: the posterior has lost the emitter; start again from Chan as at the
@@ -453,6 +507,32 @@ impl Estimator {
         }
     }
 
+    /// The first fix's posterior `post` at `step` (bias sensitivity `s`) with the two-arrival bursts
+    /// `held` of the steps before it fused in: each burst into the posterior carried back to its step
+    /// (`Φ⁻¹`, no process noise; the static model stays as it is) and forward again — for the static
+    /// model the posterior of the fix's burst and the held ones together, in any order. A held burst
+    /// that fails the gate is left out.
+    fn fold_held(
+        &self,
+        mut post: Posterior,
+        mut s: Option<BiasSensitivity>,
+        step: u64,
+        held: &[HeldBurst],
+    ) -> (Posterior, Option<BiasSensitivity>) {
+        let dynamics = self.config.dynamics;
+        for (j, b) in held {
+            let phi = dynamics.transition(step.saturating_sub(*j));
+            let Some(back) = phi.try_inverse() else { continue };
+            let s_back = s.unwrap_or(BiasSensitivity::zero()).transformed(&back);
+            let Ok(out) = self.fuse(&post.transformed(&back), &s_back, b) else { continue };
+            if let (EstimateStatus::Ok, Some(p)) = (&out.status, out.posterior) {
+                post = p.transformed(&phi);
+                s = out.sensitivity.map(|x| x.transformed(&phi));
+            }
+        }
+        (post, s)
+    }
+
     /// The previous estimate, reported as failed for `reason`; `None` when there is none.
     fn keep_previous(&self, reason: String, heard: u8) -> Option<EstimateOut> {
         let (position, covariance) = self.previous?;
@@ -469,6 +549,7 @@ impl Estimator {
             bias_cov: Matrix2::zeros(),
             sensitivity: self.sensitivity,
             alternative: self.alternative(),
+            held: self.held.clone(),
         })
     }
 
@@ -511,6 +592,7 @@ impl Estimator {
                     bias_cov: bias_cov(self.sensitivity.as_ref(), a),
                     sensitivity: self.sensitivity,
                     alternative: self.alternative(),
+                    held: Vec::new(),
                 })
             }
             _ => {
@@ -572,6 +654,7 @@ impl Estimator {
             bias_cov: Matrix2::zeros(),
             sensitivity,
             alternative: None,
+            held: Vec::new(),
         })
     }
 
@@ -676,6 +759,7 @@ impl Estimator {
             bias_cov: Matrix2::zeros(),
             sensitivity: BiasSensitivity::of_fix(&heard, &sol.position),
             alternative: None,
+            held: Vec::new(),
         };
         Ok((out, other))
     }
@@ -918,6 +1002,58 @@ mod tests {
         )
         .with_track(TrackCounters { rejected_run: 2, ..TrackCounters::default() });
         assert_eq!(resumed.estimate(1, &uavs, &d, &noise(4)).unwrap().track.rejected_run, 0);
+    }
+
+    #[test]
+    fn two_arrival_bursts_before_the_first_fix_are_fused_into_it() {
+        // Noise-free, static: the bursts held (each one difference of another UAV pair, at other
+        // positions) leave the fix exact and add their information to it.
+        let z = Vector2::new(25_000.0, 15_000.0);
+        let at = |k: f64| {
+            vec![
+                Vector2::new(1500.0 + 400.0 * k, 500.0),
+                Vector2::new(10_000.0, 1500.0 + 300.0 * k),
+                Vector2::new(5000.0 - 200.0 * k, 8500.0),
+            ]
+        };
+        let burst = |k: f64, mask: u8| {
+            let uavs = at(k);
+            let pts: Vec<[f64; 2]> = uavs.iter().map(|p| [p.x, p.y]).collect();
+            let arrivals: Vec<f64> = uavs.iter().map(|p| (p - z).norm()).collect();
+            Arrivals::new(&pts, &arrivals, mask, &[28.7712; 3], &[0.0; 3]).unwrap()
+        };
+        let mut with = Estimator::with_config(EstimatorConfig::fused(Dynamics::fixed()));
+        let mut without = Estimator::with_config(EstimatorConfig::fused(Dynamics::fixed()));
+        for (k, mask) in [(0.0, 0b011u8), (1.0, 0b110), (2.0, 0b101)] {
+            assert!(matches!(
+                with.estimate_burst(k as u64, &burst(k, mask)),
+                Err(EstimatorError::NoFixYet { heard: 2 })
+            ));
+        }
+        assert_eq!(with.held().len(), 3);
+        let a = with.estimate_burst(3, &burst(3.0, 0b111)).unwrap();
+        let b = without.estimate_burst(3, &burst(3.0, 0b111)).unwrap();
+        assert!(with.held().is_empty());
+        assert!((a.position - z).norm() < 1e-3, "{:?}", a.position);
+        assert!(
+            a.covariance.trace() < 0.9 * b.covariance.trace(),
+            "{} vs {}",
+            a.covariance.trace(),
+            b.covariance.trace()
+        );
+        // The information adds: the fix's own information plus each burst's (one difference, at z).
+        let info = |k: f64, mask: u8| {
+            let h = burst(k, mask).heard().unwrap().unwrap();
+            tdoa::fim::fim(&h.sensors, &z).unwrap()
+        };
+        let total = b.covariance.try_inverse().unwrap() + info(0.0, 0b011) + info(1.0, 0b110) + info(2.0, 0b101);
+        let bound = total.try_inverse().unwrap();
+        // A single range difference is fused with its linearisation noise on top (tdoa::fusion): never
+        // more information than the bursts hold, and close to it.
+        let min_eig = |m: Matrix2<f64>| tdoa::fim::sym_eigenvalues(&m).0.min(tdoa::fim::sym_eigenvalues(&m).1);
+        assert!(min_eig(a.covariance - bound) > -1e-6 * bound.norm(), "{} below the bound {}", a.covariance, bound);
+        assert!(min_eig(b.covariance - a.covariance) > 0.0, "{} not below the fix's {}", a.covariance, b.covariance);
+        assert!(a.covariance.trace() < 1.05 * bound.trace(), "{} vs {}", a.covariance, bound);
     }
 
     #[test]

@@ -17,7 +17,7 @@
 use std::collections::BTreeMap;
 
 use nalgebra::{Matrix4, Vector4};
-use protocol::{EchoedState, Estimate, Fix, Measurement, PosteriorExtra, StateEcho};
+use protocol::{EchoedState, Estimate, Fix, HeldBurst, HeldBursts, Measurement, PosteriorExtra, StateEcho};
 use runtime::recovery::StateStore;
 use tdoa::consider::BiasSensitivity;
 use tdoa::{Arrivals, Posterior};
@@ -131,7 +131,10 @@ impl Chain {
                     .with_alternative(pending_of(&extra));
                 Self { estimator, last_step: Some(step) }
             }
-            EchoedState::Empty { step } => Self { last_step: Some(step), ..Self::fresh(config) },
+            EchoedState::Empty { step, held } => Self {
+                estimator: Estimator::with_config(config).with_held(&library_held(&held)),
+                last_step: Some(step),
+            },
         }
     }
 }
@@ -183,6 +186,8 @@ pub struct Reply {
     pub outliers: u8,
     /// The persistent errors' consider covariance at the estimate, m².
     pub bias_cov: [[f64; 2]; 2],
+    /// Before the first fix: the two-arrival bursts the estimator holds for it.
+    pub held: HeldBursts,
 }
 
 impl Reply {
@@ -198,7 +203,8 @@ impl Reply {
         Ok(Estimate::from_measurement(m, received_ns, seq, instance, self.fix)?
             .with_extra(&self.extra)
             .with_standing(self.standing)
-            .with_receiver(self.outliers, self.bias_cov))
+            .with_receiver(self.outliers, self.bias_cov)
+            .with_held(self.held))
     }
 }
 
@@ -317,6 +323,7 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply
             standing: estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c)),
             outliers: 0,
             bias_cov: [[0.0; 2]; 2],
+            held: held_of(estimator.held()),
         },
     }
 }
@@ -345,10 +352,74 @@ pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
                 standing: Some((position, covariance)),
                 outliers: 0,
                 bias_cov: [[0.0; 2]; 2],
+                held: held_of(&out.held),
             };
         }
     };
-    Reply { fix, extra, standing: None, outliers: out.outliers, bias_cov: tdoa::matrix_to_rows(&out.bias_cov) }
+    Reply {
+        fix,
+        extra,
+        standing: None,
+        outliers: out.outliers,
+        bias_cov: tdoa::matrix_to_rows(&out.bias_cov),
+        held: held_of(&out.held),
+    }
+}
+
+// The wire holds as many bursts as the estimator keeps.
+const _: () = assert!(protocol::MAX_HELD_BURSTS == estimation::MAX_HELD_BURSTS);
+
+/// The wire form of the two-arrival bursts an estimator holds for its first fix (a burst not heard by
+/// exactly two UAVs is not one it holds, and is left out).
+pub fn held_of(held: &[estimation::HeldBurst]) -> HeldBursts {
+    let wire: Vec<HeldBurst> = held
+        .iter()
+        .filter_map(|(step, a)| {
+            let uavs: Vec<usize> = (0..a.len()).filter(|&i| a.arrival(i).is_some()).collect();
+            let [i, j] = uavs[..] else { return None };
+            let (p, s, b) = (a.positions(), a.sigmas(), a.bias_sigmas());
+            Some(HeldBurst {
+                step: *step,
+                count: a.len() as u8,
+                uavs: [i as u8, j as u8],
+                reserved: [0; 5],
+                positions: [[p[i].x, p[i].y], [p[j].x, p[j].y]],
+                arrival_diff: a.arrival(j)? - a.arrival(i)?,
+                sigmas: [s[i], s[j]],
+                bias_sigmas: [b[i], b[j]],
+            })
+        })
+        .collect();
+    HeldBursts::new(&wire)
+}
+
+/// The library form of held bursts (as [`held_of`] wrote them; a burst that does not form arrivals is
+/// left out — validation refuses such a message before it gets here). The UAVs that did not hear a
+/// burst get placeholder geometry that nothing reads.
+pub fn library_held(held: &HeldBursts) -> Vec<estimation::HeldBurst> {
+    held.as_slice()
+        .iter()
+        .filter_map(|b| {
+            let n = usize::from(b.count);
+            let [i, j] = b.uavs.map(usize::from);
+            if i >= j || j >= n {
+                return None;
+            }
+            let mut positions = vec![[0.0; 2]; n];
+            let mut arrivals = vec![0.0; n];
+            let mut sigmas = vec![1.0; n];
+            let mut bias = vec![0.0; n];
+            positions[i] = b.positions[0];
+            positions[j] = b.positions[1];
+            arrivals[j] = b.arrival_diff;
+            sigmas[i] = b.sigmas[0];
+            sigmas[j] = b.sigmas[1];
+            bias[i] = b.bias_sigmas[0];
+            bias[j] = b.bias_sigmas[1];
+            let mask = tdoa::arrivals::bit(i) | tdoa::arrivals::bit(j);
+            Arrivals::new(&positions, &arrivals, mask, &sigmas, &bias).ok().map(|a| (b.step, a))
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -369,6 +440,47 @@ mod tests {
         let e = |i: u64| ((step * 7 + i * 3) % 11) as f64 - 5.0;
         let diffs = [r(uavs[1]) - r(uavs[0]) + e(1), r(uavs[2]) - r(uavs[0]) + e(2)];
         Measurement::new(step, step + 1, &uavs, &diffs, &[28.7712; 3], &[0.0; 3]).unwrap()
+    }
+
+    /// Step `step` of [`measurement`]'s world heard by the UAVs of `mask` only.
+    fn partial(step: u64, mask: u8) -> Measurement {
+        let full = measurement(step);
+        Measurement::heard(step, step + 1, full.uavs(), mask, full.arrivals(), &[28.7712; 3], &[0.0; 3]).unwrap()
+    }
+
+    #[test]
+    fn an_estimator_restarted_before_its_first_fix_goes_on_from_the_bursts_the_echo_holds() {
+        // Three two-arrival bursts, then complete ones: the first fix (step 3) folds the three in.
+        let masks = [0b011u8, 0b110, 0b101, 0b111, 0b111, 0b011, 0b111];
+        let m = |k: usize| if masks[k] == 0b111 { measurement(k as u64) } else { partial(k as u64, masks[k]) };
+        let cv = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 0.05, 20.0).unwrap();
+        for config in [EstimatorConfig::fused(Dynamics::fixed()), EstimatorConfig::fused(cv)] {
+            let mut straight = StepEstimator::with_config(config);
+            let mut replies = Vec::new();
+            let mut echoes = Vec::new();
+            for k in 0..masks.len() {
+                let r = reply(straight.handle(&m(k), k as u64));
+                let estimate = r.to_estimate(&m(k), 0, k as u64 + 1, 1).unwrap();
+                estimate.validate(None).unwrap();
+                let echo = protocol::StateEcho::of(&estimate).unwrap();
+                echo.validate().unwrap();
+                echoes.push(echo);
+                replies.push(r);
+            }
+            assert_eq!(replies[2].held.count, 3, "three bursts held before the fix");
+            assert_eq!(replies[3].held.count, 0, "folded into the first fix");
+            assert!(matches!(replies[3].fix, Fix::Ok { .. } | Fix::Ambiguous { .. }));
+            // A fresh estimator (no file) given the echo of step 2: every later estimate bit for bit.
+            for after in 0..3 {
+                let mut restarted = StepEstimator::with_config(config);
+                assert_eq!(restarted.handle(&m(after + 1), 99), Answer::OutOfChain);
+                restarted.remember(echoes[after]);
+                assert_eq!(reply(restarted.release()[0].1), replies[after + 1], "{config:?} restart after {after}");
+                for (k, expected) in replies.iter().enumerate().skip(after + 2) {
+                    assert_eq!(reply(restarted.handle(&m(k), k as u64)), *expected, "{config:?} step {k}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -122,6 +122,34 @@ class Measurement(ctypes.Structure):
         return "uavloc::Measurement/v2"
 
 
+MAX_HELD_BURSTS = 4
+
+
+class HeldBurst(ctypes.Structure):
+    """A burst heard by two UAVs only, held by the estimator for its first fix (part of its state)."""
+
+    _fields_ = [
+        ("step", ctypes.c_uint64),
+        ("count", ctypes.c_uint8),
+        ("uavs", ctypes.c_uint8 * 2),
+        ("reserved", ctypes.c_uint8 * 5),
+        ("positions", (ctypes.c_double * 2) * 2),
+        ("arrival_diff", ctypes.c_double),
+        ("sigmas", ctypes.c_double * 2),
+        ("bias_sigmas", ctypes.c_double * 2),
+    ]
+
+
+class HeldBursts(ctypes.Structure):
+    """The held bursts of an estimator state: `count` of `bursts`, oldest first."""
+
+    _fields_ = [
+        ("count", ctypes.c_uint8),
+        ("reserved", ctypes.c_uint8 * 7),
+        ("bursts", HeldBurst * MAX_HELD_BURSTS),
+    ]
+
+
 class StateEcho(ctypes.Structure):
     """The estimator's state after `step`, echoed in a Command (a front end may ignore it)."""
 
@@ -144,6 +172,7 @@ class StateEcho(ctypes.Structure):
         ("alt_mean", ctypes.c_double * 4),
         ("alt_cov", (ctypes.c_double * 4) * 4),
         ("alt_bias_sensitivity", (ctypes.c_double * MAX_UAVS) * 4),
+        ("held", HeldBursts),
     ]
 
 
@@ -168,7 +197,7 @@ class Command(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "uavloc::Command/v7"
+        return "uavloc::Command/v8"
 
 
 class SwarmState(ctypes.Structure):
@@ -196,7 +225,7 @@ class SwarmState(ctypes.Structure):
 
 
 # Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/e2e/wire_layout.rs).
-SIZES = {Measurement: 672, Command: 1176, SwarmState: 736}
+SIZES = {Measurement: 672, Command: 1536, SwarmState: 736}
 
 
 def check_layout() -> None:

@@ -27,15 +27,15 @@ extern "C" {
 
 /* Layout versions (the header's `version` must equal the type's). */
 #define UAVLOC_MEASUREMENT_VERSION 2u
-#define UAVLOC_ESTIMATE_VERSION 8u
-#define UAVLOC_COMMAND_VERSION 7u
+#define UAVLOC_ESTIMATE_VERSION 9u
+#define UAVLOC_COMMAND_VERSION 8u
 #define UAVLOC_TRUTH_VERSION 3u
 #define UAVLOC_SWARM_VERSION 1u
 #define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v2"
-#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v8"
-#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v7"
+#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v9"
+#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v8"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v3"
 #define UAVLOC_TYPE_NAME_SWARM "uavloc::SwarmState/v1"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
@@ -96,6 +96,28 @@ typedef struct uavloc_measurement {
 #define UAVLOC_STATUS_REJECTED 3u
 #define UAVLOC_STATUS_PREDICTED 4u   /* no burst heard by two UAVs: the posterior predicted */
 
+/* Bursts an estimate holds before the estimator's first fix. */
+#define UAVLOC_MAX_HELD_BURSTS 4
+
+/* A burst heard by two UAVs only, before the estimator's first fix (kept for it). */
+typedef struct uavloc_held_burst {
+    uint64_t step;                    /* the step of the burst */
+    uint8_t count;                    /* UAVs N of the swarm */
+    uint8_t uavs[2];                  /* the two UAVs that heard it (ascending) */
+    uint8_t reserved[5];
+    double positions[2][2];           /* their reported positions, m */
+    double arrival_diff;              /* a[uavs[1]] - a[uavs[0]], m */
+    double sigmas[2];                 /* their stated sigma, m */
+    double bias_sigmas[2];            /* its persistent part, m */
+} uavloc_held_burst;
+
+/* The held bursts of an estimator state: `count` of `bursts`, oldest first. */
+typedef struct uavloc_held_bursts {
+    uint8_t count;
+    uint8_t reserved[7];
+    uavloc_held_burst bursts[UAVLOC_MAX_HELD_BURSTS];
+} uavloc_held_bursts;
+
 /* estimator -> planner, monitor: the emitter estimate of step k and the geometry it was computed for. */
 typedef struct uavloc_estimate {
     uavloc_header header;
@@ -125,6 +147,7 @@ typedef struct uavloc_estimate {
     double alt_mean[4];               /* the pending root: x, y (m), vx, vy (m/s) */
     double alt_cov[4][4];             /* its covariance, row-major */
     double alt_bias_sensitivity[4][UAVLOC_MAX_UAVS]; /* its bias sensitivity */
+    uavloc_held_bursts held;          /* fused, before the first fix: the bursts held for it (v9) */
 } uavloc_estimate;
 
 /* uavloc_command.flags */
@@ -157,6 +180,7 @@ typedef struct uavloc_state_echo {
     double alt_mean[4];                 /* as uavloc_estimate */
     double alt_cov[4][4];
     double alt_bias_sensitivity[4][UAVLOC_MAX_UAVS];
+    uavloc_held_bursts held;            /* as uavloc_estimate (v8 command) */
 } uavloc_state_echo;
 
 /* planner -> front end (emitter-sim), monitor: the headings for step k. */

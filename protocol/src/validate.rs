@@ -257,6 +257,7 @@ impl Estimate {
             ESTIMATE_FIELDS.check_estimate(&self.position, &self.covariance)?;
         }
         ESTIMATE_FIELDS.check_posterior(&self.extra())?;
+        check_held(&self.held)?;
         // The σ it was made from: stated (every one finite and > 0) or not (all 0).
         let sigmas = &self.sigmas[..n];
         if sigmas.iter().any(|v| *v != 0.0) {
@@ -307,12 +308,38 @@ impl crate::messages::StateEcho {
         if self.kind > Self::EMPTY {
             return Err(Rejection::UnknownKind { field: "state kind", kind: u32::from(self.kind) });
         }
+        if self.kind == Self::EMPTY {
+            return check_held(&self.held);
+        }
         if self.kind != Self::STATE {
             return Ok(());
         }
         STATE_FIELDS.check_estimate(&self.position, &self.covariance)?;
         STATE_FIELDS.check_posterior(&self.extra())
     }
+}
+
+/// The bursts an estimator state holds for its first fix: at most [`crate::MAX_HELD_BURSTS`], each of
+/// a swarm of 3..=8 UAVs heard by two distinct ones of them (ascending), with finite positions and
+/// range difference, positive σ and a persistent part within it.
+fn check_held(h: &crate::HeldBursts) -> Result<(), Rejection> {
+    if usize::from(h.count) > crate::MAX_HELD_BURSTS {
+        return Err(Rejection::BadField { field: "held count" });
+    }
+    for b in h.as_slice() {
+        let n = check_count(u32::from(b.count))?;
+        let [i, j] = b.uavs;
+        if i >= j || usize::from(j) >= n {
+            return Err(Rejection::BadField { field: "held uavs" });
+        }
+        check_finite("held positions", b.positions.iter().flatten())?;
+        check_finite("held arrival_diff", [&b.arrival_diff])?;
+        check_finite("held sigmas", b.sigmas.iter().chain(&b.bias_sigmas))?;
+        if b.sigmas.iter().zip(&b.bias_sigmas).any(|(s, p)| *s <= 0.0 || !(0.0..=*s).contains(p)) {
+            return Err(Rejection::BadField { field: "held sigmas" });
+        }
+    }
+    Ok(())
 }
 
 /// The names a rejection gives the fields of an estimator state, in the message that carries it.
@@ -858,7 +885,10 @@ mod tests {
             StateEcho::of(&standing).unwrap().decode(),
             Some(EchoedState::State { step: 4, estimate: ([7.0, 8.0], _), .. })
         ));
-        assert_eq!(StateEcho::of(&failed).unwrap().decode(), Some(EchoedState::Empty { step: 4 }));
+        assert_eq!(
+            StateEcho::of(&failed).unwrap().decode(),
+            Some(EchoedState::Empty { step: 4, held: crate::HeldBursts::default() })
+        );
         // A hold echoes nothing; a bad echo is rejected with the command.
         assert_eq!(command().state.decode(), None);
         assert_eq!(command().validate(None), Ok(()));

@@ -466,7 +466,7 @@ mod tests {
         assert_eq!(store.echo(3).unwrap().position, [3.0, 1.0]);
         assert_eq!(store.get(3), echo(3, StateEcho::STATE).decode());
         store.keep(echo(4, StateEcho::EMPTY));
-        assert_eq!(store.get(4), Some(EchoedState::Empty { step: 4 }));
+        assert_eq!(store.get(4), Some(EchoedState::Empty { step: 4, held: protocol::HeldBursts::default() }));
 
         // Asked before it is known: answered once it is, once.
         store.want(7);

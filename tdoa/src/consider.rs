@@ -74,6 +74,11 @@ impl BiasSensitivity {
         Self { s: phi * self.s }
     }
 
+    /// The sensitivity of the state `Φ x` (e.g. `Φ` a transition or its inverse): `Φ S`.
+    pub fn transformed(&self, phi: &Matrix4<f64>) -> Self {
+        Self { s: phi * self.s }
+    }
+
     /// Chan's fix of the burst `heard` at `z`: the weighted least squares' sensitivity (velocity rows 0).
     /// `None` if `z` sits on a UAV or the geometry gives no fix.
     pub fn of_fix(heard: &Heard, z: &Vector2<f64>) -> Option<Self> {

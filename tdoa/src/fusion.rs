@@ -195,6 +195,18 @@ impl Posterior {
         Self { model: self.model, mean: phi * self.mean, cov: 0.5 * (cov + cov.transpose()) }
     }
 
+    /// The posterior of the state `Φ x` without process noise: `Φ x`, `Φ P Φᵀ` (`Φ` a transition or
+    /// its inverse; the static model is left as it is). With [`Dynamics::transition`]'s inverse it
+    /// carries a posterior back to an earlier step, where a burst heard then can be fused, and with the
+    /// transition forward again.
+    pub fn transformed(&self, phi: &Matrix4<f64>) -> Self {
+        if self.model == EmitterModel::Static {
+            return *self;
+        }
+        let cov = phi * self.cov * phi.transpose();
+        Self { model: self.model, mean: phi * self.mean, cov: 0.5 * (cov + cov.transpose()) }
+    }
+
     fn state(&self) -> DVector<f64> {
         DVector::from_fn(self.model.dim(), |i, _| self.mean[i])
     }

@@ -8,7 +8,8 @@ use std::mem::{align_of, offset_of, size_of};
 use std::process::Command;
 
 use protocol::{
-    Command as Cmd, Control, Estimate, Header, Measurement, Message, Name16, Stamps, StateEcho, SwarmState, Truth,
+    Command as Cmd, Control, Estimate, Header, HeldBurst, HeldBursts, Measurement, Message, Name16, Stamps, StateEcho,
+    SwarmState, Truth,
 };
 
 /// One struct: its C name, Rust size and alignment, and (field, Rust offset) pairs.
@@ -98,8 +99,15 @@ fn layouts() -> Vec<Layout> {
                 alt_mean,
                 alt_cov,
                 alt_bias_sensitivity,
+                held,
             ]
         ),
+        layout!(
+            HeldBurst,
+            "uavloc_held_burst",
+            [step, count, uavs, reserved, positions, arrival_diff, sigmas, bias_sigmas]
+        ),
+        layout!(HeldBursts, "uavloc_held_bursts", [count, reserved, bursts]),
         layout!(
             Cmd,
             "uavloc_command",
@@ -140,7 +148,8 @@ fn layouts() -> Vec<Layout> {
                 bias_sensitivity,
                 alt_mean,
                 alt_cov,
-                alt_bias_sensitivity
+                alt_bias_sensitivity,
+                held
             ]
         ),
         layout!(Truth, "uavloc_truth", [header, position, previous_command, multipath]),
@@ -265,10 +274,16 @@ fn every_field_of_every_type_is_listed() {
                 32,
                 128,
                 256,
+                size_of::<HeldBursts>(),
             ],
         ),
+        ("uavloc_held_burst", vec![8, 1, 2, 5, 32, 8, 16, 16]),
+        ("uavloc_held_bursts", vec![1, 7, 4 * size_of::<HeldBurst>()]),
         ("uavloc_command", vec![size_of::<Header>(), 8, 8, 8, 8, 4, 4, 8, 64, 128, 16, 16, size_of::<StateEcho>()]),
-        ("uavloc_state_echo", vec![8, 1, 1, 1, 1, 1, 1, 1, 1, 16, 32, 16, 32, 32, 256, 32, 128, 256]),
+        (
+            "uavloc_state_echo",
+            vec![8, 1, 1, 1, 1, 1, 1, 1, 1, 16, 32, 16, 32, 32, 256, 32, 128, 256, size_of::<HeldBursts>()],
+        ),
         ("uavloc_truth", vec![size_of::<Header>(), 16, 4, 4]),
         ("uavloc_swarm_state", vec![size_of::<Header>(), 4, 4, 128, 128, 64, 64, 128, 64, 32, 32]),
         ("uavloc_control", vec![size_of::<Header>(), 8, 8, 4, 4, 8, 16, 16]),

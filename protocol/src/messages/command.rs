@@ -25,7 +25,7 @@ pub struct PlanInfo<'a> {
 
 /// planner → emitter-sim, monitor: the headings to fly for the next step.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Command/v7")]
+#[type_name("uavloc::Command/v8")]
 #[repr(C)]
 pub struct Command {
     /// Common header (step of the estimate it was planned from).
@@ -60,7 +60,7 @@ pub struct Command {
     pub state: StateEcho,
 }
 
-impl_message!(Command, MessageKind::Command, 7, "uavloc::Command/v7");
+impl_message!(Command, MessageKind::Command, 8, "uavloc::Command/v8");
 
 impl_per_uav!(Command {
     /// Headings in use.
@@ -75,7 +75,7 @@ impl_per_uav!(Command {
 /// continues the chain at step `step + 1` exactly as the one that made the estimate would have
 /// (`uavloc-estimator`), so no estimator keeps its answers or needs a checkpoint to answer a replay.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::StateEcho/v4")]
+#[type_name("uavloc::StateEcho/v5")]
 #[repr(C)]
 pub struct StateEcho {
     /// The step of the estimate.
@@ -116,9 +116,12 @@ pub struct StateEcho {
     pub alt_cov: [[f64; 4]; 4],
     /// As [`Estimate::alt_bias_sensitivity`] (v3).
     pub alt_bias_sensitivity: [[f64; MAX_UAVS]; 4],
+    /// As [`Estimate::held`] (v5): with [`StateEcho::EMPTY`], the bursts the estimator holds for its
+    /// first fix.
+    pub held: HeldBursts,
 }
 
-// SAFETY: repr(C) of u64, eight u8 and f64 arrays, without implicit padding (816 bytes, see
+// SAFETY: repr(C) of u64, eight u8, f64 arrays and `HeldBursts`, without implicit padding (1176 bytes, see
 // `layout_is_stable`): every bit pattern is a value.
 unsafe impl AnyBitPattern for StateEcho {}
 
@@ -140,6 +143,8 @@ pub enum EchoedState {
     Empty {
         /// The step.
         step: u64,
+        /// The bursts it holds for its first fix.
+        held: HeldBursts,
     },
 }
 
@@ -147,7 +152,7 @@ impl EchoedState {
     /// The step the state is after.
     pub fn step(&self) -> u64 {
         match *self {
-            EchoedState::State { step, .. } | EchoedState::Empty { step } => step,
+            EchoedState::State { step, .. } | EchoedState::Empty { step, .. } => step,
         }
     }
 }
@@ -171,7 +176,10 @@ impl StateEcho {
                 echo.covariance = covariance;
                 echo.set_extra(&e.extra());
             }
-            None => echo.kind = Self::EMPTY,
+            None => {
+                echo.kind = Self::EMPTY;
+                echo.held = e.held;
+            }
         }
         Some(echo)
     }
@@ -184,7 +192,7 @@ impl StateEcho {
                 estimate: (self.position, self.covariance),
                 extra: self.extra(),
             }),
-            Self::EMPTY => Some(EchoedState::Empty { step: self.step }),
+            Self::EMPTY => Some(EchoedState::Empty { step: self.step, held: self.held }),
             _ => None,
         }
     }

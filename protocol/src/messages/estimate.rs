@@ -187,7 +187,7 @@ impl_posterior_fields!(StateEcho);
 
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v8")]
+#[type_name("uavloc::Estimate/v9")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -257,9 +257,12 @@ pub struct Estimate {
     pub alt_cov: [[f64; 4]; 4],
     /// Its bias sensitivity (v7), as `bias_sensitivity`.
     pub alt_bias_sensitivity: [[f64; MAX_UAVS]; 4],
+    /// Fused, before the first fix: the bursts heard by two UAVs only that the estimator holds for it
+    /// (v9; see [`HeldBurst`]); none otherwise.
+    pub held: HeldBursts,
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 8, "uavloc::Estimate/v8");
+impl_message!(Estimate, MessageKind::Estimate, 9, "uavloc::Estimate/v9");
 
 impl_per_uav!(Estimate {
     /// UAV positions in use.
@@ -309,6 +312,7 @@ impl Estimate {
             alt_mean: [0.0; 4],
             alt_cov: [[0.0; 4]; 4],
             alt_bias_sensitivity: [[0.0; MAX_UAVS]; 4],
+            held: HeldBursts::default(),
         };
         e.uavs[..n].copy_from_slice(uavs);
         e.headings[..n].copy_from_slice(headings);
@@ -375,7 +379,14 @@ impl Estimate {
         }
     }
 
-    /// This estimate with the arrivals dropped as outliers and the persistent errors' covariance.
+    /// This estimate with the two-arrival bursts the estimator holds for its first fix.
+    pub fn with_held(mut self, held: HeldBursts) -> Self {
+        self.held = held;
+        self
+    }
+
+    /// This estimate with the arrivals dropped as outliers `outliers` and the consider covariance
+    /// `bias_cov` (m²).
     pub fn with_receiver(mut self, outliers: u8, bias_cov: [[f64; 2]; 2]) -> Self {
         self.outliers = outliers;
         self.bias_cov = bias_cov;

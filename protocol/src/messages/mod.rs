@@ -490,6 +490,7 @@ macro_rules! wire_enum {
 mod command;
 mod control;
 mod estimate;
+mod held;
 mod measurement;
 mod state;
 mod swarm;
@@ -498,6 +499,7 @@ mod truth;
 pub use command::*;
 pub use control::*;
 pub use estimate::*;
+pub use held::*;
 pub use measurement::*;
 pub use state::*;
 pub use swarm::*;
