@@ -427,29 +427,23 @@ impl Estimator {
                 })
             }
             (EstimatorKind::Fused, Some(post), None) => self.fuse(&post.predict(&dynamics, elapsed), &s_pred, a),
-            _ => match self.solve(a) {
-                Ok((out, other)) => {
-                    let held = std::mem::take(&mut self.held);
-                    self.alternative = other.map(|(p, s)| {
-                        let (p, s) = self.fold_held(p, s, step, &held);
-                        (p, s)
-                    });
-                    Ok(match out.posterior {
-                        Some(p) if !held.is_empty() => {
-                            let (p, s) = self.fold_held(p, out.sensitivity, step, &held);
-                            EstimateOut {
-                                position: p.position(),
-                                covariance: p.position_cov(),
-                                posterior: Some(p),
-                                sensitivity: s,
-                                ..out
-                            }
+            _ => self.solve(a).map(|(out, other)| {
+                let held = std::mem::take(&mut self.held);
+                self.alternative = other.map(|(p, s)| self.fold_held(p, s, step, &held));
+                match out.posterior {
+                    Some(p) if !held.is_empty() => {
+                        let (p, s) = self.fold_held(p, out.sensitivity, step, &held);
+                        EstimateOut {
+                            position: p.position(),
+                            covariance: p.position_cov(),
+                            posterior: Some(p),
+                            sensitivity: s,
+                            ..out
                         }
-                        _ => out,
-                    })
+                    }
+                    _ => out,
                 }
-                Err(e) => Err(e),
-            },
+            }),
         };
         self.last_step = Some(step);
         // Too many rejections in a row: the posterior has lost the emitter; start again from Chan as at the
@@ -1050,7 +1044,10 @@ mod tests {
         let bound = total.try_inverse().unwrap();
         // A single range difference is fused with its linearisation noise on top (tdoa::fusion): never
         // more information than the bursts hold, and close to it.
-        let min_eig = |m: Matrix2<f64>| tdoa::fim::sym_eigenvalues(&m).0.min(tdoa::fim::sym_eigenvalues(&m).1);
+        let min_eig = |m: Matrix2<f64>| {
+            let (a, b) = tdoa::fim::sym_eigenvalues(&m);
+            a.min(b)
+        };
         assert!(min_eig(a.covariance - bound) > -1e-6 * bound.norm(), "{} below the bound {}", a.covariance, bound);
         assert!(min_eig(b.covariance - a.covariance) > 0.0, "{} not below the fix's {}", a.covariance, b.covariance);
         assert!(a.covariance.trace() < 1.05 * bound.trace(), "{} vs {}", a.covariance, bound);

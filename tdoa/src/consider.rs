@@ -70,8 +70,7 @@ impl BiasSensitivity {
         if dynamics.model() == crate::EmitterModel::Static || steps == 0 {
             return *self;
         }
-        let phi: Matrix4<f64> = dynamics.transition(steps);
-        Self { s: phi * self.s }
+        self.transformed(&dynamics.transition(steps))
     }
 
     /// The sensitivity of the state `Φ x` (e.g. `Φ` a transition or its inverse): `Φ S`.

@@ -190,9 +190,7 @@ impl Posterior {
         if self.model == EmitterModel::Static || steps == 0 {
             return *self;
         }
-        let phi = dynamics.transition(steps);
-        let cov = phi * self.cov * phi.transpose() + dynamics.process_noise(steps);
-        Self { model: self.model, mean: phi * self.mean, cov: 0.5 * (cov + cov.transpose()) }
+        self.propagated(&dynamics.transition(steps), Some(dynamics.process_noise(steps)))
     }
 
     /// The posterior of the state `Φ x` without process noise: `Φ x`, `Φ P Φᵀ` (`Φ` a transition or
@@ -203,7 +201,15 @@ impl Posterior {
         if self.model == EmitterModel::Static {
             return *self;
         }
-        let cov = phi * self.cov * phi.transpose();
+        self.propagated(phi, None)
+    }
+
+    /// `Φ x`, `Φ P Φᵀ` plus the process noise `noise` when there is one (symmetrised).
+    fn propagated(&self, phi: &Matrix4<f64>, noise: Option<Matrix4<f64>>) -> Self {
+        let mut cov = phi * self.cov * phi.transpose();
+        if let Some(q) = noise {
+            cov += q;
+        }
         Self { model: self.model, mean: phi * self.mean, cov: 0.5 * (cov + cov.transpose()) }
     }
 
