@@ -456,6 +456,21 @@ impl Estimator {
                     self.prior = None;
                     self.previous = None;
                     match self.solve(a) {
+                        // A burst that cannot vouch for itself (three arrivals: no redundancy; or one
+                        // whose own residual shows an outlier) restarts the track but keeps the old one
+                        // pending beside it, where the fix has one root and nothing else is pending: it is
+                        // the burst the track rejected, and where arrivals come by reflections it is as
+                        // likely to be corrupted as the track to be lost. The next bursts decide between
+                        // the two (`resolve`), so a reflection cannot throw a good track away for good.
+                        Ok((fresh, None))
+                            if self.alternative.is_none()
+                                && out.posterior.is_some()
+                                && !self.vouches_for_itself(a, &fresh) =>
+                        {
+                            self.alternative = out.posterior.map(|p| (p, out.sensitivity));
+                            self.track = TrackCounters::default();
+                            Ok(fresh)
+                        }
                         Ok((fresh, other)) => {
                             self.alternative = other;
                             self.track = TrackCounters::default();
@@ -499,6 +514,14 @@ impl Estimator {
                 self.keep_previous(e.to_string(), a.heard_mask()).ok_or(EstimatorError::NoEstimate(e))
             }
         }
+    }
+
+    /// Whether the burst `a`, whose Chan fix is `fix`, vouches for that fix by itself: the arrivals the
+    /// fix kept (its own outliers dropped) are four or more and their residual is within the gate
+    /// (`χ²_{m−2}`, one or more degrees of freedom of redundancy).
+    fn vouches_for_itself(&self, a: &Arrivals, fix: &EstimateOut) -> bool {
+        let kept = a.without_all(fix.outliers);
+        kept.heard_count() >= 4 && !outliers::shows_an_outlier(&kept, None, |m| self.config.gate(m))
     }
 
     /// The first fix's posterior `post` at `step` (bias sensitivity `s`) with the two-arrival bursts
@@ -996,6 +1019,67 @@ mod tests {
         )
         .with_track(TrackCounters { rejected_run: 2, ..TrackCounters::default() });
         assert_eq!(resumed.estimate(1, &uavs, &d, &noise(4)).unwrap().track.rejected_run, 0);
+    }
+
+    #[test]
+    fn a_good_track_restarted_by_reflected_bursts_is_kept_pending_and_wins_back() {
+        // Three UAVs, a confirmed track on the truth: three bursts in a row with two of their three
+        // arrivals late (reflections of 500 and 800 m) are rejected, and the third restarts from its own
+        // fix — which those reflections corrupted, and which three arrivals cannot show. The old track
+        // stays pending beside it, and the next clean burst brings it back.
+        let z = Vector2::new(25000.0, 15000.0);
+        let uavs = nominal();
+        let post = tdoa::Posterior::new(
+            EmitterModel::Static,
+            nalgebra::Vector4::new(z.x, z.y, 0.0, 0.0),
+            nalgebra::Matrix4::identity() * 25.0,
+        )
+        .unwrap();
+        let confirmed = TrackCounters { confirmed: CONFIRM_BURSTS, ..TrackCounters::default() };
+        let resumed = || {
+            Estimator::resume(EstimatorConfig::fused(Dynamics::fixed()), 0, z, Matrix2::identity() * 25.0, Some(post))
+                .with_track(confirmed)
+        };
+        let clean = diffs(&uavs, z);
+        let c = clean.as_slice();
+        let late = RangeDiffs::from_slice(&[c[0] + 500.0, c[1] + 800.0]).unwrap();
+        let mut est = resumed();
+        for k in 1..=2u64 {
+            let out = est.estimate(k, &uavs, &late, &noise(3)).unwrap();
+            assert!(matches!(out.status, EstimateStatus::Rejected { .. }), "{:?}", out.status);
+        }
+        let restart = est.estimate(3, &uavs, &late, &noise(3)).unwrap();
+        assert!((restart.position - z).norm() > 300.0, "the restart's fix is the corrupted burst's");
+        let (pending, _) = restart.alternative.expect("the old track is kept pending");
+        assert!((pending.position() - z).norm() < 1e-6);
+        let back = est.estimate(4, &uavs, &clean, &noise(3)).unwrap();
+        assert_eq!(back.status, EstimateStatus::Ok);
+        assert!((back.position - z).norm() < 1.0, "the clean burst took the old track back: {:?}", back.position);
+        assert!(back.alternative.is_none(), "a clean burst of three arrivals decides");
+        // A burst that vouches for itself (four arrivals whose own residual fits) replaces the track
+        // outright, as a lost posterior needs (`a_lost_posterior_restarts_from_chan_after_three_rejections`).
+        let mut four = uavs.clone();
+        four.push(Vector2::new(0.0, 9000.0));
+        let wrong = z + Vector2::new(5000.0, -3000.0);
+        let lost = tdoa::Posterior::new(
+            EmitterModel::Static,
+            nalgebra::Vector4::new(wrong.x, wrong.y, 0.0, 0.0),
+            nalgebra::Matrix4::identity() * 100.0,
+        )
+        .unwrap();
+        let mut est = Estimator::resume(
+            EstimatorConfig::fused(Dynamics::fixed()),
+            0,
+            wrong,
+            Matrix2::identity() * 100.0,
+            Some(lost),
+        )
+        .with_track(confirmed);
+        let d4 = diffs(&four, z);
+        for k in 1..=3u64 {
+            est.estimate(k, &four, &d4, &noise(4)).unwrap();
+        }
+        assert!(est.alternative().is_none(), "nothing kept pending beside a fix its own burst vouches for");
     }
 
     #[test]
