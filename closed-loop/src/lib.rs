@@ -255,6 +255,7 @@ fn no_fix_yet(a: &tdoa::Arrivals, reason: String, held: &[estimation::HeldBurst]
         sensitivity: None,
         alternative: None,
         held: held.to_vec(),
+        window: None,
     }
 }
 

@@ -29,6 +29,7 @@ use tdoa::{Arrivals, Dynamics, NoiseModel, RangeDiffs, TdoaError};
 
 pub mod outliers;
 pub mod track;
+pub mod window;
 pub use outliers::OutlierPolicy;
 use thiserror::Error;
 pub use track::{CONFIRM_BURSTS, DEMOTE_DROP_RUN, DropStreak, REJECTED_RUN_RESTART, TrackCounters};
@@ -117,6 +118,9 @@ pub struct EstimateOut {
     /// Fused, before the first fix: the two-arrival bursts held for it (the estimator's whole state
     /// until then; empty once there is a fix).
     pub held: Vec<HeldBurst>,
+    /// Fused, static emitter, one hypothesis: the track's window after the step ([`window`]; the
+    /// estimator's state).
+    pub window: Option<window::Window>,
 }
 
 /// A burst heard by two UAVs before the first fix, with its step: held for the first fix.
@@ -225,6 +229,8 @@ pub struct Estimator {
     /// fix on their own), with their steps, fused into the first fix when it comes (the newest
     /// [`MAX_HELD_BURSTS`]).
     held: Vec<HeldBurst>,
+    /// Fused, static emitter, one hypothesis: the track's last bursts kept raw ([`window`]).
+    window: Option<window::Window>,
 }
 
 /// The two-arrival bursts before the first fix an [`Estimator`] keeps for it (the newest).
@@ -249,6 +255,7 @@ impl Estimator {
             last_step: None,
             sensitivity: None,
             held: Vec::new(),
+            window: None,
         }
     }
 
@@ -290,6 +297,7 @@ impl Estimator {
             last_step: Some(step),
             sensitivity: None,
             held: Vec::new(),
+            window: None,
         }
     }
 
@@ -333,6 +341,18 @@ impl Estimator {
             self.held = held[held.len().saturating_sub(MAX_HELD_BURSTS)..].to_vec();
         }
         self
+    }
+
+    /// This estimator with the track's window `w` (the state of an estimate's `window`; fused, static
+    /// emitter).
+    pub fn with_window(mut self, w: Option<window::Window>) -> Self {
+        self.window = if self.config.kind == EstimatorKind::Fused { w } else { None };
+        self
+    }
+
+    /// Fused, static emitter: the track's window.
+    pub fn window(&self) -> Option<&window::Window> {
+        self.window.as_ref()
     }
 
     /// Fused, before the first fix: the two-arrival bursts held for it.
@@ -409,6 +429,7 @@ impl Estimator {
             }
             return self.silent(step, a);
         }
+        let posterior_before = self.posterior;
         let elapsed = self.last_step.map_or(0, |l| step.saturating_sub(l));
         let dynamics = self.config.dynamics;
         let predicted_s =
@@ -497,6 +518,8 @@ impl Estimator {
         });
         match result {
             Ok(mut out) => {
+                self.relinearise(step, a, &mut out, posterior_before);
+                out.window = self.window.clone();
                 self.previous = Some((out.position, out.covariance));
                 if out.posterior.is_some() {
                     self.posterior = out.posterior;
@@ -513,6 +536,47 @@ impl Estimator {
                 }
                 self.keep_previous(e.to_string(), a.heard_mask()).ok_or(EstimatorError::NoEstimate(e))
             }
+        }
+    }
+
+    /// Fused, static emitter, one hypothesis: moves the track's window on with the burst `a` of `step`
+    /// (the arrivals `out` kept) and makes `out`'s estimate the window's maximum a posteriori; the
+    /// covariance stays the filter's. A new fix, or a fused burst with no window open, opens one at the
+    /// posterior; `predicted` is the posterior before the burst (a single range difference enters the
+    /// window with the linearisation noise it was fused with over it). Other steps leave the window;
+    /// two hypotheses, a moving emitter or a failed refit close it.
+    fn relinearise(&mut self, step: u64, a: &Arrivals, out: &mut EstimateOut, predicted: Option<Posterior>) {
+        let Some(post) = out.posterior else { return };
+        let fused_static = self.config.kind == EstimatorKind::Fused && post.model() == EmitterModel::Static;
+        if !fused_static || self.alternative.is_some() {
+            self.window = None;
+            return;
+        }
+        let kept = a.without_all(out.outliers);
+        let next = match (&out.status, out.nis) {
+            // A new fix: its burst (and those held for it) summarised as the fix's posterior, whose
+            // covariance is the fix's own (sigma points for three arrivals): a burst a reflection
+            // corrupted weighs no more than the filter lets it.
+            (EstimateStatus::Ok | EstimateStatus::Ambiguous, None) => window::Window::from_posterior(&post),
+            (EstimateStatus::Ok, Some(_)) => match (&self.window, predicted) {
+                (Some(w), Some(pred)) => w.pushed(step, window::Window::kept_as_fused(kept, &pred), &post.position()),
+                // No window open (a new track, two hypotheses before): it opens at this posterior.
+                _ => window::Window::from_posterior(&post),
+            },
+            _ => return,
+        };
+        let refitted = next.and_then(|w| {
+            let (x, _) = w.estimate(&post.position()).ok()?;
+            let p = Posterior::new(post.model(), nalgebra::Vector4::new(x.x, x.y, 0.0, 0.0), post.cov()).ok()?;
+            Some((p, w))
+        });
+        match refitted {
+            Some((p, w)) => {
+                out.position = p.position();
+                out.posterior = Some(p);
+                self.window = Some(w);
+            }
+            _ => self.window = None,
         }
     }
 
@@ -567,6 +631,7 @@ impl Estimator {
             sensitivity: self.sensitivity,
             alternative: self.alternative(),
             held: self.held.clone(),
+            window: self.window.clone(),
         })
     }
 
@@ -610,6 +675,7 @@ impl Estimator {
                     sensitivity: self.sensitivity,
                     alternative: self.alternative(),
                     held: Vec::new(),
+                    window: self.window.clone(),
                 })
             }
             _ => {
@@ -672,6 +738,7 @@ impl Estimator {
             sensitivity,
             alternative: None,
             held: Vec::new(),
+            window: self.window.clone(),
         })
     }
 
@@ -777,6 +844,7 @@ impl Estimator {
             sensitivity: BiasSensitivity::of_fix(&heard, &sol.position),
             alternative: None,
             held: Vec::new(),
+            window: self.window.clone(),
         };
         Ok((out, other))
     }
@@ -1019,6 +1087,66 @@ mod tests {
         )
         .with_track(TrackCounters { rejected_run: 2, ..TrackCounters::default() });
         assert_eq!(resumed.estimate(1, &uavs, &d, &noise(4)).unwrap().track.rejected_run, 0);
+    }
+
+    #[test]
+    fn a_static_track_s_estimate_is_the_map_of_its_fix_and_its_last_bursts() {
+        // Three UAVs flying, each burst with its own range errors: after the first fix, the estimate of
+        // every step is the maximum a posteriori of the fix's posterior and the raw bursts since,
+        // computed here from scratch; beyond eight bursts the oldest leave the window for its summary.
+        let z = Vector2::new(25_000.0, 15_000.0);
+        let at = |k: f64| -> Vec<Vector2<f64>> {
+            nominal()
+                .iter()
+                .enumerate()
+                .map(|(i, p)| p + Vector2::new(350.0 * k, (120.0 + 90.0 * i as f64) * k))
+                .collect()
+        };
+        let noisy = |k: usize| {
+            let uavs = at(k as f64);
+            let d = diffs(&uavs, z);
+            let e = [[31.0, -12.0], [-25.0, 40.0], [8.0, -36.0], [-44.0, 17.0], [20.0, 29.0]][k % 5];
+            (uavs, RangeDiffs::from_slice(&[d.as_slice()[0] + e[0], d.as_slice()[1] + e[1]]).unwrap())
+        };
+        let mut est = Estimator::with_config(EstimatorConfig::fused(Dynamics::fixed()));
+        let (uavs0, d0) = noisy(0);
+        let fix = est.estimate(0, &uavs0, &d0, &noise(3)).unwrap();
+        let base = window::Window::from_posterior(&fix.posterior.unwrap()).unwrap().base;
+        let mut raw: Vec<(Vec<Vector2<f64>>, RangeDiffs)> = Vec::new();
+        for k in 1..=12 {
+            let (uavs, d) = noisy(k);
+            let out = est.estimate(k as u64, &uavs, &d, &noise(3)).unwrap();
+            assert_eq!(out.status, EstimateStatus::Ok);
+            raw.push((uavs, d));
+            let w = est.window().expect("a static track has a window");
+            assert_eq!(w.bursts.len(), k.min(window::WINDOW_BURSTS));
+            if k <= window::WINDOW_BURSTS {
+                assert_eq!(w.base, base, "nothing folded before the window is full");
+                let sensors: Vec<tdoa::Sensors> = raw
+                    .iter()
+                    .map(|(u, _)| {
+                        let pts: Vec<[f64; 2]> = u.iter().map(|p| [p.x, p.y]).collect();
+                        tdoa::Sensors::new(&pts, noise(3)).unwrap()
+                    })
+                    .collect();
+                let bursts: Vec<tdoa::window::Burst<'_>> =
+                    sensors.iter().zip(&raw).map(|(s, (_, d))| (s, d.as_slice())).collect();
+                let (map, _) = tdoa::window::refit(&base, &bursts, &z).unwrap();
+                assert!((out.position - map).norm() < 1e-3, "step {k}: {:?} vs the MAP {map:?}", out.position);
+            } else {
+                assert_ne!(w.base, base, "the oldest bursts are folded into the summary");
+            }
+            // The filter's covariance, the window's mean.
+            assert_eq!(out.covariance, out.posterior.unwrap().position_cov());
+        }
+        // A moving-emitter model keeps no window.
+        let cv = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 0.05, 20.0).unwrap();
+        let mut moving = Estimator::with_config(EstimatorConfig::fused(cv));
+        for k in 0..3 {
+            let (uavs, d) = noisy(k);
+            moving.estimate(k as u64, &uavs, &d, &noise(3)).unwrap();
+        }
+        assert!(moving.window().is_none());
     }
 
     #[test]

@@ -17,20 +17,23 @@
 use std::collections::BTreeMap;
 
 use nalgebra::{Matrix4, Vector4};
-use protocol::{EchoedState, Estimate, Fix, HeldBurst, HeldBursts, Measurement, PosteriorExtra, StateEcho};
+use protocol::{
+    EchoedState, Estimate, Fix, HeldBurst, HeldBursts, Measurement, PosteriorExtra, StateEcho, TrackWindow, WindowBurst,
+};
 use runtime::recovery::StateStore;
 use tdoa::consider::BiasSensitivity;
 use tdoa::{Arrivals, Posterior};
 
 use estimation::{DropStreak, EmitterModel, EstimateStatus, Estimator, EstimatorConfig, PendingRoot, TrackCounters};
 
-/// The wire form of the fused posterior beyond the position, with its bias sensitivity `sensitivity`
-/// and the pending second root `alternative`.
+/// The wire form of the fused posterior beyond the position, with its bias sensitivity `sensitivity`,
+/// the pending second root `alternative` and the track's window `window`.
 pub fn extra_of(
     posterior: Option<&Posterior>,
     sensitivity: Option<&BiasSensitivity>,
     alternative: Option<&PendingRoot>,
     track: TrackCounters,
+    window: Option<&estimation::window::Window>,
 ) -> PosteriorExtra {
     let Some(p) = posterior else { return PosteriorExtra::default() };
     let mut extra = PosteriorExtra {
@@ -40,6 +43,7 @@ pub fn extra_of(
         confirmed: track.confirmed,
         drop_uavs: track.drop_streak.uavs,
         drop_run: track.drop_streak.run,
+        window: window_of(window),
         ..PosteriorExtra::default()
     };
     if let Some(s) = sensitivity {
@@ -128,7 +132,8 @@ impl Chain {
                         drop_streak: DropStreak { uavs: extra.drop_uavs, run: extra.drop_run },
                     })
                     .with_sensitivity(sensitivity)
-                    .with_alternative(pending_of(&extra));
+                    .with_alternative(pending_of(&extra))
+                    .with_window(library_window(&extra.window));
                 Self { estimator, last_step: Some(step) }
             }
             EchoedState::Empty { step, held } => Self {
@@ -319,6 +324,7 @@ pub fn estimate_measurement(estimator: &mut Estimator, m: &Measurement) -> Reply
                 estimator.sensitivity().as_ref(),
                 estimator.alternative().as_ref(),
                 estimator.track(),
+                estimator.window(),
             ),
             standing: estimator.previous().map(|(p, c)| tdoa::estimate_to_arrays(&p, &c)),
             outliers: 0,
@@ -338,7 +344,13 @@ pub fn arrivals_of(m: &Measurement) -> Result<Arrivals, tdoa::TdoaError> {
 /// The wire form of the library estimator's output.
 pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
     let (position, covariance) = tdoa::estimate_to_arrays(&out.position, &out.covariance);
-    let extra = extra_of(out.posterior.as_ref(), out.sensitivity.as_ref(), out.alternative.as_ref(), out.track);
+    let extra = extra_of(
+        out.posterior.as_ref(),
+        out.sensitivity.as_ref(),
+        out.alternative.as_ref(),
+        out.track,
+        out.window.as_ref(),
+    );
     let fix = match out.status {
         EstimateStatus::Ok => Fix::Ok { position, covariance },
         EstimateStatus::Ambiguous => Fix::Ambiguous { position, covariance },
@@ -368,6 +380,61 @@ pub fn reply_of(out: &estimation::EstimateOut) -> Reply {
 
 // The wire holds as many bursts as the estimator keeps.
 const _: () = assert!(protocol::MAX_HELD_BURSTS == estimation::MAX_HELD_BURSTS);
+const _: () = assert!(protocol::MAX_WINDOW_BURSTS == estimation::window::WINDOW_BURSTS);
+
+/// The wire form of a track's window (`open` 0 for none).
+pub fn window_of(window: Option<&estimation::window::Window>) -> TrackWindow {
+    let Some(w) = window else { return TrackWindow::default() };
+    let mut wire = TrackWindow {
+        open: 1,
+        count: w.bursts.len().min(protocol::MAX_WINDOW_BURSTS) as u8,
+        base_matrix: tdoa::matrix_to_rows(&w.base.matrix),
+        base_vector: [w.base.vector.x, w.base.vector.y],
+        ..TrackWindow::default()
+    };
+    for (slot, (step, a)) in wire.bursts.iter_mut().zip(&w.bursts) {
+        let n = a.len();
+        *slot = WindowBurst { step: *step, count: n as u8, heard: a.heard_mask(), ..WindowBurst::default() };
+        for i in 0..n {
+            slot.positions[i] = [a.positions()[i].x, a.positions()[i].y];
+            slot.arrivals[i] = a.arrival(i).unwrap_or(0.0);
+            slot.sigmas[i] = a.sigmas()[i];
+            slot.bias_sigmas[i] = a.bias_sigmas()[i];
+        }
+    }
+    wire
+}
+
+/// The library form of a track's window (as [`window_of`] wrote it; `None` when not open, a burst
+/// that does not form arrivals is left out — validation refuses such a message before it gets here).
+pub fn library_window(wire: &TrackWindow) -> Option<estimation::window::Window> {
+    if wire.open != 1 {
+        return None;
+    }
+    let bursts = wire
+        .as_slice()
+        .iter()
+        .filter_map(|b| {
+            let n = usize::from(b.count);
+            let a = Arrivals::new(
+                b.positions.get(..n)?,
+                b.arrivals.get(..n)?,
+                b.heard,
+                b.sigmas.get(..n)?,
+                b.bias_sigmas.get(..n)?,
+            );
+            a.ok().map(|a| (b.step, a))
+        })
+        .collect();
+    let m = wire.base_matrix;
+    Some(estimation::window::Window {
+        base: tdoa::window::Information {
+            matrix: nalgebra::Matrix2::new(m[0][0], m[0][1], m[1][0], m[1][1]),
+            vector: nalgebra::Vector2::new(wire.base_vector[0], wire.base_vector[1]),
+        },
+        bursts,
+    })
+}
 
 /// The wire form of the two-arrival bursts an estimator holds for its first fix (a burst not heard by
 /// exactly two UAVs is not one it holds, and is left out).
@@ -663,14 +730,17 @@ mod tests {
 
     /// With every receiver impairment, an estimator restarted after any step — told only the state the
     /// command of that step echoed — gives every later estimate bit for bit as the undisturbed one: the
-    /// posterior, the track's confirmation, the bias sensitivity and a pending second root all travel in
-    /// the messages.
+    /// posterior, the track's confirmation, the bias sensitivity, a pending second root and the track's
+    /// window all travel in the messages.
     #[test]
     fn a_restart_after_any_step_of_an_impaired_receiver_continues_bit_for_bit() {
         let cv = Dynamics::new(EmitterModel::ConstantVelocity, 10.0, 0.05, 20.0).unwrap();
         for config in [EstimatorConfig::fused(Dynamics::fixed()), EstimatorConfig::fused(cv)] {
             let reference = restarts_continue(config, &impaired, 30);
             assert!(reference.iter().any(|r| r.extra.bias_sensitivity != [[0.0; protocol::MAX_UAVS]; 4]));
+            // A static emitter's track re-linearises a full window of raw bursts: it travels too.
+            let full = reference.iter().any(|r| usize::from(r.extra.window.count) == protocol::MAX_WINDOW_BURSTS);
+            assert_eq!(full, config.dynamics.model() == EmitterModel::Static);
             assert!(reference.iter().any(|r| r.bias_cov != [[0.0; 2]; 2]));
         }
     }

@@ -11,7 +11,7 @@ MAX_UAVS = 8
 MIN_UAVS = 3
 
 MEASUREMENT_VERSION = 2
-COMMAND_VERSION = 7
+COMMAND_VERSION = 9
 CONTROL_VERSION = 5
 
 # Event id of "a sample was published" on a topic's companion event service (protocol::transport::event_id).
@@ -150,6 +150,37 @@ class HeldBursts(ctypes.Structure):
     ]
 
 
+MAX_WINDOW_BURSTS = 8
+
+
+class WindowBurst(ctypes.Structure):
+    """One burst of a track's window: the arrivals the estimator kept of it (part of its state)."""
+
+    _fields_ = [
+        ("step", ctypes.c_uint64),
+        ("count", ctypes.c_uint8),
+        ("heard", ctypes.c_uint8),
+        ("reserved", ctypes.c_uint8 * 6),
+        ("positions", (ctypes.c_double * 2) * MAX_UAVS),
+        ("arrivals", ctypes.c_double * MAX_UAVS),
+        ("sigmas", ctypes.c_double * MAX_UAVS),
+        ("bias_sigmas", ctypes.c_double * MAX_UAVS),
+    ]
+
+
+class TrackWindow(ctypes.Structure):
+    """A static emitter's track: the older bursts in information form, the newest raw."""
+
+    _fields_ = [
+        ("open", ctypes.c_uint8),
+        ("count", ctypes.c_uint8),
+        ("reserved", ctypes.c_uint8 * 6),
+        ("base_matrix", (ctypes.c_double * 2) * 2),
+        ("base_vector", ctypes.c_double * 2),
+        ("bursts", WindowBurst * MAX_WINDOW_BURSTS),
+    ]
+
+
 class StateEcho(ctypes.Structure):
     """The estimator's state after `step`, echoed in a Command (a front end may ignore it)."""
 
@@ -173,6 +204,7 @@ class StateEcho(ctypes.Structure):
         ("alt_cov", (ctypes.c_double * 4) * 4),
         ("alt_bias_sensitivity", (ctypes.c_double * MAX_UAVS) * 4),
         ("held", HeldBursts),
+        ("window", TrackWindow),
     ]
 
 
@@ -197,7 +229,7 @@ class Command(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "uavloc::Command/v8"
+        return "uavloc::Command/v9"
 
 
 class SwarmState(ctypes.Structure):
@@ -225,7 +257,7 @@ class SwarmState(ctypes.Structure):
 
 
 # Sizes stated by docs/wire-format.md (and checked against the Rust types by tests/e2e/wire_layout.rs).
-SIZES = {Measurement: 672, Command: 1536, SwarmState: 736}
+SIZES = {Measurement: 672, Command: 4280, SwarmState: 736}
 
 
 def check_layout() -> None:

@@ -27,15 +27,15 @@ extern "C" {
 
 /* Layout versions (the header's `version` must equal the type's). */
 #define UAVLOC_MEASUREMENT_VERSION 2u
-#define UAVLOC_ESTIMATE_VERSION 9u
-#define UAVLOC_COMMAND_VERSION 8u
+#define UAVLOC_ESTIMATE_VERSION 10u
+#define UAVLOC_COMMAND_VERSION 9u
 #define UAVLOC_TRUTH_VERSION 3u
 #define UAVLOC_SWARM_VERSION 1u
 #define UAVLOC_CONTROL_VERSION 5u
 
 #define UAVLOC_TYPE_NAME_MEASUREMENT "uavloc::Measurement/v2"
-#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v9"
-#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v8"
+#define UAVLOC_TYPE_NAME_ESTIMATE "uavloc::Estimate/v10"
+#define UAVLOC_TYPE_NAME_COMMAND "uavloc::Command/v9"
 #define UAVLOC_TYPE_NAME_TRUTH "uavloc::Truth/v3"
 #define UAVLOC_TYPE_NAME_SWARM "uavloc::SwarmState/v1"
 #define UAVLOC_TYPE_NAME_CONTROL "uavloc::Control/v5"
@@ -118,6 +118,31 @@ typedef struct uavloc_held_bursts {
     uavloc_held_burst bursts[UAVLOC_MAX_HELD_BURSTS];
 } uavloc_held_bursts;
 
+/* Bursts a track's window keeps raw. */
+#define UAVLOC_MAX_WINDOW_BURSTS 8
+
+/* One burst of a track's window: the arrivals the estimator kept of it, as it fused them. */
+typedef struct uavloc_window_burst {
+    uint64_t step;                    /* the step of the burst */
+    uint8_t count;                    /* UAVs N of the swarm */
+    uint8_t heard;                    /* bit i: UAV i's arrival kept (two or more) */
+    uint8_t reserved[6];
+    double positions[UAVLOC_MAX_UAVS][2]; /* reported positions, m */
+    double arrivals[UAVLOC_MAX_UAVS];     /* arrivals (a common offset), m; read where kept */
+    double sigmas[UAVLOC_MAX_UAVS];       /* the sigma each was fused with, m */
+    double bias_sigmas[UAVLOC_MAX_UAVS];  /* its persistent part, m */
+} uavloc_window_burst;
+
+/* A static emitter's track: the older bursts in information form, the newest raw. */
+typedef struct uavloc_track_window {
+    uint8_t open;                     /* 1: the track has a window */
+    uint8_t count;                    /* bursts held raw (0..8) */
+    uint8_t reserved[6];
+    double base_matrix[2][2];         /* Lambda of the older bursts, 1/m^2, row-major */
+    double base_vector[2];            /* eta = Lambda x_b, 1/m */
+    uavloc_window_burst bursts[UAVLOC_MAX_WINDOW_BURSTS];
+} uavloc_track_window;
+
 /* estimator -> planner, monitor: the emitter estimate of step k and the geometry it was computed for. */
 typedef struct uavloc_estimate {
     uavloc_header header;
@@ -148,6 +173,7 @@ typedef struct uavloc_estimate {
     double alt_cov[4][4];             /* its covariance, row-major */
     double alt_bias_sensitivity[4][UAVLOC_MAX_UAVS]; /* its bias sensitivity */
     uavloc_held_bursts held;          /* fused, before the first fix: the bursts held for it (v9) */
+    uavloc_track_window window;       /* fused, static emitter: the track's window (v10) */
 } uavloc_estimate;
 
 /* uavloc_command.flags */
@@ -181,6 +207,7 @@ typedef struct uavloc_state_echo {
     double alt_cov[4][4];
     double alt_bias_sensitivity[4][UAVLOC_MAX_UAVS];
     uavloc_held_bursts held;            /* as uavloc_estimate (v8 command) */
+    uavloc_track_window window;         /* as uavloc_estimate (v9 command) */
 } uavloc_state_echo;
 
 /* planner -> front end (emitter-sim), monitor: the headings for step k. */

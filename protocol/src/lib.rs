@@ -38,8 +38,9 @@ use thiserror::Error;
 pub use control::{ControlChannel, instance_id};
 pub use messages::{
     Command, CommandOutcome, Control, ControlKind, EchoedState, Estimate, EstimateStatus, EstimatorState, Fix, Header,
-    HeldBurst, HeldBursts, Latencies, LinkState, MAX_HELD_BURSTS, Measurement, Message, MessageKind, Name16, PlanInfo,
-    PosteriorExtra, Stamps, StateEcho, SwarmState, Truth, cpu_ns, now_ns, run_tag,
+    HeldBurst, HeldBursts, Latencies, LinkState, MAX_HELD_BURSTS, MAX_WINDOW_BURSTS, Measurement, Message, MessageKind,
+    Name16, PlanInfo, PosteriorExtra, Stamps, StateEcho, SwarmState, TrackWindow, Truth, WindowBurst, cpu_ns, now_ns,
+    run_tag,
 };
 pub use services::Domain;
 pub use source::{Admitted, MeasurementGate, SourceLock, StepDigests, measurement_digest};

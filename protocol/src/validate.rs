@@ -414,8 +414,37 @@ impl StateFields {
             check_finite(self.cross_cov, x.cross_cov.iter().flatten())?;
             check_finite(self.velocity_cov, x.velocity_cov.iter().flatten())?;
         }
-        Ok(())
+        check_window(&x.window)
     }
+}
+
+/// A track's window: `open` 0 or 1; open, a finite summary and at most [`crate::MAX_WINDOW_BURSTS`]
+/// bursts, each of a swarm of 3..=8 UAVs with two or more of them kept, finite positions, finite
+/// arrivals where kept, positive σ and a persistent part within it.
+fn check_window(w: &crate::TrackWindow) -> Result<(), Rejection> {
+    match w.open {
+        0 => return Ok(()),
+        1 => {}
+        kind => return Err(Rejection::UnknownKind { field: "window open", kind: u32::from(kind) }),
+    }
+    if usize::from(w.count) > crate::MAX_WINDOW_BURSTS {
+        return Err(Rejection::BadField { field: "window count" });
+    }
+    check_finite("window base", w.base_matrix.iter().flatten().chain(&w.base_vector))?;
+    for b in w.as_slice() {
+        let n = check_count(u32::from(b.count))?;
+        if (n < MAX_UAVS && b.heard >> n != 0) || b.heard.count_ones() < 2 {
+            return Err(Rejection::BadField { field: "window heard" });
+        }
+        check_finite("window positions", b.positions[..n].iter().flatten())?;
+        check_finite("window arrivals", (0..n).filter(|i| b.heard & (1 << i) != 0).map(|i| &b.arrivals[i]))?;
+        let (s, p) = (&b.sigmas[..n], &b.bias_sigmas[..n]);
+        check_finite("window sigmas", s.iter().chain(p))?;
+        if s.iter().zip(p).any(|(s, p)| *s <= 0.0 || !(0.0..=*s).contains(p)) {
+            return Err(Rejection::BadField { field: "window sigmas" });
+        }
+    }
+    Ok(())
 }
 
 impl Truth {
@@ -868,6 +897,23 @@ mod tests {
             alt_mean: [1.0, 2.0, 0.0, 0.0],
             alt_cov: [[4.0, 0.0, 0.0, 0.0], [0.0, 4.0, 0.0, 0.0], [0.0; 4], [0.0; 4]],
             alt_bias_sensitivity: [[0.25; crate::MAX_UAVS]; 4],
+            window: crate::TrackWindow {
+                open: 1,
+                count: 1,
+                base_matrix: [[1e-4, 0.0], [0.0, 2e-4]],
+                base_vector: [2.5, 3.0],
+                bursts: [crate::WindowBurst {
+                    step: 2,
+                    count: 4,
+                    heard: 0b1011,
+                    positions: [[1000.0, 2000.0]; crate::MAX_UAVS],
+                    arrivals: [5.0, 7.0, 0.0, 9.0, 0.0, 0.0, 0.0, 0.0],
+                    sigmas: [30.0; crate::MAX_UAVS],
+                    bias_sigmas: [0.0; crate::MAX_UAVS],
+                    ..crate::WindowBurst::default()
+                }; crate::MAX_WINDOW_BURSTS],
+                ..crate::TrackWindow::default()
+            },
         });
         let c = command().with_state_of(&e);
         assert_eq!(c.validate(None), Ok(()));
@@ -899,6 +945,23 @@ mod tests {
         assert_eq!(bad(|s| s.velocity_cov[0][0] = f64::INFINITY), "not_finite");
         assert_eq!(bad(|s| s.bias_sensitivity[3][7] = f64::NAN), "not_finite");
         assert_eq!(bad(|s| s.alt_cov[2][1] = f64::NAN), "not_finite");
+        // The window: its summary, each burst's arrivals where kept, its σ, its mask and count.
+        assert_eq!(bad(|s| s.window.base_vector[1] = f64::NAN), "not_finite");
+        assert_eq!(bad(|s| s.window.bursts[0].arrivals[3] = f64::NAN), "not_finite");
+        assert_eq!(bad(|s| s.window.bursts[0].sigmas[2] = 0.0), "bad_field");
+        assert_eq!(bad(|s| s.window.bursts[0].heard = 0b1_0000), "bad_field");
+        assert_eq!(bad(|s| s.window.count = 9), "bad_field");
+        assert_eq!(bad(|s| s.window.open = 2), "unknown_kind");
+        // An arrival not kept is not read, and a closed window not at all.
+        assert_eq!(with(c, |c| c.state.window.bursts[0].arrivals[2] = f64::NAN).validate(None), Ok(()));
+        assert_eq!(
+            with(c, |c| {
+                c.state.window.open = 0;
+                c.state.window.count = 200
+            })
+            .validate(None),
+            Ok(())
+        );
         assert_eq!(bad(|s| s.alternative = 2), "unknown_kind");
 
         // The monitor's answer to a state request carries the echo, checked the same way; a hold is no

@@ -26,6 +26,7 @@ pub mod rng;
 pub mod sigma_points;
 pub mod singular;
 pub mod support;
+pub mod window;
 
 pub use arrivals::{Arrivals, Heard, SensorErrors};
 pub use chan::{ChanSolution, chan};

@@ -44,7 +44,7 @@ fn a_recorded_run_reads_back_in_python_and_replays_to_the_same_estimates() {
         assert_eq!(channels[topic]["message_encoding"], "json");
         assert_eq!(channels[topic]["schema_encoding"], "jsonschema");
     }
-    assert_eq!(channels["/estimate"]["schema"], "uavloc::Estimate/v9");
+    assert_eq!(channels["/estimate"]["schema"], "uavloc::Estimate/v10");
     assert!(channels["/control"]["count"].as_u64().unwrap() >= 4, "every process said hello: {channels}");
     assert_eq!(read["metadata"]["uavloc"]["steps"], steps);
     for (k, s) in run["steps"].as_array().unwrap().iter().enumerate() {

@@ -9,7 +9,7 @@ use std::process::Command;
 
 use protocol::{
     Command as Cmd, Control, Estimate, Header, HeldBurst, HeldBursts, Measurement, Message, Name16, Stamps, StateEcho,
-    SwarmState, Truth,
+    SwarmState, TrackWindow, Truth, WindowBurst,
 };
 
 /// One struct: its C name, Rust size and alignment, and (field, Rust offset) pairs.
@@ -100,6 +100,7 @@ fn layouts() -> Vec<Layout> {
                 alt_cov,
                 alt_bias_sensitivity,
                 held,
+                window,
             ]
         ),
         layout!(
@@ -108,6 +109,12 @@ fn layouts() -> Vec<Layout> {
             [step, count, uavs, reserved, positions, arrival_diff, sigmas, bias_sigmas]
         ),
         layout!(HeldBursts, "uavloc_held_bursts", [count, reserved, bursts]),
+        layout!(
+            WindowBurst,
+            "uavloc_window_burst",
+            [step, count, heard, reserved, positions, arrivals, sigmas, bias_sigmas]
+        ),
+        layout!(TrackWindow, "uavloc_track_window", [open, count, reserved, base_matrix, base_vector, bursts]),
         layout!(
             Cmd,
             "uavloc_command",
@@ -149,7 +156,8 @@ fn layouts() -> Vec<Layout> {
                 alt_mean,
                 alt_cov,
                 alt_bias_sensitivity,
-                held
+                held,
+                window
             ]
         ),
         layout!(Truth, "uavloc_truth", [header, position, previous_command, multipath]),
@@ -275,14 +283,38 @@ fn every_field_of_every_type_is_listed() {
                 128,
                 256,
                 size_of::<HeldBursts>(),
+                size_of::<TrackWindow>(),
             ],
         ),
         ("uavloc_held_burst", vec![8, 1, 2, 5, 32, 8, 16, 16]),
         ("uavloc_held_bursts", vec![1, 7, 4 * size_of::<HeldBurst>()]),
+        ("uavloc_window_burst", vec![8, 1, 1, 6, 128, 64, 64, 64]),
+        ("uavloc_track_window", vec![1, 1, 6, 32, 16, 8 * size_of::<WindowBurst>()]),
         ("uavloc_command", vec![size_of::<Header>(), 8, 8, 8, 8, 4, 4, 8, 64, 128, 16, 16, size_of::<StateEcho>()]),
         (
             "uavloc_state_echo",
-            vec![8, 1, 1, 1, 1, 1, 1, 1, 1, 16, 32, 16, 32, 32, 256, 32, 128, 256, size_of::<HeldBursts>()],
+            vec![
+                8,
+                1,
+                1,
+                1,
+                1,
+                1,
+                1,
+                1,
+                1,
+                16,
+                32,
+                16,
+                32,
+                32,
+                256,
+                32,
+                128,
+                256,
+                size_of::<HeldBursts>(),
+                size_of::<TrackWindow>(),
+            ],
         ),
         ("uavloc_truth", vec![size_of::<Header>(), 16, 4, 4]),
         ("uavloc_swarm_state", vec![size_of::<Header>(), 4, 4, 128, 128, 64, 64, 128, 64, 32, 32]),

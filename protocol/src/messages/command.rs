@@ -25,7 +25,7 @@ pub struct PlanInfo<'a> {
 
 /// planner → emitter-sim, monitor: the headings to fly for the next step.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Command/v8")]
+#[type_name("uavloc::Command/v9")]
 #[repr(C)]
 pub struct Command {
     /// Common header (step of the estimate it was planned from).
@@ -60,7 +60,7 @@ pub struct Command {
     pub state: StateEcho,
 }
 
-impl_message!(Command, MessageKind::Command, 8, "uavloc::Command/v8");
+impl_message!(Command, MessageKind::Command, 9, "uavloc::Command/v9");
 
 impl_per_uav!(Command {
     /// Headings in use.
@@ -75,7 +75,7 @@ impl_per_uav!(Command {
 /// continues the chain at step `step + 1` exactly as the one that made the estimate would have
 /// (`uavloc-estimator`), so no estimator keeps its answers or needs a checkpoint to answer a replay.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::StateEcho/v5")]
+#[type_name("uavloc::StateEcho/v6")]
 #[repr(C)]
 pub struct StateEcho {
     /// The step of the estimate.
@@ -119,9 +119,11 @@ pub struct StateEcho {
     /// As [`Estimate::held`] (v5): with [`StateEcho::EMPTY`], the bursts the estimator holds for its
     /// first fix.
     pub held: HeldBursts,
+    /// As [`Estimate::window`] (v6): with [`StateEcho::STATE`], the track's window.
+    pub window: TrackWindow,
 }
 
-// SAFETY: repr(C) of u64, eight u8, f64 arrays and `HeldBursts`, without implicit padding (1176 bytes, see
+// SAFETY: repr(C) of u64, eight u8, f64 arrays, `HeldBursts` and `TrackWindow`, without implicit padding (3920 bytes, see
 // `layout_is_stable`): every bit pattern is a value.
 unsafe impl AnyBitPattern for StateEcho {}
 

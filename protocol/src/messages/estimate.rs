@@ -131,6 +131,9 @@ pub struct PosteriorExtra {
     /// Its bias sensitivity, as `bias_sensitivity`.
     #[serde(default)]
     pub alt_bias_sensitivity: [[f64; MAX_UAVS]; 4],
+    /// A static emitter's track: its last bursts kept raw beside a summary of the older ones.
+    #[serde(default)]
+    pub window: TrackWindow,
 }
 
 /// The fused posterior's fields beyond the position, as every message that carries an estimator state
@@ -158,6 +161,7 @@ macro_rules! impl_posterior_fields {
                     alt_mean: self.alt_mean,
                     alt_cov: self.alt_cov,
                     alt_bias_sensitivity: self.alt_bias_sensitivity,
+                    window: self.window,
                 }
             }
 
@@ -177,6 +181,7 @@ macro_rules! impl_posterior_fields {
                 self.alt_mean = extra.alt_mean;
                 self.alt_cov = extra.alt_cov;
                 self.alt_bias_sensitivity = extra.alt_bias_sensitivity;
+                self.window = extra.window;
             }
         }
     };
@@ -187,7 +192,7 @@ impl_posterior_fields!(StateEcho);
 
 /// estimator → planner, monitor: the emitter estimate and the geometry it was computed for.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::Estimate/v9")]
+#[type_name("uavloc::Estimate/v10")]
 #[repr(C)]
 pub struct Estimate {
     /// Common header (step of the measurement it was made from).
@@ -260,9 +265,11 @@ pub struct Estimate {
     /// Fused, before the first fix: the bursts heard by two UAVs only that the estimator holds for it
     /// (v9; see [`HeldBurst`]); none otherwise.
     pub held: HeldBursts,
+    /// Fused, static emitter: the track's window (v10; see [`TrackWindow`]); `open` 0 otherwise.
+    pub window: TrackWindow,
 }
 
-impl_message!(Estimate, MessageKind::Estimate, 9, "uavloc::Estimate/v9");
+impl_message!(Estimate, MessageKind::Estimate, 10, "uavloc::Estimate/v10");
 
 impl_per_uav!(Estimate {
     /// UAV positions in use.
@@ -313,6 +320,7 @@ impl Estimate {
             alt_cov: [[0.0; 4]; 4],
             alt_bias_sensitivity: [[0.0; MAX_UAVS]; 4],
             held: HeldBursts::default(),
+            window: TrackWindow::default(),
         };
         e.uavs[..n].copy_from_slice(uavs);
         e.headings[..n].copy_from_slice(headings);

@@ -495,6 +495,7 @@ mod measurement;
 mod state;
 mod swarm;
 mod truth;
+mod window;
 
 pub use command::*;
 pub use control::*;
@@ -504,6 +505,7 @@ pub use measurement::*;
 pub use state::*;
 pub use swarm::*;
 pub use truth::*;
+pub use window::*;
 
 #[cfg(test)]
 mod tests;

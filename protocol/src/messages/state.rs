@@ -8,7 +8,7 @@ use super::*;
 /// remembers — goes on from the state before the step it is given, bit for bit as its predecessor would.
 /// Internal to uavloc: a foreign front end neither sends nor reads it.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("uavloc::EstimatorState/v4")]
+#[type_name("uavloc::EstimatorState/v5")]
 #[repr(C)]
 pub struct EstimatorState {
     /// Common header; `step` is the step the state is after.
@@ -19,7 +19,7 @@ pub struct EstimatorState {
     pub state: StateEcho,
 }
 
-impl_message!(EstimatorState, MessageKind::State, 4, "uavloc::EstimatorState/v4");
+impl_message!(EstimatorState, MessageKind::State, 5, "uavloc::EstimatorState/v5");
 
 impl EstimatorState {
     /// The state `state` (of its step) sent by instance `instance` with sequence number `seq`.

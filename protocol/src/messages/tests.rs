@@ -10,14 +10,16 @@ fn layout_is_stable() {
     assert_eq!((size_of::<Header>(), align_of::<Header>()), (88, 8));
     assert_eq!((size_of::<Name16>(), align_of::<Name16>()), (16, 1));
     assert_eq!((size_of::<Measurement>(), align_of::<Measurement>()), (672, 8));
-    assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (1560, 8));
-    assert_eq!((size_of::<Command>(), align_of::<Command>()), (1536, 8));
-    assert_eq!((size_of::<StateEcho>(), align_of::<StateEcho>()), (1176, 8));
+    assert_eq!((size_of::<Estimate>(), align_of::<Estimate>()), (4304, 8));
+    assert_eq!((size_of::<Command>(), align_of::<Command>()), (4280, 8));
+    assert_eq!((size_of::<StateEcho>(), align_of::<StateEcho>()), (3920, 8));
     assert_eq!((size_of::<HeldBurst>(), align_of::<HeldBurst>()), (88, 8));
     assert_eq!((size_of::<HeldBursts>(), align_of::<HeldBursts>()), (360, 8));
+    assert_eq!((size_of::<WindowBurst>(), align_of::<WindowBurst>()), (336, 8));
+    assert_eq!((size_of::<TrackWindow>(), align_of::<TrackWindow>()), (2744, 8));
     assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (112, 8));
     assert_eq!((size_of::<Control>(), align_of::<Control>()), (152, 8));
-    assert_eq!((size_of::<EstimatorState>(), align_of::<EstimatorState>()), (1272, 8));
+    assert_eq!((size_of::<EstimatorState>(), align_of::<EstimatorState>()), (4016, 8));
     assert_eq!((size_of::<SwarmState>(), align_of::<SwarmState>()), (736, 8));
 }
 
@@ -35,7 +37,8 @@ fn layout_has_no_implicit_padding() {
     assert_eq!(offset_of!(Estimate, bias_cov) + 32, offset_of!(Estimate, bias_sensitivity));
     assert_eq!(offset_of!(Estimate, bias_sensitivity) + 4 * 8 * MAX_UAVS, offset_of!(Estimate, alt_mean));
     assert_eq!(offset_of!(Estimate, alt_bias_sensitivity) + 4 * 8 * MAX_UAVS, offset_of!(Estimate, held));
-    assert_eq!(offset_of!(Estimate, held) + size_of::<HeldBursts>(), size_of::<Estimate>());
+    assert_eq!(offset_of!(Estimate, held) + size_of::<HeldBursts>(), offset_of!(Estimate, window));
+    assert_eq!(offset_of!(Estimate, window) + size_of::<TrackWindow>(), size_of::<Estimate>());
     assert_eq!(offset_of!(Estimate, drop_run) + 1, offset_of!(Estimate, reserved));
     assert_eq!(offset_of!(Estimate, reserved) + 2, offset_of!(Estimate, position));
     assert_eq!(offset_of!(Command, objective), 88 + 40);
@@ -45,9 +48,14 @@ fn layout_has_no_implicit_padding() {
     assert_eq!(offset_of!(StateEcho, velocity_cov) + 32, offset_of!(StateEcho, bias_sensitivity));
     assert_eq!(offset_of!(StateEcho, bias_sensitivity) + 4 * 8 * MAX_UAVS, offset_of!(StateEcho, alt_mean));
     assert_eq!(offset_of!(StateEcho, alt_bias_sensitivity) + 4 * 8 * MAX_UAVS, offset_of!(StateEcho, held));
-    assert_eq!(offset_of!(StateEcho, held) + size_of::<HeldBursts>(), size_of::<StateEcho>());
+    assert_eq!(offset_of!(StateEcho, held) + size_of::<HeldBursts>(), offset_of!(StateEcho, window));
+    assert_eq!(offset_of!(StateEcho, window) + size_of::<TrackWindow>(), size_of::<StateEcho>());
     assert_eq!(offset_of!(HeldBurst, bias_sigmas) + 16, size_of::<HeldBurst>());
     assert_eq!(offset_of!(HeldBursts, bursts), 8);
+    assert_eq!(offset_of!(WindowBurst, bias_sigmas) + 8 * MAX_UAVS, size_of::<WindowBurst>());
+    assert_eq!(offset_of!(WindowBurst, positions), 16);
+    assert_eq!(offset_of!(TrackWindow, base_matrix), 8);
+    assert_eq!(offset_of!(TrackWindow, bursts), 56);
     assert_eq!(offset_of!(Truth, position) + 16, offset_of!(Truth, previous_command));
     assert_eq!(offset_of!(Truth, multipath) + 4, size_of::<Truth>());
     assert_eq!(offset_of!(Control, run), 88 + 24);

@@ -45,7 +45,7 @@ pub const UDS_DIR_ENV: &str = "UAVLOC_UDS_DIR";
 pub const SEND_TIMEOUT: Duration = Duration::from_millis(100);
 
 /// Largest message the transport carries (bytes); every message type is smaller.
-const MAX_MESSAGE: usize = 2048;
+const MAX_MESSAGE: usize = 8192;
 
 /// The directory of the socket files: `$UAVLOC_UDS_DIR`, else `/tmp/uavloc-uds-<uid>`.
 pub fn base_dir() -> PathBuf {
