@@ -62,8 +62,9 @@ vary), and the median as a multiple of analytical/pso's median (the reference; '
 the combinations timed).
 
 Quality: every solver's plan of each input is compared with PSO's plan of the same input and objective
-(paired; fitness = the constraint violation by priority tier, then the criterion): how often its fitness
-is at most PSO's, how often strictly better, and the five worst cases (JSON: `quality`). --run-steps N
+(paired; fitness = the constraint violation by priority tier, then the criterion; values within 1e-12
+relative of each other tie): how often its fitness is at most PSO's, how often strictly better, and the
+five worst cases (JSON: `quality`). --run-steps N
 makes the input runs N steps long: runs longer than the paper's 24 steps reach the L_min ring, where the
 planner gives up the heading cone to keep the standoff.
 
@@ -572,9 +573,9 @@ pub fn quality(combos: &[Combo], fitness: &[Vec<planning::Fitness>], inputs: &[P
             worst: Vec::new(),
         };
         for (i, (a, b)) in mine.iter().zip(pso).enumerate() {
-            if a <= b {
+            if a.at_most_within(b, planning::TIE_TOLERANCE) {
                 q.at_most_pso += 1;
-                q.better += usize::from(a < b);
+                q.better += usize::from(!b.at_most_within(a, planning::TIE_TOLERANCE));
                 continue;
             }
             let rel = |x: f64, y: f64| if y > 0.0 { (x - y) / y } else { f64::INFINITY };

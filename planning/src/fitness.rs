@@ -23,6 +23,10 @@ use std::cmp::Ordering;
 /// Number of violation tiers.
 pub const TIERS: usize = 6;
 
+/// The relative difference below which two solvers' fitness values tie ([`Fitness::at_most_within`]):
+/// far below anything a plan can change, far above the rounding of a sum of a few dozen terms.
+pub const TIE_TOLERANCE: f64 = 1e-12;
+
 /// Violation (normalised, ≥ 0, 0 when feasible; by priority tier) and objective (m²) of one candidate;
 /// smaller is better.
 #[derive(Debug, Clone, Copy)]
@@ -84,6 +88,19 @@ impl Fitness {
         self.objective
     }
 
+    /// Whether this fitness is at most `other`'s when values within `rel` of each other (relative) count
+    /// as equal: tier by tier, then the objective. Two solvers that reach the same plan can differ in
+    /// the last bits of what they sum; comparing solvers, [`TIE_TOLERANCE`] says they tie.
+    pub fn at_most_within(&self, other: &Self, rel: f64) -> bool {
+        let close = |a: f64, b: f64| a == b || (a - b).abs() <= rel * a.abs().max(b.abs());
+        for (a, b) in self.tiers.iter().zip(&other.tiers) {
+            if !close(*a, *b) {
+                return a < b;
+            }
+        }
+        close(self.objective, other.objective) || self.objective < other.objective
+    }
+
     /// Whether every constraint holds.
     pub fn is_feasible(&self) -> bool {
         self.tiers.iter().all(|v| *v == 0.0)
@@ -127,6 +144,23 @@ mod tests {
         assert!(feasible < infeasible);
         assert!(Fitness::feasible(f64::INFINITY) < infeasible);
         assert!(Fitness::feasible(f64::MAX) < Fitness::feasible(f64::INFINITY));
+    }
+
+    #[test]
+    fn values_within_the_tolerance_tie_tier_by_tier() {
+        let a = Fitness::tiered([0.0, 0.0, 0.0, 9.98, 0.0, 0.0], 5.0);
+        let b = Fitness::tiered([0.0, 0.0, 0.0, 9.98 + 4e-15, 0.0, 0.0], 7.0);
+        // Exactly, b ranks below a on the cone tier; within the tolerance the tier ties and b's larger
+        // objective decides.
+        assert!(a < b);
+        assert!(a.at_most_within(&b, TIE_TOLERANCE) && !b.at_most_within(&a, TIE_TOLERANCE));
+        let c = Fitness::tiered([0.0, 0.0, 0.0, 9.98 + 4e-15, 0.0, 0.0], 5.0 * (1.0 + 1e-13));
+        assert!(a.at_most_within(&c, TIE_TOLERANCE) && c.at_most_within(&a, TIE_TOLERANCE));
+        // Beyond the tolerance the exact order stands; a feasible tier never ties with a violated one.
+        let d = Fitness::tiered([0.0, 0.0, 0.0, 9.99, 0.0, 0.0], 1.0);
+        assert!(!d.at_most_within(&a, TIE_TOLERANCE) && a.at_most_within(&d, TIE_TOLERANCE));
+        assert!(!Fitness::new(1e-300, 1.0).at_most_within(&Fitness::feasible(2.0), TIE_TOLERANCE));
+        assert!(Fitness::worst().at_most_within(&Fitness::worst(), TIE_TOLERANCE));
     }
 
     #[test]

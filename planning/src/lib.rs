@@ -61,7 +61,7 @@ pub fn scenario_with_sigmas(scenario: &model::Scenario, sigmas: Option<&[f64]>) 
 
 pub use aco::{Aco, AcoConfig};
 pub use constraints::{ActiveConstraint, ConstraintKind, ConstraintReport, Constraints};
-pub use fitness::{Fitness, TIERS};
+pub use fitness::{Fitness, TIE_TOLERANCE, TIERS};
 pub use formation::formation_headings;
 pub use ga::{Ga, GaConfig};
 pub use gradient::{Gradient, GradientConfig};
