@@ -220,14 +220,7 @@ pub fn shows_an_outlier(a: &Arrivals, prior: Option<Vector2<f64>>, gate: impl Fn
 pub fn residual_chi2(h: &Heard, z: &Vector2<f64>) -> f64 {
     let exact = h.sensors.range_differences(z);
     let r: Vec<f64> = h.diffs.as_slice().iter().zip(exact.as_slice()).map(|(d, e)| d - e).collect();
-    let noise = h.sensors.noise();
-    let mut s = 0.0;
-    for i in 0..r.len() {
-        for j in 0..r.len() {
-            s += r[i] * noise.q_inv(i, j) * r[j];
-        }
-    }
-    s
+    h.sensors.noise().quadratic_form(&r)
 }
 
 /// Chan's fix of the burst `a` (≥ 3 arrivals) with `prior` for the two-root case; with four or more

@@ -58,13 +58,8 @@ impl Window {
             let r =
                 tdoa::linearisation::linearisation_noise(&h.sensors, &predicted.position(), &predicted.position_cov())?
                     [(0, 0)];
-            let n = a.len();
             let later = *h.uavs.last()?;
-            let positions: Vec<[f64; 2]> = a.positions().iter().map(|p| [p.x, p.y]).collect();
-            let arrivals: Vec<f64> = (0..n).map(|i| a.arrival(i).unwrap_or(0.0)).collect();
-            let mut sigmas = a.sigmas().to_vec();
-            sigmas[later] = (sigmas[later].powi(2) + r.max(0.0)).sqrt();
-            Arrivals::new(&positions, &arrivals, a.heard_mask(), &sigmas, a.bias_sigmas()).ok()
+            a.with_sigma(later, (a.sigmas()[later].powi(2) + r.max(0.0)).sqrt()).ok()
         };
         tempered().unwrap_or(a)
     }

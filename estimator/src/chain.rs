@@ -385,11 +385,12 @@ const _: () = assert!(protocol::MAX_WINDOW_BURSTS == estimation::window::WINDOW_
 /// The wire form of a track's window (`open` 0 for none).
 pub fn window_of(window: Option<&estimation::window::Window>) -> TrackWindow {
     let Some(w) = window else { return TrackWindow::default() };
+    let (base_vector, base_matrix) = tdoa::estimate_to_arrays(&w.base.vector, &w.base.matrix);
     let mut wire = TrackWindow {
         open: 1,
         count: w.bursts.len().min(protocol::MAX_WINDOW_BURSTS) as u8,
-        base_matrix: tdoa::matrix_to_rows(&w.base.matrix),
-        base_vector: [w.base.vector.x, w.base.vector.y],
+        base_matrix,
+        base_vector,
         ..TrackWindow::default()
     };
     for (slot, (step, a)) in wire.bursts.iter_mut().zip(&w.bursts) {
@@ -426,14 +427,8 @@ pub fn library_window(wire: &TrackWindow) -> Option<estimation::window::Window> 
             a.ok().map(|a| (b.step, a))
         })
         .collect();
-    let m = wire.base_matrix;
-    Some(estimation::window::Window {
-        base: tdoa::window::Information {
-            matrix: nalgebra::Matrix2::new(m[0][0], m[0][1], m[1][0], m[1][1]),
-            vector: nalgebra::Vector2::new(wire.base_vector[0], wire.base_vector[1]),
-        },
-        bursts,
-    })
+    let (vector, matrix) = tdoa::estimate_from_arrays(&wire.base_vector, &wire.base_matrix);
+    Some(estimation::window::Window { base: tdoa::window::Information { matrix, vector }, bursts })
 }
 
 /// The wire form of the two-arrival bursts an estimator holds for its first fix (a burst not heard by

@@ -334,10 +334,17 @@ fn check_held(h: &crate::HeldBursts) -> Result<(), Rejection> {
         }
         check_finite("held positions", b.positions.iter().flatten())?;
         check_finite("held arrival_diff", [&b.arrival_diff])?;
-        check_finite("held sigmas", b.sigmas.iter().chain(&b.bias_sigmas))?;
-        if b.sigmas.iter().zip(&b.bias_sigmas).any(|(s, p)| *s <= 0.0 || !(0.0..=*s).contains(p)) {
-            return Err(Rejection::BadField { field: "held sigmas" });
-        }
+        check_sigmas("held sigmas", &b.sigmas, &b.bias_sigmas)?;
+    }
+    Ok(())
+}
+
+/// The σ of a burst's arrivals and their persistent parts (metres): finite, each σ positive and its
+/// persistent part within 0–σ.
+fn check_sigmas(field: &'static str, sigmas: &[f64], bias_sigmas: &[f64]) -> Result<(), Rejection> {
+    check_finite(field, sigmas.iter().chain(bias_sigmas))?;
+    if sigmas.iter().zip(bias_sigmas).any(|(s, p)| *s <= 0.0 || !(0.0..=*s).contains(p)) {
+        return Err(Rejection::BadField { field });
     }
     Ok(())
 }
@@ -438,11 +445,7 @@ fn check_window(w: &crate::TrackWindow) -> Result<(), Rejection> {
         }
         check_finite("window positions", b.positions[..n].iter().flatten())?;
         check_finite("window arrivals", (0..n).filter(|i| b.heard & (1 << i) != 0).map(|i| &b.arrivals[i]))?;
-        let (s, p) = (&b.sigmas[..n], &b.bias_sigmas[..n]);
-        check_finite("window sigmas", s.iter().chain(p))?;
-        if s.iter().zip(p).any(|(s, p)| *s <= 0.0 || !(0.0..=*s).contains(p)) {
-            return Err(Rejection::BadField { field: "window sigmas" });
-        }
+        check_sigmas("window sigmas", &b.sigmas[..n], &b.bias_sigmas[..n])?;
     }
     Ok(())
 }

@@ -277,6 +277,31 @@ impl Arrivals {
         a
     }
 
+    /// The same burst with UAV `uav`'s σ (metres) set to `sigma`: finite, positive and at least its
+    /// persistent part.
+    pub fn with_sigma(&self, uav: usize, sigma: f64) -> Result<Self, TdoaError> {
+        if uav >= self.n {
+            return Err(TdoaError::OutOfRange {
+                what: "the UAV whose σ is set".into(),
+                value: uav as f64,
+                min: 0.0,
+                max: (self.n - 1) as f64,
+            });
+        }
+        check_finite(format_args!("the σ of UAV {uav}"), sigma)?;
+        if sigma <= 0.0 || sigma < self.bias_sigmas[uav] {
+            return Err(TdoaError::OutOfRange {
+                what: format!("the σ of UAV {uav} (m)"),
+                value: sigma,
+                min: self.bias_sigmas[uav],
+                max: f64::INFINITY,
+            });
+        }
+        let mut a = *self;
+        a.sigmas[uav] = sigma;
+        Ok(a)
+    }
+
     /// The same burst without the arrivals of the UAVs in `mask` (bit i: UAV i).
     pub fn without_all(&self, mask: u8) -> Self {
         (0..self.n).filter(|&j| mask & bit(j) != 0).fold(*self, |a, j| a.without(j))
@@ -417,5 +442,17 @@ mod tests {
         assert!(Arrivals::new(&pos, &[0.0; 4], 0b1111, &[5.0, 0.0, 5.0, 5.0], &[0.0; 4]).is_err());
         assert!(Arrivals::new(&pos, &[0.0; 4], 0b1111, &[5.0; 4], &[6.0, 0.0, 0.0, 0.0]).is_err());
         assert!(Arrivals::new(&pos[..2], &[0.0; 2], 0b11, &[5.0; 2], &[0.0; 2]).is_err());
+    }
+
+    #[test]
+    fn a_sigma_is_set_as_new_would_set_it_or_refused() {
+        let pos = swarm();
+        let arrivals = [1.0, 2.0, 3.0, 4.0];
+        let a = Arrivals::new(&pos, &arrivals, 0b1011, &[5.0; 4], &[0.0, 2.0, 0.0, 0.0]).unwrap();
+        let b = Arrivals::new(&pos, &arrivals, 0b1011, &[5.0, 7.0, 5.0, 5.0], &[0.0, 2.0, 0.0, 0.0]).unwrap();
+        assert_eq!(a.with_sigma(1, 7.0).unwrap(), b);
+        for (uav, sigma) in [(1, 1.9), (1, 0.0), (0, f64::NAN), (4, 5.0)] {
+            assert!(a.with_sigma(uav, sigma).is_err(), "UAV {uav}, σ {sigma}");
+        }
     }
 }

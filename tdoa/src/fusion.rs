@@ -269,6 +269,21 @@ pub fn gate_threshold(m: usize, p: f64) -> f64 {
     chi2_quantile(m as f64, p)
 }
 
+/// The point `at(α)` of the largest step length α of 1, ½, ¼, … (30 halvings) whose cost is at most
+/// `current`, with that cost; `None` when none is. The line search of a Gauss–Newton step.
+pub(crate) fn halving_step<T>(current: f64, at: impl Fn(f64) -> T, cost: impl Fn(&T) -> f64) -> Option<(T, f64)> {
+    let mut alpha = 1.0;
+    for _ in 0..30 {
+        let candidate = at(alpha);
+        let c = cost(&candidate);
+        if c <= current {
+            return Some((candidate, c));
+        }
+        alpha *= 0.5;
+    }
+    None
+}
+
 /// `h(z)` and its Jacobian rows `(u_i − u_0)ᵀ` (m×2), or `None` when the emitter is on a UAV.
 pub(crate) fn measure(sensors: &Sensors, z: &Vector2<f64>) -> Option<(DVector<f64>, DMatrix<f64>)> {
     let w = sensors.positions();
@@ -376,18 +391,7 @@ pub fn fuse_with(
         let innovation = &d - &h - &jac * (&x_bar - &x);
         let full = &x_bar + &p_bar * jac.transpose() * s_chol.solve(&innovation);
         let step = &full - &x;
-        let mut alpha = 1.0;
-        let mut accepted = None;
-        for _ in 0..30 {
-            let candidate = &x + &step * alpha;
-            let c = cost(&candidate);
-            if c <= j_x {
-                accepted = Some((candidate, c));
-                break;
-            }
-            alpha *= 0.5;
-        }
-        let Some((next, c)) = accepted else { break };
+        let Some((next, c)) = halving_step(j_x, |alpha| &x + &step * alpha, cost) else { break };
         let moved = (next[0] - x[0]).hypot(next[1] - x[1]);
         x = next;
         j_x = c;

@@ -183,6 +183,18 @@ impl NoiseModel {
         self.mats.q_inv[(i, j)]
     }
 
+    /// `rᵀ Q⁻¹ r` of range-difference residuals `r` (metres; as many as the model has differences),
+    /// dimensionless.
+    pub fn quadratic_form(&self, r: &[f64]) -> f64 {
+        let mut s = 0.0;
+        for i in 0..r.len() {
+            for j in 0..r.len() {
+                s += r[i] * self.q_inv(i, j) * r[j];
+            }
+        }
+        s
+    }
+
     /// Same model with every σ multiplied by `factor` (> 0).
     pub fn scaled(&self, factor: f64) -> Result<Self, TdoaError> {
         let s: Vec<f64> = self.sigmas().iter().map(|s| s * factor).collect();

@@ -17,7 +17,7 @@
 
 use nalgebra::{Matrix2, Vector2};
 
-use crate::fusion::measure;
+use crate::fusion::{halving_step, measure};
 use crate::{Sensors, TdoaError};
 
 /// A Gaussian summary of bursts in information form: `Λ` (m⁻²) and `η = Λ x_b` (m⁻¹); `Λ` may be
@@ -61,14 +61,7 @@ fn normal_terms(burst: &Burst<'_>, z: &Vector2<f64>) -> Option<(Matrix2<f64>, Ve
 /// `Σ rᵀ Q⁻¹ r` of one burst at `z` (`+∞` on a UAV).
 fn burst_cost(burst: &Burst<'_>, z: &Vector2<f64>) -> f64 {
     let Some((r, _)) = linearised(burst, z) else { return f64::INFINITY };
-    let noise = burst.0.noise();
-    let mut c = 0.0;
-    for i in 0..r.len() {
-        for j in 0..r.len() {
-            c += r[i] * noise.q_inv(i, j) * r[j];
-        }
-    }
-    c
+    burst.0.noise().quadratic_form(r.as_slice())
 }
 
 impl Information {
@@ -126,18 +119,7 @@ pub fn refit(
     for _ in 0..MAX_ITERATIONS {
         let (a, g) = normal(&x)?;
         let step = a.cholesky().ok_or_else(singular)?.solve(&g);
-        let mut alpha = 1.0;
-        let mut accepted = None;
-        for _ in 0..30 {
-            let candidate = x + step * alpha;
-            let cc = cost(&candidate);
-            if cc <= c {
-                accepted = Some((candidate, cc));
-                break;
-            }
-            alpha *= 0.5;
-        }
-        let Some((next, cc)) = accepted else { break };
+        let Some((next, cc)) = halving_step(c, |alpha| x + step * alpha, cost) else { break };
         let moved = (next - x).norm();
         x = next;
         c = cc;
