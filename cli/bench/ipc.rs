@@ -7,8 +7,8 @@
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 
-use super::sweep::{self, HEADER, Receiver, STOP, Sender, Waiting};
 use clap::{Args, ValueEnum};
+use ipc_sweep::{self as sweep, HEADER, Receiver, STOP, Sender, Waiting};
 use serde::Serialize;
 
 use super::histogram::LatencyHistogram;

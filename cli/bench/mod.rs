@@ -6,7 +6,6 @@ pub mod ipc;
 pub mod latency;
 pub mod planner;
 pub mod plot;
-pub mod sweep;
 pub mod sys;
 
 use clap::{Args, Subcommand};
