@@ -121,7 +121,7 @@ pub fn run_closed_loop_with(
             }
         };
         // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): the swarm
-        // holds course and tries the next burst, until planning::gives_up_without_fix (what the pipeline's
+        // holds (planning::hold) and tries the next burst, until planning::gives_up_without_fix (what the pipeline's
         // planner does with such an estimate).
         let (est, awaiting_fix) = match estimator.estimate_burst(k, &seen) {
             Ok(est) => (est, false),
@@ -178,10 +178,14 @@ pub fn run_closed_loop_with(
         };
         let measured_headings = world.headings().to_vec();
         let plan = if k < scenario.steps as u64 && awaiting_fix {
-            // A hold: every UAV keeps its heading; recorded as the pipeline's monitor records a hold.
-            let headings = world.headings().to_vec();
-            world.apply(&headings).map_err(failed(Some(k), "move"))?;
+            // A hold (planning::hold: the backup circles' step, certified for the spacing); recorded as
+            // the pipeline's monitor records a hold.
+            let hold = planning::hold::without_fix(&meas.uavs, world.headings(), plan_scenario);
+            world.apply(&hold.headings).map_err(failed(Some(k), "move"))?;
+            record.headings_rad = hold.headings;
             record.active_constraints = vec![HOLD_LABEL.to_string()];
+            record.safety =
+                hold.safety.map(|r| record::StepSafety { certified: Some(r.certified), ..Default::default() });
             None
         } else if k < scenario.steps as u64 {
             let plan = plan_step(&PlanRequest {
@@ -298,5 +302,31 @@ mod tests {
         let formation = run(ObjectiveKind::Formation);
         let analytical = run(ObjectiveKind::Analytical);
         assert!(analytical < 0.9 * formation, "analytical {analytical:.1} m vs formation {formation:.1} m");
+    }
+    /// An emitter heard by too few UAVs for a first fix (95 % of the arrivals lost) for 80 steps: the
+    /// swarm, heading at it, loiters on its backup circles (planning::hold) instead of flying on — every
+    /// hold certified for the spacing, no pair below `D_min`, no UAV inside `L_min` of the true emitter,
+    /// none more than a circle's diameter from where it started. Holding course flew them over it.
+    #[test]
+    fn a_swarm_that_never_hears_enough_for_a_fix_loiters_where_it_is() {
+        let mut sc = Scenario { steps: 80, ..Scenario::default() };
+        sc.receiver.loss = 0.95;
+        let start: Vec<[f64; 2]> = sc.uavs.clone();
+        let radius = planning::shield::safety_limits(&sc).backup_radius();
+        let mut held = 0;
+        let run = run_closed_loop(&sc, ObjectiveKind::Analytical, SolverKind::Gradient, |rec, trace| {
+            if trace.plan.is_none() && rec.step < sc.steps as u64 {
+                held += 1;
+                assert_eq!(rec.safety.as_ref().and_then(|s| s.certified), Some(true), "step {}", rec.step);
+            }
+        })
+        .unwrap();
+        assert!(held >= 60, "{held} holds");
+        assert_eq!((run.true_spacing_violations, run.true_standoff_violations, run.uncertified_steps), (0, Some(0), 0));
+        for s in run.steps.iter().take(held) {
+            for (u, p) in s.uavs.iter().zip(&start) {
+                assert!((u[0] - p[0]).hypot(u[1] - p[1]) <= 2.0 * radius + 1e-6, "step {}", s.step);
+            }
+        }
     }
 }

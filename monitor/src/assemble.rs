@@ -392,6 +392,10 @@ impl Assembler {
                 record.headings_rad = c.headings().to_vec();
                 if c.is_hold() {
                     record.active_constraints = vec![ESTIMATE_STALE.to_string()];
+                    // A hold without a fix carries its spacing certificate; one of a late estimate none.
+                    record.safety = c
+                        .certified()
+                        .map(|certified| StepSafety { certified: Some(certified), ..StepSafety::default() });
                 } else {
                     record.objective_value = (c.objective >= 0.0).then(|| c.objective.sqrt());
                     record.plan_ms = Some(c.plan_time_us as f64 / 1e3);

@@ -171,9 +171,15 @@ impl Planner<'_> {
         let Some((position, covariance)) = est.plan_from() else {
             if !planning::gives_up_without_fix(step, est.heard.count_ones() as usize) {
                 // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): hold
-                // course and try the next burst, as `uavloc simulate` does.
-                let hold = self.hold(step, &points(est.uavs()), est.headings(), node.instance())?;
-                return Ok(Some(hold.with_state_of(est)));
+                // and try the next burst, as `uavloc simulate` does.
+                // No fix so far: the swarm loiters on its backup circles (planning::hold).
+                let at = points(est.uavs());
+                let hold = planning::hold::without_fix(&at, est.headings(), &self.scenario);
+                let names = (self.args.solver, self.args.objective);
+                let command =
+                    wire::no_fix_command(step, &at, est.headings(), &hold, &self.scenario, names, node.instance())
+                        .map_err(ProcessError::Failed)?;
+                return Ok(Some(command.with_state_of(est)));
             }
             // No fix in the first FIRST_FIX_STEPS steps, and this step's burst was heard well enough for
             // one: the run cannot go on, as `uavloc simulate` of the scenario says at the same step.

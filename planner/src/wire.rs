@@ -97,6 +97,55 @@ pub fn hold_command(
     Ok(hold)
 }
 
+/// The command of `step` while there is no estimate to plan from yet: `hold` ([`planning::hold`]: the
+/// backup circles' step, or the current headings) flown by the UAVs at `positions` with headings
+/// `headings`, flagged [`Command::FLAG_HOLD`] and, with its spacing certificate,
+/// [`Command::FLAG_CERTIFIED`] or [`Command::FLAG_UNCERTIFIED`]; objective −1 and no plan time.
+pub fn no_fix_command(
+    step: u64,
+    positions: &[Vector2<f64>],
+    headings: &[f64],
+    hold: &planning::hold::Hold,
+    scenario: &Scenario,
+    (solver, objective): (SolverKind, ObjectiveKind),
+    instance: u64,
+) -> Result<Command, String> {
+    if positions.len() != headings.len() || hold.headings.len() != headings.len() {
+        return Err(format!(
+            "step {step}: hold command: {} positions, {} headings, {} commanded",
+            positions.len(),
+            headings.len(),
+            hold.headings.len()
+        ));
+    }
+    let waypoints: Vec<[f64; 2]> = positions
+        .iter()
+        .zip(headings.iter().zip(&hold.headings))
+        .map(|(p, (&psi, &phi))| {
+            let w = model::kinematics::next_position(*p, psi, phi, scenario.speed, scenario.dt);
+            [w.x, w.y]
+        })
+        .collect();
+    let info = PlanInfo {
+        headings: &hold.headings,
+        waypoints: &waypoints,
+        objective: -1.0,
+        solver: solver.name(),
+        objective_name: objective.name(),
+        plan_time_us: 0,
+        active_constraints: 0,
+        violated_constraints: 0,
+    };
+    let mut command = Command::new(step, 0, instance, &info).map_err(|e| format!("step {step}: hold command: {e}"))?;
+    command.flags |= Command::FLAG_HOLD
+        | match hold.safety.as_ref().map(|s| s.certified) {
+            Some(true) => Command::FLAG_CERTIFIED,
+            Some(false) => Command::FLAG_UNCERTIFIED,
+            None => 0,
+        };
+    Ok(command)
+}
+
 pub use planning::scenario_with_sigmas;
 
 /// The scenario a step is planned with, when it is not the run's own: the range σ the measurement stated

@@ -28,6 +28,7 @@ pub mod formation;
 pub mod ga;
 pub mod gradient;
 pub mod heading_interval;
+pub mod hold;
 pub mod objective;
 pub mod pso;
 pub mod shield;
@@ -35,8 +36,8 @@ pub mod solver;
 pub mod step;
 
 /// Steps a run may wait for its first fix: while no step so far has given an estimate (a silent emitter,
-/// lost arrivals, a burst with no physical solution), the swarm holds course — every UAV keeps its
-/// heading — and the next burst is tried; from step `FIRST_FIX_STEPS − 1` on, a burst heard by three or
+/// lost arrivals, a burst with no physical solution), the swarm holds — with the certified planner every
+/// UAV loiters on its backup circle ([`hold`]) — and the next burst is tried; from step `FIRST_FIX_STEPS − 1` on, a burst heard by three or
 /// more UAVs that still gives no fix ends the run (the geometry or the noise leaves no fix). Steps the
 /// receiver delivered too little (a silent emitter, arrivals lost) never end it: the swarm holds until
 /// the emitter is heard. See [`gives_up_without_fix`]; shared by the pipeline's planner and the
