@@ -34,8 +34,8 @@ leaves before the last step (it ended, or died) ends the launch 5 s later unless
 1, the monitor's error names the first step not recorded, the steps recorded are in the log.
 
 Staleness (--estimate-deadline-ms D, off by default): when a step's estimate has not reached the planner D
-ms after the step's measurement, the planner holds course (commands the current headings; the UAVs fly
-straight on); the step is recorded with active_constraints [\"estimate_stale\"] and counted in
+ms after the step's measurement, the planner holds: every UAV loiters on its backup circle, a right turn
+at the radius the certificate keeps clear (with safety = \"waypoints\" they hold course); the step is recorded with active_constraints [\"estimate_stale\"] and counted in
 \"stale_steps\". Meant for realtime runs; a lock-step run with a deadline depends on timing.
 
 On a terminal (stdout and stderr) the launch shows a live view: the map with the UAV tracks, the true

@@ -110,7 +110,7 @@ impl Report for LaunchReport {
             .row("median cycle", p50("cycle"))
             .row("rejected messages", self.rejected.to_string())
             .row("missed commands", self.missed_commands.to_string())
-            .row("stale estimates (held course)", self.stale_steps.to_string())
+            .row("stale estimates (held)", self.stale_steps.to_string())
             .row("restarts", self.restarts.to_string())
             .row("wall time", format!("{:.2} s", self.wall_s));
         for c in &self.children {
@@ -143,7 +143,7 @@ impl Report for LaunchReport {
         }
         if self.stale_steps > 0 {
             out.push(Diagnostic::Warning(format!(
-                "{} step(s) had no fresh estimate within the planner's deadline (it held course): see \
+                "{} step(s) had no fresh estimate within the planner's deadline (the planner held): see \
                  active_constraints \"estimate_stale\"",
                 self.stale_steps
             )));

@@ -180,7 +180,7 @@ pub fn run_closed_loop_with(
         let plan = if k < scenario.steps as u64 && awaiting_fix {
             // A hold (planning::hold: the backup circles' step, certified for the spacing); recorded as
             // the pipeline's monitor records a hold.
-            let hold = planning::hold::without_fix(&meas.uavs, world.headings(), plan_scenario);
+            let hold = planning::hold::without_plan(&meas.uavs, world.headings(), plan_scenario);
             world.apply(&hold.headings).map_err(failed(Some(k), "move"))?;
             record.headings_rad = hold.headings;
             record.active_constraints = vec![HOLD_LABEL.to_string()];
@@ -306,7 +306,7 @@ mod tests {
     /// An emitter heard by too few UAVs for a first fix (95 % of the arrivals lost) for 80 steps: the
     /// swarm, heading at it, loiters on its backup circles (planning::hold) instead of flying on — every
     /// hold certified for the spacing, no pair below `D_min`, no UAV inside `L_min` of the true emitter,
-    /// none more than a circle's diameter from where it started. Holding course flew them over it.
+    /// none more than a circle's diameter from where it started. Holding course flies them over it.
     #[test]
     fn a_swarm_that_never_hears_enough_for_a_fix_loiters_where_it_is() {
         let mut sc = Scenario { steps: 80, ..Scenario::default() };

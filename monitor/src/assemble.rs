@@ -26,9 +26,10 @@
 //! ([`COMMAND_MISSED`]), no planner; a command for it that arrives anyway is ignored.
 //!
 //! A step whose command is a *hold* ([`Command::FLAG_HOLD`]: no fresh estimate reached the planner within
-//! its staleness deadline, so it commanded the current headings) records those headings, `objective_value`
-//! and `plan_ms` null, `active_constraints` = `["estimate_stale"]` ([`ESTIMATE_STALE`]), and the planner
-//! that held.
+//! its staleness deadline, or none to plan from before a first fix; the UAVs loiter on their backup
+//! circles) records its headings, `objective_value` and `plan_ms` null, `active_constraints` =
+//! `["estimate_stale"]` ([`ESTIMATE_STALE`]), its spacing certificate (`safety.certified`), and the
+//! planner that held.
 //!
 //! Messages for steps already completed or beyond the last step are ignored (and counted).
 //!

@@ -70,7 +70,7 @@ pub(crate) fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> Str
         if done.missed {
             "  COMMAND MISSED (flew straight on)"
         } else if done.held {
-            "  ESTIMATE STALE (planner held course)"
+            "  ESTIMATE STALE (planner held)"
         } else {
             ""
         },

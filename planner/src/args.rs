@@ -17,7 +17,7 @@ are supported (controlled mode needs the truth, which only `uavloc simulate` can
 Examples:
   planner --domain lab1
   planner --domain lab1 --objective mc --solver ga --scenario scenarios/nominal.toml --seed 7
-  planner --domain lab1 --estimate-deadline-ms 50   hold course when a step's estimate is 50 ms late
+  planner --domain lab1 --estimate-deadline-ms 50   hold when a step's estimate is 50 ms late
   UAVLOC_DOMAIN=lab1 planner --spin-us 50";
 
 /// Flags of the planner process (`planner [FLAGS]` or `uavloc process planner [FLAGS]`).
@@ -40,8 +40,8 @@ pub struct PlannerArgs {
     #[arg(long)]
     pub takeover: bool,
     /// Staleness deadline: when a step's estimate has not arrived this many milliseconds after its
-    /// measurement, hold course (command the current headings, flagged as a hold; the monitor shows
-    /// `estimate_stale`). 0: no deadline (wait for every estimate; what lock-step reproductions need).
+    /// measurement, hold: the UAVs loiter on their backup circles (with `safety = "waypoints"` they hold
+    /// course), flagged as a hold; the monitor shows `estimate_stale`. 0: no deadline (wait for every estimate; what lock-step reproductions need).
     #[arg(long, value_name = "MS", default_value_t = 0)]
     pub estimate_deadline_ms: u64,
     /// Test / fault-injection aid: sleep this many milliseconds before planning a step (see

@@ -22,9 +22,10 @@
 //! - Invalid estimates are counted (per rejection kind) and ignored.
 //! - **Staleness deadline** (`--estimate-deadline-ms D`, off by default): the planner also subscribes to
 //!   the measurements; when the estimate of the newest measured step has not arrived D ms after its
-//!   measurement (a deadline of the event loop), the planner *holds course*: it publishes a command with
-//!   the UAVs' current headings (they fly straight on) flagged [`Command::FLAG_HOLD`] (objective −1, no
-//!   plan time), counts it (`held`) and logs it; the monitor shows the step as `estimate_stale`. The
+//!   measurement (a deadline of the event loop), the planner *holds*: it publishes a command flagged
+//!   [`Command::FLAG_HOLD`] (objective −1, no plan time) in which the UAVs loiter on their backup
+//!   circles ([`planning::hold`]; with `safety = "waypoints"` they hold course), counts it (`held`) and
+//!   logs it; the monitor shows the step as `estimate_stale`. The
 //!   estimate that comes later is answered with the same hold (`late_estimates`). With a deadline the run
 //!   depends on timing (like emitter-sim's real-time mode), so lock-step reproductions of `simulate`
 //!   leave it off.
@@ -148,10 +149,12 @@ impl Planner<'_> {
         wire::scenario_for(&self.scenario, range_sigmas, self.position_sigmas.get(&step).copied())
     }
 
-    /// The hold command of a step whose estimate missed the deadline ([`wire::hold_command`]).
+    /// The hold command of a step without a plan ([`planning::hold`], [`wire::hold_command`]): the UAVs
+    /// at `at` with `headings` loiter on their backup circles (certified planner) or hold course.
     fn hold(&self, step: u64, at: &[Vector2<f64>], headings: &[f64], instance: u64) -> Result<Command, ProcessError> {
+        let hold = planning::hold::without_plan(at, headings, &self.scenario);
         let names = (self.args.solver, self.args.objective);
-        wire::hold_command(step, at, headings, &self.scenario, names, instance).map_err(ProcessError::Failed)
+        wire::hold_command(step, at, headings, &hold, &self.scenario, names, instance).map_err(ProcessError::Failed)
     }
 
     /// The command of one estimate; `None` when it cannot be planned (counted and logged).
@@ -172,14 +175,8 @@ impl Planner<'_> {
             if !planning::gives_up_without_fix(step, est.heard.count_ones() as usize) {
                 // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): hold
                 // and try the next burst, as `uavloc simulate` does.
-                // No fix so far: the swarm loiters on its backup circles (planning::hold).
-                let at = points(est.uavs());
-                let hold = planning::hold::without_fix(&at, est.headings(), &self.scenario);
-                let names = (self.args.solver, self.args.objective);
-                let command =
-                    wire::no_fix_command(step, &at, est.headings(), &hold, &self.scenario, names, node.instance())
-                        .map_err(ProcessError::Failed)?;
-                return Ok(Some(command.with_state_of(est)));
+                let hold = self.hold(step, &points(est.uavs()), est.headings(), node.instance())?;
+                return Ok(Some(hold.with_state_of(est)));
             }
             // No fix in the first FIRST_FIX_STEPS steps, and this step's burst was heard well enough for
             // one: the run cannot go on, as `uavloc simulate` of the scenario says at the same step.
@@ -254,7 +251,7 @@ impl Handler for Planner<'_> {
                 self.answer(node, command, again)?;
             }
         }
-        // Steps whose estimate missed the deadline: hold course.
+        // Steps whose estimate missed the deadline: hold (planning::hold).
         let due = self.tracker.as_mut().map(|t| t.due(Instant::now())).unwrap_or_default();
         for due in due {
             if self.args.takeover && self.from_step.is_none_or(|f| due.step < f) {
@@ -264,8 +261,10 @@ impl Handler for Planner<'_> {
             self.answer(node, hold, false)?;
             self.summary.held += 1;
             node.warn(format_args!(
-                "step {}: no estimate within {} ms of the measurement; holding course",
-                due.step, self.args.estimate_deadline_ms
+                "step {}: no estimate within {} ms of the measurement; holding ({})",
+                due.step,
+                self.args.estimate_deadline_ms,
+                if hold.headings() == due.headings.as_slice() { "course" } else { "on the backup circles" }
             ));
         }
         Ok(Flow::Continue)

@@ -1,22 +1,20 @@
 //! The planner's staleness deadline: when no fresh estimate of a step arrives within a deadline after the
-//! step's measurement, the planner *holds course* — it commands the UAVs' current headings (they fly straight
-//! on, as emitter-sim's UAVs do when a command misses its step) and flags the command
-//! ([`protocol::Command::FLAG_HOLD`]) so that the monitor shows it.
+//! step's measurement, the planner *holds* — the UAVs loiter on their backup circles ([`planning::hold`]:
+//! the continuation the last certified plan kept safe; with `safety = "waypoints"` they hold course) —
+//! and flags the command ([`protocol::Command::FLAG_HOLD`]) so that the monitor shows it.
 //!
 //! [`HoldTracker`] is the bookkeeping, a pure state machine over (step, time) events, without any IPC:
 //! - [`HoldTracker::on_measurement`] starts the deadline of a step (only of the newest step: a replayed,
 //!   older measurement starts none; a step 0 that differs from the first one seen starts a new run);
 //! - [`HoldTracker::on_estimate`] says whether the step's estimate is fresh (its deadline is cancelled) or
 //!   late (the step was held already and is answered with the hold it got);
-//! - [`HoldTracker::due`] hands out the steps whose deadline passed, which are held from then on;
-//! - [`hold_plan`] gives the headings and waypoints of a hold ([`crate::wire::hold_command`]: as a command).
+//! - [`HoldTracker::due`] hands out the steps whose deadline passed, which are held from then on
+//!   ([`crate::wire::hold_command`]: the hold as a command).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::{Duration, Instant};
 
 use nalgebra::Vector2;
-
-use model::kinematics::next_position;
 
 /// A step whose deadline passed: where the UAVs were and how they headed when it was measured.
 #[derive(Debug, Clone, PartialEq)]
@@ -148,20 +146,6 @@ pub fn fingerprint(m: &protocol::Measurement) -> u64 {
     protocol::measurement_digest(m)
 }
 
-/// The headings and waypoints of a hold: every UAV keeps its heading and flies straight on for one
-/// interval (`speed` m/s for `dt` s: the arc kinematics with zero turn, eq. 24).
-pub fn hold_plan(positions: &[Vector2<f64>], headings: &[f64], speed: f64, dt: f64) -> (Vec<f64>, Vec<[f64; 2]>) {
-    let waypoints = positions
-        .iter()
-        .zip(headings)
-        .map(|(p, &psi)| {
-            let w = next_position(*p, psi, psi, speed, dt);
-            [w.x, w.y]
-        })
-        .collect();
-    (headings.to_vec(), waypoints)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -259,12 +243,5 @@ mod tests {
         let due: Vec<u64> = t.due(t0 + Duration::from_secs(1)).iter().map(|d| d.step).collect();
         assert_eq!(due, (0..20).collect::<Vec<_>>());
         assert!(t.is_held(19) && t.is_held(15) && !t.is_held(14), "only the last 4 (+1) are kept");
-    }
-
-    #[test]
-    fn a_hold_flies_straight_on_for_one_interval() {
-        let (h, w) = hold_plan(&[Vector2::new(100.0, -50.0)], &[std::f64::consts::FRAC_PI_2], 50.0, 10.0);
-        assert_eq!(h, vec![std::f64::consts::FRAC_PI_2]);
-        assert!((w[0][0] - 100.0).abs() < 1e-9 && (w[0][1] - 450.0).abs() < 1e-9, "{w:?}");
     }
 }

@@ -69,39 +69,12 @@ pub fn plan_info<'a>(
     }
 }
 
-/// The hold command of `step`: the UAVs at `positions` fly straight on at `headings`
-/// ([`crate::staleness::hold_plan`] over the scenario's speed and interval), flagged
-/// [`Command::FLAG_HOLD`], objective −1 (no value) and no plan time; named after the planner's `solver`
-/// and `objective`.
-pub fn hold_command(
-    step: u64,
-    positions: &[Vector2<f64>],
-    headings: &[f64],
-    scenario: &Scenario,
-    (solver, objective): (SolverKind, ObjectiveKind),
-    instance: u64,
-) -> Result<Command, String> {
-    let (headings, waypoints) = crate::staleness::hold_plan(positions, headings, scenario.speed, scenario.dt);
-    let info = PlanInfo {
-        headings: &headings,
-        waypoints: &waypoints,
-        objective: -1.0,
-        solver: solver.name(),
-        objective_name: objective.name(),
-        plan_time_us: 0,
-        active_constraints: 0,
-        violated_constraints: 0,
-    };
-    let mut hold = Command::new(step, 0, instance, &info).map_err(|e| format!("step {step}: hold command: {e}"))?;
-    hold.flags |= Command::FLAG_HOLD;
-    Ok(hold)
-}
-
-/// The command of `step` while there is no estimate to plan from yet: `hold` ([`planning::hold`]: the
-/// backup circles' step, or the current headings) flown by the UAVs at `positions` with headings
+/// The hold command of `step` (no first fix yet, or an estimate too late): `hold` ([`planning::hold`]:
+/// the backup circles' step, or the current headings) flown by the UAVs at `positions` with headings
 /// `headings`, flagged [`Command::FLAG_HOLD`] and, with its spacing certificate,
-/// [`Command::FLAG_CERTIFIED`] or [`Command::FLAG_UNCERTIFIED`]; objective −1 and no plan time.
-pub fn no_fix_command(
+/// [`Command::FLAG_CERTIFIED`] or [`Command::FLAG_UNCERTIFIED`]; objective −1 and no plan time; named
+/// after the planner's `solver` and `objective`.
+pub fn hold_command(
     step: u64,
     positions: &[Vector2<f64>],
     headings: &[f64],
@@ -187,17 +160,35 @@ mod tests {
         assert_eq!(both.receiver.gnss_sigma_m, sigma);
     }
 
+    /// A hold with the certified planner: every UAV turns onto its backup circle, the waypoints are
+    /// the ends of those arcs, the command is flagged a certified hold with no value; with the waypoint
+    /// planner it flies straight on, neither safety bit set.
     #[test]
-    fn a_hold_flies_straight_on_flagged_with_no_value() {
+    fn a_hold_loiters_certified_or_flies_straight_on_flagged_with_no_value() {
         let sc = Scenario::default();
-        let at = [Vector2::new(0.0, 0.0), Vector2::new(500.0, 0.0), Vector2::new(0.0, 500.0)];
+        let at = [Vector2::new(0.0, 0.0), Vector2::new(5000.0, 0.0), Vector2::new(0.0, 5000.0)];
         let headings = [0.5, -1.0, 2.0];
         let names = (SolverKind::Pso, ObjectiveKind::Analytical);
-        let hold = hold_command(7, &at, &headings, &sc, names, 3).unwrap();
-        assert!(hold.is_hold() && hold.flags == Command::FLAG_HOLD);
-        assert_eq!((hold.header.step, hold.planner_instance, hold.objective, hold.plan_time_us), (7, 3, -1.0, 0));
-        assert_eq!(hold.headings(), &headings);
+        let hold = planning::hold::without_plan(&at, &headings, &sc);
+        let turn = planning::shield::safety_limits(&sc).backup_turn();
+        let command = hold_command(7, &at, &headings, &hold, &sc, names, 3).unwrap();
+        assert!(command.is_hold() && command.flags == Command::FLAG_HOLD | Command::FLAG_CERTIFIED);
+        assert_eq!(command.certified(), Some(true));
+        assert_eq!(
+            (command.header.step, command.planner_instance, command.objective, command.plan_time_us),
+            (7, 3, -1.0, 0)
+        );
+        for i in 0..3 {
+            assert!((command.headings()[i] - (headings[i] - turn)).abs() < 1e-12);
+            let w = model::kinematics::next_position(at[i], headings[i], headings[i] - turn, sc.speed, sc.dt);
+            assert_eq!(command.waypoints()[i], [w.x, w.y]);
+        }
+        let paper = Scenario { safety: model::safety::SafetyMode::Waypoints, ..sc.clone() };
+        let straight = planning::hold::without_plan(&at, &headings, &paper);
+        let command = hold_command(7, &at, &headings, &straight, &paper, names, 3).unwrap();
+        assert!(command.flags == Command::FLAG_HOLD && command.certified().is_none());
+        assert_eq!(command.headings(), &headings);
         // Not one heading per UAV: an error, not a command.
-        assert!(hold_command(7, &at, &headings[..1], &sc, names, 3).is_err());
+        assert!(hold_command(7, &at, &headings[..1], &hold, &sc, names, 3).is_err());
     }
 }

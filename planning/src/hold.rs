@@ -1,5 +1,6 @@
-//! What the swarm flies while there is no estimate to plan from yet (no first fix: a silent emitter,
-//! lost arrivals, a burst without a physical solution; see [`crate::FIRST_FIX_STEPS`]).
+//! What the swarm flies in a step it has no plan for: no estimate to plan from yet (no first fix: a
+//! silent emitter, lost arrivals, a burst without a physical solution; see [`crate::FIRST_FIX_STEPS`]),
+//! or the step's estimate missed the planner's deadline (`planner --estimate-deadline-ms`).
 //!
 //! With the certified planner (`safety = "certified"`) the UAVs **loiter**: each flies one step of its
 //! backup circle (a right turn of `θ_b = min(L/R_min, 0.9π)` per step, radius `R_b ≥ R_min`). Two
@@ -8,14 +9,16 @@
 //! - *Spacing.* The backup circles of a certified state keep `D_min` for ever (same speed and radius:
 //!   each pair's relative motion is periodic and its minimum is computed in closed form,
 //!   [`model::safety`]); flying them keeps the same circles, so the spacing holds by induction however
-//!   long the emitter stays silent. Holding course does not: two UAVs heading at the same emitter
-//!   converge on it, and nothing checks them while no plan is made.
-//! - *Standoff.* Where the emitter is, nobody knows before the first fix. A UAV on its circle stays
-//!   within `2·R_b` of where it was when the hold began; one holding course flies on, over the emitter
-//!   if it is ahead.
+//!   long the hold lasts. Holding course does not: two UAVs heading at the same emitter converge on
+//!   it, and nothing checks them while no plan is made.
+//! - *Standoff.* Where the emitter is, nobody knows before the first fix; a UAV on its circle stays
+//!   within `2·R_b` of where it was when the hold began, one holding course flies on, over the emitter
+//!   if it is ahead. After a certified plan the circle is the backup that plan's certificate kept off
+//!   the emitter (for ever for a static one; a moving one's plan may have preferred a fly-away, which
+//!   the next plan takes up).
 //!
 //! The hold is certified for the spacing only (the same certificate as a plan's, with the standoff
-//! off); the standoff margin is unknown (`null`) until the first fix. Where the loiter is not certified
+//! off); its standoff margin is not computed (`null`). Where the loiter is not certified
 //! (a start whose circles conflict) but holding course is, the swarm holds course; where neither is, it
 //! flies the one with the larger minimum margin and the hold is flagged uncertified. With
 //! `safety = "waypoints"` (the paper's behaviour) the swarm holds course, as the paper's planner would.
@@ -24,7 +27,7 @@ use model::Scenario;
 use model::safety::{EmitterPrediction, SafetyLimits, SafetyMode, SafetyReport, certify};
 use nalgebra::{Matrix2, Vector2};
 
-/// The commanded headings of a step without an estimate to plan from, and the spacing certificate of
+/// The commanded headings of a step without a plan, and the spacing certificate of
 /// what they fly (`None` with `safety = "waypoints"`: not checked, as the paper's planner does not).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Hold {
@@ -44,7 +47,7 @@ impl Hold {
 /// The hold of UAVs at `positions` with headings `headings` (radians) under `scenario`'s limits and
 /// safety mode (module docs). A pure function of its inputs, shared by the pipeline's planner and the
 /// in-process closed loop, so both fly the same hold.
-pub fn without_fix(positions: &[Vector2<f64>], headings: &[f64], scenario: &Scenario) -> Hold {
+pub fn without_plan(positions: &[Vector2<f64>], headings: &[f64], scenario: &Scenario) -> Hold {
     if scenario.safety == SafetyMode::Waypoints {
         return Hold { headings: headings.to_vec(), safety: None };
     }
@@ -89,7 +92,7 @@ mod tests {
             .fold(f64::INFINITY, f64::min);
         assert!(course_min < 1.0, "{course_min}");
         for step in 0..60 {
-            let hold = without_fix(&at, &psi, &sc);
+            let hold = without_plan(&at, &psi, &sc);
             let report = hold.safety.unwrap();
             assert!(report.certified, "step {step}: {report:?}");
             assert!(hold.loiters(&psi), "step {step}");
@@ -108,7 +111,7 @@ mod tests {
         let sc = Scenario { safety: SafetyMode::Waypoints, ..Scenario::default() };
         let at = [Vector2::new(0.0, 0.0), Vector2::new(6000.0, 0.0), Vector2::new(3000.0, 8000.0)];
         let psi = [0.3, 1.0, -2.0];
-        assert_eq!(without_fix(&at, &psi, &sc), Hold { headings: psi.to_vec(), safety: None });
+        assert_eq!(without_plan(&at, &psi, &sc), Hold { headings: psi.to_vec(), safety: None });
     }
 
     /// A start whose backup circles conflict but whose straight legs do not: the swarm holds course,
@@ -124,7 +127,7 @@ mod tests {
         let nowhere = EmitterPrediction::fixed(Vector2::zeros(), &Matrix2::zeros());
         let circling = certify(&at, &psi, &limits.backup_headings(&psi), &nowhere, &limits, true);
         assert!(!circling.certified && circling.backup_pair_m.unwrap() < sc.d_min, "{circling:?}");
-        let hold = without_fix(&at, &psi, &sc);
+        let hold = without_plan(&at, &psi, &sc);
         assert_eq!(hold.headings, psi.to_vec());
         assert!(!hold.loiters(&psi));
         let report = hold.safety.unwrap();

@@ -111,7 +111,7 @@ fn a_start_that_cannot_be_localised_is_refused_up_front() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A run whose first steps give no fix: the swarm holds course and tries the next burst. With
+/// A run whose first steps give no fix: the swarm holds (loiters) and tries the next burst. With
 /// σ = 20 km (seed 10) every burst is heard by all three UAVs and none gives a physical solution, so at
 /// step `planning::FIRST_FIX_STEPS − 1` `simulate` ends with the reason, and so does `launch` — the
 /// planner says the run cannot go on (exit code 3, no restart), at the same step. An emitter silent at
@@ -176,7 +176,7 @@ fn a_run_without_a_first_fix_holds_then_ends_launch_as_it_ends_simulate() {
         assert_eq!(s["active_constraints"], serde_json::json!(["estimate_stale"]), "step {} held", s["step"]);
     }
     assert_same_run(&sim, &run, "a silent run");
-    // σ = 500 m: step 0 has no fix, a later step has; both hold course until then and agree.
+    // σ = 500 m: step 0 has no fix, a later step has; both hold until then and agree.
     let (sim, run) = both("hold", with_sigma("500.0"));
     assert_eq!(sim["steps"][0]["active_constraints"], serde_json::json!(["estimate_stale"]), "step 0 held");
     assert!(sim["steps"][0]["estimate"][0].is_null(), "no estimate at step 0");

@@ -1,7 +1,8 @@
 //! Staleness: in a real-time run with a planner deadline (`--estimate-deadline-ms`), the estimator is
-//! frozen (SIGSTOP) for several steps. No fresh estimate reaches the planner, so it holds course: it
-//! commands the UAVs' current headings, which the world flies (straight on, in time — no step is missed),
-//! and the monitor records those steps as `estimate_stale`, logs them and counts them. When the estimator
+//! frozen (SIGSTOP) for several steps. No fresh estimate reaches the planner, so it holds: the UAVs
+//! loiter on their backup circles (`planning::hold`: a right turn of θ_b per step, certified for the
+//! spacing), which the world flies in time — no step is missed — and the monitor records those steps
+//! as `estimate_stale`, logs them and counts them. When the estimator
 //! thaws (SIGCONT) it works off its backlog; the late estimates are answered with the holds, and planning
 //! goes on from the fresh ones.
 
@@ -23,7 +24,7 @@ fn uavs(step: &Value) -> Vec<[f64; 2]> {
 }
 
 #[test]
-fn a_frozen_estimator_makes_the_planner_hold_course_and_the_monitor_show_it() {
+fn a_frozen_estimator_makes_the_planner_hold_on_the_backup_circles_and_the_monitor_show_it() {
     let _scenario = common::scenario(module_path!());
     let d = domain("stale", "freeze");
     let dir = scratch("stale-freeze");
@@ -37,7 +38,7 @@ fn a_frozen_estimator_makes_the_planner_hold_course_and_the_monitor_show_it() {
     launch.wait_for_step(8, Duration::from_secs(30));
     let estimator = pid_of(&d, "estimator").expect("the estimator runs");
     kill(estimator, libc::SIGSTOP);
-    // Frozen until the planner has held course for 4 steps (4 commands more than at the freeze: no
+    // Frozen until the planner has held for 4 steps (4 commands more than at the freeze: no
     // estimate can reach it meanwhile), then thawed — whatever the machine's load.
     let commands = |l: &Launch| -> usize {
         l.events().iter().filter(|e| e["event"] == "message" && e["kind"] == "command").count()
@@ -45,7 +46,7 @@ fn a_frozen_estimator_makes_the_planner_hold_course_and_the_monitor_show_it() {
     let at_freeze = commands(&launch);
     let deadline = std::time::Instant::now() + Duration::from_secs(30);
     while commands(&launch) < at_freeze + 4 {
-        assert!(std::time::Instant::now() < deadline, "the planner did not hold course while the estimator was frozen");
+        assert!(std::time::Instant::now() < deadline, "the planner did not hold while the estimator was frozen");
         std::thread::sleep(Duration::from_millis(10));
     }
     kill(estimator, libc::SIGCONT);
@@ -65,17 +66,22 @@ fn a_frozen_estimator_makes_the_planner_hold_course_and_the_monitor_show_it() {
     assert!(held.len() >= 3, "held steps {held:?}\n{stderr}");
     assert_eq!(run["stale_steps"].as_u64(), Some(held.len() as u64));
 
-    let speed = 50.0;
-    let dt = 10.0;
+    let sc = model::Scenario::default();
+    let turn = planning::shield::safety_limits(&sc).backup_turn();
     for &k in &held {
         let (prev, this, next) = (&records[k as usize - 1], &records[k as usize], &records[k as usize + 1]);
-        // A hold commands the headings the UAVs have: those of the command flown before.
-        assert_eq!(headings(this), headings(prev), "step {k}: a hold keeps the headings");
+        // A hold turns every UAV right by θ_b from the heading it has (the command flown before's) ...
+        for (phi, psi) in headings(this).into_iter().zip(headings(prev)) {
+            assert!((phi - (psi - turn)).abs() < 1e-12, "step {k}: {phi} after {psi}");
+        }
         assert!(this["objective_value"].is_null() && this["plan_ms"].is_null(), "step {k}: {this}");
-        // ... and the world flew it straight on, one interval at the UAV speed.
-        for ((p, q), psi) in uavs(this).iter().zip(uavs(next)).zip(headings(this)) {
-            let expected = [p[0] + speed * dt * psi.cos(), p[1] + speed * dt * psi.sin()];
-            assert!((q[0] - expected[0]).hypot(q[1] - expected[1]) < 1e-6, "step {k}: {q:?} vs {expected:?}");
+        assert_eq!(this["safety"]["certified"].as_bool(), Some(true), "step {k}: {this}");
+        // ... and the world flew that arc, one interval at the UAV speed.
+        for ((p, q), (psi, phi)) in
+            uavs(this).iter().zip(uavs(next)).zip(headings(prev).into_iter().zip(headings(this)))
+        {
+            let w = model::kinematics::next_position(nalgebra::Vector2::from(*p), psi, phi, sc.speed, sc.dt);
+            assert!((q[0] - w.x).hypot(q[1] - w.y) < 1e-6, "step {k}: {q:?} vs {w:?}");
         }
     }
     // Planning went on after the thaw: the last steps have plans again.
@@ -88,7 +94,7 @@ fn a_frozen_estimator_makes_the_planner_hold_course_and_the_monitor_show_it() {
     assert!(planner["summary"]["late_estimates"].as_u64().unwrap() >= 1, "{planner}");
     let monitor = run["processes"].as_array().unwrap().iter().find(|p| p["role"] == "monitor").unwrap();
     assert_eq!(monitor["summary"]["stale_steps"].as_u64(), Some(held.len() as u64), "{monitor}");
-    assert!(stderr.contains("holding course"), "{stderr}");
+    assert!(stderr.contains("holding (on the backup circles)"), "{stderr}");
 
     // The monitor's log has an event per held step, and the step events say so.
     let events = read_events(&dir.join("run.jsonl"));

@@ -202,11 +202,11 @@ impl StateEcho {
 
 impl Command {
     /// [`Command::flags`] bit: a *hold*, not a plan; `objective` is then −1 (no value) and
-    /// `plan_time_us` 0. Either no fresh estimate of the step reached the planner within its deadline
-    /// (`planner --estimate-deadline-ms`): it commands the UAVs' current headings (they fly straight on),
-    /// neither safety bit set; or there is no estimate to plan from yet (no first fix): the UAVs loiter
-    /// on their backup circles (`planning::hold`), with [`Command::FLAG_CERTIFIED`] or
-    /// [`Command::FLAG_UNCERTIFIED`] for the spacing (the standoff is unknown before a fix).
+    /// `plan_time_us` 0. No fresh estimate of the step reached the planner within its deadline
+    /// (`planner --estimate-deadline-ms`), or there is none to plan from yet (no first fix): the UAVs
+    /// loiter on their backup circles (`planning::hold`), with [`Command::FLAG_CERTIFIED`] or
+    /// [`Command::FLAG_UNCERTIFIED`] for the spacing; with `safety = "waypoints"` they hold course
+    /// (the current headings), neither safety bit set.
     pub const FLAG_HOLD: u32 = 1;
 
     /// [`Command::flags`] bit: the plan carries a safety certificate (the planner's `safety =
@@ -215,13 +215,12 @@ impl Command {
 
     /// [`Command::flags`] bit: the planner certifies its plans but found no certified plan this step (an
     /// unsafe start, or the estimate moved the standing backup's margins away): the plan is the one with
-    /// the largest minimum margin. Neither bit: a hold of a late estimate, or a planner that keeps the
-    /// constraints at the waypoints only (`safety = "waypoints"`).
+    /// the largest minimum margin. Neither bit: a planner that keeps the constraints at the waypoints
+    /// only (`safety = "waypoints"`).
     pub const FLAG_UNCERTIFIED: u32 = 4;
 
     /// The safety certificate's word on this command: `Some(true)` certified, `Some(false)` no certified
-    /// plan existed, `None` not certified by design (a hold of a late estimate, or
-    /// `safety = "waypoints"`).
+    /// plan existed, `None` not certified by design (`safety = "waypoints"`).
     pub fn certified(&self) -> Option<bool> {
         if self.flags & Self::FLAG_CERTIFIED != 0 {
             Some(true)
