@@ -133,4 +133,44 @@ mod tests {
         let report = hold.safety.unwrap();
         assert!(report.certified && report.min_pair_m.unwrap() >= 2000.0 - 1e-6, "{report:?}");
     }
+    /// The induction of the module docs over random states: 3–8 UAVs anywhere in 12 km, any headings,
+    /// other speeds and radii; whenever a hold loiters certified, the hold after it (the next step of
+    /// the same circles) is certified and loiters too, five steps on.
+    #[test]
+    fn a_certified_loiter_is_followed_by_a_certified_loiter() {
+        let mut seed = 0x5eed_u64;
+        let mut next = move || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut loitering = 0;
+        for _ in 0..3000 {
+            let n = 3 + (next() * 6.0) as usize;
+            let sc = Scenario {
+                d_min: 200.0 + next() * 800.0,
+                r_min: 500.0 + next() * 1500.0,
+                speed: 30.0 + next() * 50.0,
+                uavs: vec![[0.0, 0.0]; n],
+                ..Scenario::default()
+            };
+            let mut at: Vec<Vector2<f64>> = (0..n).map(|_| Vector2::new(next() * 12e3, next() * 12e3)).collect();
+            let mut psi: Vec<f64> = (0..n).map(|_| (next() - 0.5) * std::f64::consts::TAU).collect();
+            let first = without_plan(&at, &psi, &sc);
+            if !(first.loiters(&psi) && first.safety.is_some_and(|r| r.certified)) {
+                continue;
+            }
+            loitering += 1;
+            let mut hold = first;
+            for step in 0..5 {
+                for i in 0..n {
+                    at[i] = next_position(at[i], psi[i], hold.headings[i], sc.speed, sc.dt);
+                }
+                psi = hold.headings;
+                hold = without_plan(&at, &psi, &sc);
+                let report = hold.safety.unwrap();
+                assert!(report.certified && hold.loiters(&psi), "step {step}: {report:?}");
+            }
+        }
+        assert!(loitering > 300, "only {loitering} certified loiters");
+    }
 }
