@@ -2,7 +2,7 @@
 //! over iceoryx2 (written in place in a loaned shared-memory sample: zero-copy) and over a Unix stream
 //! socket (written into a buffer, copied through the kernel into the receiver's), for a sweep of payload
 //! sizes; the one-way latency (send → received, from the stamps both ends take on CLOCK_MONOTONIC) and the
-//! CPU per message of both processes. The ends are [`super::sweep`].
+//! CPU per message of both processes. The ends are [`ipc_sweep`].
 
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
