@@ -121,8 +121,8 @@ pub fn run_closed_loop_with(
             }
         };
         // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): the swarm
-        // holds (planning::hold) and tries the next burst, until planning::gives_up_without_fix (what the pipeline's
-        // planner does with such an estimate).
+        // holds (planning::hold) and tries the next burst, until planning::gives_up_without_fix (what the
+        // pipeline's planner does with such an estimate).
         let (est, awaiting_fix) = match estimator.estimate_burst(k, &seen) {
             Ok(est) => (est, false),
             Err(e) if !planning::gives_up_without_fix(k, seen.heard_count()) => {
@@ -303,6 +303,7 @@ mod tests {
         let analytical = run(ObjectiveKind::Analytical);
         assert!(analytical < 0.9 * formation, "analytical {analytical:.1} m vs formation {formation:.1} m");
     }
+
     /// An emitter heard by too few UAVs for a first fix (95 % of the arrivals lost) for 80 steps: the
     /// swarm, heading at it, loiters on its backup circles (planning::hold) instead of flying on — every
     /// hold certified for the spacing, no pair below `D_min`, no UAV inside `L_min` of the true emitter,

@@ -393,7 +393,7 @@ impl Assembler {
                 record.headings_rad = c.headings().to_vec();
                 if c.is_hold() {
                     record.active_constraints = vec![ESTIMATE_STALE.to_string()];
-                    // A hold without a fix carries its spacing certificate; one of a late estimate none.
+                    // A hold carries its spacing certificate (none with `safety = "waypoints"`).
                     record.safety = c
                         .certified()
                         .map(|certified| StepSafety { certified: Some(certified), ..StepSafety::default() });

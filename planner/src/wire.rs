@@ -28,7 +28,12 @@ pub fn plan_command(
 
 /// The [`Command::flags`] bits of `plan`'s safety certificate.
 pub fn safety_flags(plan: &PlanOutput) -> u32 {
-    match plan.safety.map(|s| s.certified) {
+    certificate_flags(plan.safety.map(|s| s.certified))
+}
+
+/// The [`Command::flags`] bits of a certificate's word: certified, not certified, or none given.
+fn certificate_flags(certified: Option<bool>) -> u32 {
+    match certified {
         Some(true) => Command::FLAG_CERTIFIED,
         Some(false) => Command::FLAG_UNCERTIFIED,
         None => 0,
@@ -110,12 +115,7 @@ pub fn hold_command(
         violated_constraints: 0,
     };
     let mut command = Command::new(step, 0, instance, &info).map_err(|e| format!("step {step}: hold command: {e}"))?;
-    command.flags |= Command::FLAG_HOLD
-        | match hold.safety.as_ref().map(|s| s.certified) {
-            Some(true) => Command::FLAG_CERTIFIED,
-            Some(false) => Command::FLAG_UNCERTIFIED,
-            None => 0,
-        };
+    command.flags |= Command::FLAG_HOLD | certificate_flags(hold.safety.map(|s| s.certified));
     Ok(command)
 }
 
