@@ -30,6 +30,22 @@ impl Window {
         Some(Self { base: Information { matrix: inv, vector: inv * posterior.position() }, bursts: Vec::new() })
     }
 
+    /// A window of raw bursts alone, no summary: the bursts `held` for a first fix (two arrivals each,
+    /// oldest first) and the fix's own burst `fix`, the newest [`WINDOW_BURSTS`] of them.
+    pub fn raw(held: &[(u64, Arrivals)], fix: (u64, Arrivals)) -> Self {
+        let mut bursts: Vec<(u64, Arrivals)> = held.to_vec();
+        bursts.push(fix);
+        bursts.drain(..bursts.len().saturating_sub(WINDOW_BURSTS));
+        Self { base: Information::none(), bursts }
+    }
+
+    /// Whether the window holds more than a fix: not just the fix's burst raw, nor just its posterior
+    /// (a window just opened, whose covariance is the fix's own).
+    pub fn holds_more_than_a_fix(&self) -> bool {
+        let no_base = self.base == Information::none();
+        !(self.bursts.is_empty() || (no_base && self.bursts.len() == 1))
+    }
+
     /// This window with the arrivals `kept` of the burst of `step`; beyond [`WINDOW_BURSTS`] the oldest
     /// burst is folded into the summary at `at` (metres, the estimate of this step). `None` when `at` is
     /// on a UAV.
