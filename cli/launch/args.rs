@@ -19,7 +19,8 @@ Two modes (--mode):
   realtime            the world flies at a rate: step k at t0 + k*dt/X, X = --time-scale (simulated
                       seconds per real second; the paper's 10 s step takes 0.1 s at --time-scale 100).
                       A command that is not there when the next step is due is missed: the UAVs fly
-                      straight on at their headings, the step is recorded with objective_value null and
+                      the hold of a step without a plan (one step of their backup circles, certified
+                      for the spacing; straight on with safety = \"waypoints\"), the step is recorded with objective_value null and
                       active_constraints [\"command_missed\"], and \"missed_commands\" counts it. With
                       every command in time the run still equals simulate.
 

@@ -47,7 +47,7 @@ pub struct LaunchReport {
     /// The same count per process role.
     pub rejected_by: BTreeMap<String, u64>,
     /// Realtime mode: steps whose command had not reached emitter-sim when the next step was due (the UAVs
-    /// flew straight on); 0 in lock-step mode.
+    /// flew the hold of a step without a plan); 0 in lock-step mode.
     pub missed_commands: u64,
     /// Steps whose command was the planner's hold (no fresh estimate within --estimate-deadline-ms).
     pub stale_steps: u64,
@@ -151,7 +151,7 @@ impl Report for LaunchReport {
         if self.missed_commands > 0 {
             out.push(Diagnostic::Warning(format!(
                 "{} step(s) missed their command (it reached emitter-sim after the next step was due; the UAVs \
-                 flew straight on): see active_constraints \"command_missed\"",
+                 flew the hold: their backup circles): see active_constraints \"command_missed\"",
                 self.missed_commands
             )));
         }

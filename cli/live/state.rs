@@ -222,7 +222,7 @@ impl LiveState {
                     .map(|k| (k, l[k].as_f64()))
                     .collect();
                 if e["command_missed"] == true {
-                    self.note = format!("step {}: command missed (flew straight on)", record.step);
+                    self.note = format!("step {}: command missed (flew the hold)", record.step);
                 }
             }
             Some("restart") => {

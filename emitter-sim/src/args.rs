@@ -21,9 +21,10 @@ Modes:
                     benchmarks and tests, and the exact reproduction of `uavloc simulate`.
   --mode realtime   step k is published at t0 + k*dt/X with X = --time-scale (dt = the scenario's
                     interval, 10 s in the paper; --time-scale 100 runs it in 0.1 s). A command that has
-                    not arrived when the next step is due is missed: the UAVs fly straight on at their
-                    headings, the step is counted in missed_commands and logged, a later command for it
-                    is ignored (late_commands). With every command in time the run equals lock-step.
+                    not arrived when the next step is due is missed: the UAVs fly the hold of a
+                    step without a plan (one step of their backup circles; straight on with
+                    safety = \"waypoints\"), the step is counted in missed_commands and logged, a
+                    later command for it is ignored (late_commands). With every command in time the run equals lock-step.
 
 Examples:
   emitter-sim --domain lab1

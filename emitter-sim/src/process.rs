@@ -1,7 +1,7 @@
 //! The `emitter-sim` process: the world publishes the truth and a noisy measurement of step k, takes the
 //! planner's command for step k, flies it, and goes on with k + 1 — in lock-step or in real time.
 //!
-//! A thin shell: the timing — when to publish, replay, retry, give up, fly a missed step straight on —
+//! A thin shell: the timing — when to publish, replay, retry, give up, fly the hold of a missed step —
 //! is the pure state machine [`crate::schedule`]; the event loop is the node runtime's
 //! ([`runtime::node`]). The shell measures ([`World::measure`]: noise from the stream (seed, k), the
 //! numbers of `uavloc simulate`), publishes, keeps what it published and applies commands
@@ -40,6 +40,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use model::load_scenario;
+use nalgebra::Vector2;
 use protocol::services::{self, Domain};
 use protocol::transport::{Link, TopicPublisher};
 use protocol::{
@@ -141,6 +142,8 @@ struct EmitterNode<'a> {
     sent_count: u64,
     /// The scenario's fingerprint, written with the snapshots.
     fingerprint: String,
+    /// The scenario: its limits and safety mode make the hold of a missed step.
+    scenario: model::Scenario,
     /// `--uavs autopilots`: the bridge's swarm states, the newest one and the steps' UAVs not heard for a
     /// quiet link.
     swarm: Option<Swarm<'a>>,
@@ -318,6 +321,17 @@ impl EmitterNode<'_> {
         }
     }
 
+    /// The hold flown for missed step `k` ([`planning::hold::without_plan`]), from the UAV positions its
+    /// measurement reported (the world's where the step is not the last one sent) and the headings.
+    fn missed_hold(&self, k: u64) -> planning::hold::Hold {
+        let reported = self.sent.back().filter(|(_, m)| m.header.step == k).map(|(_, m)| m.uavs().to_vec());
+        let positions: Vec<Vector2<f64>> = match reported {
+            Some(uavs) => uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect(),
+            None => self.world.positions().to_vec(),
+        };
+        planning::hold::without_plan(&positions, self.world.headings(), &self.scenario)
+    }
+
     /// Does what the schedule says.
     fn act(&mut self, node: &mut Node, action: Action) -> Result<Flow, ProcessError> {
         match action {
@@ -328,14 +342,17 @@ impl EmitterNode<'_> {
                 }
             }
             Action::Republish(j) => self.publish_again(node, j)?,
-            Action::FlyStraight(k) => {
-                // No command in time: fly straight on at the current headings (zero turn).
-                let keep = self.world.headings().to_vec();
-                self.world.apply(&keep).map_err(|e| ProcessError::failed_because(format!("step {k}"), e))?;
+            Action::Missed(k) => {
+                // No command in time: the hold of a step without a plan, from the positions the step's
+                // measurement reported (what the planner and the monitor see).
+                let hold = self.missed_hold(k);
+                let loiters = hold.loiters(self.world.headings());
+                self.world.apply(&hold.headings).map_err(|e| ProcessError::failed_because(format!("step {k}"), e))?;
                 self.trigger = None;
                 self.before = None;
                 self.previous = CommandOutcome::Missed;
-                node.say(format_args!("step {k}: no command before step {} was due; the UAVs fly straight on", k + 1));
+                let what = if loiters { "the UAVs loiter on their backup circles" } else { "the UAVs fly straight on" };
+                node.say(format_args!("step {k}: no command before step {} was due; {what}", k + 1));
             }
             Action::Finished => return Ok(Flow::Stop),
             Action::Fail(why) => return Err(ProcessError::Failed(why)),
@@ -470,6 +487,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         sent_count: 0,
         fingerprint,
         swarm,
+        scenario: scenario.clone(),
     };
     let mut inputs: Vec<&dyn protocol::Waitable> = vec![&commands];
     if let Some(s) = &swarm_states {

@@ -3,7 +3,7 @@
 //! The process ([`crate::process`]) feeds it what happens — a command for a step ([`Schedule::wants`],
 //! [`Schedule::applied`], [`Schedule::other_command`]), a process that joined and asks for a replay
 //! ([`Schedule::joined`]), the monitor's progress ([`Schedule::heard`]) — and asks it what to do now
-//! ([`Schedule::poll`]: publish a new step, publish a kept step again, fly a missed step straight on,
+//! ([`Schedule::poll`]: publish a new step, publish a kept step again, fly the hold of a missed step,
 //! finish, fail) and when to ask again ([`Schedule::deadline`]). Everything timed is here; the process
 //! only measures, sends and applies.
 //!
@@ -18,7 +18,7 @@
 //!   monitor when it makes no progress for `retry` and failing after the timeout.
 //! - **real time**: step k is due at t0 + (k − first)·interval (t0: the first publication), whatever came;
 //!   the first command of step k applied before step k + 1 is due is flown, else the step is *missed*
-//!   (the UAVs fly straight on, [`Action::FlyStraight`]) and a command that comes later is counted late.
+//!   (the UAVs fly the hold, [`Action::Missed`]) and a command that comes later is counted late.
 //!
 //! # Replays
 //!
@@ -82,8 +82,10 @@ pub enum Action {
     Publish(u64),
     /// Publish the kept step again.
     Republish(u64),
-    /// Real time: the step's command missed it; fly straight on at the current headings.
-    FlyStraight(u64),
+    /// Real time: the step's command missed it; fly the hold of a step without a plan
+    /// ([`planning::hold::without_plan`]: the backup circles, or straight on with the paper's
+    /// waypoint planner).
+    Missed(u64),
     /// The run is over (the last step is published, and without `--linger`).
     Finished,
     /// The run cannot go on.
@@ -372,7 +374,7 @@ impl Schedule {
     }
 
     /// Real time: what the clock says comes first — the interval of the awaited step is over (flown, or
-    /// missed: fly straight on; a replay in progress pauses), or the next step is due.
+    /// missed: fly the hold; a replay in progress pauses), or the next step is due.
     fn on_time(&mut self, now: Instant) -> Option<Action> {
         if !self.is_realtime() {
             return None;
@@ -391,7 +393,7 @@ impl Schedule {
                 self.missed.insert(k);
                 self.missed = self.missed.split_off(&self.kept_from());
                 self.counts.missed_commands += 1;
-                Some(Action::FlyStraight(k))
+                Some(Action::Missed(k))
             }
             Phase::Before { k, ready } if self.due(k).is_none_or(|d| now >= d) => self.before(k, ready, now),
             _ => None,
@@ -854,7 +856,7 @@ mod tests {
         assert_eq!(s.poll(ms(t0, 103)), vec![Action::Publish(1)]);
         assert_eq!(s.counts().max_lag_us, 3000);
         // No command for step 1: missed at 200 ms, step 2 goes at once.
-        assert_eq!(s.poll(ms(t0, 200)), vec![Action::FlyStraight(1), Action::Publish(2)]);
+        assert_eq!(s.poll(ms(t0, 200)), vec![Action::Missed(1), Action::Publish(2)]);
         assert_eq!(s.other_command(1), Other::Late);
         assert_eq!((s.counts().missed_commands, s.counts().late_commands), (1, 1));
         s.applied(2);
@@ -874,7 +876,7 @@ mod tests {
         // No answer within the retry interval: step 0 is sent again.
         assert_eq!(s.poll(ms(t0, 180)), vec![Action::Republish(0)]);
         // Step 2 is due: step 1 missed, step 2 published, then the replay goes on (step 0 again).
-        assert_eq!(s.poll(ms(t0, 200)), vec![Action::FlyStraight(1), Action::Publish(2), Action::Republish(0)]);
+        assert_eq!(s.poll(ms(t0, 200)), vec![Action::Missed(1), Action::Publish(2), Action::Republish(0)]);
         s.other_command(0);
         assert_eq!(s.poll(ms(t0, 201)), vec![Action::Republish(1)]);
         s.other_command(1);

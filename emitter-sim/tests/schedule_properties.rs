@@ -84,7 +84,7 @@ impl Seen {
                     prop_assert!(k < self.published.len() as u64, "step {k} published again before it was");
                     self.newest = Some(k);
                 }
-                Action::FlyStraight(k) => {
+                Action::Missed(k) => {
                     prop_assert!(realtime, "a step missed in lock-step");
                     prop_assert!(!self.applied.contains(&k) && !self.missed.contains(&k), "step {k} flown twice");
                     self.missed.push(k);

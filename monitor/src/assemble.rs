@@ -21,9 +21,12 @@
 //!   strings as `simulate`, except that a violated constraint has no magnitude).
 //!
 //! A step whose command was *missed* (emitter-sim's real-time mode: no command before the next step was
-//! due) records what the world flew: `headings_rad` = the measurement's current headings (the UAVs kept
-//! them), `objective_value` and `plan_ms` null, `active_constraints` = `["command_missed"]`
-//! ([`COMMAND_MISSED`]), no planner; a command for it that arrives anyway is ignored.
+//! due) records what the world flew: `headings_rad` = the hold of a step without a plan
+//! ([`planning::hold::without_plan`] of the measurement's positions and headings: the backup circles,
+//! or the current headings with `safety = "waypoints"`) with its spacing certificate
+//! (`safety.certified`), `objective_value` and `plan_ms` null, `active_constraints` =
+//! `["command_missed"]` ([`COMMAND_MISSED`]), no planner; a command for it that arrives anyway is
+//! ignored.
 //!
 //! A step whose command is a *hold* ([`Command::FLAG_HOLD`]: no fresh estimate reached the planner within
 //! its staleness deadline, or none to plan from before a first fix; the UAVs loiter on their backup
@@ -420,7 +423,18 @@ impl Assembler {
                 planner = Some(info);
                 c.header.stamps.latencies()
             }
-            None => e.header.stamps.latencies(),
+            None => {
+                if missed {
+                    // What the world flew: the hold of a step without a plan, from the positions and
+                    // headings the measurement reported (emitter-sim makes the same one).
+                    let positions: Vec<Vector2<f64>> = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+                    let hold = planning::hold::without_plan(&positions, m.headings(), &self.scenario);
+                    record.headings_rad = hold.headings;
+                    record.safety =
+                        hold.safety.map(|s| StepSafety { certified: Some(s.certified), ..StepSafety::default() });
+                }
+                e.header.stamps.latencies()
+            }
         };
         let error_m = truth.map(|z| (position[0] - z.x).hypot(position[1] - z.y));
         if self.keep {
@@ -701,7 +715,13 @@ pub(crate) mod tests {
         let done = a.complete_ready();
         assert_eq!(done.iter().map(|d| (d.record.step, d.missed)).collect::<Vec<_>>(), [(0, false), (1, true)]);
         let s1 = &done[1].record;
-        assert_eq!(s1.headings_rad, vec![0.1, 0.2, 0.3], "the headings kept (the measurement's), not the command's");
+        // The world flew the hold: one step of each UAV's backup circle (certified here), from the
+        // measurement's positions and headings — not the command, nor straight on.
+        let positions: Vec<Vector2<f64>> = UAVS.iter().map(|p| Vector2::new(p[0], p[1])).collect();
+        let hold = planning::hold::without_plan(&positions, &[0.1, 0.2, 0.3], &scenario(3));
+        assert!(hold.loiters(&[0.1, 0.2, 0.3]), "{hold:?}");
+        assert_eq!(s1.headings_rad, hold.headings);
+        assert_eq!(s1.safety.as_ref().and_then(|s| s.certified), Some(true));
         assert_eq!((s1.objective_value, s1.plan_ms, s1.planner.as_ref()), (None, None, None));
         assert_eq!(s1.active_constraints, vec![COMMAND_MISSED.to_string()]);
         assert!(done[1].planner.is_none());
@@ -713,5 +733,18 @@ pub(crate) mod tests {
         assert!(done[1].record.active_constraints.is_empty(), "the last step is not planned, so not missed");
         assert!(!a.add_command(command_of(2)));
         assert!(a.is_done());
+    }
+
+    #[test]
+    fn a_missed_command_of_the_paper_s_planner_holds_course() {
+        let paper = Scenario { safety: model::safety::SafetyMode::Waypoints, ..scenario(3) };
+        let mut a = Assembler::new(paper);
+        add_step(&mut a, 0, truth(0), true);
+        add_step(&mut a, 1, truth(1).with_previous_command(CommandOutcome::Missed), false);
+        let done = a.complete_ready();
+        let s0 = &done[0].record;
+        assert!(done[0].missed);
+        assert_eq!(s0.headings_rad, vec![0.1, 0.2, 0.3], "the headings kept (the measurement's)");
+        assert_eq!(s0.safety, None, "the waypoint planner certifies nothing");
     }
 }

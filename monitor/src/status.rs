@@ -68,7 +68,7 @@ pub(crate) fn status_line(done: &CompletedStep, last: u64, rejected: u64) -> Str
         fmt_us(l.cycle_ns),
         receiver_note(r.receiver.as_ref()),
         if done.missed {
-            "  COMMAND MISSED (flew straight on)"
+            "  COMMAND MISSED (flew the hold)"
         } else if done.held {
             "  ESTIMATE STALE (planner held)"
         } else {

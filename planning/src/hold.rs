@@ -1,6 +1,8 @@
 //! What the swarm flies in a step it has no plan for: no estimate to plan from yet (no first fix: a
 //! silent emitter, lost arrivals, a burst without a physical solution; see [`crate::FIRST_FIX_STEPS`]),
-//! or the step's estimate missed the planner's deadline (`planner --estimate-deadline-ms`).
+//! the step's estimate missed the planner's deadline (`planner --estimate-deadline-ms`), or — in a
+//! real-time run — the step's command reached the world too late (emitter-sim flies this hold, from
+//! the positions its measurement reported, and the monitor records it).
 //!
 //! With the certified planner (`safety = "certified"`) the UAVs **loiter**: each flies one step of its
 //! backup circle (a right turn of `θ_b = min(L/R_min, 0.9π)` per step, radius `R_b ≥ R_min`). Two
@@ -45,8 +47,9 @@ impl Hold {
 }
 
 /// The hold of UAVs at `positions` with headings `headings` (radians) under `scenario`'s limits and
-/// safety mode (module docs). A pure function of its inputs, shared by the pipeline's planner and the
-/// in-process closed loop, so both fly the same hold.
+/// safety mode (module docs). A pure function of its inputs, shared by the pipeline's planner, the
+/// in-process closed loop, emitter-sim (a missed command) and the monitor, so all fly and record the
+/// same hold.
 pub fn without_plan(positions: &[Vector2<f64>], headings: &[f64], scenario: &Scenario) -> Hold {
     if scenario.safety == SafetyMode::Waypoints {
         return Hold { headings: headings.to_vec(), safety: None };

@@ -79,7 +79,8 @@ pub struct StepRecord {
     pub plan_ms: Option<f64>,
     /// Constraints active (violated or within 0.1 % of their bound) at the chosen headings; in a pipeline
     /// run in real-time mode, `["command_missed"]` when no command arrived before the next step was due
-    /// (the UAVs flew straight on; `objective_value`, `plan_ms` and `planner` are then null).
+    /// (the UAVs flew the hold of a step without a plan: `headings_rad` and `safety.certified` are the
+    /// hold's; `objective_value`, `plan_ms` and `planner` are then null).
     pub active_constraints: Vec<String>,
     /// The range noise σ per UAV of this step's measurement, metres, when it is not the scenario's (an
     /// external front end states its own): what `pcrlb_m`, `pcrlb_at_estimate_m` and the planner used.

@@ -4,7 +4,9 @@
 //!
 //! The collision is forced with the real processes: two UAVs 1000 m apart head at each other at 50 m/s
 //! for 10 s steps, and the planner is slowed down (`--plan-delay-ms`) in a real-time run, so its first
-//! command misses its step and the UAVs fly straight on — into the same point.
+//! command misses its step. With the paper's waypoint planner (`safety = "waypoints"`) a step without a
+//! plan holds course, so the UAVs fly straight on — into the same point. (The certified planner's hold
+//! would loiter them on their backup circles: `realtime.rs`.)
 
 use crate::common;
 
@@ -21,7 +23,8 @@ fn uavs_flown_into_each_other_end_the_launch_at_once_with_a_clear_error() {
         "uavs = [[0.0, 0.0], [1000.0, 0.0], [0.0, 6000.0]]\n\
          headings_deg = [0.0, 180.0, 0.0]\n\
          emitter = [20000.0, 15000.0]\n\
-         steps = 6\n",
+         steps = 6\n\
+         safety = \"waypoints\"\n",
     )
     .unwrap();
     let log = dir.join("run.jsonl");

@@ -1,7 +1,8 @@
 //! `uavloc launch --mode realtime --time-scale X`: emitter-sim flies at a rate (step k published at
 //! t0 + k·dt/X). With every command in time the run equals `uavloc simulate` and honours the schedule; a
-//! command that comes after the next step is due is missed — the UAVs fly straight on at their headings,
-//! the monitor records the step as `command_missed`, a late command is ignored — and the run completes;
+//! command that comes after the next step is due is missed — the UAVs fly the hold of a step without a
+//! plan (one step of their backup circles, certified for the spacing), the monitor records the step as
+//! `command_missed` with what was flown, a late command is ignored — and the run completes;
 //! bad time scales are refused with exit code 2.
 //!
 //! Every launch runs in its own domain, so the tests run in parallel with each other and with the other
@@ -52,12 +53,17 @@ fn floats(v: &Value) -> Vec<f64> {
     v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
 }
 
-/// Checks every step recorded as missed: no plan, no planner, the headings of the step before (the UAVs
-/// kept them), and the next positions one straight leg of `speed · dt` along them. Returns the missed
-/// steps; their number must be emitter-sim's `missed_commands`.
+/// Checks every step recorded as missed: no plan, no planner, the headings of the hold of a step without
+/// a plan (`planning::hold::without_plan` of the step's positions and current headings: one step of the
+/// backup circles with the certified planner) with its certificate, and the next positions one arc of
+/// `speed · dt` to those headings. Returns the missed steps; their number must be emitter-sim's
+/// `missed_commands`.
 fn check_missed_steps(run: &Value) -> Vec<u64> {
     let steps = run["steps"].as_array().unwrap();
-    let (speed, dt) = (run["scenario"]["speed"].as_f64().unwrap(), run["scenario"]["dt"].as_f64().unwrap());
+    let sc: model::Scenario = serde_json::from_value(run["scenario"].clone()).unwrap();
+    let (speed, dt) = (sc.speed, sc.dt);
+    let same_angle =
+        |a: f64, b: f64| (a - b + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
     let mut missed = Vec::new();
     for (k, s) in steps.iter().enumerate() {
         if !is_missed(s) {
@@ -69,18 +75,21 @@ fn check_missed_steps(run: &Value) -> Vec<u64> {
         assert!(s["objective_value"].is_null() && s["plan_ms"].is_null(), "step {k}: {s}");
         assert!(s["planner"].is_null(), "step {k}: {s}");
         assert!(k + 1 < steps.len(), "the last step is never planned, so never missed");
-        if k > 0 {
-            assert_eq!(s["headings_rad"], steps[k - 1]["headings_rad"], "step {k}: the headings of step {}", k - 1);
-        }
-        // Straight on: zero turn along the arc kinematics.
+        let current = if k > 0 { floats(&steps[k - 1]["headings_rad"]) } else { sc.initial_headings() };
+        let at = |step: &Value, i: usize| {
+            let p = floats(&step["uavs"][i]);
+            nalgebra::Vector2::new(p[0], p[1])
+        };
+        let positions: Vec<_> = (0..current.len()).map(|i| at(s, i)).collect();
+        let hold = planning::hold::without_plan(&positions, &current, &sc);
         let headings = floats(&s["headings_rad"]);
         for (i, h) in headings.iter().enumerate() {
-            let (p, q) = (floats(&s["uavs"][i]), floats(&steps[k + 1]["uavs"][i]));
-            let expected = [p[0] + speed * dt * h.cos(), p[1] + speed * dt * h.sin()];
-            for c in 0..2 {
-                assert!((q[c] - expected[c]).abs() < 1e-6, "step {k} UAV {i}: {q:?} vs {expected:?}");
-            }
+            assert!(same_angle(*h, hold.headings[i]).abs() < 1e-9, "step {k} UAV {i}: {h} vs the hold's {hold:?}");
+            let expected = model::kinematics::next_position(positions[i], current[i], *h, speed, dt);
+            assert!((at(&steps[k + 1], i) - expected).norm() < 1e-6, "step {k} UAV {i}: vs {expected:?}");
         }
+        let certified = hold.safety.map(|r| r.certified);
+        assert_eq!(s["safety"]["certified"].as_bool(), certified, "step {k}: {}", s["safety"]);
     }
     assert_eq!(emitter(run)["missed_commands"].as_u64(), Some(missed.len() as u64), "{}", emitter(run));
     assert_eq!(run["missed_commands"].as_u64(), Some(missed.len() as u64));
@@ -122,7 +131,7 @@ fn with_every_command_in_time_the_run_equals_simulate_and_keeps_the_schedule() {
 }
 
 #[test]
-fn a_slow_planner_misses_a_step_and_the_uavs_fly_straight_on() {
+fn a_slow_planner_misses_a_step_and_the_uavs_loiter_for_it() {
     let _scenario = common::scenario(module_path!());
     // ×50: 0.2 s per step. The planner sleeps 300 ms before planning step 2, so its command comes after step
     // 3 is due: step 2 is missed, the command is late (ignored), the other steps are flown as planned.
@@ -145,6 +154,10 @@ fn a_slow_planner_misses_a_step_and_the_uavs_fly_straight_on() {
     // 300 ms for a step of 200 ms: missed whatever the load (the other steps' cycles of about a
     // millisecond are in time on a machine that is not starved; `check_missed_steps` checks any that is not).
     assert!(missed.contains(&2), "step 2 must be missed: {missed:?}");
+    // Certified, the hold loiters: every UAV turns onto its backup circle, certified for the spacing.
+    let (h1, h2) = (floats(&run["steps"][1]["headings_rad"]), floats(&run["steps"][2]["headings_rad"]));
+    assert!(h1.iter().zip(&h2).all(|(a, b)| (a - b).abs() > 1e-3), "step 2 flew straight on: {h1:?} → {h2:?}");
+    assert_eq!(run["steps"][2]["safety"]["certified"], true, "{}", run["steps"][2]);
     let e = emitter(&run);
     assert!(e["late_commands"].as_u64().unwrap() >= 1, "step 2's command came late: {e}");
     assert_eq!(e["steps"].as_u64(), Some(6), "every interval flown: {e}");

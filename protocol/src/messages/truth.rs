@@ -10,7 +10,8 @@ wire_enum! {
         /// The command of step k − 1 was flown.
         Flown = 1, "flown";
         /// No command for step k − 1 arrived before step k was due (emitter-sim's real-time mode): the UAVs
-        /// flew straight on at their headings, and a command that came later was not applied.
+        /// flew the hold of a step without a plan (`planning::hold`: their backup circles, or straight on
+        /// with the waypoint planner), and a command that came later was not applied.
         Missed = 2, "missed";
     }
 }
