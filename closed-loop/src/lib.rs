@@ -184,8 +184,7 @@ pub fn run_closed_loop_with(
             world.apply(&hold.headings).map_err(failed(Some(k), "move"))?;
             record.headings_rad = hold.headings;
             record.active_constraints = vec![HOLD_LABEL.to_string()];
-            record.safety =
-                hold.safety.map(|r| record::StepSafety { certified: Some(r.certified), ..Default::default() });
+            record.safety = hold.safety.map(|r| record::StepSafety::of_word(r.certified));
             None
         } else if k < scenario.steps as u64 {
             let plan = plan_step(&PlanRequest {
@@ -209,8 +208,7 @@ pub fn run_closed_loop_with(
             // The wire form, as the pipeline's monitor records it (no violation magnitudes).
             record.active_constraints = model::active_mask::labels(&plan.active_constraints, plan.headings.len());
             record.criterion_ess = plan.criterion_ess;
-            record.safety =
-                plan.safety.map(|r| record::StepSafety { certified: Some(r.certified), ..Default::default() });
+            record.safety = plan.safety.map(|r| record::StepSafety::of_word(r.certified));
             Some(plan)
         } else {
             None

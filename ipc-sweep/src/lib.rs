@@ -47,22 +47,38 @@ pub enum Waiting {
     Spin,
 }
 
+/// Looks for a sample with `receive` until it returns `Some`, calling `wait` with the time left between
+/// looks, for at most [`PATIENCE`]: only reaching the deadline is a timeout (a wait that returns early
+/// without a sample — a signal, a spurious or stale wake-up — is not).
+fn look_until<T>(
+    what: &'static str,
+    name: &str,
+    mut receive: impl FnMut() -> Result<Option<T>, TransportError>,
+    mut wait: impl FnMut(std::time::Duration) -> Result<(), TransportError>,
+) -> Result<T, TransportError> {
+    let deadline = std::time::Instant::now() + PATIENCE;
+    loop {
+        if let Some(v) = receive()? {
+            return Ok(v);
+        }
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        if left.is_zero() {
+            return Err(timeout(what, name));
+        }
+        wait(left)?;
+    }
+}
+
 /// Polls `ready` until it returns `Some`, yielding the CPU between polls; a timeout after [`PATIENCE`].
 fn spin<T>(
     what: &'static str,
     name: &str,
-    mut ready: impl FnMut() -> Result<Option<T>, TransportError>,
+    ready: impl FnMut() -> Result<Option<T>, TransportError>,
 ) -> Result<T, TransportError> {
-    let deadline = std::time::Instant::now() + PATIENCE;
-    loop {
-        if let Some(v) = ready()? {
-            return Ok(v);
-        }
-        if std::time::Instant::now() >= deadline {
-            return Err(timeout(what, name));
-        }
+    look_until(what, name, ready, |_| {
         std::thread::yield_now();
-    }
+        Ok(())
+    })
 }
 
 /// The receiver's answer to one payload.
@@ -300,26 +316,17 @@ fn wait_for<T>(
     }
 }
 
-/// Looks for a sample with `receive`, blocking on `listener` between looks, for at most [`PATIENCE`]: a wait
-/// that returns early without a sample (a signal, a spurious or stale wake-up) is no timeout, only reaching
-/// the deadline is.
+/// Looks for a sample with `receive`, blocking on `listener` between looks, for at most [`PATIENCE`]
+/// ([`look_until`]).
 fn block<T>(
     listener: &iceoryx2::port::listener::Listener<ipc::Service>,
     what: &'static str,
     name: &str,
-    mut receive: impl FnMut() -> Result<Option<T>, TransportError>,
+    receive: impl FnMut() -> Result<Option<T>, TransportError>,
 ) -> Result<T, TransportError> {
-    let deadline = std::time::Instant::now() + PATIENCE;
-    loop {
-        if let Some(v) = receive()? {
-            return Ok(v);
-        }
-        let left = deadline.saturating_duration_since(std::time::Instant::now());
-        if left.is_zero() {
-            return Err(timeout(what, name));
-        }
-        listener.timed_wait(|_| {}, left).map(|_| ()).map_err(|e| failed(what, name, e))?;
-    }
+    look_until(what, name, receive, |left| {
+        listener.timed_wait(|_| {}, left).map(|_| ()).map_err(|e| failed(what, name, e))
+    })
 }
 
 /// Waits until a receiver has connected to `sender` (its readiness ack, numbered [`STOP`], came).

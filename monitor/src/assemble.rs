@@ -394,20 +394,16 @@ impl Assembler {
         let latencies = match c {
             Some(c) => {
                 record.headings_rad = c.headings().to_vec();
+                // A plan and a hold carry their certificate (a hold's: the spacing; none with
+                // `safety = "waypoints"`).
+                record.safety = c.certified().map(StepSafety::of_word);
                 if c.is_hold() {
                     record.active_constraints = vec![ESTIMATE_STALE.to_string()];
-                    // A hold carries its spacing certificate (none with `safety = "waypoints"`).
-                    record.safety = c
-                        .certified()
-                        .map(|certified| StepSafety { certified: Some(certified), ..StepSafety::default() });
                 } else {
                     record.objective_value = (c.objective >= 0.0).then(|| c.objective.sqrt());
                     record.plan_ms = Some(c.plan_time_us as f64 / 1e3);
                     record.active_constraints =
                         active_mask::decode(c.active_constraints, c.violated_constraints, c.len());
-                    record.safety = c
-                        .certified()
-                        .map(|certified| StepSafety { certified: Some(certified), ..StepSafety::default() });
                 }
                 let info = PlannerInfo {
                     instance: c.planner_instance,
@@ -430,8 +426,7 @@ impl Assembler {
                     let positions: Vec<Vector2<f64>> = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
                     let hold = planning::hold::without_plan(&positions, m.headings(), &self.scenario);
                     record.headings_rad = hold.headings;
-                    record.safety =
-                        hold.safety.map(|s| StepSafety { certified: Some(s.certified), ..StepSafety::default() });
+                    record.safety = hold.safety.map(|s| StepSafety::of_word(s.certified));
                 }
                 e.header.stamps.latencies()
             }

@@ -88,21 +88,18 @@ pub fn hold_command(
     (solver, objective): (SolverKind, ObjectiveKind),
     instance: u64,
 ) -> Result<Command, String> {
-    if positions.len() != headings.len() || hold.headings.len() != headings.len() {
-        return Err(format!(
-            "step {step}: hold command: {} positions, {} headings, {} commanded",
-            positions.len(),
-            headings.len(),
-            hold.headings.len()
-        ));
-    }
-    let waypoints: Vec<[f64; 2]> = positions
+    let waypoints: Vec<[f64; 2]> = hold
+        .waypoints(positions, headings, scenario)
+        .ok_or_else(|| {
+            format!(
+                "step {step}: hold command: {} positions, {} headings, {} commanded",
+                positions.len(),
+                headings.len(),
+                hold.headings.len()
+            )
+        })?
         .iter()
-        .zip(headings.iter().zip(&hold.headings))
-        .map(|(p, (&psi, &phi))| {
-            let w = model::kinematics::next_position(*p, psi, phi, scenario.speed, scenario.dt);
-            [w.x, w.y]
-        })
+        .map(|w| [w.x, w.y])
         .collect();
     let info = PlanInfo {
         headings: &hold.headings,

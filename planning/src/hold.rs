@@ -44,6 +44,22 @@ impl Hold {
     pub fn loiters(&self, headings: &[f64]) -> bool {
         self.headings != headings
     }
+
+    /// The ends of the hold's arcs (metres) for the UAVs at `positions` heading `headings`: one interval
+    /// of the scenario's speed to the hold's headings. `None` unless there is one position and one
+    /// heading per UAV of the hold (at most [`tdoa::MAX_UAVS`]).
+    pub fn waypoints(
+        &self,
+        positions: &[Vector2<f64>],
+        headings: &[f64],
+        scenario: &Scenario,
+    ) -> Option<Vec<Vector2<f64>>> {
+        let n = self.headings.len();
+        if positions.len() != n || headings.len() != n || n > tdoa::MAX_UAVS {
+            return None;
+        }
+        Some(crate::step::waypoints_of(positions, headings, &self.headings, scenario)[..n].to_vec())
+    }
 }
 
 /// The hold of UAVs at `positions` with headings `headings` (radians) under `scenario`'s limits and
@@ -136,6 +152,7 @@ mod tests {
         let report = hold.safety.unwrap();
         assert!(report.certified && report.min_pair_m.unwrap() >= 2000.0 - 1e-6, "{report:?}");
     }
+
     /// The induction of the module docs over random states: 3–8 UAVs anywhere in 12 km, any headings,
     /// other speeds and radii; whenever a hold loiters certified, the hold after it (the next step of
     /// the same circles) is certified and loiters too, five steps on.

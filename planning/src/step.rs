@@ -157,7 +157,7 @@ fn check_finite(what: impl Fn() -> String, value: f64) -> Result<(), PlanError> 
 }
 
 /// Next waypoints of all UAVs for headings `phi`, on the stack.
-fn waypoints_of(
+pub(crate) fn waypoints_of(
     positions: &[Vector2<f64>],
     headings: &[f64],
     phi: &[f64],

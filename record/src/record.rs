@@ -170,8 +170,8 @@ pub struct ReceiverTotals {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct StepSafety {
     /// The planner's word: `true` certified, `false` no certified plan existed (the UAVs flew the plan
-    /// with the largest minimum margin), `null` not certified by design (`safety = "waypoints"`, a hold,
-    /// a missed command).
+    /// with the largest minimum margin), `null` not certified by design (`safety = "waypoints"`). A
+    /// step without a plan (a hold, a missed command) carries its hold's spacing certificate.
     pub certified: Option<bool>,
     /// The smallest distance between two UAVs along the arcs, metres (certified lower bound, within
     /// 0.25 m of the true minimum).
@@ -183,6 +183,14 @@ pub struct StepSafety {
     /// The smallest distance of a UAV to the TRUE emitter along the arcs, metres (`null` without a
     /// truth).
     pub min_true_distance_m: Option<f64>,
+}
+
+impl StepSafety {
+    /// The planner's word `certified` alone (a plan's or a hold's certificate); the margins are filled
+    /// in along the arcs flown ([`crate::annotate`]).
+    pub fn of_word(certified: bool) -> Self {
+        Self { certified: Some(certified), ..Self::default() }
+    }
 }
 
 /// A pair that serde_json wrote with `null`s for NaN (no estimate yet), read back as NaN.
