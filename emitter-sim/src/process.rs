@@ -322,14 +322,15 @@ impl EmitterNode<'_> {
     }
 
     /// The hold flown for missed step `k` ([`planning::hold::without_plan`]), from the UAV positions its
-    /// measurement reported (the world's where the step is not the last one sent) and the headings.
-    fn missed_hold(&self, k: u64) -> planning::hold::Hold {
-        let reported = self.sent.back().filter(|(_, m)| m.header.step == k).map(|(_, m)| m.uavs().to_vec());
-        let positions: Vec<Vector2<f64>> = match reported {
-            Some(uavs) => uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect(),
-            None => self.world.positions().to_vec(),
+    /// measurement reported (what the planner and the monitor see) and the headings: the measurement as
+    /// published, or where it is no longer kept (a restarted process), measured again — the world at step
+    /// `k` measures the same. `None` when the world is no longer at step `k`.
+    fn missed_hold(&self, k: u64) -> Option<planning::hold::Hold> {
+        let positions: Vec<Vector2<f64>> = match self.sent.iter().rev().find(|(_, m)| m.header.step == k) {
+            Some((_, m)) => m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect(),
+            None => self.world.measure().ok().filter(|m| m.step == k)?.uavs,
         };
-        planning::hold::without_plan(&positions, self.world.headings(), &self.scenario)
+        Some(planning::hold::without_plan(&positions, self.world.headings(), &self.scenario))
     }
 
     /// Does what the schedule says.
@@ -345,7 +346,9 @@ impl EmitterNode<'_> {
             Action::Missed(k) => {
                 // No command in time: the hold of a step without a plan, from the positions the step's
                 // measurement reported (what the planner and the monitor see).
-                let hold = self.missed_hold(k);
+                let hold = self.missed_hold(k).ok_or_else(|| {
+                    ProcessError::Failed(format!("step {k}: missed, but the world is no longer at that step"))
+                })?;
                 let loiters = hold.loiters(self.world.headings());
                 self.world.apply(&hold.headings).map_err(|e| ProcessError::failed_because(format!("step {k}"), e))?;
                 self.trigger = None;

@@ -30,6 +30,9 @@ use tdoa::{Arrivals, Dynamics, NoiseModel, RangeDiffs, TdoaError};
 pub mod outliers;
 pub mod track;
 pub mod window;
+
+#[cfg(test)]
+mod consistency_tests;
 pub use outliers::OutlierPolicy;
 use thiserror::Error;
 pub use track::{CONFIRM_BURSTS, DEMOTE_DROP_RUN, DropStreak, REJECTED_RUN_RESTART, TrackCounters};
@@ -578,20 +581,16 @@ impl Estimator {
             self.window = None;
             return;
         }
+        let kept = a.without_all(out.outliers);
         let next = match (&out.status, out.nis) {
             // A new fix of four or more arrivals (its outliers dropped, so redundant enough to have been
             // checked): its burst raw, after those held for it.
-            (EstimateStatus::Ok, None) if a.without_all(out.outliers).heard_count() >= 4 => {
-                Some(window::Window::raw(held, (step, a.without_all(out.outliers))))
-            }
+            (EstimateStatus::Ok, None) if kept.heard_count() >= 4 => Some(window::Window::raw(held, (step, kept))),
             // A fix of three: summarised as its posterior, whose covariance is the fix's own (sigma
             // points): a burst a reflection corrupted weighs no more than the filter lets it.
             (EstimateStatus::Ok | EstimateStatus::Ambiguous, None) => window::Window::from_posterior(&post),
             (EstimateStatus::Ok, Some(_)) => match (&self.window, predicted) {
-                (Some(w), Some(pred)) => {
-                    let kept = window::Window::kept_as_fused(a.without_all(out.outliers), &pred);
-                    w.pushed(step, kept, &post.position())
-                }
+                (Some(w), Some(pred)) => w.pushed(step, window::Window::kept_as_fused(kept, &pred), &post.position()),
                 // No window open (a new track, two hypotheses before): it opens at this posterior.
                 _ => window::Window::from_posterior(&post),
             },
