@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use estimation::{EmitterModel, Estimator, EstimatorConfig, EstimatorKind};
 use model::Scenario;
-use nalgebra::Vector2;
 use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use protocol::{Estimate, Measurement};
 use record::recording::{RecordedMessage, read_recording};
@@ -357,7 +356,7 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
         let replayed_headings = match replayed.plan_from() {
             Some((position, covariance)) if planned => {
                 let (z, cov) = tdoa::estimate_from_arrays(&position, &covariance);
-                let positions: Vec<Vector2<f64>> = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+                let positions = tdoa::points_from_arrays(m.uavs());
                 let stated = planner::wire::scenario_with_sigmas(&sc, replayed.range_sigmas());
                 plan_step(&PlanRequest {
                     positions: &positions,

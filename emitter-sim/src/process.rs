@@ -327,7 +327,7 @@ impl EmitterNode<'_> {
     /// `k` measures the same. `None` when the world is no longer at step `k`.
     fn missed_hold(&self, k: u64) -> Option<planning::hold::Hold> {
         let positions: Vec<Vector2<f64>> = match self.sent.iter().rev().find(|(_, m)| m.header.step == k) {
-            Some((_, m)) => m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect(),
+            Some((_, m)) => tdoa::points_from_arrays(m.uavs()),
             None => self.world.measure().ok().filter(|m| m.step == k)?.uavs,
         };
         Some(planning::hold::without_plan(&positions, self.world.headings(), &self.scenario))

@@ -573,15 +573,15 @@ impl Estimator {
     ) {
         let Some(post) = out.posterior else { return };
         let fused_static = self.config.kind == EstimatorKind::Fused && post.model() == EmitterModel::Static;
+        let kept = a.without_all(out.outliers);
         if fused_static && self.alternative.is_some() {
-            self.window = self.window_through_ambiguity((step, a), out, &post, predicted, held);
+            self.window = self.window_through_ambiguity((step, kept), out, &post, predicted, held);
             return;
         }
         if !fused_static {
             self.window = None;
             return;
         }
-        let kept = a.without_all(out.outliers);
         let next = match (&out.status, out.nis) {
             // A new fix of four or more arrivals (its outliers dropped, so redundant enough to have been
             // checked): its burst raw, after those held for it.
@@ -616,12 +616,12 @@ impl Estimator {
         }
     }
 
-    /// The window while two roots of one ambiguous fix are pending: at the fix, its burst `a` raw (the
-    /// arrivals `out` kept; no summary, which would have to be of one root) after the two-arrival bursts
-    /// `held` for it, raw too; a burst fused while both stay pending is pushed raw as in
-    /// [`Self::relinearise`], not refitted (the estimate is the root the track is on, `post`). `None` for two hypotheses of a restarted track — its old window is of
-    /// the old root only — or once a fold beyond [`window::WINDOW_BURSTS`] would need one root's
-    /// estimate.
+    /// The window while two roots of one ambiguous fix are pending: at the fix, its burst raw (the
+    /// arrivals `kept`, those `out` did not drop; no summary, which would have to be of one root) after
+    /// the two-arrival bursts `held` for it, raw too; a burst fused while both stay pending is pushed raw
+    /// as in [`Self::relinearise`], not refitted (the estimate is the root the track is on, `post`).
+    /// `None` for two hypotheses of a restarted track — its old window is of the old root only — or once
+    /// a fold beyond [`window::WINDOW_BURSTS`] would need one root's estimate.
     ///
     /// Why: a lone three-arrival fix is an exactly determined, strongly curved solution; summarised
     /// as a Gaussian at one root it stays in the track's estimate for good. Kept raw, the burst that
@@ -630,13 +630,12 @@ impl Estimator {
     /// steps 4–14 2.29 → 2.10, RMSE unchanged (EXPERIMENTS.md, the receiver study).
     fn window_through_ambiguity(
         &self,
-        (step, a): (u64, &Arrivals),
+        (step, kept): (u64, Arrivals),
         out: &EstimateOut,
         post: &Posterior,
         predicted: Option<Posterior>,
         held: &[HeldBurst],
     ) -> Option<window::Window> {
-        let kept = a.without_all(out.outliers);
         match (&out.status, out.nis) {
             (EstimateStatus::Ambiguous, None) => Some(window::Window::raw(held, (step, kept))),
             // Both roots still pending after a fused burst: the burst joins the window raw.

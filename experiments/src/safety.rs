@@ -166,21 +166,19 @@ fn summary(outcomes: &[Outcome]) -> Value {
         .sum();
     let terminal: Vec<f64> =
         outcomes.iter().filter_map(|o| o.run.steps.last().and_then(|s| s.estimate_error_m)).collect();
-    let ratio: Vec<f64> = outcomes
+    // The last steps with an error and a bound: (error / PCRLB, the estimate's covariance).
+    let last: Vec<(f64, &[[f64; 2]; 2])> = outcomes
         .iter()
-        .filter_map(|o| o.run.steps.last().and_then(|s| Some(s.estimate_error_m? / s.pcrlb_m?)))
+        .filter_map(|o| o.run.steps.last().and_then(|s| Some((s.estimate_error_m? / s.pcrlb_m?, &s.estimate_cov))))
         .collect();
+    let ratio: Vec<f64> = last.iter().map(|(r, _)| *r).collect();
     // For an efficient estimator E|e|² = tr PCRLB whatever the ellipse's shape, so the root mean square of
     // the ratio over runs is ≈ 1; its median is below 1 for elongated ellipses (for a 2-D Gaussian, the
     // median of |e|/√tr Σ is 0.83 for a circle and tends to 0.67 for a line).
     let ratio_rms = (ratio.iter().map(|r| r * r).sum::<f64>() / ratio.len().max(1) as f64).sqrt();
     // What an efficient estimator's median would be for these runs' terminal ellipses (the estimate's
     // covariance, the bound's shape when the estimator is efficient).
-    let shapes: Vec<f64> = outcomes
-        .iter()
-        .filter_map(|o| o.run.steps.last().filter(|s| s.estimate_error_m.is_some() && s.pcrlb_m.is_some()))
-        .map(|s| crate::stats::ellipse_shape(&s.estimate_cov))
-        .collect();
+    let shapes: Vec<f64> = last.iter().map(|(_, cov)| crate::stats::ellipse_shape(cov)).collect();
     let ratio_median_efficient = crate::stats::efficient_median_ratio(&shapes);
     let plan_ms: Vec<f64> = outcomes.iter().flat_map(|o| o.run.steps.iter().filter_map(|s| s.plan_ms)).collect();
     json!({

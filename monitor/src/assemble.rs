@@ -423,7 +423,7 @@ impl Assembler {
                 if missed {
                     // What the world flew: the hold of a step without a plan, from the positions and
                     // headings the measurement reported (emitter-sim makes the same one).
-                    let positions: Vec<Vector2<f64>> = m.uavs().iter().map(|p| Vector2::new(p[0], p[1])).collect();
+                    let positions = tdoa::points_from_arrays(m.uavs());
                     let hold = planning::hold::without_plan(&positions, m.headings(), &self.scenario);
                     record.headings_rad = hold.headings;
                     record.safety = hold.safety.map(|s| StepSafety::of_word(s.certified));
@@ -712,7 +712,7 @@ pub(crate) mod tests {
         let s1 = &done[1].record;
         // The world flew the hold: one step of each UAV's backup circle (certified here), from the
         // measurement's positions and headings — not the command, nor straight on.
-        let positions: Vec<Vector2<f64>> = UAVS.iter().map(|p| Vector2::new(p[0], p[1])).collect();
+        let positions = tdoa::points_from_arrays(&UAVS);
         let hold = planning::hold::without_plan(&positions, &[0.1, 0.2, 0.3], &scenario(3));
         assert!(hold.loiters(&[0.1, 0.2, 0.3]), "{hold:?}");
         assert_eq!(s1.headings_rad, hold.headings);

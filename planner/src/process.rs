@@ -137,7 +137,7 @@ impl Planner<'_> {
                 }
             }
             let Some(t) = self.tracker.as_mut() else { continue };
-            let positions = points(m.uavs());
+            let positions = tdoa::points_from_arrays(m.uavs());
             let plannable = step < self.scenario.steps as u64 && self.last_planned.is_none_or(|l| step > l);
             t.on_measurement(step, now, positions, m.headings().to_vec(), staleness::fingerprint(&m), plannable);
         }
@@ -175,7 +175,7 @@ impl Planner<'_> {
             if !planning::gives_up_without_fix(step, est.heard.count_ones() as usize) {
                 // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): hold
                 // and try the next burst, as `uavloc simulate` does.
-                let hold = self.hold(step, &points(est.uavs()), est.headings(), node.instance())?;
+                let hold = self.hold(step, &tdoa::points_from_arrays(est.uavs()), est.headings(), node.instance())?;
                 return Ok(Some(hold.with_state_of(est)));
             }
             // No fix in the first FIRST_FIX_STEPS steps, and this step's burst was heard well enough for
@@ -194,7 +194,7 @@ impl Planner<'_> {
             node.link().sleep(Duration::from_millis(args.plan_delay_ms))?;
         }
         let (z_hat, m) = tdoa::estimate_from_arrays(&position, &covariance);
-        let positions = points(est.uavs());
+        let positions = tdoa::points_from_arrays(est.uavs());
         // The noise the measurement stated (an external front end's σ) is the noise planned for; a quiet
         // link's reach widens the safety margins (--stated-position-margins).
         let stated = self.scenario_of(step, est.range_sigmas());
@@ -240,7 +240,7 @@ impl Handler for Planner<'_> {
                 // Held already: the step's answer is its hold.
                 self.summary.late_estimates += 1;
                 node.summary().resent += 1;
-                Some(self.hold(step, &points(est.uavs()), est.headings(), node.instance())?)
+                Some(self.hold(step, &tdoa::points_from_arrays(est.uavs()), est.headings(), node.instance())?)
             } else {
                 if again {
                     node.summary().resent += 1; // a replayed estimate: planned again, the same command
@@ -332,11 +332,6 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let accepted = node.summary().accepted;
     node.say(format_args!("stopped after {published} commands ({accepted} messages received)"));
     Ok(PlannerSummary { node: node.finish(), ..planner.summary })
-}
-
-/// UAV positions of a message as vectors, metres.
-fn points(uavs: &[[f64; 2]]) -> Vec<Vector2<f64>> {
-    uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect()
 }
 
 /// Runs the planner and maps the outcome to an exit code (errors as one `error:` line on stderr); in

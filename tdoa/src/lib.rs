@@ -40,6 +40,7 @@ pub use pcrlb::InformationBound;
 pub use singular::{SingularReport, singular_report};
 pub use support::{
     DEFAULT_KAPPA, Uncertainty, eq36_side, estimate_from_arrays, estimate_to_arrays, matrix_from_rows, matrix_to_rows,
+    points_from_arrays,
 };
 
 /// Largest number of UAVs supported (fixed-capacity messages carry up to this many).

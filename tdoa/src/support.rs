@@ -15,6 +15,11 @@ pub fn estimate_from_arrays(position: &[f64; 2], covariance: &[[f64; 2]; 2]) -> 
     (Vector2::new(position[0], position[1]), matrix_from_rows(covariance))
 }
 
+/// Points `[x, y]` (metres, as messages carry UAV positions) as vectors.
+pub fn points_from_arrays(points: &[[f64; 2]]) -> Vec<Vector2<f64>> {
+    points.iter().map(|p| Vector2::new(p[0], p[1])).collect()
+}
+
 /// A 2×2 matrix from its rows `[[m00, m01], [m10, m11]]` (the inverse of [`matrix_to_rows`]).
 pub fn matrix_from_rows(m: &[[f64; 2]; 2]) -> Matrix2<f64> {
     Matrix2::new(m[0][0], m[0][1], m[1][0], m[1][1])
