@@ -23,7 +23,8 @@
 //! The criterion decides among the rest; for an uncertified plan it is not evaluated.
 //!
 //! Where the gradient planner's joint search freed the UAVs from their own boxes,
-//! [`Shield::pull_into_cones`] then takes back what it left of the heading cone, UAV by UAV.
+//! [`Shield::pull_into_cones`] then takes back what it left of the heading cone, UAV by UAV — and where
+//! a neighbour is in a UAV's way, with the neighbour turning too.
 //!
 //! Every solver's result is compared with the **backup step** (every UAV turns right by `θ_b`, the first
 //! step of the backup orbits of `model::safety`), which is certified whenever the previous step's plan
@@ -59,6 +60,14 @@ pub const CONE_PULL_HALVINGS: usize = 8;
 pub const CONE_PULL_ROUNDS: usize = 2;
 /// Bisections of a UAV's pull between the accepted fraction of the way and the rejected one above it.
 pub const CONE_PULL_BISECTIONS: usize = 4;
+/// Halvings of a group's turn in [`Shield::pull_into_cones`]'s group pull.
+pub const GROUP_PULL_HALVINGS: usize = 3;
+/// Golden sections of a group member's reach in the group pull (the interval shrinks to 0.618ⁿ).
+pub const GROUP_PULL_SECTIONS: usize = 14;
+/// UAVs a group pull turns besides the one pulled, at most.
+pub const GROUP_PULL_OTHERS: usize = 1;
+/// Evaluations of all group pulls of one [`Shield::pull_into_cones`], at most.
+pub const GROUP_PULL_BUDGET: usize = 80;
 /// The index of the heading cone's tier in the shield's [`Fitness`] (the last one).
 pub const CONE_TIER: usize = 5;
 const _: () = assert!(CONE_TIER == crate::fitness::TIERS - 1, "the cone is the shield's last tier");
@@ -217,20 +226,41 @@ impl<'a> Shield<'a> {
     /// sum over the UAVs, so one UAV's move lowers it alone, and the fitness keeps every earlier tier
     /// from paying for it: a certified plan stays certified with its reserve. What a joint search over
     /// every reachable heading leaves of the cone where the UAVs' boxes conflict (8 UAVs on a small
-    /// ring) is taken back here in a few evaluations per UAV. Returns the plan, its fitness and the
-    /// evaluations spent.
+    /// ring) is taken back here in a few evaluations per UAV. A UAV still outside its cone after its
+    /// own pull, because another UAV is in its way, is pulled again with that UAV turning too
+    /// (a group pull, at most [`GROUP_PULL_BUDGET`] evaluations in all; none with a moving emitter,
+    /// whose backups may fly away: two UAVs left at the edge of their spacing leave their fly-aways no
+    /// room to turn). Returns the plan, its fitness and the evaluations spent.
     pub fn pull_into_cones(
         &self,
         plan: &[f64],
         current: Fitness,
         fitness: &mut dyn FnMut(&[f64]) -> Fitness,
     ) -> (Vec<f64>, Fitness, usize) {
+        self.pull_into_cones_within(plan, current, fitness, GROUP_PULL_BUDGET)
+    }
+
+    /// [`Self::pull_into_cones`] with at most `group_budget` evaluations of group pulls (0: none).
+    pub fn pull_into_cones_within(
+        &self,
+        plan: &[f64],
+        current: Fitness,
+        fitness: &mut dyn FnMut(&[f64]) -> Fitness,
+        group_budget: usize,
+    ) -> (Vec<f64>, Fitness, usize) {
         let (mut x, mut best, mut evaluations) = (plan.to_vec(), current, 0);
         let n = x.len();
+        // A moving emitter: no group pulls. UAVs turned together stay at the edge of their spacing, where
+        // their fly-aways (the backups a moving emitter may need) have no room to turn: in the safety
+        // study it tripled the uncertified steps late in a run (σ < 100 m) whose tightest limit is a
+        // fly-away pair. Backup circles, a static emitter's only backups, keep their spacing by induction.
+        let mut budget = if self.emitter.is_static() { group_budget } else { 0 };
         for _ in 0..CONE_PULL_ROUNDS {
             let mut moved = false;
             for i in 0..n {
                 moved |= self.pull(&mut x, i, &mut best, fitness, &mut evaluations);
+                // Still outside: the UAVs in its way turned with it.
+                moved |= self.group_pull(&mut x, i, &mut best, fitness, &mut evaluations, &mut budget);
             }
             if !moved {
                 break;
@@ -244,7 +274,8 @@ impl<'a> Shield<'a> {
     fn cone_target(&self, i: usize, phi: f64) -> Option<f64> {
         let (theta, half) = (self.constraints.max_turn(), self.constraints.delta_alpha);
         let off = wrap_angle(phi - self.cone_centres[i]);
-        if off.abs() <= half {
+        // Outside as `cone_excess` counts it (an excess within its tolerance is none).
+        if (off.abs() - half) / half <= FEASIBILITY_EPS {
             return None;
         }
         let edge = phi - off + off.signum() * half;
@@ -291,6 +322,130 @@ impl<'a> Shield<'a> {
         }
         x[i] = from;
         false
+    }
+
+    /// A pull of UAV `i` that [`Self::pull`] could not make because it would bring `i` too near another
+    /// UAV (along the arcs or on the backup circles): UAV `i` and the UAVs in its way turned with it.
+    /// The group starts as `i` alone and grows by the other UAV of the tightest pair limit when the
+    /// group has turned the whole way, up to [`GROUP_PULL_OTHERS`] others. Each size tries every member
+    /// turned by `i`'s angle (within its reach: their spacing changes little), the whole way and
+    /// [`GROUP_PULL_HALVINGS`] halvings of it; then, the group the whole way, the newest member's own
+    /// heading over its reach by [`GROUP_PULL_SECTIONS`] golden sections (the heading that makes room,
+    /// often a narrow window between two pair limits). The first plan that makes `fitness`
+    /// lexicographically smaller is kept (the cone tier sums every UAV's excess, so a member pushed out
+    /// of its own cone counts against the move). At most `budget` evaluations, which it lowers; `false`
+    /// (and `x` unchanged) when no plan improves.
+    #[allow(clippy::too_many_arguments)]
+    fn group_pull(
+        &self,
+        x: &mut [f64],
+        i: usize,
+        best: &mut Fitness,
+        fitness: &mut dyn FnMut(&[f64]) -> Fitness,
+        evaluations: &mut usize,
+        budget: &mut usize,
+    ) -> bool {
+        let Some(target) = self.cone_target(i, x[i]) else { return false };
+        let from = x.to_vec();
+        let (turn, theta) = (target - from[i], self.constraints.max_turn());
+        let reach = |k: usize, h: f64| h.clamp(self.headings[k] - theta, self.headings[k] + theta);
+        let mut evaluate = |x: &[f64], budget: &mut usize| {
+            *evaluations += 1;
+            *budget = budget.saturating_sub(1);
+            fitness(x)
+        };
+        let mut group = vec![i];
+        while group.len() <= 1 + GROUP_PULL_OTHERS {
+            let mut blocker = None;
+            // The best plan of this group size.
+            let mut found = None::<(Vec<f64>, Fitness)>;
+            let mut t = 1.0;
+            for _ in 0..=GROUP_PULL_HALVINGS {
+                if *budget == 0 {
+                    break;
+                }
+                for &k in &group {
+                    x[k] = reach(k, from[k] + t * turn);
+                }
+                let f = evaluate(x, budget);
+                if f < found.as_ref().map_or(*best, |b| b.1) {
+                    found = Some((x.to_vec(), f));
+                }
+                if t == 1.0 {
+                    blocker = self.blocker(x, &group);
+                }
+                t *= 0.5;
+            }
+            if let Some(&j) = group.last().filter(|j| **j != i) {
+                for &k in &group {
+                    x[k] = reach(k, from[k] + turn);
+                }
+                // Golden sections of j's reach, the best plan seen kept.
+                let g = 0.5 * (5f64.sqrt() - 1.0);
+                let (mut lo, mut hi) = (self.headings[j] - theta, self.headings[j] + theta);
+                let mut probe = |h: f64, x: &mut [f64], budget: &mut usize| {
+                    x[j] = h;
+                    evaluate(x, budget)
+                };
+                let (mut c, mut d) = (hi - g * (hi - lo), lo + g * (hi - lo));
+                let (mut fc, mut fd) = (probe(c, x, budget), probe(d, x, budget));
+                let mut section = None::<(f64, Fitness)>;
+                for _ in 0..GROUP_PULL_SECTIONS {
+                    for (h, f) in [(c, fc), (d, fd)] {
+                        if f < section.map_or(*best, |b| b.1) {
+                            section = Some((h, f));
+                        }
+                    }
+                    if *budget == 0 {
+                        break;
+                    }
+                    if fc < fd {
+                        (hi, d, fd) = (d, c, fc);
+                        c = hi - g * (hi - lo);
+                        fc = probe(c, x, budget);
+                    } else {
+                        (lo, c, fc) = (c, d, fd);
+                        d = lo + g * (hi - lo);
+                        fd = probe(d, x, budget);
+                    }
+                }
+                for (h, f) in [(c, fc), (d, fd)] {
+                    if f < section.map_or(*best, |b| b.1) {
+                        section = Some((h, f));
+                    }
+                }
+                if let Some((h, f)) = section
+                    && f < found.as_ref().map_or(*best, |b| b.1)
+                {
+                    x[j] = h;
+                    found = Some((x.to_vec(), f));
+                }
+            }
+            if let Some((plan, f)) = found {
+                x.copy_from_slice(&plan);
+                *best = f;
+                return true;
+            }
+            x.copy_from_slice(&from);
+            match blocker {
+                Some(j) if *budget > 0 => group.push(j),
+                _ => break,
+            }
+        }
+        x.copy_from_slice(&from);
+        false
+    }
+
+    /// The UAV outside `group` of the tightest limit of `x` when that is a pair limit with one UAV in
+    /// the group.
+    fn blocker(&self, x: &[f64], group: &[usize]) -> Option<usize> {
+        let lim = self.check(x).tightest?;
+        let other = lim.other?;
+        match (group.contains(&lim.uav), group.contains(&other)) {
+            (true, false) => Some(other),
+            (false, true) => Some(lim.uav),
+            _ => None,
+        }
     }
 
     /// The backup step from the current state: every UAV turns right by `θ_b` on its backup circle, or
@@ -345,7 +500,8 @@ mod tests {
             let (after_plan, after, evaluations) = shield.pull_into_cones(&plan, before, &mut fitness);
             assert!(after <= before, "case {case}: {after:?} above {before:?}");
             assert_eq!(after, fitness(&after_plan), "case {case}: the fitness returned is the plan's");
-            assert!(evaluations <= CONE_PULL_ROUNDS * plan.len() * (CONE_PULL_HALVINGS + 1 + CONE_PULL_BISECTIONS));
+            let own = CONE_PULL_ROUNDS * plan.len() * (CONE_PULL_HALVINGS + 1 + CONE_PULL_BISECTIONS);
+            assert!(evaluations <= own + GROUP_PULL_BUDGET, "case {case}: {evaluations} evaluations");
             for (a, p) in after_plan.iter().zip(&psi) {
                 assert!((a - p).abs() <= theta + 1e-12, "case {case}: {a} beyond the reach of {p}");
             }
@@ -453,6 +609,7 @@ mod tests {
         let (after, _, evaluations) = shield.pull_into_cones(&plan, blocked(&plan), &mut blocked);
         let got = fraction(after[1]);
         assert!((0.65..=0.7).contains(&got), "pulled {got} of the way");
-        assert!(evaluations <= CONE_PULL_ROUNDS * (CONE_PULL_HALVINGS + 1 + CONE_PULL_BISECTIONS), "{evaluations}");
+        let own = CONE_PULL_ROUNDS * (CONE_PULL_HALVINGS + 1 + CONE_PULL_BISECTIONS);
+        assert!(evaluations <= own + GROUP_PULL_BUDGET, "{evaluations}");
     }
 }
