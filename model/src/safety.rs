@@ -412,10 +412,17 @@ impl<'a> Certifier<'a> {
 
     #[inline]
     fn uav(&mut self, i: usize, phi: f64) -> UavPart {
-        if let Some(u) = self.uavs[i]
+        self.ensure_uav(i, phi);
+        self.uavs[i].expect("computed above")
+    }
+
+    /// Makes UAV `i`'s cached part the one of heading `phi` (computed unless it already is).
+    #[inline]
+    fn ensure_uav(&mut self, i: usize, phi: f64) {
+        if let Some(u) = &self.uavs[i]
             && u.phi_bits == phi.to_bits()
         {
-            return u;
+            return;
         }
         let (limits, e) = (self.limits, self.emitter);
         let arc = Arc::new(self.positions[i], self.psi[i], phi, limits.arc_len);
@@ -435,7 +442,7 @@ impl<'a> Certifier<'a> {
         let (to_circle, away) = self.backup_from(circle, self.backup_window().0);
         let (flies, to_backup) = away.map_or((false, to_circle), |(_, d)| (true, d));
         self.aways[i] = away.map(|(path, _)| path);
-        let part = UavPart {
+        self.uavs[i] = Some(UavPart {
             phi_bits: phi.to_bits(),
             arc,
             end,
@@ -445,9 +452,7 @@ impl<'a> Certifier<'a> {
             flies,
             half,
             to_backup,
-        };
-        self.uavs[i] = Some(part);
-        part
+        });
     }
 
     /// The distance to the predicted emitter over the backup's window of a UAV's backup `circle`
@@ -515,14 +520,24 @@ impl<'a> Certifier<'a> {
             .collect()
     }
 
-    fn pair(&mut self, i: usize, j: usize, a: &UavPart, b: &UavPart, exact: bool) -> PairPart {
+    /// Makes pair (i, j)'s cached part the one of the UAVs' cached parts (computed unless it already
+    /// is); both UAVs' parts must be cached.
+    #[inline]
+    fn ensure_pair(&mut self, i: usize, j: usize, exact: bool) {
+        let (Some(a), Some(b)) = (&self.uavs[i], &self.uavs[j]) else { return };
         let bits = (a.phi_bits, b.phi_bits);
-        if let Some(p) = self.pairs[pair_index(i, j)]
+        if let Some(p) = &self.pairs[pair_index(i, j)]
             && p.bits == bits
             && p.exact == exact
         {
-            return p;
+            return;
         }
+        let part = self.pair(i, j, a, b, exact);
+        self.pairs[pair_index(i, j)] = Some(part);
+    }
+
+    fn pair(&self, i: usize, j: usize, a: &UavPart, b: &UavPart, exact: bool) -> PairPart {
+        let bits = (a.phi_bits, b.phi_bits);
         let d = self.limits.d_min;
         let f0 = (self.positions[i] - self.positions[j]).norm();
         let f1 = (a.end - b.end).norm();
@@ -543,9 +558,7 @@ impl<'a> Certifier<'a> {
             let kept = d + MIN_TOLERANCE_M + self.limits.position_margin_m;
             pair_min(&pa, &pb, if exact { f64::INFINITY } else { kept })
         };
-        let part = PairPart { bits, exact, along, backup, preferred };
-        self.pairs[pair_index(i, j)] = Some(part);
-        part
+        PairPart { bits, exact, along, backup, preferred }
     }
 
     /// The certificate of the plan `phi` (see [`certify`]): with the backup circles of all UAVs, or,
@@ -562,7 +575,8 @@ impl<'a> Certifier<'a> {
     fn check_choosing(&mut self, phi: &[f64], exact: bool) -> (SafetyReport, bool) {
         let circles = self.check_with(phi, exact, false);
         let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
-        if circles.certified || (0..n).all(|i| !self.uav(i, phi[i]).flies) {
+        // (check_with cached every UAV's part of `phi`.)
+        if circles.certified || self.uavs[..n].iter().all(|u| u.as_ref().is_none_or(|u| !u.flies)) {
             return (circles, false);
         }
         let mut preferred = self.check_with(phi, exact, true);
@@ -583,11 +597,20 @@ impl<'a> Certifier<'a> {
     fn check_with(&mut self, phi: &[f64], exact: bool, preferred: bool) -> SafetyReport {
         let limits = self.limits;
         let n = self.positions.len().min(self.psi.len()).min(phi.len()).min(tdoa::MAX_UAVS);
-        let mut parts = [None::<UavPart>; tdoa::MAX_UAVS];
-        for i in 0..n {
-            parts[i] = Some(self.uav(i, phi[i]));
+        for (i, &phi_i) in phi.iter().enumerate().take(n) {
+            self.ensure_uav(i, phi_i);
         }
-        let part = |i: usize| parts[i].as_ref().expect("computed above");
+        // 2'. Every pair's part (the spacing along the arcs and of the backups), computed where a heading
+        // changed.
+        if limits.d_min > 0.0 {
+            for i in 0..n {
+                for j in i + 1..n {
+                    self.ensure_pair(i, j, exact);
+                }
+            }
+        }
+        let uavs = &self.uavs;
+        let part = |i: usize| uavs[i].as_ref().expect("computed above");
         let mut tightest: Option<Tightest> = None;
         let (mut total, mut step, mut collision) = (0.0, 0.0f64, 0.0f64);
         // `hard`: the deficit that counts as a collision (below D_min itself for the spacing limits).
@@ -619,14 +642,8 @@ impl<'a> Certifier<'a> {
                 note(SafetyLimit::TurnRadius, i, None, deficit, deficit);
             }
         }
-        // 2. Spacing along the arcs, and 4a. on the backup circles (closed form, for ever).
-        if limits.d_min > 0.0 {
-            for i in 0..n {
-                for j in i + 1..n {
-                    self.pair(i, j, part(i), part(j), exact);
-                }
-            }
-        }
+        // 2. Spacing along the arcs, and 4a. on the backup circles (closed form, for ever): the pairs'
+        // parts computed above.
         let pairs = &self.pairs;
         let pair = |i: usize, j: usize| pairs[pair_index(i, j)].expect("computed above");
         let mut min_pair = None::<f64>;
