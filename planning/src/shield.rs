@@ -237,24 +237,13 @@ impl<'a> Shield<'a> {
         current: Fitness,
         fitness: &mut dyn FnMut(&[f64]) -> Fitness,
     ) -> (Vec<f64>, Fitness, usize) {
-        self.pull_into_cones_within(plan, current, fitness, GROUP_PULL_BUDGET)
-    }
-
-    /// [`Self::pull_into_cones`] with at most `group_budget` evaluations of group pulls (0: none).
-    pub fn pull_into_cones_within(
-        &self,
-        plan: &[f64],
-        current: Fitness,
-        fitness: &mut dyn FnMut(&[f64]) -> Fitness,
-        group_budget: usize,
-    ) -> (Vec<f64>, Fitness, usize) {
         let (mut x, mut best, mut evaluations) = (plan.to_vec(), current, 0);
         let n = x.len();
         // A moving emitter: no group pulls. UAVs turned together stay at the edge of their spacing, where
         // their fly-aways (the backups a moving emitter may need) have no room to turn: in the safety
         // study it tripled the uncertified steps late in a run (σ < 100 m) whose tightest limit is a
         // fly-away pair. Backup circles, a static emitter's only backups, keep their spacing by induction.
-        let mut budget = if self.emitter.is_static() { group_budget } else { 0 };
+        let mut budget = if self.emitter.is_static() { GROUP_PULL_BUDGET } else { 0 };
         for _ in 0..CONE_PULL_ROUNDS {
             let mut moved = false;
             for i in 0..n {
@@ -331,10 +320,10 @@ impl<'a> Shield<'a> {
     /// turned by `i`'s angle (within its reach: their spacing changes little), the whole way and
     /// [`GROUP_PULL_HALVINGS`] halvings of it; then, the group the whole way, the newest member's own
     /// heading over its reach by [`GROUP_PULL_SECTIONS`] golden sections (the heading that makes room,
-    /// often a narrow window between two pair limits). The first plan that makes `fitness`
-    /// lexicographically smaller is kept (the cone tier sums every UAV's excess, so a member pushed out
-    /// of its own cone counts against the move). At most `budget` evaluations, which it lowers; `false`
-    /// (and `x` unchanged) when no plan improves.
+    /// often a narrow window between two pair limits). The smallest group whose tries make `fitness`
+    /// lexicographically smaller moves, to its best try (the cone tier sums every UAV's excess, so a
+    /// member pushed out of its own cone counts against the move). At most `budget` evaluations, which
+    /// it lowers; `false` (and `x` unchanged) when no try improves.
     #[allow(clippy::too_many_arguments)]
     fn group_pull(
         &self,
@@ -376,7 +365,7 @@ impl<'a> Shield<'a> {
                 }
                 t *= 0.5;
             }
-            if let Some(&j) = group.last().filter(|j| **j != i) {
+            if let Some(&j) = group.last().filter(|j| **j != i && *budget >= 2) {
                 for &k in &group {
                     x[k] = reach(k, from[k] + turn);
                 }
