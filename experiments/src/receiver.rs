@@ -366,7 +366,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
     })
 }
 
-/// One sentence per finding the issue asks about, from the rows.
+/// One sentence per finding of the study, from the rows.
 fn conclusions(rows: &[Value]) -> Vec<String> {
     let find = |scenario: &str, receiver: &str, estimator: &str| {
         rows.iter()

@@ -15,7 +15,7 @@ fn batch(runs: usize, scenario: &Scenario) -> Vec<record::RunRecord> {
     engine.batch("fusion test", scenario, ObjectiveKind::Analytical, SolverKind::Pso).unwrap().runs.clone()
 }
 
-/// The criteria on `runs` runs: RMSE within `ratio` × PCRLB at every step from step 5, mean NEES
+/// The consistency criteria on `runs` runs: RMSE within `ratio` × PCRLB at every step from step 5, mean NEES
 /// in the 95 % band at ≥ `nees_share` of those steps, terminal RMSE ≤ `terminal_max`.
 fn assert_consistent(label: &str, runs: &[record::RunRecord], ratio: (f64, f64), nees_share: f64, terminal_max: f64) {
     let c = consistency(runs);

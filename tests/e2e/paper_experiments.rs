@@ -1,5 +1,5 @@
 //! `uavloc paper`: the paper's experiments through the documented CLI with the `--quick` preset
-//! (M = 20). One `all --quick --json` run is checked against the robust expectations of the issue:
+//! (M = 20). One `all --quick --json` run is checked against robust expectations:
 //! every planned objective beats the fixed formation at the terminal step (every solver), the
 //! fixed-geometry RMSE/CRLB ratio stays within 0.9–1.15 with the CRLB exactly linear in the noise scale,
 //! the criteria are compared against the deterministic quadrature, the paired differences are coherent
