@@ -2,7 +2,7 @@
 //! safety certificate ([`model::safety`]), then by the heading cone, then by the criterion.
 //!
 //! The certificate is a hard constraint, never traded. The lexicographic [`Fitness`] has six tiers,
-//! each the largest (or summed) normalised deficit of a group of limits, 0 when they hold:
+//! each the largest, summed or mean normalised deficit of a group of limits, 0 when they hold:
 //!
 //! 1. a collision — turn radius, spacing along the arcs, and the spacing of the backup circles, for
 //!    ever (never bought with a standoff margin, whose bound already carries the chance constraint's
@@ -14,9 +14,10 @@
 //!    largest minimum margin (relative to each bound) wins;
 //! 4. the deficits summed: ranks the plans whose worst limit cannot be helped (a UAV already deep
 //!    inside the ring) by the others;
-//! 5. the reserve beyond the standoff bounds (`SafetyReport::reserve_deficit`: one estimate update's
-//!    worth and one step of the emitter's motion), kept where it can be so that a small move of the
-//!    estimate does not take the next step's certificate away;
+//! 5. the reserve beyond the standoff bounds (`SafetyReport::reserve_deficit`, the mean shortfall
+//!    over the UAVs: one estimate update's worth and one step of the emitter's motion), kept where it
+//!    can be so that a small move of the estimate does not take the next step's certificate away —
+//!    every UAV's, not only the one furthest short;
 //! 6. the heading cone (eq. 58): a preference of the paper's method that a certified plan may have to
 //!    give up (on the standoff ring every heading in the cone leads inwards).
 //!
