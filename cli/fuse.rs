@@ -70,12 +70,7 @@ pub fn parse_snapshots(text: &str) -> Result<Vec<Snapshot>, CliError> {
                 (None, Some(s)) => sigmas_of(line, n, s, 1e-9 * SPEED_OF_LIGHT)?,
                 _ => return Err(bad(line, "give exactly one of \"sigma\" (m) or \"sigma_ns\" (ns)")),
             };
-            Snapshot {
-                line,
-                uavs: j.uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect(),
-                range_diffs: j.range_diffs,
-                sigmas,
-            }
+            Snapshot { line, uavs: tdoa::points_from_arrays(&j.uavs), range_diffs: j.range_diffs, sigmas }
         } else {
             let values: Vec<f64> = t
                 .split(',')

@@ -357,7 +357,7 @@ pub fn collect_inputs_of_runs(
             if trace.plan.is_some() && inputs.len() < count {
                 let (estimate, covariance) = trace.target;
                 inputs.push(PlanInput {
-                    positions: rec.uavs.iter().map(|p| Vector2::new(p[0], p[1])).collect(),
+                    positions: tdoa::points_from_arrays(&rec.uavs),
                     headings: trace.measured_headings.to_vec(),
                     estimate,
                     covariance,

@@ -136,9 +136,7 @@ pub fn efficient_median_ratio(shapes: &[f64]) -> f64 {
 /// The shape `λ_min / (λ_min + λ_max)` of a 2 × 2 covariance given by its rows (NaN when it is not
 /// positive definite).
 pub fn ellipse_shape(cov: &[[f64; 2]; 2]) -> f64 {
-    let (a, b, c) = (cov[0][0], 0.5 * (cov[0][1] + cov[1][0]), cov[1][1]);
-    let (mean, root) = (0.5 * (a + c), (0.25 * (a - c).powi(2) + b * b).sqrt());
-    let (small, large) = (mean - root, mean + root);
+    let (small, large) = tdoa::fim::sym_eigenvalues(&tdoa::matrix_from_rows(cov));
     if !(small > 0.0 && large.is_finite()) {
         return f64::NAN;
     }

@@ -145,6 +145,30 @@ pub struct Shield<'a> {
     cone_centres: Vec<f64>,
 }
 
+/// A plan being pulled into the cones ([`Shield::pull_into_cones`]): its headings, their fitness, the
+/// evaluations spent and those left to group pulls.
+struct Pulling<'f> {
+    x: Vec<f64>,
+    best: Fitness,
+    evaluations: usize,
+    group_budget: usize,
+    fitness: &'f mut dyn FnMut(&[f64]) -> Fitness,
+}
+
+impl Pulling<'_> {
+    /// The fitness of the headings `x` holds now, counted.
+    fn evaluate(&mut self) -> Fitness {
+        self.evaluations += 1;
+        (self.fitness)(&self.x)
+    }
+
+    /// [`Self::evaluate`] for a group pull, out of its budget.
+    fn evaluate_grouped(&mut self) -> Fitness {
+        self.group_budget = self.group_budget.saturating_sub(1);
+        self.evaluate()
+    }
+}
+
 impl<'a> Shield<'a> {
     /// The shield of UAVs at `positions` with headings `headings`.
     pub fn new(
@@ -238,25 +262,24 @@ impl<'a> Shield<'a> {
         current: Fitness,
         fitness: &mut dyn FnMut(&[f64]) -> Fitness,
     ) -> (Vec<f64>, Fitness, usize) {
-        let (mut x, mut best, mut evaluations) = (plan.to_vec(), current, 0);
-        let n = x.len();
         // A moving emitter: no group pulls. UAVs turned together stay at the edge of their spacing, where
         // their fly-aways (the backups a moving emitter may need) have no room to turn: in the safety
         // study it tripled the uncertified steps late in a run (σ < 100 m) whose tightest limit is a
         // fly-away pair. Backup circles, a static emitter's only backups, keep their spacing by induction.
-        let mut budget = if self.emitter.is_static() { GROUP_PULL_BUDGET } else { 0 };
+        let group_budget = if self.emitter.is_static() { GROUP_PULL_BUDGET } else { 0 };
+        let mut p = Pulling { x: plan.to_vec(), best: current, evaluations: 0, group_budget, fitness };
         for _ in 0..CONE_PULL_ROUNDS {
             let mut moved = false;
-            for i in 0..n {
-                moved |= self.pull(&mut x, i, &mut best, fitness, &mut evaluations);
+            for i in 0..p.x.len() {
+                moved |= self.pull(&mut p, i);
                 // Still outside: the UAVs in its way turned with it.
-                moved |= self.group_pull(&mut x, i, &mut best, fitness, &mut evaluations, &mut budget);
+                moved |= self.group_pull(&mut p, i);
             }
             if !moved {
                 break;
             }
         }
-        (x, best, evaluations)
+        (p.x, p.best, p.evaluations)
     }
 
     /// The target heading of UAV `i` from `phi`: the nearest edge of its cone within its reach, `None`
@@ -274,43 +297,34 @@ impl<'a> Shield<'a> {
 
     /// One pull of [`Self::pull_into_cones`]: UAV `i` (outside its cone) moved the largest of the
     /// halvings of the way to its target that lowers `best`; `false` (and `x` unchanged) when none does.
-    fn pull(
-        &self,
-        x: &mut [f64],
-        i: usize,
-        best: &mut Fitness,
-        fitness: &mut dyn FnMut(&[f64]) -> Fitness,
-        evaluations: &mut usize,
-    ) -> bool {
-        let from = x[i];
+    fn pull(&self, p: &mut Pulling<'_>, i: usize) -> bool {
+        let from = p.x[i];
         let Some(target) = self.cone_target(i, from) else { return false };
         let mut t = 1.0;
         for _ in 0..=CONE_PULL_HALVINGS {
-            x[i] = from + t * (target - from);
-            let f = fitness(x);
-            *evaluations += 1;
-            if f < *best {
-                *best = f;
+            p.x[i] = from + t * (target - from);
+            let f = p.evaluate();
+            if f < p.best {
+                p.best = f;
                 // As far as bisection finds between this fraction and the rejected one above it.
                 let (mut ok, mut rejected) = (t, 2.0 * t);
                 for _ in 0..if t < 1.0 { CONE_PULL_BISECTIONS } else { 0 } {
                     let mid = 0.5 * (ok + rejected);
-                    x[i] = from + mid * (target - from);
-                    let f = fitness(x);
-                    *evaluations += 1;
-                    if f < *best {
-                        *best = f;
+                    p.x[i] = from + mid * (target - from);
+                    let f = p.evaluate();
+                    if f < p.best {
+                        p.best = f;
                         ok = mid;
                     } else {
                         rejected = mid;
                     }
                 }
-                x[i] = from + ok * (target - from);
+                p.x[i] = from + ok * (target - from);
                 return true;
             }
             t *= 0.5;
         }
-        x[i] = from;
+        p.x[i] = from;
         false
     }
 
@@ -323,27 +337,13 @@ impl<'a> Shield<'a> {
     /// heading over its reach by [`GROUP_PULL_SECTIONS`] golden sections (the heading that makes room,
     /// often a narrow window between two pair limits). The smallest group whose tries make `fitness`
     /// lexicographically smaller moves, to its best try (the cone tier sums every UAV's excess, so a
-    /// member pushed out of its own cone counts against the move). At most `budget` evaluations, which
-    /// it lowers; `false` (and `x` unchanged) when no try improves.
-    #[allow(clippy::too_many_arguments)]
-    fn group_pull(
-        &self,
-        x: &mut [f64],
-        i: usize,
-        best: &mut Fitness,
-        fitness: &mut dyn FnMut(&[f64]) -> Fitness,
-        evaluations: &mut usize,
-        budget: &mut usize,
-    ) -> bool {
-        let Some(target) = self.cone_target(i, x[i]) else { return false };
-        let from = x.to_vec();
+    /// member pushed out of its own cone counts against the move). At most the pull's group budget of
+    /// evaluations, which it lowers; `false` (and the plan unchanged) when no try improves.
+    fn group_pull(&self, p: &mut Pulling<'_>, i: usize) -> bool {
+        let Some(target) = self.cone_target(i, p.x[i]) else { return false };
+        let from = p.x.clone();
         let (turn, theta) = (target - from[i], self.constraints.max_turn());
         let reach = |k: usize, h: f64| h.clamp(self.headings[k] - theta, self.headings[k] + theta);
-        let mut evaluate = |x: &[f64], budget: &mut usize| {
-            *evaluations += 1;
-            *budget = budget.saturating_sub(1);
-            fitness(x)
-        };
         let mut group = vec![i];
         while group.len() <= 1 + GROUP_PULL_OTHERS {
             let mut blocker = None;
@@ -351,78 +351,78 @@ impl<'a> Shield<'a> {
             let mut found = None::<(Vec<f64>, Fitness)>;
             let mut t = 1.0;
             for _ in 0..=GROUP_PULL_HALVINGS {
-                if *budget == 0 {
+                if p.group_budget == 0 {
                     break;
                 }
                 for &k in &group {
-                    x[k] = reach(k, from[k] + t * turn);
+                    p.x[k] = reach(k, from[k] + t * turn);
                 }
-                let f = evaluate(x, budget);
-                if f < found.as_ref().map_or(*best, |b| b.1) {
-                    found = Some((x.to_vec(), f));
+                let f = p.evaluate_grouped();
+                if f < found.as_ref().map_or(p.best, |b| b.1) {
+                    found = Some((p.x.clone(), f));
                 }
                 if t == 1.0 {
-                    blocker = self.blocker(x, &group);
+                    blocker = self.blocker(&p.x, &group);
                 }
                 t *= 0.5;
             }
-            if let Some(&j) = group.last().filter(|j| **j != i && *budget >= 2) {
+            if let Some(&j) = group.last().filter(|j| **j != i && p.group_budget >= 2) {
                 for &k in &group {
-                    x[k] = reach(k, from[k] + turn);
+                    p.x[k] = reach(k, from[k] + turn);
                 }
                 // Golden sections of j's reach, the best plan seen kept.
                 let g = 0.5 * (5f64.sqrt() - 1.0);
                 let (mut lo, mut hi) = (self.headings[j] - theta, self.headings[j] + theta);
-                let mut probe = |h: f64, x: &mut [f64], budget: &mut usize| {
-                    x[j] = h;
-                    evaluate(x, budget)
+                let probe = |h: f64, p: &mut Pulling<'_>| {
+                    p.x[j] = h;
+                    p.evaluate_grouped()
                 };
                 let (mut c, mut d) = (hi - g * (hi - lo), lo + g * (hi - lo));
-                let (mut fc, mut fd) = (probe(c, x, budget), probe(d, x, budget));
+                let (mut fc, mut fd) = (probe(c, p), probe(d, p));
                 let mut section = None::<(f64, Fitness)>;
                 for _ in 0..GROUP_PULL_SECTIONS {
                     for (h, f) in [(c, fc), (d, fd)] {
-                        if f < section.map_or(*best, |b| b.1) {
+                        if f < section.map_or(p.best, |b| b.1) {
                             section = Some((h, f));
                         }
                     }
-                    if *budget == 0 {
+                    if p.group_budget == 0 {
                         break;
                     }
                     if fc < fd {
                         (hi, d, fd) = (d, c, fc);
                         c = hi - g * (hi - lo);
-                        fc = probe(c, x, budget);
+                        fc = probe(c, p);
                     } else {
                         (lo, c, fc) = (c, d, fd);
                         d = lo + g * (hi - lo);
-                        fd = probe(d, x, budget);
+                        fd = probe(d, p);
                     }
                 }
                 for (h, f) in [(c, fc), (d, fd)] {
-                    if f < section.map_or(*best, |b| b.1) {
+                    if f < section.map_or(p.best, |b| b.1) {
                         section = Some((h, f));
                     }
                 }
                 if let Some((h, f)) = section
-                    && f < found.as_ref().map_or(*best, |b| b.1)
+                    && f < found.as_ref().map_or(p.best, |b| b.1)
                 {
-                    x[j] = h;
-                    found = Some((x.to_vec(), f));
+                    p.x[j] = h;
+                    found = Some((p.x.clone(), f));
                 }
             }
             if let Some((plan, f)) = found {
-                x.copy_from_slice(&plan);
-                *best = f;
+                p.x = plan;
+                p.best = f;
                 return true;
             }
-            x.copy_from_slice(&from);
+            p.x.copy_from_slice(&from);
             match blocker {
-                Some(j) if *budget > 0 => group.push(j),
+                Some(j) if p.group_budget > 0 => group.push(j),
                 _ => break,
             }
         }
-        x.copy_from_slice(&from);
+        p.x.copy_from_slice(&from);
         false
     }
 

@@ -31,8 +31,8 @@
 //!    tiered fitness of step 4 over the product of those boxes (the criterion, with the spacing as a
 //!    constraint; a second search over every reachable heading when the spacing cannot hold there —
 //!    certified, followed by [`Shield::pull_into_cones`], which takes back UAV by UAV what that joint
-//!    search left of the heading cone, turning a neighbour in the way with the UAV). The tiers being the same, its plans rank by the same order as
-//!    the two searches'. Certified, the searches hand over to the shield ([`CERTIFIED_HANDOFF`],
+//!    search left of the heading cone, turning a neighbour in the way with the UAV). The tiers being
+//!    the same, its plans rank by the same order as the two searches'. Certified, the searches hand over to the shield ([`CERTIFIED_HANDOFF`],
 //!    [`Handoff`]): the joint search stops where the heading cone is the last tier left (the pull
 //!    lowers that piecewise-linear sum far more cheaply than quasi-Newton steps, which stall against
 //!    the certificate), runs a local search from the box plan of its own, skips a second start after a
