@@ -961,6 +961,63 @@ mod tests {
     }
 
     #[test]
+    fn a_certifier_kept_over_many_plans_answers_as_a_fresh_one() {
+        // The plans a local search checks one after another (one heading moved and back, several
+        // moved, the same plan twice, exact and fast in turn) against a fresh certificate of each:
+        // the same report, bit for bit, tightest limit and its UAVs included.
+        let mut r = Lcg(71);
+        let lim = SafetyLimits { position_margin_m: 12.0, ..limits() };
+        let (mut compared, mut uncertified) = (0, 0);
+        for case in 0..60 {
+            let n = 2 + case % 7;
+            let e = if case % 2 == 0 {
+                EmitterPrediction::fixed(Vector2::zeros(), &Matrix2::new(4e4, 1e4, 1e4, 9e4))
+            } else {
+                let v = Vector2::new(r.next() - 0.5, r.next() - 0.5) * 30.0;
+                EmitterPrediction::moving(
+                    Vector2::zeros(),
+                    &(Matrix2::identity() * 4e4),
+                    v,
+                    &(Matrix2::identity() * 0.25),
+                    0.0,
+                )
+            };
+            let p: Vec<_> = (0..n)
+                .map(|_| {
+                    let a = r.next() * 2.0 * PI;
+                    Vector2::new(a.cos(), a.sin()) * (3000.0 + r.next() * 3000.0)
+                })
+                .collect();
+            let psi: Vec<_> = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+            let mut certifier = Certifier::new(&p, &psi, e, lim);
+            let mut phi: Vec<f64> = psi.iter().map(|h| h + (r.next() - 0.5) * 0.6).collect();
+            for k in 0..80 {
+                let plan = match k % 4 {
+                    // A probe: one heading moved.
+                    0 | 1 => {
+                        let mut x = phi.clone();
+                        x[k % n] += 1e-3;
+                        x
+                    }
+                    // A line-search step: every heading moved, kept as the new base.
+                    2 => {
+                        phi.iter_mut().for_each(|h| *h += (r.next() - 0.5) * 0.2);
+                        phi.clone()
+                    }
+                    _ => phi.clone(),
+                };
+                let exact = k % 5 == 0;
+                let kept = certifier.check(&plan, exact);
+                let fresh = certify(&p, &psi, &plan, &e, &lim, exact);
+                assert_eq!(format!("{kept:?}"), format!("{fresh:?}"), "case {case}, plan {k}");
+                compared += 1;
+                uncertified += usize::from(!fresh.certified);
+            }
+        }
+        assert!(uncertified > 100 && uncertified < compared - 100, "{uncertified} of {compared} uncertified");
+    }
+
+    #[test]
     fn head_on_pairs_and_a_uav_over_the_emitter_are_not_certified() {
         let lim = limits();
         let e = EmitterPrediction::fixed(Vector2::new(0.0, 20_000.0), &Matrix2::zeros());

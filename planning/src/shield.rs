@@ -25,7 +25,7 @@
 //!
 //! Where the gradient planner's joint search freed the UAVs from their own boxes,
 //! [`Shield::pull_into_cones`] then takes back what it left of the heading cone, UAV by UAV — and where
-//! a neighbour is in a UAV's way, with the neighbour turning too.
+//! a neighbour is in a UAV's way, with the neighbour turning too, or beyond what blocks the way.
 //!
 //! Every solver's result is compared with the **backup step** (every UAV turns right by `θ_b`, the first
 //! step of the backup orbits of `model::safety`), which is certified whenever the previous step's plan
@@ -57,6 +57,8 @@ pub use model::safety::SPACING_POSITION_SIGMAS;
 
 /// Halvings of a UAV's pull towards its cone ([`Shield::pull_into_cones`]) before it gives up.
 pub const CONE_PULL_HALVINGS: usize = 8;
+/// Headings of a UAV's reach [`Shield::pull_into_cones`] tries beyond what blocks its pull (intervals).
+pub const LEAP_SAMPLES: usize = 16;
 /// Rounds over the UAVs of [`Shield::pull_into_cones`] at most.
 pub const CONE_PULL_ROUNDS: usize = 2;
 /// Bisections of a UAV's pull between the accepted fraction of the way and the rejected one above it.
@@ -255,7 +257,9 @@ impl<'a> Shield<'a> {
     /// own pull, because another UAV is in its way, is pulled again with that UAV turning too
     /// (a group pull, at most [`GROUP_PULL_BUDGET`] evaluations in all; none with a moving emitter,
     /// whose backups may fly away: two UAVs left at the edge of their spacing leave their fly-aways no
-    /// room to turn). Returns the plan, its fitness and the evaluations spent.
+    /// room to turn). A UAV that neither takes nearer its cone leaps: [`LEAP_SAMPLES`] + 1 headings
+    /// over its whole reach, nearest the cone first ([`Self::leap`]). Returns the plan, its fitness and
+    /// the evaluations spent.
     pub fn pull_into_cones(
         &self,
         plan: &[f64],
@@ -271,9 +275,11 @@ impl<'a> Shield<'a> {
         for _ in 0..CONE_PULL_ROUNDS {
             let mut moved = false;
             for i in 0..p.x.len() {
-                moved |= self.pull(&mut p, i);
+                let pulled = self.pull(&mut p, i);
                 // Still outside: the UAVs in its way turned with it.
-                moved |= self.group_pull(&mut p, i);
+                let grouped = self.group_pull(&mut p, i);
+                // Where neither takes it nearer its cone: a heading beyond what blocks the way.
+                moved |= pulled || grouped || self.leap(&mut p, i);
             }
             if !moved {
                 break;
@@ -282,8 +288,9 @@ impl<'a> Shield<'a> {
         (p.x, p.best, p.evaluations)
     }
 
-    /// The target heading of UAV `i` from `phi`: the nearest edge of its cone within its reach, `None`
-    /// when `phi` is in the cone.
+    /// The target heading of UAV `i` from `phi`: the reachable heading nearest its cone (the nearer
+    /// edge clamped into the reach, or the other edge the other way round where that is nearer), `None`
+    /// when `phi` is in the cone or already that heading.
     fn cone_target(&self, i: usize, phi: f64) -> Option<f64> {
         let (theta, half) = (self.constraints.max_turn(), self.constraints.delta_alpha);
         let off = wrap_angle(phi - self.cone_centres[i]);
@@ -291,8 +298,14 @@ impl<'a> Shield<'a> {
         if (off.abs() - half) / half <= FEASIBILITY_EPS {
             return None;
         }
-        let edge = phi - off + off.signum() * half;
-        Some(edge.clamp(self.headings[i] - theta, self.headings[i] + theta)).filter(|t| *t != phi)
+        // The nearer edge, or — where the reach ends first on that side (a cone nearly behind the
+        // UAV) — the other edge the other way round, whichever reachable heading is nearer the cone.
+        let reach = |h: f64| h.clamp(self.headings[i] - theta, self.headings[i] + theta);
+        let excess = |h: f64| (wrap_angle(h - self.cone_centres[i]).abs() - half).max(0.0);
+        let near = reach(phi - off + off.signum() * half);
+        let far = reach(phi - off - off.signum() * half + off.signum() * std::f64::consts::TAU);
+        let target = if excess(far) < excess(near) { far } else { near };
+        Some(target).filter(|t| *t != phi)
     }
 
     /// One pull of [`Self::pull_into_cones`]: UAV `i` (outside its cone) moved the largest of the
@@ -323,6 +336,39 @@ impl<'a> Shield<'a> {
                 return true;
             }
             t *= 0.5;
+        }
+        p.x[i] = from;
+        false
+    }
+
+    /// A heading of UAV `i` (outside its cone) nearer its cone than its own, beyond whatever blocks the
+    /// straight way there ([`Self::pull`] stops at the first limit): [`LEAP_SAMPLES`] headings evenly
+    /// over its reach `ψ ± θ_max`, tried nearest the cone first, the first that makes `fitness`
+    /// lexicographically smaller kept. The certified headings of one UAV, the others held, are a union
+    /// of intervals (another UAV's arc or backup circle cuts the reach); the pull of the next round
+    /// takes it further from there. `false` (and `x` unchanged) when no sample improves.
+    fn leap(&self, p: &mut Pulling<'_>, i: usize) -> bool {
+        let (theta, half, centre) = (self.constraints.max_turn(), self.constraints.delta_alpha, self.cone_centres[i]);
+        let excess = |h: f64| (wrap_angle(h - centre).abs() - half).max(0.0);
+        let (from, now) = (p.x[i], excess(p.x[i]));
+        // Inside as `cone_excess` counts it (an excess within its tolerance is none). (The pull's
+        // target may be none outside too: the nearest edge the other way round, beyond the reach.)
+        if now / half <= FEASIBILITY_EPS {
+            return false;
+        }
+        let mut samples: Vec<(f64, f64)> = (0..=LEAP_SAMPLES)
+            .map(|s| self.headings[i] - theta + 2.0 * theta * s as f64 / LEAP_SAMPLES as f64)
+            .map(|h| (excess(h), h))
+            .filter(|(e, _)| *e < now)
+            .collect();
+        samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (_, h) in samples {
+            p.x[i] = h;
+            let f = p.evaluate();
+            if f < p.best {
+                p.best = f;
+                return true;
+            }
         }
         p.x[i] = from;
         false
@@ -454,6 +500,7 @@ impl<'a> Shield<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use model::kinematics::bearing;
     use model::safety::SafetyMode;
 
     struct Lcg(u64);
@@ -475,6 +522,57 @@ mod tests {
     }
 
     #[test]
+    fn a_cone_nearly_behind_is_approached_the_way_the_reach_allows() {
+        // Every UAV flies away from ẑ, its cone centred 170° to its left. From a full right turn the
+        // cone's nearer edge is clockwise (195°), beyond the reach on that side: the nearest reachable
+        // heading is the full left turn, which the pull takes whole.
+        let (sc, pos, _, z, m) = nominal();
+        let psi: Vec<f64> = pos.iter().map(|p| bearing(*p, z) - 170f64.to_radians()).collect();
+        let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
+        let shield = Shield::new(&pos, &psi, safety_limits(&sc), prediction(&sc, z, &m, None), &constraints, z);
+        let mut fitness = |phi: &[f64]| shield.fitness(phi, || 0.0);
+        let theta = constraints.max_turn();
+        let right: Vec<f64> = psi.iter().map(|p| p - theta).collect();
+        assert!(shield.check(&right).certified);
+        let before = fitness(&right);
+        let (plan, after, _) = shield.pull_into_cones(&right, before, &mut fitness);
+        assert!(after < before, "{after:?} not below {before:?}");
+        for (i, (a, p)) in plan.iter().zip(&psi).enumerate() {
+            assert!((a - (p + theta)).abs() < 1e-12, "UAV {i} turned {:.2}°", (a - p).to_degrees());
+        }
+        assert!(shield.check(&plan).certified);
+    }
+
+    #[test]
+    fn a_uav_blocked_on_the_way_to_its_cone_leaps_beyond_what_blocks_it() {
+        // UAV 0's cone lies 60° to its right, beyond its reach; what it may fly is cut by a limit (here
+        // a tier added to the certificate's first) into turns of [−22°, −15°] and of at least −0.5°.
+        // Every halving of the straight pull lands in the cut (or within 0.5° of straight on): only a
+        // look over the whole reach finds the interval beyond.
+        let (sc, pos, mut psi, z, m) = nominal();
+        psi[0] = bearing(pos[0], z) + 60f64.to_radians();
+        let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
+        let shield = Shield::new(&pos, &psi, safety_limits(&sc), prediction(&sc, z, &m, None), &constraints, z);
+        let theta = constraints.max_turn();
+        let psi0 = psi[0];
+        let mut fitness = |phi: &[f64]| {
+            let f = shield.fitness(phi, || 0.0);
+            let turn = (phi[0] - psi0).to_degrees();
+            let cut = if (-22.0..=-15.0).contains(&turn) || turn >= -0.5 { 0.0 } else { 1.0 };
+            let mut tiers = f.tiers();
+            tiers[0] += cut;
+            Fitness::tiered(tiers, f.objective())
+        };
+        let plan = psi.clone();
+        let before = fitness(&plan);
+        let (after_plan, after, _) = shield.pull_into_cones(&plan, before, &mut fitness);
+        let turn = (after_plan[0] - psi0).to_degrees();
+        assert!(after < before, "{after:?} not below {before:?}");
+        assert!((-22.0..=-15.0).contains(&turn), "UAV 0 turned {turn:.2}°");
+        assert!(theta.to_degrees() > 22.0);
+    }
+
+    #[test]
     fn pulling_into_the_cones_never_ranks_a_plan_lower_and_keeps_its_certificate() {
         let (sc, pos, psi, z, m) = nominal();
         let constraints = Constraints::from_scenario(&sc).with_covariance(m).for_step(&pos, z);
@@ -490,7 +588,8 @@ mod tests {
             let (after_plan, after, evaluations) = shield.pull_into_cones(&plan, before, &mut fitness);
             assert!(after <= before, "case {case}: {after:?} above {before:?}");
             assert_eq!(after, fitness(&after_plan), "case {case}: the fitness returned is the plan's");
-            let own = CONE_PULL_ROUNDS * plan.len() * (CONE_PULL_HALVINGS + 1 + CONE_PULL_BISECTIONS);
+            let own =
+                CONE_PULL_ROUNDS * plan.len() * (CONE_PULL_HALVINGS + 1 + CONE_PULL_BISECTIONS + LEAP_SAMPLES + 1);
             assert!(evaluations <= own + GROUP_PULL_BUDGET, "case {case}: {evaluations} evaluations");
             for (a, p) in after_plan.iter().zip(&psi) {
                 assert!((a - p).abs() <= theta + 1e-12, "case {case}: {a} beyond the reach of {p}");

@@ -1,8 +1,9 @@
 //! Planning problems of eight UAVs where the certified gradient planner once ranked below PSO, kept
 //! with their exact inputs (`uavloc bench planner --scenario scenarios/eight.toml --solver gradient,pso
 //! --run-steps 100 --steps 400`, the inputs numbered as that benchmark numbers them): a UAV left
-//! outside its heading cone because the neighbour in its way stayed put. The gradient planner's plan
-//! must rank at least as well as PSO's (violation tier by tier, then the criterion).
+//! outside its heading cone because the neighbour in its way stayed put, or because its cone lies
+//! nearly behind it and the way there is blocked (input 267). The gradient planner's plan must rank at
+//! least as well as PSO's (violation tier by tier, then the criterion).
 
 use model::Scenario;
 use nalgebra::{Matrix2, Vector2};
@@ -163,6 +164,35 @@ const FOUND: &[(usize, Found)] = &[
             covariance: [11.935721019740711, -2.8023514873126047, 145.5630568036252],
             run_seed: 10749977980495296131,
             step: 59,
+        },
+    ),
+    (
+        267,
+        Found {
+            positions: &[
+                [-3282.511499014773, -1432.5730027850993],
+                [-2931.1443283282883, -962.4875538025204],
+                [-4066.0996137980314, -108.56935072312928],
+                [-4780.03996697365, 1404.691484364889],
+                [-4157.770777786914, 1404.7250610496603],
+                [-4681.7091259194995, 101.11851968800568],
+                [-2697.171123512631, 1851.3692922719938],
+                [-1643.2016764358807, 2656.5822449744946],
+            ],
+            headings: &[
+                -1.3429856151290558,
+                -1.310497153101946,
+                -1.3073577780681465,
+                3.067142013280203,
+                -2.3644367382334646,
+                -1.4186918614609798,
+                -2.372848161499992,
+                -2.6834940939740606,
+            ],
+            estimate: [7.349736846961697, -9.401271707555015],
+            covariance: [14.789762875757148, -15.387510439342142, 88.29025759484585],
+            run_seed: 10071245268460305800,
+            step: 67,
         },
     ),
 ];
