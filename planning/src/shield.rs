@@ -258,7 +258,7 @@ impl<'a> Shield<'a> {
     /// (a group pull, at most [`GROUP_PULL_BUDGET`] evaluations in all; none with a moving emitter,
     /// whose backups may fly away: two UAVs left at the edge of their spacing leave their fly-aways no
     /// room to turn). A UAV that neither takes nearer its cone leaps: [`LEAP_SAMPLES`] + 1 headings
-    /// over its whole reach, nearest the cone first ([`Self::leap`]). Returns the plan, its fitness and
+    /// over its whole reach, nearest the cone first (`Shield::leap`). Returns the plan, its fitness and
     /// the evaluations spent.
     pub fn pull_into_cones(
         &self,
