@@ -249,7 +249,16 @@ pub fn static_point_min_distance(arc: &Arc, q: Vector2<f64>) -> MinBracket {
 /// is within `L/2` of arc length of an end, so `min(|q − p(0)|, |q − p(1)|) − L/2` is a lower bound
 /// that needs no trigonometry beyond the end point.
 pub fn static_point_min_distance_above(arc: &Arc, q: Vector2<f64>, threshold: f64) -> MinBracket {
-    let end = arc.end();
+    static_point_min_distance_ending(arc, arc.end(), q, threshold)
+}
+
+/// [`static_point_min_distance_above`] of an arc whose end point `end` is known (`arc.end()`).
+pub(crate) fn static_point_min_distance_ending(
+    arc: &Arc,
+    end: Vector2<f64>,
+    q: Vector2<f64>,
+    threshold: f64,
+) -> MinBracket {
     let ends = (arc.start - q).norm().min((end - q).norm());
     if ends - 0.5 * arc.length >= threshold {
         return MinBracket { lower: ends - 0.5 * arc.length, upper: ends };
@@ -287,6 +296,21 @@ pub fn moving_point_min_distance(
     dt: f64,
     threshold: f64,
 ) -> MinBracket {
+    moving_point_min_distance_within(arc, from, velocity, dt, threshold, MIN_TOLERANCE_M)
+}
+
+/// [`moving_point_min_distance`] of an arc whose end point `end` is known (`arc.end()`).
+pub(crate) fn moving_point_min_distance_ending(
+    arc: &Arc,
+    end: Vector2<f64>,
+    from: Vector2<f64>,
+    velocity: Vector2<f64>,
+    dt: f64,
+    threshold: f64,
+) -> MinBracket {
+    if velocity == Vector2::zeros() {
+        return static_point_min_distance_ending(arc, end, from, threshold);
+    }
     moving_point_min_distance_within(arc, from, velocity, dt, threshold, MIN_TOLERANCE_M)
 }
 

@@ -48,7 +48,9 @@
 use nalgebra::{Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 
-use crate::arc::{Arc, MIN_TOLERANCE_M, moving_point_min_distance, pair_min_distance_from};
+use crate::arc::{
+    Arc, MIN_TOLERANCE_M, moving_point_min_distance, moving_point_min_distance_ending, pair_min_distance_from,
+};
 use crate::backup::{BackupPath, pair_min};
 use crate::kinematics::max_turn;
 
@@ -432,7 +434,8 @@ impl<'a> Certifier<'a> {
         let arc = Arc::new(self.positions[i], self.psi[i], phi, limits.arc_len);
         let end = arc.end();
         let standoff = if limits.l_min > 0.0 {
-            moving_point_min_distance(&arc, e.position, e.velocity, limits.dt, self.step_bound() + self.reserve()).lower
+            let bound = self.step_bound() + self.reserve();
+            moving_point_min_distance_ending(&arc, end, e.position, e.velocity, limits.dt, bound).lower
         } else {
             f64::INFINITY
         };
