@@ -211,6 +211,7 @@ fn summary(sc: &Scenario, runs: &[RunRecord]) -> Value {
         "rmse_over_bound_min": ratios.iter().copied().fold(f64::INFINITY, f64::min),
         "rmse_over_bound_max": ratios.iter().copied().fold(0.0, f64::max),
         "steps_within_0_9_1_25_fraction": within as f64 / ratios.len().max(1) as f64,
+        "rmse_over_bound_by_step": ratios,
         "nees_in_95_band_fraction": nees_inside as f64 / nees_steps.max(1) as f64,
         "nees_mean": (!nees_by_step.is_empty()).then(|| nees_by_step.iter().sum::<f64>() / nees_by_step.len() as f64),
         "nees_mean_by_step": nees_by_step,
