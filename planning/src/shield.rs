@@ -204,15 +204,18 @@ impl<'a> Shield<'a> {
 
     /// The summed normalised excess of the headings `phi` over their cones (eq. 58), 0 inside.
     pub fn cone_excess(&self, phi: &[f64]) -> f64 {
-        let da = self.constraints.delta_alpha;
-        phi.iter()
-            .zip(&self.cone_centres)
-            .map(|(phi, alpha)| {
-                let off = wrap_angle(phi - alpha).abs();
-                let v = (off - da) / da;
-                if v > FEASIBILITY_EPS { v } else { 0.0 }
-            })
-            .sum()
+        phi.iter().take(self.cone_centres.len()).enumerate().map(|(i, h)| self.uav_cone_excess(i, *h)).sum()
+    }
+
+    /// How far the heading `h` of UAV `i` lies outside its cone, radians (0 inside).
+    fn cone_overshoot(&self, i: usize, h: f64) -> f64 {
+        (wrap_angle(h - self.cone_centres[i]).abs() - self.constraints.delta_alpha).max(0.0)
+    }
+
+    /// [`Self::cone_overshoot`] normalised by Δα as the cone tier counts it: 0 within its tolerance.
+    fn uav_cone_excess(&self, i: usize, h: f64) -> f64 {
+        let v = self.cone_overshoot(i, h) / self.constraints.delta_alpha;
+        if v > FEASIBILITY_EPS { v } else { 0.0 }
     }
 
     /// The shield's fitness of `phi`: the six tiers of the module docs, then `objective()` — evaluated
@@ -257,7 +260,7 @@ impl<'a> Shield<'a> {
     /// own pull, because another UAV is in its way, is pulled again with that UAV turning too
     /// (a group pull, at most [`GROUP_PULL_BUDGET`] evaluations in all; none with a moving emitter,
     /// whose backups may fly away: two UAVs left at the edge of their spacing leave their fly-aways no
-    /// room to turn). A UAV that neither takes nearer its cone leaps: [`LEAP_SAMPLES`] + 1 headings
+    /// room to turn). Where neither takes a UAV nearer its cone, it leaps: [`LEAP_SAMPLES`] + 1 headings
     /// over its whole reach, nearest the cone first (`Shield::leap`). Returns the plan, its fitness and
     /// the evaluations spent.
     pub fn pull_into_cones(
@@ -292,19 +295,18 @@ impl<'a> Shield<'a> {
     /// edge clamped into the reach, or the other edge the other way round where that is nearer), `None`
     /// when `phi` is in the cone or already that heading.
     fn cone_target(&self, i: usize, phi: f64) -> Option<f64> {
-        let (theta, half) = (self.constraints.max_turn(), self.constraints.delta_alpha);
-        let off = wrap_angle(phi - self.cone_centres[i]);
-        // Outside as `cone_excess` counts it (an excess within its tolerance is none).
-        if (off.abs() - half) / half <= FEASIBILITY_EPS {
+        // Outside as the cone tier counts it (an excess within its tolerance is none).
+        if self.uav_cone_excess(i, phi) == 0.0 {
             return None;
         }
+        let (theta, half) = (self.constraints.max_turn(), self.constraints.delta_alpha);
+        let off = wrap_angle(phi - self.cone_centres[i]);
         // The nearer edge, or — where the reach ends first on that side (a cone nearly behind the
         // UAV) — the other edge the other way round, whichever reachable heading is nearer the cone.
         let reach = |h: f64| h.clamp(self.headings[i] - theta, self.headings[i] + theta);
-        let excess = |h: f64| (wrap_angle(h - self.cone_centres[i]).abs() - half).max(0.0);
         let near = reach(phi - off + off.signum() * half);
         let far = reach(phi - off - off.signum() * half + off.signum() * std::f64::consts::TAU);
-        let target = if excess(far) < excess(near) { far } else { near };
+        let target = if self.cone_overshoot(i, far) < self.cone_overshoot(i, near) { far } else { near };
         Some(target).filter(|t| *t != phi)
     }
 
@@ -342,23 +344,22 @@ impl<'a> Shield<'a> {
     }
 
     /// A heading of UAV `i` (outside its cone) nearer its cone than its own, beyond whatever blocks the
-    /// straight way there ([`Self::pull`] stops at the first limit): [`LEAP_SAMPLES`] headings evenly
+    /// straight way there ([`Self::pull`] stops at the first limit): [`LEAP_SAMPLES`] + 1 headings evenly
     /// over its reach `ψ ± θ_max`, tried nearest the cone first, the first that makes `fitness`
     /// lexicographically smaller kept. The certified headings of one UAV, the others held, are a union
     /// of intervals (another UAV's arc or backup circle cuts the reach); the pull of the next round
     /// takes it further from there. `false` (and `x` unchanged) when no sample improves.
     fn leap(&self, p: &mut Pulling<'_>, i: usize) -> bool {
-        let (theta, half, centre) = (self.constraints.max_turn(), self.constraints.delta_alpha, self.cone_centres[i]);
-        let excess = |h: f64| (wrap_angle(h - centre).abs() - half).max(0.0);
-        let (from, now) = (p.x[i], excess(p.x[i]));
-        // Inside as `cone_excess` counts it (an excess within its tolerance is none). (The pull's
+        // Inside as the cone tier counts it (an excess within its tolerance is none). (The pull's
         // target may be none outside too: the nearest edge the other way round, beyond the reach.)
-        if now / half <= FEASIBILITY_EPS {
+        if self.uav_cone_excess(i, p.x[i]) == 0.0 {
             return false;
         }
+        let theta = self.constraints.max_turn();
+        let (from, now) = (p.x[i], self.cone_overshoot(i, p.x[i]));
         let mut samples: Vec<(f64, f64)> = (0..=LEAP_SAMPLES)
             .map(|s| self.headings[i] - theta + 2.0 * theta * s as f64 / LEAP_SAMPLES as f64)
-            .map(|h| (excess(h), h))
+            .map(|h| (self.cone_overshoot(i, h), h))
             .filter(|(e, _)| *e < now)
             .collect();
         samples.sort_by(|a, b| a.0.total_cmp(&b.0));
