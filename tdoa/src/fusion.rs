@@ -16,7 +16,10 @@
 //!
 //! **Gate.** Before fusing, the innovation `ν = d − h(x̄)` is tested against its predicted covariance
 //! `S = H P̄ Hᵀ + Q`: a snapshot with `νᵀ S⁻¹ ν > χ²_{N−1}(p_gate)` is not fused (the posterior stays the
-//! prediction) and is reported as [`Outcome::Rejected`] — never silently used.
+//! prediction) and is reported as [`Outcome::Rejected`] — never silently used. Where the prediction is
+//! wide beside its range the linearised `S` misses the hyperbolas' curvature over it: a snapshot that
+//! fails the first-order test is tested again against `S` plus the second-order term below (the
+//! innovation covariance of a second-order filter), and fused when that passes.
 //!
 //! **One range difference.** A burst heard by two UAVs gives one hyperbola. Where the burst has two or
 //! more differences the iterated update re-linearises at their intersection and its spread is the
@@ -367,9 +370,15 @@ pub fn fuse_with(
     if !nis.is_finite() {
         return Err(TdoaError::Degenerate("the innovation is not finite".into()));
     }
-    if nis > gate {
-        return Ok(Update { posterior: *prior, outcome: Outcome::Rejected { nis, threshold: gate } });
-    }
+    // Failing the first-order test, the second-order one (module docs); rejected, the first-order NIS.
+    let nis = if nis <= gate {
+        nis
+    } else {
+        match second_order_nis(prior, sensors, &nu, &s) {
+            Some(widened) if widened <= gate => widened,
+            _ => return Ok(Update { posterior: *prior, outcome: Outcome::Rejected { nis, threshold: gate } }),
+        }
+    };
 
     // Gauss–Newton on J(x), with a halving line search.
     let p_chol = p_bar.clone().cholesky().ok_or_else(singular)?;
@@ -411,6 +420,23 @@ pub fn fuse_with(
         return Err(TdoaError::Degenerate("the fused posterior is not finite".into()));
     }
     Ok(Update { posterior, outcome: Outcome::Fused { nis, iterations } })
+}
+
+/// The innovation `nu` of a burst of three or more arrivals tested against `S` plus the second-order
+/// term of the expansion of `h` over the prediction, `S + ½ tr(∇²h_i P̄ ∇²h_j P̄)` ([`linearisation_noise`]):
+/// what a gate at a wide prediction takes for disagreement is then the curvature of the hyperbolas over
+/// the prior's extent (a first fix of three arrivals kilometres across rejected the clean bursts that
+/// came after it). Never larger than `νᵀ S⁻¹ ν`, and the same where the prior is small beside the range.
+/// `None` for a single difference (its noise holds the term already: [`update_noise`]) or where the
+/// term cannot be formed.
+fn second_order_nis(prior: &Posterior, sensors: &Sensors, nu: &DVector<f64>, s: &DMatrix<f64>) -> Option<f64> {
+    if sensors.len() < 3 {
+        return None;
+    }
+    let r = linearisation_noise(sensors, &prior.position(), &prior.position_cov())?;
+    let widened = (s + r).cholesky()?;
+    let nis = nu.dot(&widened.solve(nu));
+    nis.is_finite().then_some(nis)
 }
 
 /// The normalised estimation error squared `eᵀ M⁻¹ e` of the position estimate `estimate` with
@@ -545,6 +571,40 @@ mod tests {
         // With no gate it would have been fused, and moved the estimate far.
         let forced = fuse(&post, &s, &RangeDiffs::from_slice(&d).unwrap(), f64::INFINITY).unwrap();
         assert!((forced.posterior.position() - z).norm() > 100.0);
+    }
+
+    #[test]
+    fn a_clean_burst_into_a_wide_prior_passes_the_second_order_gate() {
+        // Five UAVs, a noise-free burst, a prior 7 km wide whose mean is 1.5 σ off the truth (a draw a
+        // consistent prior gives): the innovation at the prediction is far outside the first-order gate
+        // (the hyperbolas bend over the prior's extent), the second-order test passes it, and the
+        // update lands near the truth. Gated on the first order alone, the clean burst was rejected.
+        let pts = [[1500.0, 500.0], [10_000.0, 1500.0], [5000.0, 8500.0], [-2000.0, 6000.0], [8000.0, -4000.0]];
+        let s = sensors(&pts);
+        let z = Vector2::new(25_000.0, 15_000.0);
+        let d = s.range_differences(&z);
+        let sd = 7000.0;
+        let off = Vector2::new(-1.0, 1.0).normalize() * 1.5 * sd;
+        let cov = Matrix4::from_diagonal(&Vector4::new(sd * sd, sd * sd, 1.0, 1.0));
+        let prior =
+            Posterior::new(EmitterModel::Static, Vector4::new(z.x + off.x, z.y + off.y, 0.0, 0.0), cov).unwrap();
+        let gate = gate_threshold(4, DEFAULT_GATE_PROBABILITY);
+        let first_order = fuse(&prior, &s, &d, f64::INFINITY).unwrap();
+        assert!(matches!(first_order.outcome, Outcome::Fused { nis, .. } if nis > 10.0 * gate), "{first_order:?}");
+        let gated = fuse(&prior, &s, &d, gate).unwrap();
+        assert!(matches!(gated.outcome, Outcome::Fused { nis, .. } if nis <= gate), "{gated:?}");
+        assert!((gated.posterior.position() - z).norm() < 100.0, "{:?}", gated.posterior.position());
+        // The same burst with one arrival 2 km late, into a prior 300 m wide at the truth: both tests fail.
+        let tight = Posterior::new(
+            EmitterModel::Static,
+            Vector4::new(z.x, z.y, 0.0, 0.0),
+            Matrix4::from_diagonal(&Vector4::new(9e4, 9e4, 1.0, 1.0)),
+        )
+        .unwrap();
+        let mut late = d.as_slice().to_vec();
+        late[1] += 2000.0;
+        let up = fuse(&tight, &s, &RangeDiffs::from_slice(&late).unwrap(), gate).unwrap();
+        assert!(matches!(up.outcome, Outcome::Rejected { nis, threshold } if nis > threshold), "{up:?}");
     }
 
     #[test]
