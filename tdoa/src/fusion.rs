@@ -19,7 +19,8 @@
 //! prediction) and is reported as [`Outcome::Rejected`] — never silently used. Where the prediction is
 //! wide beside its range the linearised `S` misses the hyperbolas' curvature over it: a snapshot that
 //! fails the first-order test is tested again against `S` plus the second-order term below (the
-//! innovation covariance of a second-order filter), and fused when that passes.
+//! innovation covariance of a second-order filter; its mean shift `½ tr(∇²h P̄)` is left out), and fused
+//! when that passes.
 //!
 //! **One range difference.** A burst heard by two UAVs gives one hyperbola. Where the burst has two or
 //! more differences the iterated update re-linearises at their intersection and its spread is the
