@@ -469,6 +469,19 @@ mod tests {
         }
     }
 
+    /// `n` UAVs at random bearings `inner`–`inner + width` metres from the origin, with random
+    /// headings: the random states of the certificate's property tests.
+    fn ring_state(r: &mut Lcg, n: usize, inner: f64, width: f64) -> (Vec<Vector2<f64>>, Vec<f64>) {
+        let p = (0..n)
+            .map(|_| {
+                let a = r.next() * 2.0 * PI;
+                Vector2::new(a.cos(), a.sin()) * (inner + r.next() * width)
+            })
+            .collect();
+        let psi = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+        (p, psi)
+    }
+
     /// Flies the backup (right turns of θ_b) for `steps` steps from `(p, ψ)`, sampled 50 times per
     /// step: the smallest pair distance and distance to ẑ(τ) seen, τ from the backup's start.
     fn fly_backup(
@@ -585,13 +598,7 @@ mod tests {
         for _ in 0..12_000 {
             let n = 3 + (r.next() * 6.0) as usize;
             let e = EmitterPrediction::fixed(Vector2::zeros(), &Matrix2::new(4e4, 1e4, 1e4, 9e4));
-            let p: Vec<_> = (0..n)
-                .map(|_| {
-                    let a = r.next() * 2.0 * PI;
-                    Vector2::new(a.cos(), a.sin()) * (3500.0 + r.next() * 3000.0)
-                })
-                .collect();
-            let psi: Vec<_> = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+            let (p, psi) = ring_state(&mut r, n, 3500.0, 3000.0);
             let phi: Vec<_> = psi.iter().map(|h| h + (r.next() - 0.5) * 0.9).collect();
             let rep = certify(&p, &psi, &phi, &e, &lim, false);
             if !rep.certified {
@@ -619,13 +626,7 @@ mod tests {
             let v = Vector2::new(r.next() - 0.5, r.next() - 0.5) * 30.0;
             let (cov, vcov) = (Matrix2::new(4e4, 1e4, 1e4, 9e4), Matrix2::identity() * 0.25);
             let e = EmitterPrediction::moving(Vector2::zeros(), &cov, v, &vcov, 0.0);
-            let p: Vec<_> = (0..n)
-                .map(|_| {
-                    let a = r.next() * 2.0 * PI;
-                    Vector2::new(a.cos(), a.sin()) * (3500.0 + r.next() * 5000.0)
-                })
-                .collect();
-            let psi: Vec<_> = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+            let (p, psi) = ring_state(&mut r, n, 3500.0, 5000.0);
             let phi: Vec<_> = psi.iter().map(|h| h + (r.next() - 0.5) * 0.9).collect();
             let mut certifier = Certifier::new(&p, &psi, e, lim);
             if !certifier.check(&phi, false).certified {
@@ -673,13 +674,7 @@ mod tests {
                     0.0,
                 )
             };
-            let p: Vec<_> = (0..n)
-                .map(|_| {
-                    let a = r.next() * 2.0 * PI;
-                    Vector2::new(a.cos(), a.sin()) * (3000.0 + r.next() * 3000.0)
-                })
-                .collect();
-            let psi: Vec<_> = (0..n).map(|_| (r.next() - 0.5) * 2.0 * PI).collect();
+            let (p, psi) = ring_state(&mut r, n, 3000.0, 3000.0);
             let mut certifier = Certifier::new(&p, &psi, e, lim);
             let mut phi: Vec<f64> = psi.iter().map(|h| h + (r.next() - 0.5) * 0.6).collect();
             for k in 0..80 {
