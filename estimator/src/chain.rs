@@ -492,6 +492,26 @@ mod tests {
     use super::*;
     use estimation::EstimatorKind;
 
+    /// What the wire accepts is what the maths takes: the protocol's bounds (it depends on no maths crate)
+    /// are tdoa's, so that no accepted measurement fails the estimator or the planner at every replay.
+    #[test]
+    fn the_wire_bounds_are_the_maths_bounds() {
+        use protocol::validate::{MAX_SIGMA_M, MIN_SIGMA_M, SWARM_EXTENT_M};
+        assert_eq!(SWARM_EXTENT_M, tdoa::MAX_EXTENT_M);
+        assert_eq!(MAX_SIGMA_M, tdoa::MAX_EXTENT_M);
+        assert_eq!(MIN_SIGMA_M, tdoa::MIN_SIGMA_M);
+        assert_eq!(protocol::MAX_UAVS, tdoa::MAX_UAVS);
+        // A measurement's stated σ is the one the maths computes from its parts, bit for bit.
+        let m = measurement(1).with_sensor_errors([3.0, 1.5], [10.0, 2.0]);
+        let e = tdoa::SensorErrors {
+            gnss_m: 3.0,
+            gnss_bias_m: 1.5,
+            clock_m: 10.0 * (tdoa::SPEED_OF_LIGHT * 1e-9),
+            clock_bias_m: 2.0 * (tdoa::SPEED_OF_LIGHT * 1e-9),
+        };
+        assert_eq!(m.stated_sigmas().0[0].to_bits(), e.effective_sigma(28.7712).to_bits());
+    }
+
     /// Noisy-free measurements of a fixed emitter by three UAVs flying east, one per step.
     fn measurement(step: u64) -> Measurement {
         let z = Vector2::new(25_000.0, 15_000.0);

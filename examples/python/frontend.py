@@ -26,7 +26,9 @@ probability P (the step is still published, with every UAV's position, and still
 --inject-bad publishes three malformed measurements before step 1 (a NaN range difference, a UAV count
 of 2, a sequence number that steps back); uavloc's processes reject and count them, and the run goes on.
 
-Options that break the contract on purpose, to see uavloc refuse it: --remeasure K publishes step K a
+Options that break the contract on purpose, to see uavloc refuse it: --skip K never publishes step K (a
+measurement lost on its way; the front end goes on to step K + 1, whose command never comes: uavloc's
+monitor says which step it waits for), --remeasure K publishes step K a
 second time with fresh noise (a different copy of a measured step: refused, `conflict`); --seq-start
 sets the first sequence number (e.g. 18446744073709551615 from a second front end: refused as a second
 source, it cannot make the first one's later measurements stale); --emitter X,Y moves the true emitter;
@@ -233,6 +235,7 @@ def main():
     p.add_argument("--emitter", help="X,Y: the true emitter, m (default: the scenario's)")
     p.add_argument("--step-delay-s", type=float, default=0.0, help="wait this long before each measurement")
     p.add_argument("--remeasure", type=int, help="publish step K again, with fresh noise, after its first copy")
+    p.add_argument("--skip", type=int, help="never publish step K: go on to step K + 1 without its command")
     p.add_argument("--seq-start", type=int, help="the first sequence number (default: the monotonic clock)")
     p.add_argument("--loss", type=float, default=0.0, help="probability that one UAV's arrival is lost")
     p.add_argument("--silence", type=float, default=0.0, help="probability that the emitter is silent at a step")
@@ -280,7 +283,8 @@ def main():
                 bad_sent.append(kind)
             seq += 2
             m.header.seq = seq
-        link.publish(m)
+        if args.skip != k:
+            link.publish(m)
         last_accepted = seq
         seq = min(seq + 1, 2**64 - 1)
         if args.remeasure == k:
@@ -291,6 +295,8 @@ def main():
             seq += 1
         if k == args.steps:
             break
+        if args.skip == k:
+            continue
         c, received_ns = link.command_of(k, args.timeout_s)
         uavs, headings = fly(c, len(uavs))
         flown += 1

@@ -70,9 +70,10 @@ typedef struct uavloc_name16 {
 #define UAVLOC_MEASUREMENT_FLAG_SILENT 1u   /* the emitter was silent: heard must be 0 */
 
 /* front end (emitter-sim) -> estimator, planner, monitor: the burst of step k as the receivers give it.
- * arrivals[i] = c * (t_i - t_epoch) for any common epoch (only differences are used), read for the UAVs
- * whose bit is set in heard; any subset, any of them the reference. Fewer than two heard (or silent):
- * the estimate is predicted and the swarm still commanded. */
+ * arrivals[i] = c * (t_i - t_epoch) for any common epoch within 1e14 m of the arrivals (only differences
+ * are used), read for the UAVs whose bit is set in heard; any subset, any of them the reference. Fewer
+ * than two heard (or silent): the estimate is predicted and the swarm still commanded. Positions within
+ * +-1e7 m; each UAV's stated range sigma (sigmas with its GNSS and clock sigmas) within 1e-6..1e7 m. */
 typedef struct uavloc_measurement {
     uavloc_header header;
     uint32_t count;                           /* UAVs N, 3..=8 */

@@ -207,6 +207,17 @@ impl Assembler {
         self.pending.keys().next_back().copied()
     }
 
+    /// The next step to record when its measurement has not come while a later step's has: `(that
+    /// step, the first later step whose measurement is in)`. A front end that skipped a step (or whose
+    /// measurement of it was lost) leaves the run waiting here; a lock-step world never does.
+    pub fn measurement_gap(&self) -> Option<(u64, u64)> {
+        if self.is_done() || self.pending.get(&self.next).is_some_and(|p| p.measurement.is_some()) {
+            return None;
+        }
+        let later = self.pending.range(self.next + 1..).find(|(_, p)| p.measurement.is_some())?;
+        Some((self.next, *later.0))
+    }
+
     /// The measurement of `step` waiting for the rest of its step (the copy accepted first).
     pub fn pending_measurement(&self, step: u64) -> Option<&Measurement> {
         self.pending.get(&step).and_then(|p| p.measurement.as_ref())
@@ -728,6 +739,28 @@ pub(crate) mod tests {
         assert!(done[1].record.active_constraints.is_empty(), "the last step is not planned, so not missed");
         assert!(!a.add_command(command_of(2)));
         assert!(a.is_done());
+    }
+
+    /// A front end that skipped step 1: the gap names it and the first later step in; it closes when
+    /// step 1 comes, and a measurement beyond the last step is ignored and leaves no gap.
+    #[test]
+    fn a_skipped_measurement_is_a_gap_until_it_comes() {
+        let mut a = Assembler::new(scenario(4)).without_truth();
+        assert_eq!(a.measurement_gap(), None, "nothing in yet");
+        a.add_measurement(measurement(0));
+        a.add_estimate(estimate(0, ok(25000.0)));
+        a.add_command(command_of(0));
+        assert_eq!(a.complete_ready().len(), 1);
+        assert_eq!(a.measurement_gap(), None, "step 1 not in, and nothing later");
+        assert!(!a.add_measurement(measurement(9)), "beyond the last step (4)");
+        assert_eq!(a.measurement_gap(), None);
+        a.add_measurement(measurement(3));
+        a.add_measurement(measurement(2));
+        assert_eq!(a.measurement_gap(), Some((1, 2)));
+        a.add_estimate(estimate(1, ok(25000.0)));
+        assert_eq!(a.measurement_gap(), Some((1, 2)), "an estimate without its measurement changes nothing");
+        a.add_measurement(measurement(1));
+        assert_eq!(a.measurement_gap(), None, "step 1 is in: waiting for the rest of it is no gap");
     }
 
     #[test]

@@ -20,6 +20,10 @@ pub const FRONT_END_GRACE: Duration = Duration::from_secs(5);
 /// How long a step may wait before the dead nodes are cleaned up, and how often that is done.
 pub const CLEANUP_EVERY: Duration = runtime::IDLE_WAKEUP;
 
+/// How long the next step's measurement may be missing while a later one is in before the monitor says
+/// so ([`FrontEndWatch::gap_to_report`]): a front end that skipped a step leaves the run waiting for it.
+pub const GAP_REPORT_AFTER: Duration = Duration::from_secs(1);
+
 /// What [`FrontEndWatch::observe`] found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FrontEnd {
@@ -43,6 +47,9 @@ pub struct FrontEndWatch {
     cleaned_at: Option<Instant>,
     /// The next step to record, and since when it is.
     waiting: Option<(u64, Instant)>,
+    /// The step whose measurement is missing while a later one is in, since when, and whether that was
+    /// reported.
+    gap: Option<(u64, Instant, bool)>,
 }
 
 impl FrontEndWatch {
@@ -59,6 +66,29 @@ impl FrontEndWatch {
             self.cleaned_at = Some(now);
         }
         due
+    }
+
+    /// The gap to report at `now`, once per missing step: `gap` is the assembler's
+    /// ([`crate::assemble::Assembler::measurement_gap`]: the missing step, the later step that is in),
+    /// reported when it has lasted [`GAP_REPORT_AFTER`].
+    pub fn gap_to_report(&mut self, now: Instant, gap: Option<(u64, u64)>) -> Option<(u64, u64)> {
+        let Some((missing, later)) = gap else {
+            self.gap = None;
+            return None;
+        };
+        match self.gap {
+            Some((step, since, reported)) if step == missing => {
+                let due = !reported && now - since >= GAP_REPORT_AFTER;
+                if due {
+                    self.gap = Some((step, since, true));
+                }
+                due.then_some((missing, later))
+            }
+            _ => {
+                self.gap = Some((missing, now, false));
+                None
+            }
+        }
     }
 
     /// The verdict at `now`, given the publishers of the measurement topic and whether a step of the front
@@ -120,6 +150,24 @@ mod tests {
         let (t0, mut w) = (Instant::now(), FrontEndWatch::default());
         assert_eq!(w.observe(t0, 0, true), FrontEnd::Left);
         assert_eq!(w.observe(at(t0, 5000), 0, false), FrontEnd::GaveUp);
+    }
+
+    #[test]
+    fn a_missing_step_with_a_later_one_in_is_reported_once_after_a_second() {
+        let (t0, mut w) = (Instant::now(), FrontEndWatch::default());
+        assert_eq!(w.gap_to_report(t0, None), None);
+        assert_eq!(w.gap_to_report(t0, Some((2, 3))), None, "not at once: the step may be on its way");
+        assert_eq!(w.gap_to_report(at(t0, 999), Some((2, 4))), None);
+        assert_eq!(w.gap_to_report(at(t0, 1000), Some((2, 4))), Some((2, 4)));
+        assert_eq!(w.gap_to_report(at(t0, 5000), Some((2, 5))), None, "once per missing step");
+        // Step 2 came; step 6 is missing while 7 is in: a new gap, its own second.
+        assert_eq!(w.gap_to_report(at(t0, 5100), Some((6, 7))), None);
+        assert_eq!(w.gap_to_report(at(t0, 6099), Some((6, 7))), None);
+        assert_eq!(w.gap_to_report(at(t0, 6100), Some((6, 7))), Some((6, 7)));
+        // The gap closed and the same step goes missing again later (a replayed run): reported again.
+        assert_eq!(w.gap_to_report(at(t0, 6200), None), None);
+        assert_eq!(w.gap_to_report(at(t0, 6300), Some((6, 8))), None);
+        assert_eq!(w.gap_to_report(at(t0, 7300), Some((6, 8))), Some((6, 8)));
     }
 
     #[test]

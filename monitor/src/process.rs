@@ -268,6 +268,13 @@ impl MonitorNode<'_> {
         }
         let pending = self.session.assembler.newest_pending_step().is_some();
         let last = self.session.assembler.last_step();
+        if let Some((missing, later)) = watch.gap_to_report(now, self.session.assembler.measurement_gap()) {
+            self.session.log.write("measurement_gap", json!({"missing": missing, "later": later}));
+            node.warn(format_args!(
+                "step {later}'s measurement is in but step {missing}'s has not come: a front end publishes every \
+                 step, in order (a silent one too, with flags = 1); the run waits for step {missing}"
+            ));
+        }
         match watch.observe(now, self.measurements.publisher_count()?, pending) {
             FrontEnd::Left => {
                 self.session.log.write("front_end_left", json!({"step": next}));

@@ -16,7 +16,10 @@
 //!   (step) when the step's command said that no certified plan existed (`safety.certified` false);
 //!   `end` (complete, steps, rejected, ignored, missed_commands, stale_steps, uncertified_steps);
 //! - `front_end_left` (step: the first step not recorded) with `--source external`, when the front end
-//!   left the measurement topic before the last step.
+//!   left the measurement topic before the last step; `measurement_gap` (missing, later) once per
+//!   missing step, when the next step's measurement has not come for a second while a later one is in
+//!   (a front end that skipped a step: the run waits for it); `beyond_last_step` (kind, step, last) for
+//!   a measurement of a step after the run's last (ignored; floods summarised as `rejected_unlogged`).
 //!
 //! `uavloc launch` appends `restart` events (role, attempt, exit, backoff_ms) to the same file: every line
 //! is written with one `write` on a file opened for appending.

@@ -191,9 +191,26 @@ impl Session {
         self.assembler.add_truth(t);
     }
 
-    /// Adds a measurement to the run.
+    /// Adds a measurement to the run. One of a step beyond the run's last (a front end that numbers its
+    /// steps otherwise, or runs longer than the launch) can never be recorded: said, as a rejection is
+    /// (floods summarised), and counted with the messages ignored.
     pub(crate) fn add_measurement(&mut self, m: Measurement) {
-        self.assembler.add_measurement(m);
+        let (step, last) = (m.header.step, self.assembler.last_step());
+        if self.assembler.add_measurement(m) || step <= last {
+            return;
+        }
+        let runtime::Admit::Log { unlogged } = self.rejections_logged.admit(std::time::Instant::now()) else {
+            return;
+        };
+        if unlogged > 0 {
+            self.log.write("rejected_unlogged", json!({"count": unlogged}));
+        }
+        self.log.write("beyond_last_step", json!({"kind": "measurement", "step": step, "last": last}));
+        if !self.quiet {
+            eprintln!(
+                "monitor: ignored the measurement of step {step}: this run's steps are 0..={last} (launch --steps {last})"
+            );
+        }
     }
 
     /// Adds an estimate to the run and keeps the state after its step, which it carries whole (it also

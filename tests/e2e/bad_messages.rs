@@ -80,6 +80,10 @@ fn batch() -> Batch {
             (with(measurement(), |m| m.arrivals[1] = f64::NAN), "not_finite"),
             (with(measurement(), |m| m.count = 200), "bad_count"),
             (with(measurement(), |m| m.sigmas[2] = -28.0), "non_positive_sigma"),
+            // Values that pass every other check but that the maths cannot take (the planner would fail
+            // the step at every replay): a clock σ of 1e12 ns (3e11 m of range), a UAV 1e9 m away.
+            (with(measurement(), |m| m.clock_sigmas_ns[0] = 1.0e12), "bad_field"),
+            (with(measurement(), |m| m.uavs[1][0] = 1.0e9), "bad_field"),
             // Valid, with an old sequence number, from another publisher than emitter-sim: one measurement
             // source per run (it would be `stale` in the source's own stream, but it is not the source).
             (measurement(), "second_source"),

@@ -164,6 +164,34 @@ fn a_front_end_that_leaves_before_the_last_step_ends_the_launch_with_a_clear_err
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A front end that skips a step (its measurement lost on its way) gets no command for the next one: the
+/// monitor says, within seconds, which step the run waits for and why, and when the front end gives up
+/// and leaves, the launch ends naming that step.
+#[test]
+fn a_skipped_step_is_named_while_the_run_waits_for_it() {
+    let _scenario = common::scenario(module_path!());
+    let d = domain("ext", "skip");
+    let dir = scratch("ext-skip");
+    let launch = Launch::start(&d, &dir, &["--source", "external", "--steps", &STEPS.to_string()]);
+    let out = front_end(&d, &STEPS.to_string(), &["--skip", "3", "--timeout-s", "3", "--linger-s", "0"])
+        .expect("run the front end");
+    let front_end_err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(1), "{front_end_err}");
+    assert!(front_end_err.contains("no command for step 4"), "{front_end_err}");
+    let log = launch.log.clone();
+    let (status, _stdout, stderr) = launch.finish();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("step 4's measurement is in but step 3's has not come"), "{stderr}");
+    assert!(stderr.contains("with step 3 of 0..=12 not recorded"), "{stderr}");
+    let events = common::read_events(&log);
+    let gaps: Vec<_> = events.iter().filter(|e| e["event"] == "measurement_gap").collect();
+    assert_eq!(gaps.len(), 1, "said once: {gaps:?}");
+    assert_eq!((gaps[0]["missing"].as_u64(), gaps[0]["later"].as_u64()), (Some(3), Some(4)));
+    assert_eq!(events.iter().filter(|e| e["event"] == "step").count(), 3, "steps 0..=2 recorded");
+    assert_nothing_left(&d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// A front end flying another formation than the launch's scenario (4 UAVs against 3): the planner rejects
 /// its first estimate naming both counts (before: "positions: expected 3 values, got 4", as if the planner
 /// had erred), counts it, and ends the run at once (exit code 3, not restarted) — it used to stall until

@@ -12,7 +12,9 @@
 //!    the first `count − 1` range differences, and the scalars; a failed estimate's position and covariance
 //!    are its standing estimate when it has one (then checked like a fix's) and all NaN otherwise;
 //! 5. range sigmas are > 0 ([`Rejection::NonPositiveSigma`]) and an estimate's covariance is symmetric
-//!    positive definite ([`Rejection::NotPositiveDefinite`]);
+//!    positive definite ([`Rejection::NotPositiveDefinite`]); a measurement's positions, stated range σ
+//!    and arrivals are within what the maths takes ([`SWARM_EXTENT_M`], [`MIN_SIGMA_M`]..[`MAX_SIGMA_M`],
+//!    [`MAX_ARRIVAL_M`]; [`Rejection::BadField`]);
 //! 6. the sequence number is strictly greater than that of the last *accepted* message of the stream
 //!    ([`Rejection::Stale`]; a repeat or a step back).
 //!
@@ -122,7 +124,9 @@ pub enum Rejection {
         kind: u32,
     },
     /// A field out of its range: a negative GNSS or clock σ, a heard mask with bits beyond the swarm,
-    /// an unknown flag, or a silent step that claims arrivals.
+    /// an unknown flag, a silent step that claims arrivals, or a measurement's value beyond what the
+    /// maths takes (a position beyond the plane's extent, a stated range σ outside 1e-6..1e7 m, an
+    /// arrival too far from its epoch to keep its precision).
     #[error("{field} out of range")]
     BadField {
         /// Which field.
@@ -234,6 +238,19 @@ impl Measurement {
             if v[..n].iter().any(|s| *s < 0.0) {
                 return Err(Rejection::BadField { field });
             }
+        }
+        // Positions within the plane model's extent; each UAV's stated range σ (its range σ with its GNSS
+        // and clock σ) within what the maths takes; arrivals near enough to their epoch that their
+        // differences keep their precision. A value beyond these would pass every later check and then
+        // fail the estimator or the planner at every replay of the step (a step never commanded).
+        if self.uavs[..n].iter().flatten().any(|c| c.abs() > SWARM_EXTENT_M) {
+            return Err(Rejection::BadField { field: "uavs (beyond ±1e7 m)" });
+        }
+        if self.stated_sigmas().0.iter().any(|s| !(MIN_SIGMA_M..=MAX_SIGMA_M).contains(s)) {
+            return Err(Rejection::BadField { field: "stated range σ (sigmas with GNSS and clock σ, 1e-6..1e7 m)" });
+        }
+        if (0..n).any(|i| self.has_heard(i) && self.arrivals[i].abs() > MAX_ARRIVAL_M) {
+            return Err(Rejection::BadField { field: "arrivals (more than 1e14 m from their epoch)" });
         }
         // Bits beyond the swarm, unknown flags, or a silent step that says it heard something.
         let beyond = n < 8 && self.heard >> n != 0;
@@ -469,6 +486,19 @@ impl Truth {
 /// The largest coordinate of a swarm position, metres: the maths' plane extent (`tdoa::MAX_EXTENT_M`).
 pub const SWARM_EXTENT_M: f64 = 1.0e7;
 
+/// The smallest stated range σ of an arrival, metres (`tdoa::MIN_SIGMA_M`).
+pub const MIN_SIGMA_M: f64 = 1.0e-6;
+
+/// The largest stated range σ of an arrival — its range σ with its GNSS and clock σ — metres: the plane
+/// extent, the largest σ the maths takes (`tdoa::MAX_EXTENT_M`).
+pub const MAX_SIGMA_M: f64 = SWARM_EXTENT_M;
+
+/// The largest arrival `c·(t_i − t_epoch)` a measurement may carry, metres (≈ 3.9 days after the epoch):
+/// up to it a difference of two arrivals keeps a precision of 1.6 cm (one unit in the last place of an
+/// f64 near 1e14 m); an epoch years back (the Unix epoch: ≈ 5e17 m, 64 m per unit) would quietly cost
+/// the range differences tens of metres. Take an epoch near the burst.
+pub const MAX_ARRIVAL_M: f64 = 1.0e14;
+
 impl SwarmState {
     /// Checks the swarm state; see the [module docs](crate::validate): the count, the link states, and
     /// for every UAV with a fix finite values, a position within the plane's extent and a
@@ -654,7 +684,46 @@ mod tests {
             let m = with(measurement(), |m| m.sigmas[2] = s);
             assert_eq!(m.validate(None), Err(Rejection::NonPositiveSigma { index: 2 }));
         }
-        assert_eq!(with(measurement(), |m| m.sigmas[0] = f64::MIN_POSITIVE).validate(None), Ok(()));
+        assert_eq!(with(measurement(), |m| m.sigmas[0] = MIN_SIGMA_M).validate(None), Ok(()));
+    }
+
+    /// Values every later check would pass, but the estimator or the planner could not use — so that the
+    /// step would never be commanded: refused at the wire, with the field named.
+    #[test]
+    fn rejects_what_the_maths_cannot_take() {
+        let field = |m: Measurement| match m.validate(None) {
+            Err(Rejection::BadField { field }) => field.split(' ').next().unwrap_or_default().to_string(),
+            other => format!("{other:?}"),
+        };
+        // Each UAV's stated σ (range σ with GNSS and clock σ) within 1e-6..1e7 m.
+        assert_eq!(field(with(measurement(), |m| m.sigmas[0] = f64::MIN_POSITIVE)), "stated");
+        assert_eq!(field(with(measurement(), |m| m.sigmas[1] = 1.0001e7)), "stated");
+        assert_eq!(with(measurement(), |m| m.sigmas[1] = MAX_SIGMA_M).validate(None), Ok(()));
+        // A clock σ of 1e12 ns is 3e11 m of range; a GNSS σ of 1e8 m; the squares of 1e200 overflow.
+        assert_eq!(field(with(measurement(), |m| m.clock_sigmas_ns[0] = 1.0e12)), "stated");
+        assert_eq!(field(with(measurement(), |m| m.clock_bias_sigmas_ns[3] = 1.0e12)), "stated");
+        assert_eq!(field(with(measurement(), |m| m.position_sigmas[2] = 1.0e8)), "stated");
+        assert_eq!(field(with(measurement(), |m| m.position_bias_sigmas[1] = 1.0e200)), "stated");
+        assert_eq!(with(measurement(), |m| m.clock_sigmas_ns[0] = 1.0e5).validate(None), Ok(()));
+        // A GNSS σ beside a tiny range σ lifts the stated σ into range.
+        let lifted = with(measurement(), |m| {
+            m.sigmas[0] = 1.0e-9;
+            m.position_sigmas[0] = 1.0;
+        });
+        assert_eq!(lifted.validate(None), Ok(()));
+        // Positions within the plane's extent.
+        assert_eq!(field(with(measurement(), |m| m.uavs[1][0] = 1.0e9)), "uavs");
+        assert_eq!(field(with(measurement(), |m| m.uavs[3][1] = -SWARM_EXTENT_M * 1.0001)), "uavs");
+        assert_eq!(with(measurement(), |m| m.uavs[3][1] = -SWARM_EXTENT_M).validate(None), Ok(()));
+        // Arrivals near their epoch; only the heard ones count.
+        assert_eq!(field(with(measurement(), |m| m.arrivals[2] = 5.0e17)), "arrivals");
+        assert_eq!(field(with(measurement(), |m| m.arrivals[0] = -1.0e300)), "arrivals");
+        assert_eq!(with(measurement(), |m| m.arrivals[2] = MAX_ARRIVAL_M).validate(None), Ok(()));
+        let unheard = with(measurement(), |m| {
+            m.heard &= !(1 << 2);
+            m.arrivals[2] = 5.0e17;
+        });
+        assert_eq!(unheard.validate(None), Ok(()));
     }
 
     #[test]

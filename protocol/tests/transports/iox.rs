@@ -31,7 +31,7 @@ fn bytes_of<T: Message>(msg: &T) -> &[u8] {
     unsafe { core::slice::from_raw_parts((msg as *const T).cast::<u8>(), size_of::<T>()) }
 }
 
-const UAVS: [[f64; 2]; 5] = [[0.0, 0.0], [1000.5, -3.25], [0.125, 999.0], [-500.0, 250.0], [1e-9, -1e9]];
+const UAVS: [[f64; 2]; 5] = [[0.0, 0.0], [1000.5, -3.25], [0.125, 999.0], [-500.0, 250.0], [1e-9, -1e7]];
 
 fn measurement(seq: u64) -> Measurement {
     let mut m = Measurement::new(
