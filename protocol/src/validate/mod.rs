@@ -283,6 +283,10 @@ impl Estimate {
             if let Some(index) = sigmas.iter().position(|v| *v <= 0.0) {
                 return Err(Rejection::NonPositiveSigma { index });
             }
+            // The planner plans with them: within what the maths takes, as a measurement's.
+            if sigmas.iter().any(|s| !(MIN_SIGMA_M..=MAX_SIGMA_M).contains(s)) {
+                return Err(Rejection::BadField { field: "sigmas (1e-6..1e7 m)" });
+            }
         }
         check_seq(self.header.seq, last_seq)
     }
@@ -719,6 +723,17 @@ mod tests {
         assert_eq!(field(with(measurement(), |m| m.arrivals[2] = 5.0e17)), "arrivals");
         assert_eq!(field(with(measurement(), |m| m.arrivals[0] = -1.0e300)), "arrivals");
         assert_eq!(with(measurement(), |m| m.arrivals[2] = MAX_ARRIVAL_M).validate(None), Ok(()));
+        // An estimate's stated σ, which the planner plans with, the same.
+        let stated = |s: f64| {
+            let mut e = estimate();
+            e.sigmas[..4].fill(30.0);
+            e.sigmas[1] = s;
+            e.validate(None)
+        };
+        assert_eq!(stated(30.0), Ok(()));
+        assert_eq!(stated(MAX_SIGMA_M), Ok(()));
+        assert!(matches!(stated(1.0e8), Err(Rejection::BadField { .. })));
+        assert!(matches!(stated(1.0e-9), Err(Rejection::BadField { .. })));
         let unheard = with(measurement(), |m| {
             m.heard &= !(1 << 2);
             m.arrivals[2] = 5.0e17;
