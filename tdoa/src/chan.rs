@@ -11,7 +11,9 @@
 //!   otherwise the result is flagged ambiguous with both candidates. Its covariance is `F⁻¹(ẑ)`, which
 //!   is exact to first order for an exactly determined system.
 //! - N ≥ 4: two-step WLS, the first step re-weighted with the estimated ranges (`W = (B Q B)⁻¹`,
-//!   `B = diag(r_i)`), the second exploiting `r₀² = (x−x₀)² + (y−y₀)²`.
+//!   `B = diag(r_i)`), the second exploiting `r₀² = (x−x₀)² + (y−y₀)²`. Where the first step's columns
+//!   are dependent (a rectangle with the emitter on an axis of symmetry), the three-UAV solution over
+//!   all equations (`dependent_first_step`).
 
 // Negated comparisons are deliberate here: `!(a > b)` also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -81,8 +83,29 @@ fn chan3(sensors: &Sensors, d: &RangeDiffs, prior: Option<Vector2<f64>>) -> Resu
     let h = Vector2::new(w1.norm_squared() - d[0] * d[0], w2.norm_squared() - d[1] * d[1]);
     let b = Vector2::new(2.0 * d[0], 2.0 * d[1]);
     // z' = a − c r0 with |z'| = r0.
-    let a = a_inv * h;
-    let c = a_inv * b;
+    let candidates = on_the_circle(sensors, d, a_inv * h, a_inv * b);
+    let (position, ambiguous) = match (candidates.len(), prior) {
+        (0, _) => {
+            return Err(TdoaError::NoSolution(
+                "no emitter position gives non-negative ranges for these range differences".into(),
+            ));
+        }
+        (1, _) => (candidates[0], false),
+        (_, Some(p)) => {
+            let best = if (candidates[0] - p).norm() <= (candidates[1] - p).norm() { 0 } else { 1 };
+            (candidates[best], false)
+        }
+        (_, None) => (candidates[0], true),
+    };
+    let covariance = covariance_at(sensors, &position)?;
+    Ok(ChanSolution { position, covariance, ambiguous, candidates })
+}
+
+/// The emitter positions `w₀ + z'` with `z' = a − c·r₀` and `|z'| = r₀` (eqs. 16–19: the position linear
+/// in the reference range, which solves a quadratic), keeping the roots that give no negative range
+/// for the range differences `d` (at most two, distinct).
+fn on_the_circle(sensors: &Sensors, d: &[f64], a: Vector2<f64>, c: Vector2<f64>) -> Vec<Vector2<f64>> {
+    let w = sensors.positions();
     let qa = c.norm_squared() - 1.0;
     let qb = -2.0 * a.dot(&c);
     let qc = a.norm_squared();
@@ -115,21 +138,7 @@ fn chan3(sensors: &Sensors, d: &RangeDiffs, prior: Option<Vector2<f64>>) -> Resu
             }
         }
     }
-    let (position, ambiguous) = match (candidates.len(), prior) {
-        (0, _) => {
-            return Err(TdoaError::NoSolution(
-                "no emitter position gives non-negative ranges for these range differences".into(),
-            ));
-        }
-        (1, _) => (candidates[0], false),
-        (_, Some(p)) => {
-            let best = if (candidates[0] - p).norm() <= (candidates[1] - p).norm() { 0 } else { 1 };
-            (candidates[best], false)
-        }
-        (_, None) => (candidates[0], true),
-    };
-    let covariance = covariance_at(sensors, &position)?;
-    Ok(ChanSolution { position, covariance, ambiguous, candidates })
+    candidates
 }
 
 /// Least squares `min |A x − b|` by SVD after column equilibration; returns x and `(AᵀA)⁻¹`, or an
@@ -174,17 +183,29 @@ fn chan_wls(sensors: &Sensors, d: &RangeDiffs) -> Result<ChanSolution, TdoaError
         let b_inv = DMatrix::from_fn(m, m, |i, j| if i == j { 1.0 / ranges[i] } else { 0.0 });
         let a = q_chol.l().solve_lower_triangular(&(&b_inv * &g)).expect("Cholesky factor is invertible");
         let rhs = q_chol.l().solve_lower_triangular(&(&b_inv * &h)).expect("Cholesky factor is invertible");
-        let (theta, _) = lstsq(a.clone(), &rhs, "Chan's first step (UAVs nearly collinear)")?;
+        let (theta, _) = lstsq(a.clone(), &rhs, "Chan's first step")?;
         Ok((Vector3::new(theta[0], theta[1], theta[2]), a))
     };
     let mut ranges = vec![1.0; m];
-    let (mut theta, mut a1) = step1(&ranges)?;
+    // A first step whose three columns are dependent (the UAVs are not collinear, checked above): the
+    // position linear in r₀, as with three UAVs.
+    let rank_deficient = |e: TdoaError| match e {
+        TdoaError::Degenerate(_) => dependent_first_step(sensors, d, &g, &h),
+        other => Err(other),
+    };
+    let (mut theta, mut a1) = match step1(&ranges) {
+        Ok(first) => first,
+        Err(e) => return rank_deficient(e),
+    };
     for _ in 0..2 {
         let z1 = Vector2::new(theta[0], theta[1]);
         for (i, r) in ranges.iter_mut().enumerate() {
             *r = (z1 - rel[i]).norm().max(1e-9);
         }
-        (theta, a1) = step1(&ranges)?;
+        (theta, a1) = match step1(&ranges) {
+            Ok(next) => next,
+            Err(e) => return rank_deficient(e),
+        };
     }
     let e = Vector2::new(theta[0], theta[1]);
     let r = e.norm();
@@ -231,5 +252,40 @@ fn chan_wls(sensors: &Sensors, d: &RangeDiffs) -> Result<ChanSolution, TdoaError
     if !(position.x.is_finite() && position.y.is_finite() && covariance.iter().all(|v| v.is_finite())) {
         return fallback(e);
     }
+    Ok(ChanSolution { position, covariance, ambiguous: false, candidates: vec![position] })
+}
+
+/// Chan's first step when its three columns `[2(wᵢ − w₀), 2dᵢ]` are dependent although the UAVs are not
+/// collinear: r₀ then cannot be told from the position by the linear system. It happens exactly where
+/// the range differences are a combination of the baselines' — four UAVs on a parallelogram with
+/// `r₀ + r₃ = r₁ + r₂`, e.g. a square with the emitter on one of its axes of symmetry — and there the
+/// emitter is still fixed. As with three UAVs (eqs. 16–19): the position columns alone give
+/// `z' = a − c·r₀` by least squares (weighted by `Q⁻¹`), `|z'| = r₀` gives at most two roots, and of
+/// those the one whose range differences fit `d` best (in `Q`'s metric) is the estimate, with the
+/// covariance `F⁻¹(ẑ)` of the three-UAV case.
+fn dependent_first_step(
+    sensors: &Sensors,
+    d: &[f64],
+    g: &DMatrix<f64>,
+    h: &DVector<f64>,
+) -> Result<ChanSolution, TdoaError> {
+    let q_chol =
+        sensors.noise().q().cholesky().ok_or_else(|| TdoaError::Degenerate("Q is not positive definite".into()))?;
+    let whiten = |x: DMatrix<f64>| q_chol.l().solve_lower_triangular(&x).expect("Cholesky factor is invertible");
+    let positions = whiten(g.columns(0, 2).into_owned());
+    let rhs = whiten(DMatrix::from_fn(h.len(), 2, |i, j| if j == 0 { h[i] } else { g[(i, 2)] }));
+    let (a, _) = lstsq(positions.clone(), &rhs.column(0).into_owned(), "the UAVs' baselines")?;
+    let (c, _) = lstsq(positions, &rhs.column(1).into_owned(), "the UAVs' baselines")?;
+    let candidates = on_the_circle(sensors, d, Vector2::new(a[0], a[1]), Vector2::new(c[0], c[1]));
+    let w = sensors.positions();
+    let misfit = |z: &Vector2<f64>| {
+        let r0 = (z - w[0]).norm();
+        let residual = DMatrix::from_fn(d.len(), 1, |i, _| (z - w[i + 1]).norm() - r0 - d[i]);
+        whiten(residual).norm_squared()
+    };
+    let position = candidates.iter().copied().min_by(|p, q| misfit(p).total_cmp(&misfit(q))).ok_or_else(|| {
+        TdoaError::NoSolution("no emitter position gives non-negative ranges for these range differences".into())
+    })?;
+    let covariance = covariance_at(sensors, &position)?;
     Ok(ChanSolution { position, covariance, ambiguous: false, candidates: vec![position] })
 }

@@ -336,6 +336,11 @@ mod tests {
         assert_eq!(collinear.check_start().unwrap_err().key(), Some("uavs"));
         let noisy = Scenario { sigma: RangeSigma::Uniform(1e9), ..Scenario::default() };
         assert_eq!(noisy.check_start().unwrap_err().key(), Some("sigma"));
+        // Four UAVs on a square with the emitter on its axis: Chan's first step cannot tell r₀ from the
+        // position, but the emitter is fixed — not refused.
+        let square = "uavs = [[-5000.0, 20000.0], [5000.0, 20000.0], [-5000.0, 30000.0], [5000.0, 30000.0]]\n\
+                      emitter = [0.0, 0.0]\n";
+        Scenario::from_toml_str(square).unwrap().check_start().unwrap();
     }
 
     #[test]
