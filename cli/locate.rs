@@ -24,7 +24,9 @@ per non-reference UAV. --sigma/--sigma-ns set the noise used for the covariance 
 
 With 3 UAVs two positions can fit the same range differences: without --prior the first is reported,
 \"ambiguous\": true, both are listed in \"candidates\" and a warning goes to stderr; with --prior the
-candidate nearer to it is chosen. With 4 or more UAVs the solution is unique (two-step WLS).
+candidate nearer to it is chosen. With 4 or more UAVs the solution is unique: the maximum likelihood of
+the range differences, by Gauss–Newton from Chan's two-step WLS (which alone can be kilometres off when
+four UAVs form a rectangle with the emitter near its centre or on an axis of symmetry).
 
 Examples:
   # the paper's nominal geometry; these range differences come from an emitter at (25000, 15000)
@@ -128,7 +130,8 @@ pub fn compute(sensors: &Sensors, d: &[f64], prior: Option<Vector2<f64>>) -> Res
         )));
     }
     let diffs = RangeDiffs::from_slice(d).map_err(CliError::tdoa_in("--range-diff"))?;
-    let sol = tdoa::chan(sensors, &diffs, prior)?;
+    // The maximum likelihood from Chan's estimate: near a rectangle's axes Chan's WLS loses the emitter.
+    let sol = tdoa::maximum_likelihood(sensors, &diffs, prior)?;
     Ok(LocateReport {
         x: sol.position.x,
         y: sol.position.y,

@@ -29,7 +29,7 @@ pub mod support;
 pub mod window;
 
 pub use arrivals::{Arrivals, Heard, SensorErrors};
-pub use chan::{ChanSolution, chan};
+pub use chan::{ChanSolution, chan, maximum_likelihood};
 pub use error::TdoaError;
 pub use fim::{Crlb, crlb, fim, fim_derivatives, trace_crlb, trace_derivatives};
 pub use fusion::{Outcome as FusionOutcome, Posterior, fuse, nees};
