@@ -288,8 +288,8 @@ fn dependent_first_step(
 /// The maximum-likelihood emitter of one snapshot: for N ≥ 4, Gauss–Newton on the range differences
 /// ([`crate::window::refit`]) from Chan's estimate and from the first step's position columns alone
 /// (`dependent_first_step`: the three-UAV solution over all equations), the best fit of those and
-/// Chan's own, with its covariance `F⁻¹(ẑ)`; for N = 3 (exactly determined) Chan's roots, which are the
-/// likelihood's maxima.
+/// Chan's own — with `F⁻¹(ẑ)` as its covariance, or Chan's `M` where Chan's estimate fits best; for
+/// N = 3 (exactly determined) Chan's roots, which are the likelihood's maxima.
 ///
 /// Chan's two-step WLS is efficient at small noise, but not near the set where its first step is rank
 /// deficient: four UAVs on a rectangle with the emitter near its centre or on an axis of symmetry (a
