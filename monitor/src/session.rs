@@ -138,18 +138,27 @@ impl Session {
     /// A message that failed validation: logged within the budget of [`runtime::LogBudget`] (it is
     /// counted by the node, exactly).
     pub(crate) fn rejected(&mut self, kind: MessageKind, r: &Rejection, seq: u64) {
-        // A flood is summarised (`unlogged`: the lines left out before this one); the counts stay exact.
-        let runtime::Admit::Log { unlogged } = self.rejections_logged.admit(std::time::Instant::now()) else {
+        if !self.admit_rejection_line() {
             return;
-        };
-        if unlogged > 0 {
-            self.log.write("rejected_unlogged", json!({"count": unlogged}));
         }
         self.log
             .write("rejected", json!({"kind": kind.name(), "reason": r.kind(), "detail": r.to_string(), "seq": seq}));
         if !self.quiet {
             eprintln!("monitor: rejected a {kind}: {r}");
         }
+    }
+
+    /// Whether a rejection's line may be written now, within the budget of [`runtime::LogBudget`]: a
+    /// flood is summarised (a `rejected_unlogged` line with the lines left out before this one is written
+    /// first); the counts stay exact.
+    fn admit_rejection_line(&mut self) -> bool {
+        let runtime::Admit::Log { unlogged } = self.rejections_logged.admit(std::time::Instant::now()) else {
+            return false;
+        };
+        if unlogged > 0 {
+            self.log.write("rejected_unlogged", json!({"count": unlogged}));
+        }
+        true
     }
 
     /// A valid message: recorded (`--mcap`), logged, and added to the run (`add`, one of
@@ -196,14 +205,8 @@ impl Session {
     /// (floods summarised), and counted with the messages ignored.
     pub(crate) fn add_measurement(&mut self, m: Measurement) {
         let (step, last) = (m.header.step, self.assembler.last_step());
-        if self.assembler.add_measurement(m) || step <= last {
+        if self.assembler.add_measurement(m) || step <= last || !self.admit_rejection_line() {
             return;
-        }
-        let runtime::Admit::Log { unlogged } = self.rejections_logged.admit(std::time::Instant::now()) else {
-            return;
-        };
-        if unlogged > 0 {
-            self.log.write("rejected_unlogged", json!({"count": unlogged}));
         }
         self.log.write("beyond_last_step", json!({"kind": "measurement", "step": step, "last": last}));
         if !self.quiet {
