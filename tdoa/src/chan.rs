@@ -175,8 +175,7 @@ fn chan_wls(sensors: &Sensors, d: &RangeDiffs) -> Result<ChanSolution, TdoaError
     let q_chol =
         sensors.noise().q().cholesky().ok_or_else(|| TdoaError::Degenerate("Q is not positive definite".into()))?;
     let rel: Vec<Vector2<f64>> = w[1..].iter().map(|wi| wi - w[0]).collect();
-    let g = DMatrix::from_fn(m, 3, |i, j| 2.0 * if j < 2 { rel[i][j] } else { d[i] });
-    let h = DVector::from_fn(m, |i, _| rel[i].norm_squared() - d[i] * d[i]);
+    let (g, h) = first_step_system(sensors, d);
     // Step 1: whiten the error ψ ≈ −2 B n (cov 4 B Q B) with C⁻¹ B⁻¹, Q = C Cᵀ. First B = I (W = Q⁻¹),
     // then twice with the estimated ranges B = diag(r_i).
     let step1 = |ranges: &[f64]| -> Result<(Vector3<f64>, DMatrix<f64>), TdoaError> {
@@ -277,8 +276,8 @@ fn dependent_first_step(
     let (a, _) = lstsq(positions.clone(), &rhs.column(0).into_owned(), "the UAVs' baselines")?;
     let (c, _) = lstsq(positions, &rhs.column(1).into_owned(), "the UAVs' baselines")?;
     let candidates = on_the_circle(sensors, d, Vector2::new(a[0], a[1]), Vector2::new(c[0], c[1]));
-    let fit = |z: &Vector2<f64>| misfit(sensors, d, z).unwrap_or(f64::INFINITY);
-    let position = candidates.iter().copied().min_by(|p, q| fit(p).total_cmp(&fit(q))).ok_or_else(|| {
+    let best = candidates.iter().map(|z| (misfit(sensors, d, z), *z)).min_by(|a, b| a.0.total_cmp(&b.0));
+    let (_, position) = best.ok_or_else(|| {
         TdoaError::NoSolution("no emitter position gives non-negative ranges for these range differences".into())
     })?;
     let covariance = covariance_at(sensors, &position)?;
@@ -312,14 +311,13 @@ pub fn maximum_likelihood(
     if let Ok(dependent) = dependent_first_step(sensors, d, &g, &h) {
         starts.push(dependent.position);
     }
-    let fit = |z: &Vector2<f64>| misfit(sensors, d, z).unwrap_or(f64::INFINITY);
     let best = starts
         .iter()
         .filter_map(|start| crate::window::refit(&crate::window::Information::none(), &[(sensors, d)], start).ok())
-        .map(|(position, _)| position)
-        .min_by(|p, q| fit(p).total_cmp(&fit(q)));
+        .map(|(position, _)| (misfit(sensors, d, &position), position))
+        .min_by(|a, b| a.0.total_cmp(&b.0));
     match best {
-        Some(position) if fit(&position) < fit(&solution.position) => {
+        Some((fit, position)) if fit < misfit(sensors, d, &solution.position) => {
             let covariance = covariance_at(sensors, &position)?;
             Ok(ChanSolution { position, covariance, ambiguous: false, candidates: vec![position] })
         }
@@ -337,14 +335,8 @@ fn first_step_system(sensors: &Sensors, d: &[f64]) -> (DMatrix<f64>, DVector<f64
     (g, h)
 }
 
-/// How badly the emitter at `z` explains the range differences `d`: their residuals' squared norm in
-/// `Q`'s metric (−2 × the log-likelihood, up to a constant).
-fn misfit(sensors: &Sensors, d: &[f64], z: &Vector2<f64>) -> Result<f64, TdoaError> {
-    let q_chol =
-        sensors.noise().q().cholesky().ok_or_else(|| TdoaError::Degenerate("Q is not positive definite".into()))?;
-    let w = sensors.positions();
-    let r0 = (z - w[0]).norm();
-    let residual = DVector::from_fn(d.len(), |i, _| (z - w[i + 1]).norm() - r0 - d[i]);
-    let white = q_chol.l().solve_lower_triangular(&residual).expect("Cholesky factor is invertible");
-    Ok(white.norm_squared())
+/// How badly the emitter at `z` explains the range differences `d`: `rᵀ Q⁻¹ r` of their residuals
+/// (−2 × the log-likelihood, up to a constant; `+∞` on a UAV) — the cost of one burst of the window.
+fn misfit(sensors: &Sensors, d: &[f64], z: &Vector2<f64>) -> f64 {
+    crate::window::burst_cost(&(sensors, d), z)
 }

@@ -59,7 +59,7 @@ fn normal_terms(burst: &Burst<'_>, z: &Vector2<f64>) -> Option<(Matrix2<f64>, Ve
 }
 
 /// `Σ rᵀ Q⁻¹ r` of one burst at `z` (`+∞` on a UAV).
-fn burst_cost(burst: &Burst<'_>, z: &Vector2<f64>) -> f64 {
+pub(crate) fn burst_cost(burst: &Burst<'_>, z: &Vector2<f64>) -> f64 {
     let Some((r, _)) = linearised(burst, z) else { return f64::INFINITY };
     burst.0.noise().quadratic_form(r.as_slice())
 }
