@@ -510,6 +510,25 @@ mod tests {
             clock_bias_m: 2.0 * (tdoa::SPEED_OF_LIGHT * 1e-9),
         };
         assert_eq!(m.stated_sigmas().0[0].to_bits(), e.effective_sigma(28.7712).to_bits());
+        // An estimate's covariance passes the wire exactly when the planner can take it, over the
+        // floats' whole range of variances and correlations.
+        assert_eq!(protocol::validate::MIN_EIGENVALUE_M2, tdoa::support::MIN_EIGENVALUE_M2);
+        let mut taken = 0;
+        for ea in (-310..=308).step_by(7) {
+            for ed in (-310..=308).step_by(9) {
+                for rho in [-0.999_999_99, -0.9, 0.0, 0.4, 0.999_999_99, 1.0] {
+                    let (a, d) = (10f64.powi(ea), 10f64.powi(ed));
+                    let b = rho * a.sqrt() * d.sqrt();
+                    let wire = protocol::validate::is_symmetric_positive_definite(&[[a, b], [b, d]]);
+                    let m = nalgebra::Matrix2::new(a, b, b, d);
+                    assert_eq!(wire, tdoa::support::is_positive_definite(&m), "{m:?}");
+                    let planned = tdoa::Uncertainty::new(Vector2::zeros(), m, 1.0).is_ok();
+                    assert_eq!(wire, planned, "{m:?}");
+                    taken += usize::from(wire);
+                }
+            }
+        }
+        assert!(taken > 10_000, "{taken}");
     }
 
     /// Noisy-free measurements of a fixed emitter by three UAVs flying east, one per step.

@@ -157,8 +157,9 @@ impl Planner<'_> {
         wire::hold_command(step, at, headings, &hold, &self.scenario, names, instance).map_err(ProcessError::Failed)
     }
 
-    /// The command of one estimate; `None` when it cannot be planned (counted and logged).
-    fn plan(&mut self, node: &mut Node, est: &Estimate, received_ns: u64) -> Result<Option<Command>, ProcessError> {
+    /// The command of one estimate; an estimate that cannot be planned ends the run (counted, with the
+    /// step and the reason), as it ends `uavloc simulate`.
+    fn plan(&mut self, node: &mut Node, est: &Estimate, received_ns: u64) -> Result<Command, ProcessError> {
         let step = est.header.step;
         // A valid estimate of another formation than the scenario's (an external front end flying other
         // UAVs than the launch's --scenario): rejected, naming both counts — not planned as a length error.
@@ -176,7 +177,7 @@ impl Planner<'_> {
                 // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): hold
                 // and try the next burst, as `uavloc simulate` does.
                 let hold = self.hold(step, &tdoa::points_from_arrays(est.uavs()), est.headings(), node.instance())?;
-                return Ok(Some(hold.with_state_of(est)));
+                return Ok(hold.with_state_of(est));
             }
             // No fix in the first FIRST_FIX_STEPS steps, and this step's burst was heard well enough for
             // one: the run cannot go on, as `uavloc simulate` of the scenario says at the same step.
@@ -212,13 +213,17 @@ impl Planner<'_> {
         }) {
             Ok(plan) => plan,
             Err(e) => {
-                self.summary.errors += 1;
-                node.warn(format_args!("step {step}: {e}"));
-                return Ok(None);
+                // The planner is a function of the estimate: a replay would fail the same way, and the
+                // step would wait for a command for ever. The run ends, as `uavloc simulate` of the same
+                // estimate ends with this error.
+                return Err(ProcessError::Unrecoverable(format!(
+                    "step {step}: no plan for the estimate at ({:.1}, {:.1}) m: {e} — the run cannot go on",
+                    z_hat.x, z_hat.y
+                )));
             }
         };
         let names = (args.solver, args.objective);
-        wire::plan_command(est, received_ns, node.instance(), &plan, names).map(Some).map_err(ProcessError::Failed)
+        wire::plan_command(est, received_ns, node.instance(), &plan, names).map_err(ProcessError::Failed)
     }
 }
 
@@ -240,16 +245,14 @@ impl Handler for Planner<'_> {
                 // Held already: the step's answer is its hold.
                 self.summary.late_estimates += 1;
                 node.summary().resent += 1;
-                Some(self.hold(step, &tdoa::points_from_arrays(est.uavs()), est.headings(), node.instance())?)
+                self.hold(step, &tdoa::points_from_arrays(est.uavs()), est.headings(), node.instance())?
             } else {
                 if again {
                     node.summary().resent += 1; // a replayed estimate: planned again, the same command
                 }
                 self.plan(node, &est, received_ns)?
             };
-            if let Some(command) = command {
-                self.answer(node, command, again)?;
-            }
+            self.answer(node, command, again)?;
         }
         // Steps whose estimate missed the deadline: hold (planning::hold).
         let due = self.tracker.as_mut().map(|t| t.due(Instant::now())).unwrap_or_default();

@@ -6,8 +6,6 @@ pub struct PlannerSummary {
     /// What every data process reports (role, instance, counts, hand-over, CPU).
     #[serde(flatten)]
     pub node: runtime::NodeSummary,
-    /// Estimates that could not be planned (no usable estimate yet, or `plan_step` refused).
-    pub errors: u64,
     /// Steps held: no fresh estimate within `--estimate-deadline-ms`, the current headings commanded.
     pub held: u64,
     /// Estimates of held steps (arrived after the deadline; answered with the hold, not planned).

@@ -178,7 +178,7 @@ impl PosteriorObjective {
     /// Prepares `kind` (`posterior` or `posterior-cubature`) for the uncertainty `unc`.
     pub fn prepare(kind: ObjectiveKind, unc: &Uncertainty, noise: NoiseModel) -> Result<Self, TdoaError> {
         let m = unc.cov();
-        let prior_info = m.try_inverse().ok_or(TdoaError::CovarianceNotPositiveDefinite {
+        let prior_info = tdoa::support::covariance_inverse(&m).ok_or(TdoaError::CovarianceNotPositiveDefinite {
             xx: m[(0, 0)],
             xy: m[(0, 1)],
             yy: m[(1, 1)],

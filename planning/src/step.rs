@@ -616,6 +616,26 @@ mod tests {
         assert_ne!(bits(&a), bits(&c));
     }
 
+    /// Every covariance the wire takes (positive normal variances, a finite trace) is planned by every
+    /// criterion — also where its determinant under- or overflows (1e-300 m², 1e±200 m²), which a direct
+    /// inverse refuses: a refused step would end the run.
+    #[test]
+    fn a_covariance_at_the_edges_of_the_floats_is_planned() {
+        let case = Case::nominal();
+        for m in [
+            Matrix2::new(1e-300, 0.0, 0.0, 2e-300),
+            Matrix2::new(1e-200, 5e-201, 5e-201, 1e-200),
+            Matrix2::new(1e200, 0.0, 0.0, 1e200),
+            Matrix2::new(1e-150, 0.0, 0.0, 1e150),
+        ] {
+            for objective in ObjectiveKind::ALL {
+                let req = PlanRequest { covariance: m, ..case.request(objective, SolverKind::Gradient) };
+                let out = plan_step(&req).unwrap_or_else(|e| panic!("{objective} with M = {m:?}: {e}"));
+                assert!(out.headings.iter().all(|h| h.is_finite()), "{objective} {m:?}");
+            }
+        }
+    }
+
     #[test]
     fn nominal_plans_are_feasible_and_beat_flying_straight() {
         let case = Case::nominal();

@@ -26,7 +26,7 @@ pub enum TdoaError {
     #[error("{what}: expected {expected} values, got {got}")]
     LengthMismatch { what: String, expected: usize, got: usize },
     /// A covariance matrix that is not symmetric positive definite.
-    #[error("covariance [[{xx}, {xy}], [{xy}, {yy}]] is not positive definite")]
+    #[error("covariance [[{xx:e}, {xy:e}], [{xy:e}, {yy:e}]] m² is not positive definite")]
     CovarianceNotPositiveDefinite { xx: f64, xy: f64, yy: f64 },
     /// The geometry makes the quantity undefined (e.g. all UAVs on one line for Chan,
     /// the emitter on top of a UAV, a singular FIM).

@@ -45,6 +45,45 @@ pub fn eq36_side(sigma_t: f64, r_avg: f64, kappa: f64) -> f64 {
     (10.0 * sigma_t).min(6.0 * sigma_t + kappa * r_avg)
 }
 
+/// The smallest eigenvalue a covariance may have, m²: the floats' limit, not a physical one (a σ of
+/// 1e-150 m); at or above it `M⁻¹` is finite.
+pub const MIN_EIGENVALUE_M2: f64 = 1e-300;
+
+/// `M⁻¹` of a covariance `m` that [`is_positive_definite`], 1/m²; `None` for any other. Where the
+/// determinant is a normal float, the direct inverse (bit for bit nalgebra's); where it under- or
+/// overflows (σ of 1e-160 m or 1e160 m), from the correlation form `M = D R D`, `D = diag(√m00, √m11)`:
+/// `M⁻¹ = D⁻¹ R⁻¹ D⁻¹`, no product of two variances formed.
+pub fn covariance_inverse(m: &Matrix2<f64>) -> Option<Matrix2<f64>> {
+    if !is_positive_definite(m) {
+        return None;
+    }
+    let finite = |inv: &Matrix2<f64>| inv.iter().all(|v| v.is_finite());
+    if let Some(inv) = m.determinant().is_normal().then(|| m.try_inverse()).flatten().filter(finite) {
+        return Some(inv);
+    }
+    let (a, b, d) = (m[(0, 0)], 0.5 * (m[(0, 1)] + m[(1, 0)]), m[(1, 1)]);
+    let (sa, sd) = (a.sqrt(), d.sqrt());
+    let rho = b / sa / sd;
+    let k = (1.0 - rho) * (1.0 + rho);
+    let off = -rho / sa / sd / k;
+    Some(Matrix2::new(1.0 / a / k, off, off, 1.0 / d / k)).filter(finite)
+}
+
+/// Whether the symmetric 2×2 `m` (m²) is a covariance the planner takes, as the wire's messages test it
+/// (`protocol::validate::is_symmetric_positive_definite`): positive variances with a finite sum, a
+/// correlation `m01 / (√m00 √m11)` below 1 in magnitude, and the smallest eigenvalue at least
+/// [`MIN_EIGENVALUE_M2`] — computed as `m00 m11 (1 − ρ²) / λ_max` in an order that neither over- nor
+/// underflows, not as a difference of eigenvalues (which cancels beyond a condition number of 1e16).
+pub fn is_positive_definite(m: &Matrix2<f64>) -> bool {
+    let (a, b, d) = (m[(0, 0)], 0.5 * (m[(0, 1)] + m[(1, 0)]), m[(1, 1)]);
+    if !(a > 0.0 && d > 0.0 && (a + d).is_finite()) {
+        return false;
+    }
+    let rho = b / a.sqrt() / d.sqrt();
+    let lambda_max = 0.5 * (a + d) + (0.5 * (a - d)).hypot(b);
+    rho.abs() < 1.0 && (a / lambda_max) * d * ((1.0 - rho) * (1.0 + rho)) >= MIN_EIGENVALUE_M2
+}
+
 /// A validated target-position uncertainty.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Uncertainty {
@@ -73,11 +112,10 @@ impl Uncertainty {
         if (cov[(0, 1)] - cov[(1, 0)]).abs() > 1e-9 * (cov[(0, 0)].abs() + cov[(1, 1)].abs()) {
             return Err(not_pd());
         }
-        let (lo, _) = sym_eigenvalues(&sym);
-        if lo <= 0.0 {
+        if !is_positive_definite(&sym) {
             return Err(not_pd());
         }
-        let cov_inv = sym.try_inverse().ok_or_else(not_pd)?;
+        let cov_inv = covariance_inverse(&sym).ok_or_else(not_pd)?;
         Ok(Self { estimate, cov: sym, cov_inv, side })
     }
 
@@ -149,5 +187,38 @@ mod tests {
         let (z, m) = estimate_from_arrays(&[1.0, 2.0], &[[3.0, 4.0], [5.0, 6.0]]);
         assert_eq!((z.x, z.y, m[(0, 1)], m[(1, 0)]), (1.0, 2.0, 4.0, 5.0));
         assert_eq!(estimate_to_arrays(&z, &m), ([1.0, 2.0], [[3.0, 4.0], [5.0, 6.0]]));
+    }
+
+    /// The direct inverse bit for bit where it exists; at unit scale where the determinant under- or
+    /// overflows, with `M M⁻¹ = I` to rounding; nothing for a subnormal or infinite trace.
+    #[test]
+    fn covariance_inverse_reaches_the_edges_of_the_floats() {
+        let m = Matrix2::new(4.0e4, 1.2e4, 1.2e4, 9.0e4);
+        assert_eq!(covariance_inverse(&m), m.try_inverse());
+        for scale in [1e-300, 1e-200, 1e-160, 1e160, 1e200, 1e300] {
+            let m = Matrix2::new(4.0, 1.2, 1.2, 9.0) * scale;
+            let inv = covariance_inverse(&m).unwrap_or_else(|| panic!("{scale:e}"));
+            assert!((m * inv - Matrix2::identity()).norm() < 1e-12, "{scale:e}");
+        }
+        assert_eq!(covariance_inverse(&(Matrix2::identity() * 1e-310)), None);
+        assert_eq!(covariance_inverse(&Matrix2::new(f64::INFINITY, 0.0, 0.0, 1.0)), None);
+        // Every covariance the wire's test takes, over the floats' whole range of variances and
+        // correlations, makes the uncertainty the planner builds.
+        let mut taken = 0;
+        for ea in (-307..=307).step_by(11) {
+            for ed in (-307..=307).step_by(13) {
+                for rho in [-0.999_999_9, -0.5, 0.0, 0.3, 0.999_999_9] {
+                    let (a, d) = (10f64.powi(ea), 10f64.powi(ed));
+                    let b = rho * a.sqrt() * d.sqrt();
+                    let m = Matrix2::new(a, b, b, d);
+                    if is_positive_definite(&m) {
+                        taken += 1;
+                        let u = Uncertainty::new(Vector2::zeros(), m, 1.0);
+                        assert!(u.is_ok(), "{m:?}: {u:?}");
+                    }
+                }
+            }
+        }
+        assert!(taken > 10_000, "{taken}");
     }
 }

@@ -94,6 +94,10 @@ fn batch() -> Batch {
             (with(estimate(), |e| e.position[0] = f64::NAN), "not_finite"),
             (with(estimate(), |e| e.count = 200), "bad_count"),
             (with(estimate(), |e| e.covariance = [[-4.0e4, 0.0], [0.0, 9.0e4]]), "not_positive_definite"),
+            // Positive definite, but beyond the floats' inverse: the planner could not plan it (it would
+            // end the run); and biases' covariance that is not positive semi-definite.
+            (with(estimate(), |e| e.covariance = [[1e-310, 0.0], [0.0, 1e-310]]), "not_positive_definite"),
+            (with(estimate(), |e| e.bias_cov = [[-5.0e4, 0.0], [0.0, 0.0]]), "bad_field"),
             (estimate(), "stale"),
             (version(estimate()), "bad_version"),
             (other_run(estimate()), "other_run"),

@@ -12,7 +12,9 @@
 //!    the first `count − 1` range differences, and the scalars; a failed estimate's position and covariance
 //!    are its standing estimate when it has one (then checked like a fix's) and all NaN otherwise;
 //! 5. range sigmas are > 0 ([`Rejection::NonPositiveSigma`]) and an estimate's covariance is symmetric
-//!    positive definite ([`Rejection::NotPositiveDefinite`]); a measurement's positions, stated range σ
+//!    positive definite as the planner takes it ([`is_symmetric_positive_definite`]), alone and with its
+//!    `bias_cov` ([`Rejection::NotPositiveDefinite`]; `bias_cov` itself positive semi-definite,
+//!    [`Rejection::BadField`]); a measurement's positions, stated range σ
 //!    and arrivals are within what the maths takes ([`SWARM_EXTENT_M`], [`MIN_SIGMA_M`]..[`MAX_SIGMA_M`],
 //!    [`MAX_ARRIVAL_M`]; [`Rejection::BadField`]);
 //! 6. the sequence number is strictly greater than that of the last *accepted* message of the stream
@@ -201,14 +203,37 @@ fn check_seq(seq: u64, last_seq: Option<u64>) -> Result<(), Rejection> {
 /// Relative tolerance on `|c01 − c10|` for a covariance to count as symmetric.
 pub const SYMMETRY_TOLERANCE: f64 = 1e-9;
 
-/// Whether a finite 2×2 matrix is symmetric (within [`SYMMETRY_TOLERANCE`]) positive definite.
+/// The smallest eigenvalue an estimate's covariance may have, m² (`tdoa::support::MIN_EIGENVALUE_M2`): the
+/// floats' limit, not a physical one; at or above it the planner inverts the covariance.
+pub const MIN_EIGENVALUE_M2: f64 = 1e-300;
+
+/// Whether a finite 2×2 matrix is symmetric (within [`SYMMETRY_TOLERANCE`]) positive definite, as the
+/// planner takes it (`tdoa::support::is_positive_definite`): positive variances with a finite sum, a
+/// correlation `c01 / (√c00 √c11)` below 1 in magnitude, and the smallest eigenvalue at least
+/// [`MIN_EIGENVALUE_M2`] (a covariance of σ 1e-155 m would have no inverse in floating point, and the
+/// planner would refuse the step at every replay).
 ///
-/// Overflow-safe: uses the correlation `c01 / (√c00 √c11)` instead of the determinant.
+/// Overflow-safe: no determinant is formed (the smallest eigenvalue is `c00 c11 (1 − ρ²) / λ_max`).
 pub fn is_symmetric_positive_definite(c: &[[f64; 2]; 2]) -> bool {
     let (a, b, d) = (c[0][0], 0.5 * (c[0][1] + c[1][0]), c[1][1]);
     let scale = c[0][0].abs().max(c[1][1].abs()).max(c[0][1].abs()).max(c[1][0].abs());
     let symmetric = (c[0][1] - c[1][0]).abs() <= SYMMETRY_TOLERANCE * scale;
-    symmetric && a > 0.0 && d > 0.0 && (b / a.sqrt() / d.sqrt()).abs() < 1.0
+    if !(symmetric && a > 0.0 && d > 0.0 && (a + d).is_finite()) {
+        return false;
+    }
+    let rho = b / a.sqrt() / d.sqrt();
+    let lambda_max = 0.5 * (a + d) + (0.5 * (a - d)).hypot(b);
+    rho.abs() < 1.0 && (a / lambda_max) * d * ((1.0 - rho) * (1.0 + rho)) >= MIN_EIGENVALUE_M2
+}
+
+/// Whether a finite 2×2 matrix is symmetric (within [`SYMMETRY_TOLERANCE`]) positive semi-definite (0
+/// allowed): variances ≥ 0 and `|c01| ≤ √c00 √c11` within the same relative tolerance (a rank-one
+/// `σ² s sᵀ` rounds either way).
+pub fn is_positive_semi_definite(c: &[[f64; 2]; 2]) -> bool {
+    let (a, b, d) = (c[0][0], 0.5 * (c[0][1] + c[1][0]), c[1][1]);
+    let scale = c[0][0].abs().max(c[1][1].abs()).max(c[0][1].abs()).max(c[1][0].abs());
+    let symmetric = (c[0][1] - c[1][0]).abs() <= SYMMETRY_TOLERANCE * scale;
+    symmetric && a >= 0.0 && d >= 0.0 && b.abs() <= a.sqrt() * d.sqrt() * (1.0 + SYMMETRY_TOLERANCE)
 }
 
 impl Measurement {
@@ -271,7 +296,8 @@ impl Estimate {
         check_finite("headings", &self.headings[..n])?;
         check_finite("bias_cov", self.bias_cov.iter().flatten())?;
         // A failed estimate carries the standing estimate, or none (all NaN).
-        if status != EstimateStatus::Failed || self.position.iter().any(|v| v.is_finite()) {
+        let positioned = status != EstimateStatus::Failed || self.position.iter().any(|v| v.is_finite());
+        if positioned {
             ESTIMATE_FIELDS.check_estimate(&self.position, &self.covariance)?;
         }
         ESTIMATE_FIELDS.check_posterior(&self.extra())?;
@@ -287,6 +313,14 @@ impl Estimate {
             if sigmas.iter().any(|s| !(MIN_SIGMA_M..=MAX_SIGMA_M).contains(s)) {
                 return Err(Rejection::BadField { field: "sigmas (1e-6..1e7 m)" });
             }
+        }
+        // The covariance of the flight-long biases, S Σ_β Sᵀ: symmetric positive semi-definite; and what
+        // the planner plans with, the two together, a covariance it takes.
+        if !is_positive_semi_definite(&self.bias_cov) {
+            return Err(Rejection::BadField { field: "bias_cov (not symmetric positive semi-definite)" });
+        }
+        if positioned && !self.plan_from().is_some_and(|(_, total)| is_symmetric_positive_definite(&total)) {
+            return Err(Rejection::NotPositiveDefinite);
         }
         check_seq(self.header.seq, last_seq)
     }
@@ -747,10 +781,13 @@ mod tests {
             [[0.0, 0.0], [0.0, 1.0]],
             [[-1.0, 0.0], [0.0, 1.0]],
             [[1.0, 0.0], [0.0, -1.0]],
-            [[1.0, 1.0], [1.0, 1.0]],         // singular
-            [[1.0, 2.0], [2.0, 1.0]],         // indefinite
-            [[4.0, 1.0], [1.1, 9.0]],         // not symmetric
-            [[1e300, 1e300], [1e300, 1e300]], // singular, where the determinant would overflow
+            [[1.0, 1.0], [1.0, 1.0]],                               // singular
+            [[1.0, 2.0], [2.0, 1.0]],                               // indefinite
+            [[4.0, 1.0], [1.1, 9.0]],                               // not symmetric
+            [[1e300, 1e300], [1e300, 1e300]],                       // singular, where the determinant would overflow
+            [[1e-310, 0.0], [0.0, 1e-310]],                         // subnormal variances: no inverse in floating point
+            [[1e-307, -9.9999999e-308], [-9.9999999e-308, 1e-307]], // an inverse beyond the floats
+            [[1e308, 0.0], [0.0, 1e308]],                           // a trace beyond the floats
         ] {
             let e = with(estimate(), |e| e.covariance = cov);
             assert_eq!(e.validate(None), Err(Rejection::NotPositiveDefinite), "{cov:?}");
@@ -763,6 +800,23 @@ mod tests {
         ] {
             assert!(is_symmetric_positive_definite(&cov), "{cov:?}");
         }
+    }
+
+    /// What the planner plans with — the covariance plus the biases' `bias_cov` — must be a covariance
+    /// it takes: a `bias_cov` that is not positive semi-definite, or a sum beyond the floats, is refused.
+    #[test]
+    fn the_covariance_planned_with_is_one_the_planner_takes() {
+        let field = |e: Estimate| e.validate(None).map_err(|r| r.kind());
+        assert_eq!(field(with(estimate(), |e| e.bias_cov = [[4.0, 2.0], [2.0, 1.0]])), Ok(())); // rank one
+        assert_eq!(field(with(estimate(), |e| e.bias_cov = [[0.0; 2]; 2])), Ok(()));
+        for bad in [[[-1.0, 0.0], [0.0, 1.0]], [[1.0, 2.0], [2.0, 1.0]], [[1.0, 0.5], [0.4, 1.0]]] {
+            assert_eq!(field(with(estimate(), |e| e.bias_cov = bad)), Err("bad_field"), "{bad:?}");
+        }
+        let huge = with(estimate(), |e| {
+            e.covariance = [[1e308, 0.0], [0.0, 1.0]];
+            e.bias_cov = [[1e308, 0.0], [0.0, 0.0]];
+        });
+        assert_eq!(field(huge), Err("not_positive_definite"));
     }
 
     #[test]
