@@ -258,7 +258,11 @@ impl EmitterNode<'_> {
         // A geometry the world cannot measure (two UAVs on top of each other: a collision) is where the
         // run ends; a restart would fly into it again.
         let meas = self.world.measure().map_err(|e| {
-            ProcessError::Unrecoverable(format!("step {k}: measurement: {e}; the run cannot go on (exit code 3)"))
+            ProcessError::unrecoverable_because(
+                format!("step {k}: measurement"),
+                e,
+                "; the run cannot go on (exit code 3)",
+            )
         })?;
         let mut message = wire_measurement(k, &meas, &self.sigmas, self.world.headings(), self.world.receiver())
             .map_err(|e| ProcessError::failed_because(format!("step {k}: measurement"), e))?;

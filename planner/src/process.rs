@@ -216,10 +216,11 @@ impl Planner<'_> {
                 // The planner is a function of the estimate: a replay would fail the same way, and the
                 // step would wait for a command for ever. The run ends, as `uavloc simulate` of the same
                 // estimate ends with this error.
-                return Err(ProcessError::Unrecoverable(format!(
-                    "step {step}: no plan for the estimate at ({:.1}, {:.1}) m: {e} — the run cannot go on",
-                    z_hat.x, z_hat.y
-                )));
+                return Err(ProcessError::unrecoverable_because(
+                    format!("step {step}: no plan for the estimate at ({:.1}, {:.1}) m", z_hat.x, z_hat.y),
+                    e,
+                    " — the run cannot go on",
+                ));
             }
         };
         let names = (args.solver, args.objective);

@@ -46,6 +46,17 @@ pub enum ProcessError {
     /// cannot measure (exit code 3). A supervisor fails the run at once instead of restarting.
     #[error("{0}")]
     Unrecoverable(String),
+    /// The run cannot go on, with the error that says why (exit code 3): e.g. the step that could not be
+    /// measured or planned, and the maths' own error.
+    #[error("{context}: {source}{consequence}")]
+    UnrecoverableBecause {
+        /// What was being done (e.g. `step 7: no plan for the estimate at (…)`).
+        context: String,
+        /// Why it failed.
+        source: Cause,
+        /// What the run does about it (e.g. ` — the run cannot go on`), said after the cause.
+        consequence: &'static str,
+    },
     /// SIGINT/SIGTERM (exit code 130).
     #[error("interrupted by a signal")]
     Interrupted,
@@ -57,7 +68,7 @@ impl ProcessError {
         match self {
             ProcessError::Input(_) | ProcessError::InputBecause { .. } => 2,
             ProcessError::Failed(_) | ProcessError::FailedBecause { .. } | ProcessError::Transport(_) => 1,
-            ProcessError::Unrecoverable(_) => EXIT_UNRECOVERABLE,
+            ProcessError::Unrecoverable(_) | ProcessError::UnrecoverableBecause { .. } => EXIT_UNRECOVERABLE,
             ProcessError::Interrupted => EXIT_INTERRUPTED,
         }
     }
@@ -65,6 +76,16 @@ impl ProcessError {
     /// Bad input `context` (e.g. a flag) refused because of `cause`.
     pub fn input_because(context: impl Into<String>, cause: impl Into<Cause>) -> Self {
         ProcessError::InputBecause { context: context.into(), source: cause.into() }
+    }
+
+    /// The run cannot go on: `context` (what was being done) failed because of `cause`, and the run does
+    /// `consequence` (a clause said after the cause).
+    pub fn unrecoverable_because(
+        context: impl Into<String>,
+        cause: impl Into<Cause>,
+        consequence: &'static str,
+    ) -> Self {
+        ProcessError::UnrecoverableBecause { context: context.into(), source: cause.into(), consequence }
     }
 
     /// A failure of `context` (what was being done) caused by `cause`.
@@ -94,6 +115,10 @@ mod tests {
     use super::*;
     use std::error::Error as _;
 
+    fn io_cause() -> std::io::Error {
+        std::io::Error::new(std::io::ErrorKind::PermissionDenied, "no access")
+    }
+
     #[test]
     fn a_cause_is_kept_and_said() {
         let io = std::io::Error::new(std::io::ErrorKind::PermissionDenied, "no access");
@@ -105,6 +130,9 @@ mod tests {
         let e = ProcessError::failed_because("step 3", String::from("out of range"));
         assert_eq!((e.code(), e.to_string()), (1, "step 3: out of range".to_string()));
         assert!(e.source().is_some());
+        let e = ProcessError::unrecoverable_because("step 4: measurement", io_cause(), "; the run cannot go on");
+        assert_eq!((e.code(), e.to_string()), (3, "step 4: measurement: no access; the run cannot go on".to_string()));
+        assert!(e.source().and_then(|s| s.downcast_ref::<std::io::Error>()).is_some());
         // The transport's failures keep their variant; an interruption and a bad environment map to theirs.
         let t = TransportError::Failed { op: "opening", service: "d/measurement".into(), detail: "busy".into() };
         assert!(matches!(ProcessError::from(t.clone()), ProcessError::Transport(ref k) if *k == t));
