@@ -19,7 +19,9 @@
 //!
 //! - Only `target = "chan"` is supported: `controlled` mode needs the true emitter, which the pipeline
 //!   never shows the planner (use `uavloc simulate` for it).
-//! - Invalid estimates are counted (per rejection kind) and ignored.
+//! - Invalid estimates are counted (per rejection kind) and ignored. A valid estimate that cannot be
+//!   planned (the wire's checks are the planner's, so none is known) ends the run (exit code 3, naming
+//!   the step and why), as it ends `uavloc simulate`: a replay of the step would fail the same way.
 //! - **Staleness deadline** (`--estimate-deadline-ms D`, off by default): the planner also subscribes to
 //!   the measurements; when the estimate of the newest measured step has not arrived D ms after its
 //!   measurement (a deadline of the event loop), the planner *holds*: it publishes a command flagged
