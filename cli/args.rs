@@ -154,14 +154,16 @@ impl UavArgs {
         self.uav_lat_lon
             .iter()
             .enumerate()
-            .map(|(i, p)| frame.to_local(*p).map_err(|e| CliError::Input(format!("--uav-lat-lon (UAV {i}): {e}"))))
+            .map(|(i, p)| {
+                frame.to_local(*p).map_err(|e| CliError::input_because(format!("--uav-lat-lon (UAV {i})"), e))
+            })
             .collect()
     }
 
     /// The local plane of `--origin`, if given.
     pub fn frame(&self) -> Result<Option<model::geo::LocalFrame>, CliError> {
         self.origin
-            .map(|o| model::geo::LocalFrame::new(o).map_err(|e| CliError::Input(format!("--origin: {e}"))))
+            .map(|o| model::geo::LocalFrame::new(o).map_err(|e| CliError::input_because("--origin", e)))
             .transpose()
     }
 }

@@ -87,6 +87,6 @@ pub fn run(args: &MapArgs) -> Result<MapReport, CliError> {
         steps.unwrap_or(step)
     );
     record::map::plot_map(&layer, &title, &args.out)
-        .map_err(|e| CliError::Failed(format!("--out {}: {e}", args.out.display())))?;
+        .map_err(|e| CliError::failed_because(format!("--out {}", args.out.display()), e))?;
     Ok(MapReport { written: args.out.clone(), step: steps.unwrap_or(step), features })
 }
