@@ -189,8 +189,9 @@ mod tests {
         assert_eq!(estimate_to_arrays(&z, &m), ([1.0, 2.0], [[3.0, 4.0], [5.0, 6.0]]));
     }
 
-    /// The direct inverse bit for bit where it exists; at unit scale where the determinant under- or
-    /// overflows, with `M M⁻¹ = I` to rounding; nothing for a subnormal or infinite trace.
+    /// The direct inverse bit for bit where the determinant is a normal float; from the correlation form
+    /// where it under- or overflows, with `M M⁻¹ = I` to rounding; nothing below the smallest eigenvalue
+    /// or for an infinite variance.
     #[test]
     fn covariance_inverse_reaches_the_edges_of_the_floats() {
         let m = Matrix2::new(4.0e4, 1.2e4, 1.2e4, 9.0e4);
