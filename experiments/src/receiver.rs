@@ -312,6 +312,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             (j, continued(&sc, views[v].1))
         })
         .collect();
+    let lost_at = format!("lost at {CONTINUE_TO}");
     let mut grid = Grid::new(
         "receiver",
         &format!("{m} paired runs per cell, {STEPS} steps, static emitter, fused estimator, analytical + gradient"),
@@ -330,7 +331,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             "of a minority %",
             "good dropped %",
             "lost tracks",
-            "lost at 120",
+            &lost_at,
             "runs stopped",
         ],
     );
