@@ -174,8 +174,8 @@ fn chan_wls(sensors: &Sensors, d: &RangeDiffs) -> Result<ChanSolution, TdoaError
     let m = d.len();
     let q_chol =
         sensors.noise().q().cholesky().ok_or_else(|| TdoaError::Degenerate("Q is not positive definite".into()))?;
-    let rel: Vec<Vector2<f64>> = w[1..].iter().map(|wi| wi - w[0]).collect();
-    let (g, h) = first_step_system(sensors, d);
+    let rel = relative_positions(sensors);
+    let (g, h) = first_step_system(&rel, d);
     // Step 1: whiten the error ψ ≈ −2 B n (cov 4 B Q B) with C⁻¹ B⁻¹, Q = C Cᵀ. First B = I (W = Q⁻¹),
     // then twice with the estimated ranges B = diag(r_i).
     let step1 = |ranges: &[f64]| -> Result<(Vector3<f64>, DMatrix<f64>), TdoaError> {
@@ -306,7 +306,7 @@ pub fn maximum_likelihood(
         return Ok(solution);
     }
     let d = d.as_slice();
-    let (g, h) = first_step_system(sensors, d);
+    let (g, h) = first_step_system(&relative_positions(sensors), d);
     let mut starts = vec![solution.position];
     if let Ok(dependent) = dependent_first_step(sensors, d, &g, &h) {
         starts.push(dependent.position);
@@ -325,11 +325,15 @@ pub fn maximum_likelihood(
     }
 }
 
-/// Chan's first-step system `G θ = h`, `θ = (x', y', r₀)` relative to UAV0: rows `[2(wᵢ − w₀), 2dᵢ]`,
-/// `hᵢ = |wᵢ − w₀|² − dᵢ²`.
-fn first_step_system(sensors: &Sensors, d: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
+/// The UAVs' positions relative to UAV0, `wᵢ − w₀` for i ≥ 1, metres.
+fn relative_positions(sensors: &Sensors) -> Vec<Vector2<f64>> {
     let w = sensors.positions();
-    let rel: Vec<Vector2<f64>> = w[1..].iter().map(|wi| wi - w[0]).collect();
+    w[1..].iter().map(|wi| wi - w[0]).collect()
+}
+
+/// Chan's first-step system `G θ = h`, `θ = (x', y', r₀)` relative to UAV0: rows `[2(wᵢ − w₀), 2dᵢ]`,
+/// `hᵢ = |wᵢ − w₀|² − dᵢ²`, from `rel` = [`relative_positions`].
+fn first_step_system(rel: &[Vector2<f64>], d: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
     let g = DMatrix::from_fn(d.len(), 3, |i, j| 2.0 * if j < 2 { rel[i][j] } else { d[i] });
     let h = DVector::from_fn(d.len(), |i, _| rel[i].norm_squared() - d[i] * d[i]);
     (g, h)

@@ -215,10 +215,8 @@ pub const MIN_EIGENVALUE_M2: f64 = 1e-300;
 ///
 /// Overflow-safe: no determinant is formed (the smallest eigenvalue is `c00 c11 (1 − ρ²) / λ_max`).
 pub fn is_symmetric_positive_definite(c: &[[f64; 2]; 2]) -> bool {
-    let (a, b, d) = (c[0][0], 0.5 * (c[0][1] + c[1][0]), c[1][1]);
-    let scale = c[0][0].abs().max(c[1][1].abs()).max(c[0][1].abs()).max(c[1][0].abs());
-    let symmetric = (c[0][1] - c[1][0]).abs() <= SYMMETRY_TOLERANCE * scale;
-    if !(symmetric && a > 0.0 && d > 0.0 && (a + d).is_finite()) {
+    let Some((a, b, d)) = symmetric_parts(c) else { return false };
+    if !(a > 0.0 && d > 0.0 && (a + d).is_finite()) {
         return false;
     }
     let rho = b / a.sqrt() / d.sqrt();
@@ -230,10 +228,16 @@ pub fn is_symmetric_positive_definite(c: &[[f64; 2]; 2]) -> bool {
 /// allowed): variances ≥ 0 and `|c01| ≤ √c00 √c11` within the same relative tolerance (a rank-one
 /// `σ² s sᵀ` rounds either way).
 pub fn is_positive_semi_definite(c: &[[f64; 2]; 2]) -> bool {
-    let (a, b, d) = (c[0][0], 0.5 * (c[0][1] + c[1][0]), c[1][1]);
+    let Some((a, b, d)) = symmetric_parts(c) else { return false };
+    a >= 0.0 && d >= 0.0 && b.abs() <= a.sqrt() * d.sqrt() * (1.0 + SYMMETRY_TOLERANCE)
+}
+
+/// `(c00, (c01 + c10)/2, c11)` of a 2×2 matrix symmetric within [`SYMMETRY_TOLERANCE`] (relative to its
+/// largest entry), `None` otherwise.
+fn symmetric_parts(c: &[[f64; 2]; 2]) -> Option<(f64, f64, f64)> {
     let scale = c[0][0].abs().max(c[1][1].abs()).max(c[0][1].abs()).max(c[1][0].abs());
     let symmetric = (c[0][1] - c[1][0]).abs() <= SYMMETRY_TOLERANCE * scale;
-    symmetric && a >= 0.0 && d >= 0.0 && b.abs() <= a.sqrt() * d.sqrt() * (1.0 + SYMMETRY_TOLERANCE)
+    symmetric.then_some((c[0][0], 0.5 * (c[0][1] + c[1][0]), c[1][1]))
 }
 
 impl Measurement {
