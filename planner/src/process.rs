@@ -159,8 +159,8 @@ impl Planner<'_> {
         wire::hold_command(step, at, headings, &hold, &self.scenario, names, instance).map_err(ProcessError::Failed)
     }
 
-    /// The command of one estimate; an estimate that cannot be planned ends the run (counted, with the
-    /// step and the reason), as it ends `uavloc simulate`.
+    /// The command of one estimate; an estimate that cannot be planned ends the run (naming the step and
+    /// the reason), as it ends `uavloc simulate`.
     fn plan(&mut self, node: &mut Node, est: &Estimate, received_ns: u64) -> Result<Command, ProcessError> {
         let step = est.header.step;
         // A valid estimate of another formation than the scenario's (an external front end flying other

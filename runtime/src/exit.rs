@@ -121,8 +121,7 @@ mod tests {
 
     #[test]
     fn a_cause_is_kept_and_said() {
-        let io = std::io::Error::new(std::io::ErrorKind::PermissionDenied, "no access");
-        let e = ProcessError::input_because("--log /x", io);
+        let e = ProcessError::input_because("--log /x", io_cause());
         assert_eq!(e.code(), 2);
         assert_eq!(e.to_string(), "--log /x: no access");
         let cause = e.source().and_then(|s| s.downcast_ref::<std::io::Error>()).expect("the I/O error kept");
