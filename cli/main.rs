@@ -23,7 +23,7 @@ fn main() -> ExitCode {
                     ExitCode::from(if e.use_stderr() { 2 } else { 0 })
                 }
                 _ => {
-                    eprintln!("{}", one_line_clap_error(&e));
+                    protocol::log_line!("{}", one_line_clap_error(&e));
                     ExitCode::from(2)
                 }
             };
@@ -58,7 +58,7 @@ fn emit<R: Report>(result: Result<R, CliError>, json: bool) -> ExitCode {
     let report = match result {
         Ok(r) => r,
         Err(e) => {
-            eprintln!("error: {e}");
+            protocol::log_line!("error: {e}");
             return e.exit_code();
         }
     };
@@ -73,7 +73,7 @@ fn emit<R: Report>(result: Result<R, CliError>, json: bool) -> ExitCode {
             Err(e) if e.is_io() => {} // a closed pipe, as above
             Err(e) => {
                 drop(out);
-                eprintln!("error: cannot encode the result as JSON: {e}");
+                protocol::log_line!("error: cannot encode the result as JSON: {e}");
                 return ExitCode::FAILURE;
             }
         }
@@ -84,9 +84,9 @@ fn emit<R: Report>(result: Result<R, CliError>, json: bool) -> ExitCode {
     let mut code = ExitCode::SUCCESS;
     for d in report.diagnostics() {
         match d {
-            Diagnostic::Warning(m) => eprintln!("warning: {m}"),
+            Diagnostic::Warning(m) => protocol::log_line!("warning: {m}"),
             Diagnostic::Failure(m) => {
-                eprintln!("error: {m}");
+                protocol::log_line!("error: {m}");
                 code = ExitCode::from(uavloc::error::EXIT_FAILED);
             }
         }

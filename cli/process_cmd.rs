@@ -72,7 +72,7 @@ pub fn run_process(args: &ProcessArgs) -> ExitCode {
                     if a.remove_dead {
                         let half = resources::remove_leftovers(&domain).map_err(CliError::Failed)?;
                         if !half.is_empty() {
-                            eprintln!("removed the half-created services {half:?}");
+                            protocol::log_line!("removed the half-created services {half:?}");
                         }
                     }
                     resources::list(&domain).map_err(CliError::Failed)
@@ -83,7 +83,7 @@ pub fn run_process(args: &ProcessArgs) -> ExitCode {
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    protocol::log_line!("error: {e}");
                     e.exit_code()
                 }
             }

@@ -378,7 +378,7 @@ pub fn run_echo(args: &EchoArgs) -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: ipc-echo: {e}");
+            protocol::log_line!("error: ipc-echo: {e}");
             std::process::ExitCode::FAILURE
         }
     }

@@ -573,7 +573,7 @@ fn ratios(runs: &[RunResult]) -> Vec<Ratio> {
 }
 
 fn progress(line: &str) {
-    eprintln!("bench: {line}");
+    protocol::log_line!("bench: {line}");
 }
 
 /// Runs `uavloc bench latency`.

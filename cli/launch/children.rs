@@ -130,7 +130,7 @@ pub(super) fn start_and_run(
     }
     if args.source == runtime::Source::External {
         let d = domain.as_str();
-        eprintln!(
+        protocol::log_line!(
             "launch: estimator, planner and monitor are ready in domain {d}; waiting for an external front end to \
              publish {} (steps 0..={}) on {}/measurement and read {} on {}/command (docs/wire-format.md). Ctrl-C \
              stops the run.",

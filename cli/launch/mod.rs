@@ -102,7 +102,9 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     // dead nodes' clean-up, which opens them, too).
     let half = resources::remove_leftovers(&domain).map_err(CliError::Failed)?;
     if !half.is_empty() {
-        eprintln!("launch: removed the half-created services {half:?} of domain {domain} (left by a killed run)");
+        protocol::log_line!(
+            "launch: removed the half-created services {half:?} of domain {domain} (left by a killed run)"
+        );
     }
 
     signals::catch_termination();
@@ -148,7 +150,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
                 wait_until_no_process_left(&domain);
                 drop(control);
             }
-            Err(e) => eprintln!("warning: cannot send the shutdown message to domain {domain}: {e}"),
+            Err(e) => protocol::log_line!("warning: cannot send the shutdown message to domain {domain}: {e}"),
         }
     }
     // A child that crashed or had to be killed leaves its iceoryx2 node behind: remove it — also when the
@@ -261,7 +263,7 @@ fn wait_until_no_process_left(domain: &Domain) {
             _ => return,
         }
     }
-    eprintln!("warning: processes of domain {domain} are still running after the shutdown message");
+    protocol::log_line!("warning: processes of domain {domain} are still running after the shutdown message");
 }
 
 #[cfg(test)]

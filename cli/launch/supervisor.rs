@@ -449,7 +449,7 @@ impl Supervisor {
     /// restart (a restart would be refused: two would answer every step).
     fn leave_to_swapped_in(&mut self, i: usize, pid: u32) -> Result<(), CliError> {
         let (role, exit, old) = (self.procs[i].role, self.procs[i].describe_exit(), self.procs[i].child.id());
-        eprintln!(
+        protocol::log_line!(
             "warning: the {role} process (pid {old}) stopped unexpectedly ({exit}) during a swap; the swapped-in \
              {role} (pid {pid}) goes on, no restart"
         );
@@ -472,7 +472,7 @@ impl Supervisor {
     fn restart(&mut self, i: usize, attempt: u32) -> Result<(), CliError> {
         let backoff = restart_backoff(attempt);
         let (role, exit, pid) = (self.procs[i].role, self.procs[i].describe_exit(), self.procs[i].child.id());
-        eprintln!(
+        protocol::log_line!(
             "warning: the {role} process (pid {pid}) stopped unexpectedly ({exit}); restarting it in {backoff:?} \
              (attempt {attempt} of {})",
             self.max_restarts
@@ -490,7 +490,7 @@ impl Supervisor {
         // A swap was starting its new instance meanwhile (its node did not show yet when the old one died):
         // that one goes on instead.
         if let Some(other) = self.swapped_in(role) {
-            eprintln!("warning: not restarting the {role}: the swapped-in {role} (pid {other}) goes on");
+            protocol::log_line!("warning: not restarting the {role}: the swapped-in {role} (pid {other}) goes on");
             self.write_log(serde_json::json!({
                 "event": "left_to_swapped_in", "t_ns": protocol::now_ns(), "role": role.name(), "pid": pid,
                 "exit": exit, "swapped_in": other,
@@ -536,7 +536,7 @@ impl Supervisor {
         }
         for p in &mut self.procs {
             if p.exit.is_none() {
-                eprintln!("warning: the {} process ignored SIGTERM; killing it", p.role);
+                protocol::log_line!("warning: the {} process ignored SIGTERM; killing it", p.role);
                 let _ = p.child.kill();
                 p.exit = p.child.wait().ok();
             }

@@ -517,7 +517,7 @@ pub fn run(args: &EmitterSimArgs) -> Result<EmitterSummary, ProcessError> {
         unheard_uav_steps: world.swarm.as_ref().map(|s| s.unheard),
     };
     if !args.process.node.quiet {
-        eprint!("{}", summary.closing_lines());
+        protocol::log_line!("{}", summary.closing_lines().trim_end());
     }
     Ok(summary)
 }

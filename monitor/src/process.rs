@@ -430,11 +430,11 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         [recorded.err(), args.write_outputs(&run).err().map(|e| e.to_string())].into_iter().flatten().collect();
     if !errors.is_empty() {
         let e = errors.join("; ");
-        eprintln!("error: monitor: {e}");
+        protocol::log_line!("error: monitor: {e}");
         summary.output_error = Some(e);
     }
     if !args.process.node.quiet {
-        eprintln!("monitor: {}", summary.closing_line(scenario.steps as u64 + 1, &counter));
+        protocol::log_line!("monitor: {}", summary.closing_line(scenario.steps as u64 + 1, &counter));
     }
     Ok((run, summary))
 }
@@ -453,12 +453,12 @@ pub fn main_with(args: &MonitorArgs) -> ExitCode {
             if summary.complete {
                 ExitCode::SUCCESS
             } else {
-                eprintln!("monitor: interrupted before the last step; the record is partial");
+                protocol::log_line!("monitor: interrupted before the last step; the record is partial");
                 ExitCode::from(EXIT_INTERRUPTED)
             }
         }
         Err(e) => {
-            eprintln!("error: monitor: {e}");
+            protocol::log_line!("error: monitor: {e}");
             ExitCode::from(e.code())
         }
     }

@@ -144,7 +144,7 @@ impl Session {
         self.log
             .write("rejected", json!({"kind": kind.name(), "reason": r.kind(), "detail": r.to_string(), "seq": seq}));
         if !self.quiet {
-            eprintln!("monitor: rejected a {kind}: {r}");
+            protocol::log_line!("monitor: rejected a {kind}: {r}");
         }
     }
 
@@ -210,7 +210,7 @@ impl Session {
         }
         self.log.write("beyond_last_step", json!({"kind": "measurement", "step": step, "last": last}));
         if !self.quiet {
-            eprintln!(
+            protocol::log_line!(
                 "monitor: ignored the measurement of step {step}: this run's steps are 0..={last} (launch --steps {last})"
             );
         }
@@ -293,7 +293,11 @@ impl Session {
                 k => format!("step {k}"),
             };
             let article = if role.starts_with(['a', 'e', 'i', 'o', 'u']) { "an" } else { "a" };
-            eprintln!("monitor: {article} {role} {what} (instance {:#x}{sep}{}), {step}", c.instance, c.detail());
+            protocol::log_line!(
+                "monitor: {article} {role} {what} (instance {:#x}{sep}{}), {step}",
+                c.instance,
+                c.detail()
+            );
         }
     }
 
@@ -330,7 +334,12 @@ impl Session {
                 json!({"instance": p.instance, "solver": p.solver, "objective": p.objective, "step": done.record.step}),
             );
             if !self.quiet && self.planner.is_some() {
-                eprintln!("monitor: planner switched to {}/{} (instance {:#x})", p.solver, p.objective, p.instance);
+                protocol::log_line!(
+                    "monitor: planner switched to {}/{} (instance {:#x})",
+                    p.solver,
+                    p.objective,
+                    p.instance
+                );
             }
             self.planner = Some(p.clone());
         }
@@ -371,7 +380,7 @@ impl Session {
             self.log.write("uncertified", json!({"step": done.record.step}));
         }
         if !self.quiet {
-            eprintln!("{}", status_line(&done, self.assembler.last_step(), rejected));
+            protocol::log_line!("{}", status_line(&done, self.assembler.last_step(), rejected));
         }
     }
 

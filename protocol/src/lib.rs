@@ -27,6 +27,7 @@ pub mod messages;
 pub mod resources;
 pub mod services;
 pub mod source;
+pub mod stderr;
 pub mod transport;
 pub mod validate;
 

@@ -134,7 +134,7 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<usize, String> {
                 match std::fs::remove_dir_all(&dir) {
                     Ok(()) => removed += 1,
                     Err(io) if io.kind() == std::io::ErrorKind::NotFound => removed += 1,
-                    Err(io) => eprintln!(
+                    Err(io) => crate::log_line!(
                         "warning: the resources of a dead iceoryx2 node ({}) could not be removed ({e:?}; {io}); \
                          going on",
                         dir.display()

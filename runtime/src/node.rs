@@ -131,9 +131,9 @@ pub struct Node {
 fn log_rejection(budget: &mut crate::LogBudget, role: &str, line: impl FnOnce() -> String) {
     if let crate::Admit::Log { unlogged } = budget.admit(Instant::now()) {
         if unlogged > 0 {
-            eprintln!("{role}: … and {unlogged} more rejected messages, counted but not logged (a flood)");
+            protocol::log_line!("{role}: … and {unlogged} more rejected messages, counted but not logged (a flood)");
         }
-        eprintln!("{role}: {}", line());
+        protocol::log_line!("{role}: {}", line());
     }
 }
 
@@ -351,13 +351,13 @@ impl Node {
     /// Logs a line on stderr, prefixed with the role, unless `--quiet`.
     pub fn say(&self, what: fmt::Arguments<'_>) {
         if !self.quiet {
-            eprintln!("{}: {what}", self.role());
+            protocol::log_line!("{}: {what}", self.role());
         }
     }
 
     /// Logs a line on stderr, prefixed with the role, even with `--quiet` (a rejection, a failure).
     pub fn warn(&self, what: fmt::Arguments<'_>) {
-        eprintln!("{}: {what}", self.role());
+        protocol::log_line!("{}: {what}", self.role());
     }
 
     /// The next sequence number of this instance's data messages.

@@ -189,11 +189,11 @@ pub fn exit_with<S: Serialize>(role: &str, supervised: bool, result: Result<S, P
             ExitCode::SUCCESS
         }
         Err(ProcessError::Interrupted) => {
-            eprintln!("{role}: stopped by a signal before the end of the run");
+            protocol::log_line!("{role}: stopped by a signal before the end of the run");
             ExitCode::from(EXIT_INTERRUPTED)
         }
         Err(e) => {
-            eprintln!("error: {role}: {e}");
+            protocol::log_line!("error: {role}: {e}");
             ExitCode::from(e.code())
         }
     }

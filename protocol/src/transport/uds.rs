@@ -402,7 +402,7 @@ impl<T: Message> PublishPort<T> for UdsPublisher<T> {
                     Some(libc::EINTR) => continue,
                     Some(libc::EAGAIN) => {
                         if self.dropped.get() == 0 {
-                            eprintln!(
+                            crate::log_line!(
                                 "warning: {}: a subscriber's queue stayed full for {} ms; dropping the message for it",
                                 self.name,
                                 SEND_TIMEOUT.as_millis()
