@@ -48,8 +48,9 @@ RMSE at the truth, estimate error, hop latencies, active planner, rejected messa
 --headless. At the end the run is printed as a table, or with
 --json as the JSON of `uavloc simulate --json` plus \"restarts\", \"rejected\", \"rejected_by\",
 \"missed_commands\" and \"processes\" — and, for a run that ended early, \"interrupted\": true (Ctrl-C) or
-\"failed\": \"<the error>\" (a step 0 without a fix, a front end of another formation: exit code 1, the
-steps done are in the record).
+\"failed\": \"<the error>\" (the process that ended the run and why, in its words: a step 0 without a
+fix, a front end of another formation, a front end that left for good; exit code 1, the steps done are in
+the record).
 
 A child that crashes is restarted (at most --max-restarts times per process role, after 50 ms, 100 ms, ...,
 at most 1.6 s; written to the --log): emitter-sim replays the run to the new process, which picks up

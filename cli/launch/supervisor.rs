@@ -60,6 +60,8 @@ pub(super) struct Proc {
     pub(super) summary: Option<serde_json::Value>,
     /// emitter-sim with `--linger`: it published the last step (and stays to serve replays).
     finished: bool,
+    /// The error it told before exiting ([`SupervisorLine::Failed`]).
+    failure: Option<String>,
 }
 
 impl Proc {
@@ -75,7 +77,13 @@ impl Proc {
         if self.replaced || (status.success() && !self.closed) {
             return None;
         }
-        Some(self.role.on_exit(status, self.handed_over(), restarts, max_restarts, recovery))
+        match self.role.on_exit(status, self.handed_over(), restarts, max_restarts, recovery) {
+            // Why, in its own words, after the launcher's.
+            RestartDecision::Fail(why) if let Some(error) = &self.failure => {
+                Some(RestartDecision::Fail(format!("{why}: {error}")))
+            }
+            decision => Some(decision),
+        }
     }
 
     fn needs_restart(&self, recovery: Recovery) -> bool {
@@ -210,6 +218,7 @@ impl Supervisor {
             exit: None,
             summary: None,
             finished: false,
+            failure: None,
         });
         Ok(())
     }
@@ -222,6 +231,7 @@ impl Supervisor {
                     runtime::Output::Line(Some(SupervisorLine::Ready)) => p.ready = true,
                     runtime::Output::Line(Some(SupervisorLine::Finished)) => p.finished = true,
                     runtime::Output::Line(Some(SupervisorLine::Summary(v))) => p.summary = Some(v),
+                    runtime::Output::Line(Some(SupervisorLine::Failed(why))) => p.failure = Some(why),
                     runtime::Output::Record(record) => self.record = Some(record),
                     runtime::Output::Line(_) => {}
                 }

@@ -295,9 +295,21 @@ impl MonitorNode<'_> {
     }
 }
 
-/// Runs the monitor until the last step is recorded (or SIGINT/SIGTERM, or a shutdown); returns the run
-/// record and the summary.
-pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessError> {
+/// How a monitor's run ended with a record: complete, interrupted (partial), or failed.
+#[derive(Debug)]
+pub struct Outcome {
+    /// The steps recorded.
+    pub run: RunRecord,
+    /// The monitor's counts.
+    pub summary: MonitorSummary,
+    /// Why the run could not go on (exit code 3: the front end left for good), with the steps recorded
+    /// until then in `run`.
+    pub failed: Option<ProcessError>,
+}
+
+/// Runs the monitor until the last step is recorded (or SIGINT/SIGTERM, or a shutdown, or a run that
+/// cannot go on); returns the run record and the summary.
+pub fn run(args: &MonitorArgs) -> Result<Outcome, ProcessError> {
     let scenario = load_scenario(args.process.run.scenario.as_deref(), args.process.run.steps, args.process.run.seed)
         .map_err(|e| ProcessError::input_because("--scenario", e))?;
     args.check_outputs()?;
@@ -369,12 +381,19 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
         Some(n) => node.say(format_args!("domain {domain}, resumed with {n} steps from the log")),
     }
     session.flush_outputs()?;
+    // A run that cannot go on (the front end left for good) still gives the steps it recorded, as an
+    // interrupted one does: the launcher prints them with the error (`"failed"`).
+    let mut failed = None;
     if !session.assembler.is_done() {
         let mut inputs: Vec<&dyn Waitable> = vec![&truths, &measurements, &estimates, &commands];
         if let Some(s) = &swarm {
             inputs.push(s);
         }
-        node.run(&inputs, &mut monitor)?;
+        match node.run(&inputs, &mut monitor) {
+            Ok(_) => {}
+            Err(e) if e.code() == runtime::EXIT_UNRECOVERABLE => failed = Some(e),
+            Err(e) => return Err(e),
+        }
     }
     let mut session = monitor.session;
     let counter = node.counter().clone();
@@ -436,30 +455,29 @@ pub fn run(args: &MonitorArgs) -> Result<(RunRecord, MonitorSummary), ProcessErr
     if !args.process.node.quiet {
         protocol::log_line!("monitor: {}", summary.closing_line(scenario.steps as u64 + 1, &counter));
     }
-    Ok((run, summary))
+    Ok(Outcome { run, summary, failed })
 }
 
 /// Runs the monitor and maps the outcome to an exit code (errors as one `error:` line on stderr); in
 /// supervised mode the record and the summary go to stdout as `record {json}` and `summary {json}`.
 pub fn main_with(args: &MonitorArgs) -> ExitCode {
     match run(args) {
-        Ok((run, summary)) => {
+        Ok(Outcome { run, summary, failed }) => {
             runtime::tell_record(args.process.node.supervised, &run);
             let summary_json = serde_json::to_value(&summary).unwrap_or_default();
             runtime::tell(args.process.node.supervised, &runtime::SupervisorLine::Summary(summary_json));
             if args.print_record {
                 println!("{}", serde_json::to_string_pretty(&run).unwrap_or_default());
             }
-            if summary.complete {
+            if let Some(e) = failed {
+                runtime::fail("monitor", args.process.node.supervised, &e)
+            } else if summary.complete {
                 ExitCode::SUCCESS
             } else {
                 protocol::log_line!("monitor: interrupted before the last step; the record is partial");
                 ExitCode::from(EXIT_INTERRUPTED)
             }
         }
-        Err(e) => {
-            protocol::log_line!("error: monitor: {e}");
-            ExitCode::from(e.code())
-        }
+        Err(e) => runtime::fail("monitor", args.process.node.supervised, &e),
     }
 }

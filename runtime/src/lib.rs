@@ -22,4 +22,4 @@ pub use args::{DEFAULT_SPIN_US, LinkArgs, NodeArgs, ProcessArgs, RunArgs, Source
 pub use exit::{Cause, EXIT_INTERRUPTED, EXIT_UNRECOVERABLE, ProcessError, cpu_seconds};
 pub use log_budget::{Admit, LogBudget};
 pub use node::{Ended, Flow, Handler, IDLE_WAKEUP, Join, Node};
-pub use supervisor::{NodeSummary, Output, SupervisorLine, exit_with, read_output, tell, tell_record};
+pub use supervisor::{NodeSummary, Output, SupervisorLine, exit_with, fail, read_output, tell, tell_record};

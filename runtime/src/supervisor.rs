@@ -64,6 +64,9 @@ pub enum SupervisorLine {
     Finished,
     /// The process's summary.
     Summary(Value),
+    /// Why it ends with an error (the text of its `error:` line), told before it exits: the supervisor
+    /// gives it with the exit code.
+    Failed(String),
 }
 
 /// What starts the run record's line (written by [`tell_record`], read by [`read_output`]).
@@ -79,6 +82,7 @@ impl SupervisorLine {
             }
             SupervisorLine::Finished => "finished".into(),
             SupervisorLine::Summary(v) => format!("summary {v}"),
+            SupervisorLine::Failed(why) => format!("failed {}", Value::String(why.clone())),
         }
     }
 
@@ -96,6 +100,9 @@ impl SupervisorLine {
         }
         if let Some(json) = line.strip_prefix("summary ") {
             return serde_json::from_str(json).ok().map(SupervisorLine::Summary);
+        }
+        if let Some(json) = line.strip_prefix("failed ") {
+            return serde_json::from_str(json).ok().map(SupervisorLine::Failed);
         }
         None
     }
@@ -180,8 +187,9 @@ pub fn tell_record(supervised: bool, record: &impl Serialize) {
 }
 
 /// Ends a process's `main`: on success the summary goes to the supervisor (`summary {json}`) and the
-/// exit code is 0; on an error one `error: <role>: …` line goes to stderr and the exit code is the
-/// error's (2 bad input, 1 failure, 3 unrecoverable, 130 interrupted).
+/// exit code is 0; on an error one `error: <role>: …` line goes to stderr, the error to the supervisor
+/// ([`SupervisorLine::Failed`]), and the exit code is the error's (2 bad input, 1 failure, 3
+/// unrecoverable, 130 interrupted).
 pub fn exit_with<S: Serialize>(role: &str, supervised: bool, result: Result<S, ProcessError>) -> ExitCode {
     match result {
         Ok(summary) => {
@@ -192,11 +200,16 @@ pub fn exit_with<S: Serialize>(role: &str, supervised: bool, result: Result<S, P
             protocol::log_line!("{role}: stopped by a signal before the end of the run");
             ExitCode::from(EXIT_INTERRUPTED)
         }
-        Err(e) => {
-            protocol::log_line!("error: {role}: {e}");
-            ExitCode::from(e.code())
-        }
+        Err(e) => fail(role, supervised, &e),
     }
+}
+
+/// A process's end with the error `e`: its `error: <role>: …` line on stderr, the error told to the
+/// supervisor ([`SupervisorLine::Failed`]), and its exit code.
+pub fn fail(role: &str, supervised: bool, e: &ProcessError) -> ExitCode {
+    protocol::log_line!("error: {role}: {e}");
+    tell(supervised, &SupervisorLine::Failed(e.to_string()));
+    ExitCode::from(e.code())
 }
 
 #[cfg(test)]
@@ -210,10 +223,14 @@ mod tests {
             SupervisorLine::TakeOver { from_step: 41 },
             SupervisorLine::Finished,
             SupervisorLine::Summary(serde_json::json!({"role": "planner", "published": 3})),
+            // An error's text, quotes, newline and all, on one line.
+            SupervisorLine::Failed("step 7: no plan for \"ẑ\"\n— the run cannot go on".into()),
         ] {
+            assert_eq!(line.to_line().lines().count(), 1, "{}", line.to_line());
             assert_eq!(SupervisorLine::parse(&line.to_line()), Some(line.clone()), "{}", line.to_line());
         }
-        for other in ["", "readyish", "takeover {}", "summary not json", "estimator: hello", "record {}"] {
+        for other in ["", "readyish", "takeover {}", "summary not json", "estimator: hello", "record {}", "failed why"]
+        {
             assert_eq!(SupervisorLine::parse(other), None, "{other}");
         }
     }

@@ -150,10 +150,15 @@ fn a_front_end_that_leaves_before_the_last_step_ends_the_launch_with_a_clear_err
     assert!(out.status.success(), "the front end failed: {}", String::from_utf8_lossy(&out.stderr));
     let left = std::time::Instant::now();
     let log = launch.log.clone();
-    let (status, _stdout, stderr) = launch.finish();
+    let (status, stdout, stderr) = launch.finish();
     assert_eq!(status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("the front end left the measurement topic"), "{stderr}");
     assert!(stderr.contains("the monitor process stopped unexpectedly (exit code 3)"), "{stderr}");
+    // The steps recorded are printed as the run's record, with why it failed in the monitor's words.
+    let run: serde_json::Value = serde_json::from_str(&stdout).expect("the record on stdout");
+    assert_eq!(run["steps"].as_array().map(Vec::len), Some(7), "steps 0..=6 in the record");
+    let failed = run["failed"].as_str().expect("\"failed\"");
+    assert!(failed.contains("(exit code 3): the front end left the measurement topic"), "{failed}");
     // Ended after the monitor's grace, not at the test's bound.
     assert!(left.elapsed() < common::FINISH_TIMEOUT / 4, "took {:?}", left.elapsed());
     let events = common::read_events(&log);
