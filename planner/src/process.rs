@@ -301,7 +301,7 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
     let measurements = (args.estimate_deadline_ms > 0 || args.stated_position_margins)
         .then(|| Topic::<Measurement>::subscriber(node.link(), &services::measurement(&domain)))
         .transpose()?;
-    let detail = format!("{}/{}", args.solver.name(), args.objective.name());
+    let detail = control_detail(args.solver.name(), args.objective.name());
     node.join(if args.takeover { Join::TakeOver } else { Join::Replay(ControlKind::IN_FLIGHT) }, &detail)?;
     node.say(format_args!(
         "domain {domain}, {} / {}, {} steps, seed {}, instance {:#x}",
@@ -344,4 +344,26 @@ pub fn run(args: &PlannerArgs) -> Result<PlannerSummary, ProcessError> {
 /// supervised mode the summary goes to stdout as `summary {json}`.
 pub fn main_with(args: &PlannerArgs) -> ExitCode {
     runtime::exit_with(ROLE, args.process.node.supervised, run(args))
+}
+
+/// The planner's detail on the control topic (what the monitor shows when it joins): `solver/objective`,
+/// or the solver alone where that does not fit the field's [`protocol::Name16::CAPACITY`] bytes — never a
+/// name cut short ("gradient/analyti"). Its plans name both in full (`PlanInfo`).
+fn control_detail(solver: &str, objective: &str) -> String {
+    let both = format!("{solver}/{objective}");
+    if both.len() <= protocol::Name16::CAPACITY { both } else { solver.to_string() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::control_detail;
+
+    #[test]
+    fn the_control_detail_is_never_a_cut_name() {
+        assert_eq!(control_detail("ga", "analytical"), "ga/analytical");
+        assert_eq!(control_detail("pso", "posterior"), "pso/posterior");
+        // 19 bytes: the solver alone.
+        assert_eq!(control_detail("gradient", "analytical"), "gradient");
+        assert_eq!(control_detail("formation", "posterior-cubature"), "formation");
+    }
 }
