@@ -121,6 +121,28 @@ pub struct Assembler {
     truth: bool,
 }
 
+/// The estimator an estimate comes from: fused when it carries a posterior, a snapshot estimator's when
+/// it has a fix without one, and not known (`None`) from a failed step without a posterior — a fused
+/// estimator before its first fix sends none either, so the wire's `estimator = 0` does not tell.
+fn estimator_of(e: &Estimate, status: EstimateStatus) -> Option<&'static str> {
+    if e.estimator == 1 {
+        Some("fused")
+    } else if status.is_usable() {
+        Some("snapshot")
+    } else {
+        None
+    }
+}
+
+/// The estimator a recorded step names (the run's as it was known then, or the scenario's).
+fn recorded_estimator(s: &StepRecord) -> Option<&'static str> {
+    ["fused", "snapshot"].into_iter().find(|k| s.estimator.as_deref() == Some(*k))
+}
+
+/// [`recorded_estimator`] of a step that had a fix ([`estimator_of`]: the first one is the run's).
+fn known_estimator(s: &StepRecord) -> Option<&'static str> {
+    if s.estimate_status == EstimateStatus::Failed.name() { None } else { recorded_estimator(s) }
+}
 impl Assembler {
     /// An assembler for a run of `scenario` (its `steps`, `rmse_resamples` and `seed` are used).
     pub fn new(scenario: Scenario) -> Self {
@@ -165,6 +187,7 @@ impl Assembler {
         a.next = steps.len() as u64;
         a.emitter = emitter;
         a.names = names;
+        a.estimator = steps.iter().find_map(known_estimator);
         a.steps = steps;
         Some(a)
     }
@@ -194,6 +217,8 @@ impl Assembler {
         a.next = next;
         a.emitter = emitter;
         a.names = names;
+        // The run's estimator as known at that step (a failed step's was resolved from the run's).
+        a.estimator = last.and_then(recorded_estimator);
         Some(a)
     }
 
@@ -341,7 +366,10 @@ impl Assembler {
         missed: bool,
     ) -> CompletedStep {
         let status = e.status().unwrap_or(EstimateStatus::Failed);
-        self.estimator.get_or_insert(if e.estimator == 1 { "fused" } else { "snapshot" });
+        let estimator = estimator_of(e, status);
+        if let Some(kind) = estimator {
+            self.estimator.get_or_insert(kind);
+        }
         let velocity = (status.is_usable() && e.model == 1).then_some((e.velocity, e.velocity_cov));
         let (position, covariance) = e.plan_from().unwrap_or(([f64::NAN; 2], [[f64::NAN; 2]; 2]));
         let truth = t.map(|t| Vector2::new(t.position[0], t.position[1]));
@@ -388,7 +416,7 @@ impl Assembler {
                 let stated = m.stated_sigmas().0;
                 (stated != self.scenario.range_sigmas()).then_some(stated)
             },
-            estimator: Some(if e.estimator == 1 { "fused" } else { "snapshot" }.to_string()),
+            estimator: Some(estimator.or(self.estimator).unwrap_or(self.scenario.estimator.name()).to_string()),
             safety: None,
             // The reflections are the world's truth (absent with an external front end).
             receiver: StepReceiver::from_masks(
@@ -477,7 +505,8 @@ impl Assembler {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use protocol::{Fix, MessageKind, PlanInfo};
+    use protocol::{Fix, MessageKind, PlanInfo, PosteriorExtra};
+    use tdoa::fusion::EstimatorKind;
 
     const UAVS: [[f64; 2]; 3] = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
 
@@ -537,6 +566,43 @@ pub(crate) mod tests {
 
     fn command_of(k: u64) -> Command {
         command(k, 4.0, 0)
+    }
+
+    /// A fused estimator sends no posterior before its first fix, so the wire's `estimator` reads 0 there
+    /// as it does for the snapshot estimator: the run and those steps are still the fused estimator's.
+    #[test]
+    fn steps_before_a_first_fix_are_the_estimators_of_the_run() {
+        let fused = PosteriorExtra { estimator: 1, ..PosteriorExtra::default() };
+        for (kind, later) in [(EstimatorKind::Fused, Some(fused)), (EstimatorKind::Snapshot, None)] {
+            let mut a = Assembler::new(Scenario { estimator: kind, ..scenario(2) });
+            for k in 0..=2 {
+                a.add_measurement(measurement(k));
+                a.add_truth(if k == 0 { truth(k) } else { flown(k) });
+                let e = match (k, later) {
+                    (0, _) => estimate(k, Fix::Failed),
+                    (_, Some(extra)) => estimate(k, ok(25000.0)).with_extra(&extra),
+                    (_, None) => estimate(k, ok(25000.0)),
+                };
+                a.add_estimate(e);
+                if k < 2 {
+                    a.add_command(command_of(k));
+                }
+            }
+            let done = a.complete_ready();
+            assert_eq!(done.len(), 3);
+            let run = a.record();
+            assert_eq!(run.estimator, kind.name(), "the run's estimator");
+            for d in &done {
+                assert_eq!(d.record.estimator.as_deref(), Some(kind.name()), "step {}", d.record.step);
+            }
+        }
+        // A run whose estimator never fixed: the scenario's.
+        let mut a = Assembler::new(scenario(0));
+        a.add_measurement(measurement(0));
+        a.add_truth(truth(0));
+        a.add_estimate(estimate(0, Fix::Failed));
+        assert_eq!(a.complete_ready()[0].record.estimator.as_deref(), Some("fused"));
+        assert_eq!(a.record().estimator, "fused");
     }
 
     /// The messages of steps 0 and 1 (and step 2's truth, which completes step 1) in 2 000 random

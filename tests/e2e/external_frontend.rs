@@ -108,6 +108,11 @@ fn partial_and_silent_steps_from_the_python_front_end_are_fused_and_commanded() 
     for s in steps.iter().filter(|s| s["receiver"]["silent"] == true) {
         assert!(matches!(s["estimate_status"].as_str(), Some("predicted" | "failed")), "{s}");
     }
+    // Step 0 has no fix here; the run and that step are still the fused estimator's (a fused estimator
+    // sends no posterior before its first fix: the record named it "snapshot", unlike `simulate`).
+    assert_eq!(steps[0]["estimate_status"], "failed", "this seed's first step has no fix");
+    assert_eq!(report["estimator"], "fused");
+    assert!(steps.iter().all(|s| s["estimator"] == "fused"), "every step the fused estimator's");
     let last = steps.last().unwrap();
     let truth = [fe["truth"][0].as_f64().unwrap(), fe["truth"][1].as_f64().unwrap()];
     let e = (last["estimate"][0].as_f64().unwrap() - truth[0]).hypot(last["estimate"][1].as_f64().unwrap() - truth[1]);
