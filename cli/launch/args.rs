@@ -32,12 +32,15 @@ rmse_m, estimate_error_m, nees, pcrlb_m) are absent or null, never zero; crlb_at
 pcrlb_at_estimate_m (the CRLB and the posterior CRLB at the estimates) are there.
 The run ends when the monitor has the last step (--steps N: steps 0..N), or on Ctrl-C. A front end that
 leaves before the last step (it ended, or died) ends the launch 5 s later unless one comes back: exit code
-1, the monitor's error names the first step not recorded, the steps recorded are in the log.
+1, the monitor's error names the first step not recorded, the steps recorded are in the log (and, with
+--json, printed with \"failed\").
 
 Staleness (--estimate-deadline-ms D, off by default): when a step's estimate has not reached the planner D
 ms after the step's measurement, the planner holds: every UAV loiters on its backup circle, a right turn
 at the radius the certificate keeps clear (with safety = \"waypoints\" they hold course); the step is recorded with active_constraints [\"estimate_stale\"] and counted in
-\"stale_steps\". Meant for realtime runs; a lock-step run with a deadline depends on timing.
+\"stale_steps\". Meant for realtime runs; a lock-step run with a deadline depends on timing. The planner
+holds the same way, with or without a deadline, while there is no estimate to plan from (before a first
+fix): those steps are counted in \"stale_steps\" too, and apart in \"held_before_first_fix\".
 
 On a terminal (stdout and stderr) the launch shows a live view: the map with the UAV tracks, the true
 emitter (T), the estimate (E) with its 95 % ellipse and the L_min circle; beside it the RMSE and the CRLB

@@ -206,6 +206,14 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let flagged = |name| run.steps.iter().filter(|s| s.active_constraints.iter().any(|a| a == name)).count() as u64;
     let (missed_commands, stale_steps) =
         (flagged(monitor::assemble::COMMAND_MISSED), flagged(monitor::assemble::ESTIMATE_STALE));
+    // Of the holds, those with no estimate to plan from yet (before a first fix), not a late one.
+    let held_before_first_fix = run
+        .steps
+        .iter()
+        .filter(|s| {
+            s.estimate_status == "failed" && s.active_constraints.iter().any(|a| a == monitor::assemble::ESTIMATE_STALE)
+        })
+        .count() as u64;
     Ok(LaunchReport {
         interrupted,
         failed,
@@ -215,6 +223,7 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         rejected_by,
         missed_commands,
         stale_steps,
+        held_before_first_fix,
         domain: domain.to_string(),
         mode: match args.mode {
             _ if args.source == runtime::Source::External => "external".to_string(),

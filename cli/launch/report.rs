@@ -49,8 +49,11 @@ pub struct LaunchReport {
     /// Realtime mode: steps whose command had not reached emitter-sim when the next step was due (the UAVs
     /// flew the hold of a step without a plan); 0 in lock-step mode.
     pub missed_commands: u64,
-    /// Steps whose command was the planner's hold (no fresh estimate within --estimate-deadline-ms).
+    /// Steps whose command was the planner's hold: no fresh estimate within --estimate-deadline-ms, or
+    /// none yet to plan from (`held_before_first_fix` of them).
     pub stale_steps: u64,
+    /// Of `stale_steps`, those held before a first fix (the estimate failed: nothing to plan from).
+    pub held_before_first_fix: u64,
     /// Every process instance the launch started, in start order.
     #[serde(rename = "processes")]
     pub children: Vec<ChildReport>,
@@ -110,7 +113,8 @@ impl Report for LaunchReport {
             .row("median cycle", p50("cycle"))
             .row("rejected messages", self.rejected.to_string())
             .row("missed commands", self.missed_commands.to_string())
-            .row("stale estimates (held)", self.stale_steps.to_string())
+            .row("stale estimates (held)", (self.stale_steps - self.held_before_first_fix).to_string())
+            .row("held before a first fix", self.held_before_first_fix.to_string())
             .row("restarts", self.restarts.to_string())
             .row("wall time", format!("{:.2} s", self.wall_s));
         for c in &self.children {
@@ -141,11 +145,18 @@ impl Report for LaunchReport {
                 self.leftovers.services
             )));
         }
-        if self.stale_steps > 0 {
+        let late = self.stale_steps.saturating_sub(self.held_before_first_fix);
+        if late > 0 {
             out.push(Diagnostic::Warning(format!(
-                "{} step(s) had no fresh estimate within the planner's deadline (the planner held): see \
-                 active_constraints \"estimate_stale\"",
-                self.stale_steps
+                "{late} step(s) had no fresh estimate within the planner's deadline (the planner held): see \
+                 active_constraints \"estimate_stale\""
+            )));
+        }
+        if self.held_before_first_fix > 0 {
+            out.push(Diagnostic::Warning(format!(
+                "{} step(s) were held before a first fix (no estimate to plan from: the UAVs loitered on their \
+                 backup circles): see estimate_status \"failed\" with active_constraints \"estimate_stale\"",
+                self.held_before_first_fix
             )));
         }
         if self.missed_commands > 0 {

@@ -176,6 +176,8 @@ fn a_run_without_a_first_fix_holds_then_ends_launch_as_it_ends_simulate() {
         assert_eq!(s["active_constraints"], serde_json::json!(["estimate_stale"]), "step {} held", s["step"]);
     }
     assert_same_run(&sim, &run, "a silent run");
+    // Every hold of it was for want of a first fix, none for a late estimate (no deadline here).
+    assert_eq!((run["stale_steps"].as_u64(), run["held_before_first_fix"].as_u64()), (Some(6), Some(6)), "{run}");
     // σ = 500 m: step 0 has no fix, a later step has; both hold until then and agree.
     let (sim, run) = both("hold", with_sigma("500.0"));
     assert_eq!(sim["steps"][0]["active_constraints"], serde_json::json!(["estimate_stale"]), "step 0 held");
