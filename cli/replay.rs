@@ -10,7 +10,7 @@ use clap::Args;
 use estimation::{EmitterModel, Estimator, EstimatorConfig, EstimatorKind};
 use model::Scenario;
 use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
-use protocol::{Estimate, Measurement};
+use protocol::{Estimate, EstimateStatus, Measurement};
 use record::recording::{RecordedMessage, read_recording};
 use serde::Serialize;
 use serde_json::Value;
@@ -259,6 +259,17 @@ fn recorded_planners(
     Ok(out)
 }
 
+/// The estimator a recorded estimate comes from: fused when it carries a posterior; a snapshot estimator's
+/// when it has a fix without one; `None` for a failed step without one — the wire's `estimator = 0`
+/// ("snapshot" in the recording) is also a fused estimator's before its first fix.
+fn estimator_of_recorded(estimate: &Value) -> Option<EstimatorKind> {
+    match (estimate["estimator"].as_str()?, estimate["status"].as_str()?) {
+        ("fused", _) => Some(EstimatorKind::Fused),
+        ("snapshot", status) if status != EstimateStatus::Failed.name() => Some(EstimatorKind::Snapshot),
+        _ => None,
+    }
+}
+
 /// `names`, each once in the order first seen, joined by ` → ` (one name when all are one).
 fn in_order_used(names: impl Iterator<Item = &'static str>) -> String {
     let mut used: Vec<&str> = Vec::new();
@@ -297,14 +308,9 @@ pub fn run(args: &ReplayArgs) -> Result<ReplayReport, CliError> {
     }
     // Without --estimator, each step with the estimator that made its recorded estimate (a run whose
     // estimator was swapped: the new one resumed from the last estimate of the old one, as it did).
-    let recorded_kind = |step: u64| -> Option<EstimatorKind> {
-        match estimates.get(&step)?["estimator"].as_str()? {
-            "fused" => Some(EstimatorKind::Fused),
-            "snapshot" => Some(EstimatorKind::Snapshot),
-            _ => None,
-        }
-    };
-    let mut kind = args.estimator.or_else(|| recorded_kind(0)).unwrap_or(sc.estimator);
+    let recorded_kind = |step: u64| estimates.get(&step).and_then(|e| estimator_of_recorded(e));
+    // The first estimate that tells (a fused run's first steps may have no fix), else the scenario's.
+    let mut kind = args.estimator.or_else(|| estimates.keys().find_map(|k| recorded_kind(*k))).unwrap_or(sc.estimator);
     let mut kinds_used = vec![kind];
     let mut estimator = Estimator::with_config(EstimatorConfig::new(kind, dynamics));
     let mut last_replayed: Option<protocol::Estimate> = None;

@@ -26,9 +26,15 @@ fn front_end(domain: &str, steps: &str, extra: &[&str]) -> std::io::Result<std::
 
 /// Runs the front end against a launch in `domain`; the launch's JSON and the front end's summary.
 fn run(domain: &str, tag: &str, extra: &[&str]) -> (Value, Value) {
+    run_with(domain, tag, &[], extra)
+}
+
+/// [`run`] with `launch_extra` flags for the launch.
+fn run_with(domain: &str, tag: &str, launch_extra: &[&str], extra: &[&str]) -> (Value, Value) {
     let dir = scratch(tag);
     let steps = STEPS.to_string();
-    let mut launch = Launch::start(domain, &dir, &["--source", "external", "--steps", &steps]);
+    let mut launch =
+        Launch::start(domain, &dir, &[&["--source", "external", "--steps", &steps][..], launch_extra].concat());
     let out = front_end(domain, &steps, extra);
     // A launch with an external source waits for its front end: never leave one behind.
     let out = match out {
@@ -95,7 +101,14 @@ fn a_python_front_end_is_answered_every_step_and_its_emitter_is_localised() {
 fn partial_and_silent_steps_from_the_python_front_end_are_fused_and_commanded() {
     let _scenario = common::scenario(module_path!());
     let d = domain("ext", "rx");
-    let (report, fe) = run(&d, "ext-rx", &["--loss", "0.2", "--silence", "0.2", "--multipath", "0.05", "--seed", "3"]);
+    let kept = scratch("ext-rx-recording");
+    let recording = kept.join("run.mcap");
+    let (report, fe) = run_with(
+        &d,
+        "ext-rx",
+        &["--record", recording.to_str().unwrap()],
+        &["--loss", "0.2", "--silence", "0.2", "--multipath", "0.05", "--seed", "3"],
+    );
     assert_eq!(fe["commands_flown"], STEPS, "every step but the last answered with a command");
     assert_eq!(report["rejected"], 0, "{}", report["rejected_by"]);
     let rx = &report["receiver"];
@@ -113,6 +126,14 @@ fn partial_and_silent_steps_from_the_python_front_end_are_fused_and_commanded() 
     assert_eq!(steps[0]["estimate_status"], "failed", "this seed's first step has no fix");
     assert_eq!(report["estimator"], "fused");
     assert!(steps.iter().all(|s| s["estimator"] == "fused"), "every step the fused estimator's");
+    // The recording replays to the same estimates and plans: the replay, too, takes the estimator from
+    // a step with a fix (from step 0's "snapshot" it replayed 3 of 16 estimates alike).
+    let replay = common::json_of(&["replay", recording.to_str().unwrap(), "--json"]);
+    assert_eq!(replay["estimator"], "fused", "{replay}");
+    assert_eq!(replay["estimates_equal"], replay["estimates_compared"], "{replay}");
+    assert_eq!(replay["estimates_compared"], STEPS + 1, "{replay}");
+    assert_eq!(replay["plans_equal"], replay["plans_compared"], "{replay}");
+    let _ = std::fs::remove_dir_all(&kept);
     let last = steps.last().unwrap();
     let truth = [fe["truth"][0].as_f64().unwrap(), fe["truth"][1].as_f64().unwrap()];
     let e = (last["estimate"][0].as_f64().unwrap() - truth[0]).hypot(last["estimate"][1].as_f64().unwrap() - truth[1]);
