@@ -259,9 +259,9 @@ fn recorded_planners(
     Ok(out)
 }
 
-/// The estimator a recorded estimate comes from: fused when it carries a posterior; a snapshot estimator's
-/// when it has a fix without one; `None` for a failed step without one — the wire's `estimator = 0`
-/// ("snapshot" in the recording) is also a fused estimator's before its first fix.
+/// The estimator a recorded estimate comes from ([`Estimate::estimator_name`] of its JSON: the recording
+/// names the wire's `estimator = 0` "snapshot", which a fused estimator before its first fix sends too,
+/// so a failed step's "snapshot" does not tell).
 fn estimator_of_recorded(estimate: &Value) -> Option<EstimatorKind> {
     match (estimate["estimator"].as_str()?, estimate["status"].as_str()?) {
         ("fused", _) => Some(EstimatorKind::Fused),

@@ -70,13 +70,15 @@ impl Proc {
         self.exit.is_some_and(|s| s.success()) && self.summary.as_ref().is_some_and(|s| !s["handed_over_at"].is_null())
     }
 
-    /// Its role's decision on its exit (`None` while it runs, once it was replaced, and for a successful
-    /// exit whose last lines — its summary — are not all in yet), given the role's `restarts` so far.
+    /// Its role's decision on its exit (`None` while it runs, once it was replaced, and until its last
+    /// lines are all in — its summary, its record, the error it told: the exit may be reaped before its
+    /// stdout is read to the end), given the role's `restarts` so far.
     fn decision(&self, restarts: u32, max_restarts: u32, recovery: Recovery) -> Option<RestartDecision> {
-        let status = self.exit?;
-        if self.replaced || (status.success() && !self.closed) {
+        self.exit?;
+        if self.replaced || !self.closed {
             return None;
         }
+        let status = self.exit?;
         match self.role.on_exit(status, self.handed_over(), restarts, max_restarts, recovery) {
             // Why, in its own words, after the launcher's.
             RestartDecision::Fail(why) if let Some(error) = &self.failure => {

@@ -121,28 +121,17 @@ pub struct Assembler {
     truth: bool,
 }
 
-/// The estimator an estimate comes from: fused when it carries a posterior, a snapshot estimator's when
-/// it has a fix without one, and not known (`None`) from a failed step without a posterior — a fused
-/// estimator before its first fix sends none either, so the wire's `estimator = 0` does not tell.
-fn estimator_of(e: &Estimate, status: EstimateStatus) -> Option<&'static str> {
-    if e.estimator == 1 {
-        Some("fused")
-    } else if status.is_usable() {
-        Some("snapshot")
-    } else {
-        None
-    }
-}
-
 /// The estimator a recorded step names (the run's as it was known then, or the scenario's).
 fn recorded_estimator(s: &StepRecord) -> Option<&'static str> {
     ["fused", "snapshot"].into_iter().find(|k| s.estimator.as_deref() == Some(*k))
 }
 
-/// [`recorded_estimator`] of a step that had a fix ([`estimator_of`]: the first one is the run's).
+/// [`recorded_estimator`] of a step that had a fix ([`Estimate::estimator_name`]: the first one is the
+/// run's).
 fn known_estimator(s: &StepRecord) -> Option<&'static str> {
     if s.estimate_status == EstimateStatus::Failed.name() { None } else { recorded_estimator(s) }
 }
+
 impl Assembler {
     /// An assembler for a run of `scenario` (its `steps`, `rmse_resamples` and `seed` are used).
     pub fn new(scenario: Scenario) -> Self {
@@ -366,7 +355,7 @@ impl Assembler {
         missed: bool,
     ) -> CompletedStep {
         let status = e.status().unwrap_or(EstimateStatus::Failed);
-        let estimator = estimator_of(e, status);
+        let estimator = e.estimator_name();
         if let Some(kind) = estimator {
             self.estimator.get_or_insert(kind);
         }

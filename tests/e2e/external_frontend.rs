@@ -336,7 +336,9 @@ fn a_foreign_measurement_numbered_u64_max_cannot_stall_the_run() {
     let a = spawn_front_end(&d, &steps, &["--step-delay-s", "0.1", "--timeout-s", "20"]);
     launch.wait_for_step(2, common::FINISH_TIMEOUT / 4);
     let max = u64::MAX.to_string();
-    let b = front_end(&d, "0", &["--seq-start", &max, "--linger-s", "0"]).expect("run the intruder");
+    // It stays a second after publishing: a sample no subscriber has read yet goes with its publisher, and
+    // both receivers must have seen it (leaving at once, it was sometimes gone before the monitor read it).
+    let b = front_end(&d, "0", &["--seq-start", &max, "--linger-s", "1"]).expect("run the intruder");
     assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
     let a = a.wait_with_output().expect("the front end");
     assert!(a.status.success(), "the front end stalled: {}", String::from_utf8_lossy(&a.stderr));

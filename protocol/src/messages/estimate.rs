@@ -406,6 +406,19 @@ impl Estimate {
         EstimateStatus::from_u8(self.status)
     }
 
+    /// The estimator this estimate comes from, as far as it tells: `"fused"` when it carries a posterior
+    /// (`estimator = 1`), `"snapshot"` when it has a usable fix without one, `None` for a step without a
+    /// fix and without a posterior — a fused estimator before its first fix sends that too.
+    pub fn estimator_name(&self) -> Option<&'static str> {
+        if self.estimator == 1 {
+            Some("fused")
+        } else if self.status().is_some_and(EstimateStatus::is_usable) {
+            Some("snapshot")
+        } else {
+            None
+        }
+    }
+
     /// The fix (`None` for an unknown status).
     pub fn fix(&self) -> Option<Fix> {
         let (position, covariance) = (self.position, self.covariance);
