@@ -203,17 +203,14 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
         *rejected_by.entry(c.role.clone()).or_insert(0) += c.rejected;
     }
     // Counted in the record: what was flown, once per step, however often emitter-sim was restarted.
-    let flagged = |name| run.steps.iter().filter(|s| s.active_constraints.iter().any(|a| a == name)).count() as u64;
+    let has = |s: &record::record::StepRecord, name: &str| s.active_constraints.iter().any(|a| a == name);
+    let flagged = |name| run.steps.iter().filter(|s| has(s, name)).count() as u64;
     let (missed_commands, stale_steps) =
         (flagged(monitor::assemble::COMMAND_MISSED), flagged(monitor::assemble::ESTIMATE_STALE));
     // Of the holds, those with no estimate to plan from yet (before a first fix), not a late one.
-    let held_before_first_fix = run
-        .steps
-        .iter()
-        .filter(|s| {
-            s.estimate_status == "failed" && s.active_constraints.iter().any(|a| a == monitor::assemble::ESTIMATE_STALE)
-        })
-        .count() as u64;
+    let held_before_first_fix =
+        run.steps.iter().filter(|s| has(s, monitor::assemble::ESTIMATE_STALE) && s.estimate_status == "failed").count()
+            as u64;
     Ok(LaunchReport {
         interrupted,
         failed,

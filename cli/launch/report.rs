@@ -77,6 +77,13 @@ fn opt(v: Option<f64>, digits: usize) -> String {
     v.map_or("-".to_string(), |x| format!("{x:.digits$}"))
 }
 
+impl LaunchReport {
+    /// The holds for an estimate later than the planner's deadline (not those before a first fix).
+    fn late_estimates(&self) -> u64 {
+        self.stale_steps.saturating_sub(self.held_before_first_fix)
+    }
+}
+
 impl Report for LaunchReport {
     fn table(&self) -> Table {
         let r = &self.run;
@@ -113,7 +120,7 @@ impl Report for LaunchReport {
             .row("median cycle", p50("cycle"))
             .row("rejected messages", self.rejected.to_string())
             .row("missed commands", self.missed_commands.to_string())
-            .row("stale estimates (held)", (self.stale_steps - self.held_before_first_fix).to_string())
+            .row("stale estimates (held)", self.late_estimates().to_string())
             .row("held before a first fix", self.held_before_first_fix.to_string())
             .row("restarts", self.restarts.to_string())
             .row("wall time", format!("{:.2} s", self.wall_s));
@@ -145,7 +152,7 @@ impl Report for LaunchReport {
                 self.leftovers.services
             )));
         }
-        let late = self.stale_steps.saturating_sub(self.held_before_first_fix);
+        let late = self.late_estimates();
         if late > 0 {
             out.push(Diagnostic::Warning(format!(
                 "{late} step(s) had no fresh estimate within the planner's deadline (the planner held): see \

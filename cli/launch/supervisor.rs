@@ -74,11 +74,10 @@ impl Proc {
     /// lines are all in — its summary, its record, the error it told: the exit may be reaped before its
     /// stdout is read to the end), given the role's `restarts` so far.
     fn decision(&self, restarts: u32, max_restarts: u32, recovery: Recovery) -> Option<RestartDecision> {
-        self.exit?;
+        let status = self.exit?;
         if self.replaced || !self.closed {
             return None;
         }
-        let status = self.exit?;
         match self.role.on_exit(status, self.handed_over(), restarts, max_restarts, recovery) {
             // Why, in its own words, after the launcher's.
             RestartDecision::Fail(why) if let Some(error) = &self.failure => {
