@@ -259,9 +259,10 @@ fn recorded_planners(
     Ok(out)
 }
 
-/// The estimator a recorded estimate comes from ([`Estimate::estimator_name`] of its JSON: the recording
-/// names the wire's `estimator = 0` "snapshot", which a fused estimator before its first fix sends too,
-/// so a failed step's "snapshot" does not tell).
+/// The estimator a recorded estimate comes from ([`Estimate::estimator_name`] of its JSON: `null` before
+/// a fused estimator's first fix; a recording written before that rule names the wire's `estimator = 0`
+/// "snapshot", which a fused estimator before its first fix sends too, so there a failed step's
+/// "snapshot" does not tell).
 fn estimator_of_recorded(estimate: &Value) -> Option<EstimatorKind> {
     match (estimate["estimator"].as_str()?, estimate["status"].as_str()?) {
         ("fused", _) => Some(EstimatorKind::Fused),

@@ -130,7 +130,7 @@ impl Recordable for Estimate {
             json!({
                 "instance": self.instance, "count": self.count,
                 "status": self.status().map_or("unknown", |s| s.name()),
-                "estimator": if self.estimator == 1 { "fused" } else { "snapshot" },
+                "estimator": self.estimator_name(),
                 "model": if self.model == 1 { "constant_velocity" } else { "static" },
                 "rejected_run": self.rejected_run,
                 "heard": (0..self.len()).filter(|&i| self.heard & (1u8 << i) != 0).collect::<Vec<_>>(),
@@ -144,7 +144,8 @@ impl Recordable for Estimate {
     }
     fn schema_properties() -> Value {
         json!({
-            "instance": integer(), "count": integer(), "status": string(), "estimator": string(), "model": string(),
+            "instance": integer(), "count": integer(), "status": string(),
+            "estimator": {"type": ["string", "null"]}, "model": string(),
             "rejected_run": integer(), "heard": {"type": "array", "items": integer()},
             "outliers": {"type": "array", "items": integer()}, "bias_cov": points(), "position": numbers(), "covariance": points(), "uavs": points(),
             "headings": numbers(), "velocity": numbers(), "cross_cov": points(), "velocity_cov": points(),
@@ -605,6 +606,20 @@ mod tests {
             assert_eq!(c.to_json()["certified"].as_bool(), Some(word));
         }
         assert_eq!(Command::schema_properties()["certified"]["type"][0], "boolean");
+    }
+
+    #[test]
+    fn an_estimate_records_the_estimator_that_made_it_and_none_before_a_fused_first_fix() {
+        let fix = Fix::Ok { position: [100.0, 200.0], covariance: [[4.0, 0.0], [0.0, 9.0]] };
+        let mut e = Estimate::new(2, 3, 4, &UAVS, &[0.1, 0.2, 0.3], fix).unwrap();
+        assert_eq!(e.to_json()["estimator"], "snapshot");
+        e.estimator = 1;
+        assert_eq!(e.to_json()["estimator"], "fused");
+        // A fused estimator's failed step before its first fix carries the wire's 0 ("no posterior"):
+        // recorded as no estimator, not as the snapshot estimator's.
+        let failed = Estimate::new(2, 3, 4, &UAVS, &[0.1, 0.2, 0.3], Fix::Failed).unwrap();
+        assert!(failed.to_json()["estimator"].is_null(), "{}", failed.to_json());
+        assert_eq!(Estimate::schema_properties()["estimator"]["type"][1], "null");
     }
 
     #[test]

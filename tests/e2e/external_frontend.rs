@@ -133,6 +133,16 @@ fn partial_and_silent_steps_from_the_python_front_end_are_fused_and_commanded() 
     assert_eq!(replay["estimates_equal"], replay["estimates_compared"], "{replay}");
     assert_eq!(replay["estimates_compared"], STEPS + 1, "{replay}");
     assert_eq!(replay["plans_equal"], replay["plans_compared"], "{replay}");
+    // The recording names no estimator for step 0 (no posterior yet), the fused one from the first fix.
+    let recorded = record::recording::read_recording(&recording).unwrap();
+    let estimators: Vec<(u64, &Value)> = recorded
+        .messages
+        .iter()
+        .filter(|m| m.topic == "/estimate")
+        .map(|m| (m.json["step"].as_u64().unwrap(), &m.json["estimator"]))
+        .collect();
+    assert!(estimators.iter().any(|(k, e)| *k == 0 && e.is_null()), "{estimators:?}");
+    assert!(estimators.iter().all(|(_, e)| e.is_null() || *e == "fused"), "{estimators:?}");
     let _ = std::fs::remove_dir_all(&kept);
     let last = steps.last().unwrap();
     let truth = [fe["truth"][0].as_f64().unwrap(), fe["truth"][1].as_f64().unwrap()];
