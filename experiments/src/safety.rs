@@ -141,6 +141,52 @@ pub fn fly(sc: &Scenario, mode: SafetyMode) -> Result<Outcome, closed_loop::Loop
     Ok(Outcome { run, uncertified })
 }
 
+/// The certified planner's steps without a certified plan, one row per run that has any: its steps,
+/// their tightest limits (counted), the estimate's σ over them against the run's `L_min` (an estimate
+/// wider than the standoff leaves no standoff its chance bound can certify), and the backup circles'
+/// smallest standoff margin.
+fn uncertified_by_run(outcomes: &[Outcome]) -> Grid {
+    let mut grid = Grid::new(
+        "safety-uncertified",
+        "certified planner: the steps without a certified plan, and why (one row per run that has any)",
+        &["scenario", "UAVs", "L_min m", "steps", "tightest limit (steps)", "estimate σ m", "backup standoff margin m"],
+    );
+    for (k, o) in outcomes.iter().enumerate().filter(|(_, o)| !o.uncertified.is_empty()) {
+        let u = &o.uncertified;
+        let mut limits: Vec<(&str, usize)> = Vec::new();
+        for x in u {
+            match limits.iter_mut().find(|(name, _)| *name == x.tightest) {
+                Some((_, count)) => *count += 1,
+                None => limits.push((&x.tightest, 1)),
+            }
+        }
+        let sigma = |pick: fn(f64, f64) -> f64| u.iter().map(|x| x.estimate_sigma_m).reduce(pick).unwrap_or(f64::NAN);
+        let worst = u.iter().filter_map(|x| x.backup_standoff_margin_m).reduce(f64::min);
+        grid.push(vec![
+            k.to_string(),
+            o.run.scenario.uav_count().to_string(),
+            format!("{:.0}", o.run.scenario.l_min),
+            step_ranges(u.iter().map(|x| x.step)),
+            limits.iter().map(|(name, count)| format!("{name} ({count})")).collect::<Vec<_>>().join(", "),
+            format!("{:.0}–{:.0}", sigma(f64::min), sigma(f64::max)),
+            cell(worst, 0),
+        ]);
+    }
+    grid
+}
+
+/// Increasing step numbers as ranges: `0–11, 72`.
+fn step_ranges(steps: impl Iterator<Item = u64>) -> String {
+    let mut ranges: Vec<(u64, u64)> = Vec::new();
+    for k in steps {
+        match ranges.last_mut() {
+            Some((_, end)) if *end + 1 == k => *end = k,
+            _ => ranges.push((k, k)),
+        }
+    }
+    ranges.iter().map(|(a, b)| if a == b { a.to_string() } else { format!("{a}–{b}") }).collect::<Vec<_>>().join(", ")
+}
+
 /// The per-planner summary of a set of outcomes (`scenarios` gives each run's limits).
 fn summary(outcomes: &[Outcome]) -> Value {
     let runs = outcomes.len();
@@ -289,11 +335,13 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
                     "step": u.step,
                     "tightest": u.tightest,
                     "estimate_sigma_m": u.estimate_sigma_m,
+                    "l_min_m": o.run.scenario.l_min,
                     "backup_standoff_margin_m": u.backup_standoff_margin_m,
                 })
             })
         })
         .collect();
+    let uncertified_grid = uncertified_by_run(&safe);
     let cost = b["terminal_error_m_median"].as_f64().zip(a["terminal_error_m_median"].as_f64()).map(|(x, y)| x / y);
     let conclusions = vec![
         format!(
@@ -304,7 +352,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             cell(a["deepest_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 1),
         ),
         format!(
-            "Certified: {} of {m} runs with a pair below D_min (closest {} × D_min); {} % of UAV-steps inside L_min, the deepest {} %; {} steps without a certified plan in {} runs ({} of them with an estimate whose σ exceeds L_min).",
+            "Certified: {} of {m} runs with a pair below D_min (closest {} × D_min); {} % of UAV-steps inside L_min, the deepest {} %; {} steps without a certified plan in {} runs ({} of them with an estimate whose σ exceeds L_min), each run's listed with its tightest limits in the second table.",
             b["runs_with_pair_below_d_min"],
             cell(b["min_pair_over_d_min"].as_f64(), 3),
             cell(b["uav_steps_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 2),
@@ -375,7 +423,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             }),
         ],
         conclusions,
-        tables: vec![grid],
+        tables: vec![grid, uncertified_grid],
         figures,
         files: Vec::new(),
     })
@@ -456,6 +504,7 @@ mod tests {
     #[test]
     fn spacing_holds_where_the_standoff_cannot_be_certified() {
         let mut uncertified = 0;
+        let mut outcomes = Vec::new();
         for m in [36, 148, 153, 161] {
             let sc = scenario(1, m);
             let safe = fly(&sc, SafetyMode::Certified).unwrap();
@@ -463,8 +512,28 @@ mod tests {
             uncertified += r.uncertified_steps;
             assert_eq!(r.true_spacing_violations, 0, "scenario {m}: min pair {:?} (D_min {})", r.min_pair_m, sc.d_min);
             assert!(r.min_pair_m.unwrap() >= sc.d_min, "scenario {m}");
+            outcomes.push(safe);
         }
         assert!(uncertified > 0, "every step certified: the cases are not hard");
+        // The study lists them: one row per run that has any, its steps and tightest limits counted.
+        let grid = uncertified_by_run(&outcomes);
+        let listed: Vec<&Outcome> = outcomes.iter().filter(|o| !o.uncertified.is_empty()).collect();
+        assert_eq!(grid.rows.len(), listed.len());
+        for (row, o) in grid.rows.iter().zip(&listed) {
+            let counted: usize = row[4]
+                .split(", ")
+                .map(|part| part.rsplit_once(" (").unwrap().1.trim_end_matches(')').parse::<usize>().unwrap())
+                .sum();
+            assert_eq!(counted, o.uncertified.len(), "{row:?}");
+            assert!(row[4].contains(&o.uncertified[0].tightest), "{row:?}");
+        }
+    }
+
+    #[test]
+    fn steps_are_listed_as_ranges() {
+        assert_eq!(step_ranges([0, 1, 2, 3, 7, 9, 10].into_iter()), "0–3, 7, 9–10");
+        assert_eq!(step_ranges([72].into_iter()), "72");
+        assert_eq!(step_ranges(std::iter::empty()), "");
     }
 
     #[test]
