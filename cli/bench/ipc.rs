@@ -173,6 +173,9 @@ pub struct IpcRatio {
 pub struct IpcReport {
     /// The two cores (sender, echo).
     pub cores: [usize; 2],
+    /// The machine (`cpus`, `cpu_model`).
+    #[serde(flatten)]
+    pub machine: sys::Machine,
     /// How both ends waited: `block` or `spin`.
     pub wait: IpcWait,
     /// Payloads timed per row.
@@ -322,7 +325,15 @@ pub fn run(args: &IpcArgs) -> Result<IpcReport, CliError> {
             })
         })
         .collect();
-    let mut report = IpcReport { cores, wait: args.wait, messages: args.messages, rows, ratios, written: Vec::new() };
+    let mut report = IpcReport {
+        cores,
+        machine: sys::Machine::this(),
+        wait: args.wait,
+        messages: args.messages,
+        rows,
+        ratios,
+        written: Vec::new(),
+    };
     if let Some(dir) = &args.out {
         report.written = write_out(&report, dir)?;
     }
@@ -394,7 +405,9 @@ fn size_label(bytes: usize) -> String {
 
 impl Report for IpcReport {
     fn table(&self) -> Table {
-        let mut t = Table::new().row("cores", format!("sender {}, echo {}", self.cores[0], self.cores[1]));
+        let mut t = Table::new()
+            .row("machine", self.machine.describe())
+            .row("cores", format!("sender {}, echo {}", self.cores[0], self.cores[1]));
         t = t.row("wait", self.wait.name());
         t = t.row("messages per row", self.messages.to_string());
         for r in &self.rows {

@@ -446,6 +446,9 @@ pub struct LatencyReport {
     /// The goals of the benchmark, each with its verdict.
     pub goals: Vec<Goal>,
     pub cores: Vec<usize>,
+    /// The machine (`cpus`, `cpu_model`).
+    #[serde(flatten)]
+    pub machine: sys::Machine,
     pub objective: String,
     /// Files written with --out.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -658,6 +661,7 @@ fn finish(
         runs,
         ratios,
         cores,
+        machine: sys::Machine::this(),
         objective: flags.objective.name().into(),
         files: Vec::new(),
     };
@@ -679,7 +683,10 @@ fn fmt_p(p: &Option<Percentiles>) -> String {
 
 impl Report for LatencyReport {
     fn table(&self) -> Table {
-        let mut t = Table::new().row("cores", format!("{:?}", self.cores)).row("objective", &self.objective);
+        let mut t = Table::new()
+            .row("machine", self.machine.describe())
+            .row("cores", format!("{:?}", self.cores))
+            .row("objective", &self.objective);
         for r in &self.runs {
             t = t.row(
                 format!("{} end to end p50/p99", r.label()),
@@ -695,7 +702,13 @@ impl Report for LatencyReport {
     fn text(&self) -> String {
         use std::fmt::Write as _;
         let mut s = String::new();
-        let _ = writeln!(s, "cores {:?}, objective {}; latencies in µs", self.cores, self.objective);
+        let _ = writeln!(
+            s,
+            "{}; cores {:?}, objective {}; latencies in µs",
+            self.machine.describe(),
+            self.cores,
+            self.objective
+        );
         for r in &self.runs {
             let _ = writeln!(s, "\n{} — {} steps in {:.2} s, lost {}", r.label(), r.steps, r.wall_s, r.lost);
             let _ =

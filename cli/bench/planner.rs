@@ -220,10 +220,9 @@ pub struct PlannerBenchReport {
     pub reference: String,
     /// One entry per objective × solver, in the order of the flags (objective-major).
     pub combinations: Vec<Combination>,
-    /// Online CPUs (`available_parallelism`); the benchmark itself uses one thread.
-    pub cpus: usize,
-    /// The CPU model (`/proc/cpuinfo`), when known.
-    pub cpu_model: Option<String>,
+    /// The machine (`cpus`, `cpu_model`); the benchmark itself uses one thread.
+    #[serde(flatten)]
+    pub machine: super::sys::Machine,
     /// The scenario file, or `"nominal"`.
     pub scenario: String,
     /// Seed of the first input run.
@@ -420,15 +419,6 @@ fn paper_ms(objective: ObjectiveKind, solver: SolverKind) -> Option<(f64, f64)> 
     experiments::paper::row(&experiments::paper::TABLE7, objective.name()).map(|r| (ms(r[2]), ms(r[1])))
 }
 
-fn cpu_model() -> Option<String> {
-    let info = std::fs::read_to_string("/proc/cpuinfo").ok()?;
-    info.lines()
-        .find(|l| l.starts_with("model name"))
-        .and_then(|l| l.split_once(':'))
-        .map(|(_, v)| v.trim().to_string())
-        .filter(|v| !v.is_empty())
-}
-
 /// Runs `uavloc bench planner`.
 pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
     use model::scenario::{MAX_COUNT, MAX_STEPS};
@@ -534,8 +524,7 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
         repeats: args.repeats,
         reference: label(reference_combo),
         combinations,
-        cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
-        cpu_model: cpu_model(),
+        machine: super::sys::Machine::this(),
         scenario: args.scenario.as_ref().map_or("nominal".to_string(), |p| p.display().to_string()),
         seed: sc.seed,
         input_runs,
@@ -650,14 +639,7 @@ impl PlannerBenchReport {
                     s.pso[0], s.pso[1], s.ga[0], s.ga[1], s.aco[0], s.aco[1], s.early_stop_window, s.mc_samples
                 ),
             ),
-            (
-                "machine",
-                format!(
-                    "{} online CPU(s){}; timed on one thread",
-                    self.cpus,
-                    self.cpu_model.as_ref().map_or(String::new(), |m| format!(", {m}"))
-                ),
-            ),
+            ("machine", format!("{}; timed on one thread", self.machine.describe())),
         ]
     }
 }
@@ -936,7 +918,7 @@ mod tests {
         let r = run(&args(&["analytical", "single", "formation"], &["pso", "ga"], 3, 2)).unwrap();
         assert_eq!((r.steps, r.repeats, r.reference.as_str()), (3, 2, "analytical/pso"));
         assert_eq!(r.combinations.len(), 6);
-        assert!(r.cpus >= 1);
+        assert!(r.machine.cpus >= 1);
         assert_eq!(r.settings.pso, [40, 15]);
         for c in &r.combinations {
             let label = format!("{}/{}", c.objective, c.solver);

@@ -8,6 +8,41 @@
 use std::io;
 use std::mem::MaybeUninit;
 
+/// The machine a benchmark ran on, as every `uavloc bench` report gives it (JSON `cpus`, `cpu_model`).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct Machine {
+    /// Online CPUs (`sysconf(_SC_NPROCESSORS_ONLN)`: the machine's, whatever cores the benchmark is
+    /// pinned to).
+    pub cpus: usize,
+    /// The CPU model (`/proc/cpuinfo`), when known.
+    pub cpu_model: Option<String>,
+}
+
+impl Machine {
+    /// This machine.
+    pub fn this() -> Self {
+        let online = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) };
+        let cpus =
+            if online >= 1 { online as usize } else { std::thread::available_parallelism().map_or(1, |n| n.get()) };
+        Self { cpus, cpu_model: cpu_model() }
+    }
+
+    /// `2 online CPU(s), <model>`.
+    pub fn describe(&self) -> String {
+        format!("{} online CPU(s){}", self.cpus, self.cpu_model.as_ref().map_or(String::new(), |m| format!(", {m}")))
+    }
+}
+
+/// The CPU model of the first processor in `/proc/cpuinfo`.
+fn cpu_model() -> Option<String> {
+    let info = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    info.lines()
+        .find(|l| l.starts_with("model name"))
+        .and_then(|l| l.split_once(':'))
+        .map(|(_, v)| v.trim().to_string())
+        .filter(|v| !v.is_empty())
+}
+
 /// The cores of a `cpu_set_t` (0 .. `CPU_SETSIZE`).
 fn set_cores(set: &libc::cpu_set_t) -> Vec<usize> {
     (0..libc::CPU_SETSIZE as usize).filter(|&c| unsafe { libc::CPU_ISSET(c, set) }).collect()

@@ -35,6 +35,7 @@ fn a_small_sweep_reports_every_transport_and_size() {
         sweep(&["bench", "ipc", "--messages", "60", "--sizes", "256,65536", "--json", "--out", dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    common::assert_names_the_machine(&report);
     let rows = report["rows"].as_array().unwrap();
     let got: Vec<(&str, u64)> =
         rows.iter().map(|r| (r["transport"].as_str().unwrap(), r["size_bytes"].as_u64().unwrap())).collect();

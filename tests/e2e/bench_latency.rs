@@ -137,11 +137,20 @@ fn latency_over_sockets_with_a_text_report() {
     let out = uavloc(&["bench", "latency", "--transport", "uds", "--wait", "spin-then-block", "--steps", "100"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8_lossy(&out.stdout);
-    for needle in ["uds spin-then-block", "end to end", "hop planner→emitter", "compute planner", "CPU:", "goals"] {
+    for needle in [
+        "online CPU(s)",
+        "uds spin-then-block",
+        "end to end",
+        "hop planner→emitter",
+        "compute planner",
+        "CPU:",
+        "goals",
+    ] {
         assert!(text.contains(needle), "{needle} missing in:\n{text}");
     }
     let json = json_of(&["bench", "latency", "--transport", "uds", "--steps", "60", "--idle-ms", "20", "--json"]);
     assert_eq!(json["runs"].as_array().unwrap().len(), 1);
+    common::assert_names_the_machine(&json);
     check_run(&json["runs"][0], 60);
 }
 

@@ -479,3 +479,21 @@ impl Drop for ScenarioGuard {
         }
     }
 }
+
+/// Asserts that a `uavloc bench` report names the machine it ran on: `cpus` (the online CPUs, not the
+/// cores the benchmark is pinned to) and
+/// `cpu_model` (`/proc/cpuinfo`'s model name, `null` where there is none).
+pub fn assert_names_the_machine(report: &Value) {
+    let cpus = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) } as u64;
+    assert_eq!(report["cpus"].as_u64(), Some(cpus), "cpus in {report}");
+    let model = std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|info| {
+        info.lines()
+            .find(|l| l.starts_with("model name"))
+            .and_then(|l| l.split_once(':'))
+            .map(|(_, v)| v.trim().to_string())
+    });
+    match model.filter(|m| !m.is_empty()) {
+        Some(m) => assert_eq!(report["cpu_model"].as_str(), Some(m.as_str()), "cpu_model in {report}"),
+        None => assert!(report["cpu_model"].is_null(), "cpu_model in {report}"),
+    }
+}
