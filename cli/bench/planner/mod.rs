@@ -28,16 +28,20 @@ use std::time::Instant;
 use clap::Args;
 use model::Scenario;
 use model::safety::SafetyMode;
-use nalgebra::{Matrix2, Vector2};
-use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
+use planning::{ObjectiveKind, SolverKind, plan_step};
 use serde::Serialize;
-use tdoa::rng::{Purpose, derive_seed};
 
 use experiments::stats::quantile;
 
 use crate::error::CliError;
-use crate::output::{Report, Table};
 use crate::simulate::scenario_from;
+
+mod inputs;
+mod quality;
+mod report;
+
+pub use inputs::{PlanInput, collect_inputs, collect_inputs_of_runs};
+pub use quality::{Quality, WorstCase, quality};
 
 pub const LONG_ABOUT: &str = "\
 Time the planner's compute per planning step (one call of plan_step: prepare the criterion for the
@@ -237,79 +241,6 @@ pub struct PlannerBenchReport {
     pub quality: Vec<Quality>,
 }
 
-/// One solver's plans against PSO's, paired by input, for one objective (fitness: constraint violation
-/// first, then the criterion).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Quality {
-    pub objective: String,
-    pub solver: String,
-    /// `certified` or `waypoints` (both plans).
-    pub safety: String,
-    /// Planning problems compared.
-    pub problems: usize,
-    /// Of them, in the standoff regime (PSO's plan gives up a constraint: the L_min ring).
-    pub standoff_problems: usize,
-    /// Problems where this solver's fitness is ≤ PSO's.
-    pub at_most_pso: usize,
-    /// `at_most_pso / problems`.
-    pub fraction_at_most_pso: f64,
-    /// Problems where it is strictly better.
-    pub better: usize,
-    /// The worst cases (largest excess over PSO), at most five.
-    pub worst: Vec<WorstCase>,
-}
-
-/// A problem where a solver's plan is worse than PSO's.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct WorstCase {
-    /// Input index (0-based) and its closed-loop step.
-    pub input: usize,
-    pub step: u64,
-    /// `approach` or `standoff`.
-    pub regime: &'static str,
-    /// The fitness of each plan.
-    pub violation: f64,
-    pub pso_violation: f64,
-    /// The violations by priority tier of each plan (certified: collision, the step's own limits, the
-    /// certificate, the deficits summed, the reserve, the heading cone).
-    pub violation_tiers: [f64; planning::TIERS],
-    pub pso_violation_tiers: [f64; planning::TIERS],
-    pub objective_m2: f64,
-    pub pso_objective_m2: f64,
-    /// Relative excess: of the violation when either plan violates a constraint, else of the criterion.
-    pub excess: f64,
-}
-
-/// The exact inputs of one `plan_step` call, apart from the scenario, objective and solver.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PlanInput {
-    pub positions: Vec<Vector2<f64>>,
-    pub headings: Vec<f64>,
-    pub estimate: Vector2<f64>,
-    pub covariance: Matrix2<f64>,
-    pub run_seed: u64,
-    pub step: u64,
-    /// The emitter's estimated motion (a constant-velocity model), as the closed loop plans with it.
-    pub motion: Option<planning::EmitterMotion>,
-}
-
-impl PlanInput {
-    fn request<'a>(&'a self, scenario: &'a Scenario, objective: ObjectiveKind, solver: SolverKind) -> PlanRequest<'a> {
-        PlanRequest {
-            positions: &self.positions,
-            headings: &self.headings,
-            estimate: self.estimate,
-            covariance: self.covariance,
-            scenario,
-            objective,
-            solver,
-            run_seed: self.run_seed,
-            step: self.step,
-            motion: self.motion,
-        }
-    }
-}
-
 /// Parses a list flag with `FromStr`, dropping repeats (first occurrence kept); empty = `all`.
 fn parse_list<T: std::str::FromStr<Err = String> + PartialEq + Copy>(
     flag: &str,
@@ -327,52 +258,6 @@ fn parse_list<T: std::str::FromStr<Err = String> + PartialEq + Copy>(
         }
     }
     Ok(out)
-}
-
-/// The planner inputs of the first `count` planned steps of consecutive closed-loop runs of `sc`
-/// (analytical × PSO): run 0 with `sc.seed`, run r ≥ 1 with `derive_seed(sc.seed, r, OuterRun)`.
-/// Each input is what `closed_loop::run_closed_loop` gave `plan_step` (its [`closed_loop::StepTrace`]).
-pub fn collect_inputs(sc: &Scenario, count: usize) -> Result<(Vec<PlanInput>, usize), CliError> {
-    collect_inputs_of_runs(sc, count, sc.steps)
-}
-
-/// [`collect_inputs`] from input runs of `run_steps` steps each.
-pub fn collect_inputs_of_runs(
-    sc: &Scenario,
-    count: usize,
-    run_steps: usize,
-) -> Result<(Vec<PlanInput>, usize), CliError> {
-    let (objective, solver) = REFERENCE;
-    let mut inputs = Vec::with_capacity(count);
-    let mut runs = 0u64;
-    while inputs.len() < count {
-        let mut run_sc = Scenario { steps: run_steps, ..sc.clone() };
-        if runs > 0 {
-            run_sc.seed = derive_seed(sc.seed, runs, Purpose::OuterRun);
-        }
-        let before = inputs.len();
-        let seed = run_sc.seed;
-        closed_loop::run_closed_loop(&run_sc, objective, solver, |rec, trace| {
-            if trace.plan.is_some() && inputs.len() < count {
-                let (estimate, covariance) = trace.target;
-                inputs.push(PlanInput {
-                    positions: tdoa::points_from_arrays(&rec.uavs),
-                    headings: trace.measured_headings.to_vec(),
-                    estimate,
-                    covariance,
-                    run_seed: seed,
-                    step: rec.step,
-                    motion: trace.motion,
-                });
-            }
-        })
-        .map_err(|e| CliError::failed_because(format!("input run {runs} (seed {seed})"), e))?;
-        runs += 1;
-        if inputs.len() == before {
-            return Err(CliError::Input("scenario: a run has no planned steps".into()));
-        }
-    }
-    Ok((inputs, runs as usize))
 }
 
 /// The combinations timed in round `round` (0-based; one round per input step and repeat), as indices
@@ -540,238 +425,11 @@ pub fn run(args: &PlannerBenchArgs) -> Result<PlannerBenchReport, CliError> {
     })
 }
 
-/// Every solver's plans against PSO's for the same objective and inputs (see [`Quality`]).
-pub fn quality(combos: &[Combo], fitness: &[Vec<planning::Fitness>], inputs: &[PlanInput]) -> Vec<Quality> {
-    let mut out = Vec::new();
-    for (j, &(o, s, m)) in combos.iter().enumerate() {
-        let Some(r) = combos.iter().position(|&c| c == (o, SolverKind::Pso, m)) else { continue };
-        if s == SolverKind::Pso || !o.is_optimised() {
-            continue;
-        }
-        let (mine, pso) = (&fitness[j], &fitness[r]);
-        let mut worst: Vec<WorstCase> = Vec::new();
-        let mut q = Quality {
-            objective: o.name().into(),
-            solver: s.name().into(),
-            safety: m.name().into(),
-            problems: mine.len(),
-            standoff_problems: pso.iter().filter(|f| !f.is_feasible()).count(),
-            at_most_pso: 0,
-            fraction_at_most_pso: 0.0,
-            better: 0,
-            worst: Vec::new(),
-        };
-        for (i, (a, b)) in mine.iter().zip(pso).enumerate() {
-            if a.at_most_within(b, planning::TIE_TOLERANCE) {
-                q.at_most_pso += 1;
-                q.better += usize::from(!b.at_most_within(a, planning::TIE_TOLERANCE));
-                continue;
-            }
-            let rel = |x: f64, y: f64| if y > 0.0 { (x - y) / y } else { f64::INFINITY };
-            let excess = if a.is_feasible() && b.is_feasible() {
-                rel(a.objective(), b.objective())
-            } else {
-                rel(a.violation(), b.violation())
-            };
-            worst.push(WorstCase {
-                input: i,
-                step: inputs[i].step,
-                regime: if b.is_feasible() { "approach" } else { "standoff" },
-                violation: a.violation(),
-                pso_violation: b.violation(),
-                violation_tiers: a.tiers(),
-                pso_violation_tiers: b.tiers(),
-                objective_m2: a.objective(),
-                pso_objective_m2: b.objective(),
-                excess,
-            });
-        }
-        worst.sort_by(|x, y| y.excess.total_cmp(&x.excess));
-        worst.truncate(5);
-        q.worst = worst;
-        q.fraction_at_most_pso = q.at_most_pso as f64 / q.problems.max(1) as f64;
-        out.push(q);
-    }
-    out
-}
-
-/// A time in ms with about four significant digits.
-fn ms(v: f64) -> String {
-    if !v.is_finite() {
-        "-".into()
-    } else if v >= 100.0 {
-        format!("{v:.1}")
-    } else if v >= 1.0 {
-        format!("{v:.3}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
-fn opt_ms(v: Option<f64>) -> String {
-    v.map_or("-".into(), ms)
-}
-
-fn ratio(v: Option<f64>) -> String {
-    v.map_or("-".into(), |r| match r {
-        r if r >= 10.0 => format!("{r:.1}×"),
-        r if r >= 0.1 => format!("{r:.2}×"),
-        r => format!("{r:.4}×"),
-    })
-}
-
-impl PlannerBenchReport {
-    fn context(&self) -> Vec<(&'static str, String)> {
-        let s = &self.settings;
-        vec![
-            ("scenario", format!("{} (seed {})", self.scenario, self.seed)),
-            (
-                "inputs",
-                format!(
-                    "{} planned steps from {} analytical/pso closed-loop run(s) of {} steps; {} repeat(s) each",
-                    self.steps, self.input_runs, self.steps_per_run, self.repeats
-                ),
-            ),
-            (
-                "solvers",
-                format!(
-                    "PSO {}×{}, GA {}×{}, ACO {}×{} (early stop after {}); mc K = {}",
-                    s.pso[0], s.pso[1], s.ga[0], s.ga[1], s.aco[0], s.aco[1], s.early_stop_window, s.mc_samples
-                ),
-            ),
-            ("machine", format!("{}; timed on one thread", self.machine.describe())),
-        ]
-    }
-}
-
-impl Report for PlannerBenchReport {
-    fn table(&self) -> Table {
-        let mut t = Table::new();
-        for (k, v) in self.context() {
-            t = t.row(k, v);
-        }
-        for c in &self.combinations {
-            let mode = if c.safety == "waypoints" { "/waypoints" } else { "" };
-            t = t.row(
-                format!("{}/{}{mode}", c.objective, c.solver),
-                format!(
-                    "median {} ms, p90 {}, p99 {}, max {}, mean {} (n = {}); {} evals/plan; {} of {}{}",
-                    ms(c.median_ms),
-                    ms(c.p90_ms),
-                    ms(c.p99_ms),
-                    ms(c.max_ms),
-                    ms(c.mean_ms),
-                    c.n,
-                    c.evaluations_per_plan.round(),
-                    ratio(c.ratio_to_reference),
-                    self.reference,
-                    c.paper_total_mean_ms.map_or(String::new(), |p| format!("; paper total mean {} ms", ms(p)))
-                ),
-            );
-        }
-        t
-    }
-
-    fn text(&self) -> String {
-        let mut out = String::new();
-        let width = self.context().iter().map(|(k, _)| k.len()).max().unwrap_or(0) + 2;
-        for (k, v) in self.context() {
-            out += &format!("{k:<width$}{v}\n");
-        }
-        out += "\n";
-        let header = [
-            "objective",
-            "solver",
-            "safety",
-            "n",
-            "median ms",
-            "p90 ms",
-            "p99 ms",
-            "max ms",
-            "mean ms",
-            "evals/plan",
-            "× ref",
-            "paper opt ms",
-            "paper total ms",
-            "paper × ref",
-        ];
-        let mut rows: Vec<Vec<String>> = vec![header.iter().map(|h| h.to_string()).collect()];
-        for c in &self.combinations {
-            rows.push(vec![
-                c.objective.clone(),
-                c.solver.clone(),
-                c.safety.clone(),
-                c.n.to_string(),
-                ms(c.median_ms),
-                ms(c.p90_ms),
-                ms(c.p99_ms),
-                ms(c.max_ms),
-                ms(c.mean_ms),
-                format!("{:.0}", c.evaluations_per_plan),
-                ratio(c.ratio_to_reference),
-                opt_ms(c.paper_opt_ms),
-                opt_ms(c.paper_total_mean_ms),
-                ratio(c.paper_ratio_to_reference),
-            ]);
-        }
-        let widths: Vec<usize> =
-            (0..header.len()).map(|i| rows.iter().map(|r| r[i].chars().count()).max().unwrap_or(0)).collect();
-        for r in &rows {
-            let mut line = String::new();
-            for (i, cell) in r.iter().enumerate() {
-                let pad = widths[i] - cell.chars().count();
-                if i < 3 {
-                    line += &format!("{cell}{:pad$}  ", "");
-                } else {
-                    line += &format!("{:pad$}{cell}  ", "");
-                }
-            }
-            out += line.trim_end();
-            out += "\n";
-        }
-        for q in &self.quality {
-            out += &format!(
-                "\n{}/{} vs {}/pso ({}): fitness <= PSO's on {} of {} problems ({:.2} %; {} standoff), better on {}",
-                q.objective,
-                q.solver,
-                q.objective,
-                q.safety,
-                q.at_most_pso,
-                q.problems,
-                100.0 * q.fraction_at_most_pso,
-                q.standoff_problems,
-                q.better
-            );
-            for w in &q.worst {
-                out += &format!(
-                    "\n  worse: input {} (step {}, {}): violation {:.3e} vs {:.3e}, criterion {:.6e} vs {:.6e} m² (+{:.2e})",
-                    w.input,
-                    w.step,
-                    w.regime,
-                    w.violation,
-                    w.pso_violation,
-                    w.objective_m2,
-                    w.pso_objective_m2,
-                    w.excess
-                );
-            }
-            out += "\n";
-        }
-        out += &format!(
-            "\nEach sample is one plan_step call (criterion preparation + solver + constraint check), wall clock,\n\
-             one thread, release build; '× ref' = median / the median of {}. Paper Table 7 (PSO rows;\n\
-             MATLAB R2024a on another machine): 'paper opt' is its optimisation time, the comparable number;\n\
-             'paper total' adds its CRLB display. Only the ratios compare ('paper × ref': its total mean / its\n\
-             analytical total mean).\n",
-            self.reference
-        );
-        out
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::output::Report;
+    use tdoa::rng::{Purpose, derive_seed};
 
     fn args(objective: &[&str], solver: &[&str], steps: usize, repeats: usize) -> PlannerBenchArgs {
         PlannerBenchArgs {
