@@ -352,7 +352,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             cell(a["deepest_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 1),
         ),
         format!(
-            "Certified: {} of {m} runs with a pair below D_min (closest {} × D_min); {} % of UAV-steps inside L_min, the deepest {} %; {} steps without a certified plan in {} runs ({} of them with an estimate whose σ exceeds L_min), each run's listed with its tightest limits in the second table.",
+            "Certified: {} of {m} runs with a pair below D_min (closest {} × D_min); {} % of UAV-steps inside L_min, the deepest {} %; {} steps without a certified plan in {} runs ({} of them with an estimate whose σ exceeds L_min), listed run by run with their tightest limits in the second table.",
             b["runs_with_pair_below_d_min"],
             cell(b["min_pair_over_d_min"].as_f64(), 3),
             cell(b["uav_steps_inside_l_min_fraction"].as_f64().map(|x| 100.0 * x), 2),

@@ -37,7 +37,7 @@ pub enum Rejection {
     /// The covariance is not symmetric positive definite.
     #[error("covariance is not symmetric positive definite")]
     NotPositiveDefinite,
-    /// The estimate status is not one of [`EstimateStatus`].
+    /// The estimate status is not one of [`EstimateStatus`](crate::messages::EstimateStatus).
     #[error("unknown estimate status {status}")]
     UnknownStatus {
         /// The wire value.
@@ -82,8 +82,9 @@ pub enum Rejection {
         /// The step.
         step: u64,
     },
-    /// An enumerated field has an unknown value: a control message's kind (not one of [`ControlKind`]),
-    /// a truth's `previous_command` (not one of [`CommandOutcome`](crate::CommandOutcome)).
+    /// An enumerated field has an unknown value: a control message's kind (not one of
+    /// [`ControlKind`](crate::messages::ControlKind)), a truth's `previous_command` (not one of
+    /// [`CommandOutcome`](crate::CommandOutcome)).
     #[error("unknown {field} {kind}")]
     UnknownKind {
         /// Which field (`"control kind"`, `"previous_command"`).
