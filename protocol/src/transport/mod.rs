@@ -52,11 +52,16 @@
 //! ports on the thread that uses them.
 
 pub mod iox;
+mod policy;
 pub mod uds;
+mod wait;
+
+pub use policy::{TransportKind, WaitMode, WaitPolicy};
+pub use wait::{Waitable, poll, wait_any, wait_attached, waitset};
+use wait::{about_to_block, spin_until};
 
 use core::fmt;
 use core::marker::PhantomData;
-use core::str::FromStr;
 use core::time::Duration;
 use std::time::Instant;
 
@@ -131,124 +136,6 @@ pub enum TransportError {
 /// A transport operation `op` on `service` that failed with `e` (its debug form is the detail).
 pub fn failed(op: &'static str, service: &str, e: impl fmt::Debug) -> TransportError {
     TransportError::Failed { op, service: service.to_owned(), detail: format!("{e:?}") }
-}
-
-/// Which transport carries the topics' messages (`--transport iceoryx2|uds`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
-pub enum TransportKind {
-    /// iceoryx2 publish/subscribe, zero-copy shared memory, with event services for wake-ups.
-    #[default]
-    Iceoryx2,
-    /// Unix-domain datagram sockets carrying the bytes of the `#[repr(C)]` messages (the baseline).
-    Uds,
-}
-
-impl TransportKind {
-    /// Both, in the order benchmarks report them.
-    pub const ALL: [TransportKind; 2] = [TransportKind::Iceoryx2, TransportKind::Uds];
-
-    /// `"iceoryx2"` or `"uds"` (the flag value).
-    pub fn name(self) -> &'static str {
-        match self {
-            TransportKind::Iceoryx2 => "iceoryx2",
-            TransportKind::Uds => "uds",
-        }
-    }
-}
-
-impl fmt::Display for TransportKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for TransportKind {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "iceoryx2" | "iox2" => Ok(TransportKind::Iceoryx2),
-            "uds" => Ok(TransportKind::Uds),
-            _ => Err(format!("unknown transport {s:?} (expected iceoryx2 or uds)")),
-        }
-    }
-}
-
-/// How a process waits for its next message (`--wait`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
-pub enum WaitMode {
-    /// Block in the kernel at once (no CPU while idle; each wake-up costs the scheduler's latency).
-    #[default]
-    Block,
-    /// Busy-poll (yielding the CPU between polls) for the whole timeout; never blocks. Lowest latency
-    /// while every process has a core; burns a core per process when idle.
-    Spin,
-    /// Busy-poll for `--spin-us`, then block.
-    SpinThenBlock,
-}
-
-impl WaitMode {
-    /// All three, in the order benchmarks report them.
-    pub const ALL: [WaitMode; 3] = [WaitMode::Block, WaitMode::SpinThenBlock, WaitMode::Spin];
-
-    /// `"block"`, `"spin"` or `"spin-then-block"` (the flag value).
-    pub fn name(self) -> &'static str {
-        match self {
-            WaitMode::Block => "block",
-            WaitMode::Spin => "spin",
-            WaitMode::SpinThenBlock => "spin-then-block",
-        }
-    }
-
-    /// How a wait of at most `timeout` is split into (busy-poll, then block) for this mode, with `spin` the
-    /// busy-poll budget of [`WaitMode::SpinThenBlock`].
-    pub fn split(self, spin: Duration, timeout: Duration) -> (Duration, Duration) {
-        match self {
-            WaitMode::Block => (Duration::ZERO, timeout),
-            WaitMode::Spin => (timeout, Duration::ZERO),
-            WaitMode::SpinThenBlock => (spin.min(timeout), timeout.saturating_sub(spin)),
-        }
-    }
-}
-
-impl fmt::Display for WaitMode {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for WaitMode {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "block" => Ok(WaitMode::Block),
-            "spin" => Ok(WaitMode::Spin),
-            "spin-then-block" => Ok(WaitMode::SpinThenBlock),
-            _ => Err(format!("unknown wait mode {s:?} (expected block, spin or spin-then-block)")),
-        }
-    }
-}
-
-/// How a process waits: the mode and the busy-poll budget of [`WaitMode::SpinThenBlock`].
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
-pub struct WaitPolicy {
-    /// The mode.
-    pub mode: WaitMode,
-    /// Busy-poll budget of [`WaitMode::SpinThenBlock`] (ignored by the other modes).
-    pub spin: Duration,
-}
-
-impl WaitPolicy {
-    /// The policy of the `--wait MODE --spin-us US` flags.
-    pub fn new(mode: WaitMode, spin_us: u64) -> Self {
-        WaitPolicy { mode, spin: Duration::from_micros(spin_us) }
-    }
-
-    /// (busy-poll, then block) for a wait of at most `timeout`; see [`WaitMode::split`].
-    pub fn split(&self, timeout: Duration) -> (Duration, Duration) {
-        self.mode.split(self.spin, timeout)
-    }
 }
 
 /// Creates the iceoryx2 node of a process, named `name` (e.g. [`services::node_name`](crate::services::node_name)),
@@ -704,118 +591,6 @@ impl<T: Message> TopicSubscriber<T> {
         &self.name
     }
 }
-
-/// Busy-polls `ready` for up to `spin` (at least once), yielding the CPU between polls so that processes
-/// sharing a core still run; whether it became ready.
-fn spin_until(spin: Duration, mut ready: impl FnMut() -> Result<bool, TransportError>) -> Result<bool, TransportError> {
-    let start = Instant::now();
-    loop {
-        if ready()? {
-            return Ok(true);
-        }
-        if start.elapsed() >= spin {
-            return Ok(false);
-        }
-        std::thread::yield_now();
-    }
-}
-
-/// Whether any of `inputs` has a message buffered (what a busy poll asks).
-fn any_ready(inputs: &[&dyn Waitable]) -> Result<bool, TransportError> {
-    for input in inputs {
-        if input.has_samples()? {
-            return Ok(true);
-        }
-    }
-    Ok(false)
-}
-
-/// The step before a blocking wait on `inputs`: consumes their pending wake-ups, then looks once more for
-/// a message (one that came meanwhile; its wake-up may have been among those consumed). `true`: do not
-/// block. This order — consume, then check, then block — is what makes skipping the consumption while
-/// polling safe (see the module docs).
-fn about_to_block(inputs: &[&dyn Waitable]) -> Result<bool, TransportError> {
-    for input in inputs {
-        input.consume_wakeups()?;
-    }
-    any_ready(inputs)
-}
-
-/// Waits on a `WaitSet` to which `inputs` are attached: busy-polls them for `spin` first, then blocks for
-/// at most `timeout`. Returns `Ok(())` on any wake-up, a timeout or a signal other than SIGINT/SIGTERM
-/// (the caller drains its subscribers either way), [`TransportError::Interrupted`] on SIGINT/SIGTERM.
-pub fn wait_any(
-    waitset: &WaitSet<ipc::Service>,
-    spin: Duration,
-    timeout: Duration,
-    inputs: &[&dyn Waitable],
-) -> Result<(), TransportError> {
-    if spin_until(spin, || any_ready(inputs))? || timeout.is_zero() || about_to_block(inputs)? {
-        return Ok(());
-    }
-    match waitset.wait_and_process_once_with_timeout(|_| CallbackProgression::Continue, timeout) {
-        Ok(iceoryx2::waitset::WaitSetRunResult::TerminationRequest) => Err(TransportError::Interrupted),
-        Ok(_) => Ok(()),
-        Err(e) => Err(failed("waiting", "waitset", e)),
-    }
-}
-
-/// Something a process waits on in its `WaitSet`: a subscriber of either transport (its file descriptor
-/// wakes the wait) that says whether a message is waiting.
-pub trait Waitable: SynchronousMultiplexing + fmt::Debug {
-    /// Whether a message is waiting (a busy poll asks this).
-    fn has_samples(&self) -> Result<bool, TransportError>;
-
-    /// Consumes the pending wake-ups before a blocking wait ([`TopicSubscriber::consume_wakeups`]).
-    fn consume_wakeups(&self) -> Result<(), TransportError>;
-}
-
-impl<T: Message> Waitable for TopicSubscriber<T> {
-    fn has_samples(&self) -> Result<bool, TransportError> {
-        TopicSubscriber::has_samples(self)
-    }
-
-    fn consume_wakeups(&self) -> Result<(), TransportError> {
-        TopicSubscriber::consume_wakeups(self).map(|_| ())
-    }
-}
-
-/// Busy-polls `inputs` for up to `spin` (at least once; the CPU is yielded between polls): whether a
-/// message came. Over iceoryx2 it touches shared memory only (no system call but the yields; a socket
-/// subscriber's poll is a `recv`), so a process that spins first and sets up its blocking wait (e.g.
-/// attaches a deadline to its `WaitSet`) only when nothing came pays for that set-up only when it
-/// blocks.
-pub fn poll(spin: Duration, inputs: &[&dyn Waitable]) -> Result<bool, TransportError> {
-    spin_until(spin, || any_ready(inputs))
-}
-
-/// Blocks on a `WaitSet` to which `inputs` are attached and whose deadlines are its own attachments (an
-/// interval, a one-shot deadline) until a message, an attached deadline or a signal wakes it — unless a
-/// message is already buffered (the wake-ups are consumed, then the buffers looked at once more: see
-/// the module docs). Call it after [`poll`] found nothing. Errors as [`wait_any`].
-pub fn wait_attached(waitset: &WaitSet<ipc::Service>, inputs: &[&dyn Waitable]) -> Result<(), TransportError> {
-    if about_to_block(inputs)? {
-        return Ok(());
-    }
-    match waitset.wait_and_process_once(|_| CallbackProgression::Continue) {
-        Ok(iceoryx2::waitset::WaitSetRunResult::TerminationRequest) => Err(TransportError::Interrupted),
-        Ok(_) => Ok(()),
-        Err(e) => Err(failed("waiting", "waitset", e)),
-    }
-}
-
-/// A `WaitSet` for the subscribers of one process (either transport).
-pub fn waitset() -> Result<WaitSet<ipc::Service>, TransportError> {
-    WaitSetBuilder::new().create::<ipc::Service>().map_err(|e| failed("creating", "waitset", e))
-}
-
-impl<T: Message> FileDescriptorBased for TopicSubscriber<T> {
-    fn file_descriptor(&self) -> &FileDescriptor {
-        self.port.file_descriptor()
-    }
-}
-
-impl<T: Message> SynchronousMultiplexing for TopicSubscriber<T> {}
 
 #[cfg(test)]
 mod tests {
