@@ -264,11 +264,9 @@ fn recorded_planners(
 /// "snapshot", which a fused estimator before its first fix sends too, so there a failed step's
 /// "snapshot" does not tell).
 fn estimator_of_recorded(estimate: &Value) -> Option<EstimatorKind> {
-    match (estimate["estimator"].as_str()?, estimate["status"].as_str()?) {
-        ("fused", _) => Some(EstimatorKind::Fused),
-        ("snapshot", status) if status != EstimateStatus::Failed.name() => Some(EstimatorKind::Snapshot),
-        _ => None,
-    }
+    let kind: EstimatorKind = estimate["estimator"].as_str()?.parse().ok()?;
+    let failed = estimate["status"].as_str()? == EstimateStatus::Failed.name();
+    (kind == EstimatorKind::Fused || !failed).then_some(kind)
 }
 
 /// `names`, each once in the order first seen, joined by ` → ` (one name when all are one).

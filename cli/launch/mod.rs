@@ -208,9 +208,13 @@ pub fn run(args: &LaunchArgs) -> Result<LaunchReport, CliError> {
     let (missed_commands, stale_steps) =
         (flagged(monitor::assemble::COMMAND_MISSED), flagged(monitor::assemble::ESTIMATE_STALE));
     // Of the holds, those with no estimate to plan from yet (before a first fix), not a late one.
-    let held_before_first_fix =
-        run.steps.iter().filter(|s| has(s, monitor::assemble::ESTIMATE_STALE) && s.estimate_status == "failed").count()
-            as u64;
+    let held_before_first_fix = run
+        .steps
+        .iter()
+        .filter(|s| {
+            has(s, monitor::assemble::ESTIMATE_STALE) && s.estimate_status == protocol::EstimateStatus::Failed.name()
+        })
+        .count() as u64;
     Ok(LaunchReport {
         interrupted,
         failed,

@@ -49,6 +49,7 @@ use model::Scenario;
 use model::active_mask;
 use nalgebra::Vector2;
 use protocol::{Command, CommandOutcome, Estimate, EstimateStatus, Latencies, Measurement, Stamps, Truth};
+use tdoa::fusion::EstimatorKind;
 use tdoa::{NoiseModel, Sensors};
 
 use record::metrics::{crlb_at, step_metrics};
@@ -123,7 +124,7 @@ pub struct Assembler {
 
 /// The estimator a recorded step names (the run's as it was known then, or the scenario's).
 fn recorded_estimator(s: &StepRecord) -> Option<&'static str> {
-    ["fused", "snapshot"].into_iter().find(|k| s.estimator.as_deref() == Some(*k))
+    s.estimator.as_deref()?.parse::<EstimatorKind>().ok().map(EstimatorKind::name)
 }
 
 /// [`recorded_estimator`] of a step that had a fix ([`Estimate::estimator_name`]: the first one is the
@@ -495,7 +496,6 @@ impl Assembler {
 pub(crate) mod tests {
     use super::*;
     use protocol::{Fix, MessageKind, PlanInfo, PosteriorExtra};
-    use tdoa::fusion::EstimatorKind;
 
     const UAVS: [[f64; 2]; 3] = [[1500.0, 500.0], [10000.0, 1500.0], [5000.0, 8500.0]];
 
