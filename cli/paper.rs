@@ -43,7 +43,8 @@ Experiments:
                (0.1, 0.3), a silent emitter (0.3), multipath outliers (0.05, 0.15 per arrival, 200–1000 m
                late), GNSS (5, 20 m) and clock (10, 30 ns) errors, per step and per flight — for 3 and 5
                UAVs, beside a receiver-blind estimator on the same runs: RMSE / PCRLB of the arrivals
-               received, NEES, outliers identified, steps commanded (not part of `all`)
+               received, NEES (and of the same paths flown open loop), outliers identified, steps
+               commanded (not part of `all`)
   all          everything above but fusion, safety and receiver, sharing runs
 
 Defaults are the paper's: M = 200 outer runs, R = 30 inner TDOA-noise resamples per RMSE point, K = 200

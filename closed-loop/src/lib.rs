@@ -12,6 +12,9 @@ use planning::{ObjectiveKind, PlanRequest, SolverKind, plan_step};
 use record::{RunRecord, StepRecord, crlb_at, step_metrics};
 use thiserror::Error;
 
+mod open_loop;
+pub use open_loop::{OpenLoopStep, estimate_along};
+
 /// Why a closed-loop run stopped: which stage of which step failed, and why.
 #[derive(Debug, Error)]
 #[error("{stage}: {source}")]
@@ -95,14 +98,7 @@ pub fn run_closed_loop_with(
     mut on_step: impl FnMut(&StepRecord, &StepTrace<'_>),
 ) -> Result<RunRecord, LoopError> {
     let mut world = model::world::World::from_scenario(scenario).map_err(failed(None, "world"))?;
-    let dynamics = scenario.dynamics().map_err(failed(None, "estimator"))?;
-    let outliers = match view {
-        ReceiverView::Stated => scenario.outliers,
-        ReceiverView::CompleteOnly => tdoa::arrivals::OutlierPolicy::Snapshot,
-    };
-    let mut estimator = estimation::Estimator::with_config(
-        estimation::EstimatorConfig::new(scenario.estimator, dynamics).with_outliers(outliers),
-    );
+    let mut estimator = estimator_of(scenario, view)?;
     // The σ the receivers state, recorded where it is not the scenario's (as the pipeline's monitor does).
     let (stated_sigmas, _) = world.stated_sigmas();
     let stated = (stated_sigmas != scenario.range_sigmas()).then_some(stated_sigmas);
@@ -114,12 +110,7 @@ pub fn run_closed_loop_with(
     for k in 0..=scenario.steps as u64 {
         let truth = world.truth();
         let meas = world.measure().map_err(failed(Some(k), "measurement"))?;
-        let seen = match view {
-            ReceiverView::Stated => meas.arrivals,
-            ReceiverView::CompleteOnly => {
-                complete_only(&meas.arrivals, world.noise().sigmas()).map_err(failed(Some(k), "measurement"))?
-            }
-        };
+        let seen = seen_by(view, &meas, &world).map_err(failed(Some(k), "measurement"))?;
         // No fix so far (a silent emitter, lost arrivals, a burst without a physical solution): the swarm
         // holds (planning::hold) and tries the next burst, until planning::gives_up_without_fix (what the
         // pipeline's planner does with such an estimate).
@@ -258,6 +249,31 @@ fn no_fix_yet(a: &tdoa::Arrivals, reason: String, held: &[estimation::HeldBurst]
         alternative: None,
         held: held.to_vec(),
         window: None,
+    }
+}
+
+/// The estimator of `scenario` as `view` makes it (its emitter model; the scenario's outlier policy, or
+/// whole-burst rejection for [`ReceiverView::CompleteOnly`]).
+fn estimator_of(scenario: &Scenario, view: ReceiverView) -> Result<estimation::Estimator, LoopError> {
+    let dynamics = scenario.dynamics().map_err(failed(None, "estimator"))?;
+    let outliers = match view {
+        ReceiverView::Stated => scenario.outliers,
+        ReceiverView::CompleteOnly => tdoa::arrivals::OutlierPolicy::Snapshot,
+    };
+    Ok(estimation::Estimator::with_config(
+        estimation::EstimatorConfig::new(scenario.estimator, dynamics).with_outliers(outliers),
+    ))
+}
+
+/// The burst of `meas` as the estimator of `view` sees it.
+fn seen_by(
+    view: ReceiverView,
+    meas: &model::world::Measurement,
+    world: &model::world::World,
+) -> Result<tdoa::Arrivals, tdoa::TdoaError> {
+    match view {
+        ReceiverView::Stated => Ok(meas.arrivals),
+        ReceiverView::CompleteOnly => complete_only(&meas.arrivals, world.noise().sigmas()),
     }
 }
 

@@ -16,7 +16,9 @@
 //! covariance along the run at the truth (`bounds`): the part no number of steps averages out.
 //! Per cell and estimator: `RMSE_k / bound_k` over the runs from step 5 (median, and the share of steps
 //! within 0.9–1.25), the share of steps whose mean NEES lies in the 95 % band and the mean NEES over
-//! those steps (JSON: each step's mean and the band too), the terminal RMSE and
+//! those steps (JSON: each step's mean and the band too) — for the stated estimator also of its
+//! open-loop control (`nees_open_loop_*`: each run's paths flown again with another world's draws,
+//! [`closed_loop::estimate_along`], so that the paths no longer depend on the noise) —, the terminal RMSE and
 //! bound, what the receivers lost, and the outliers: multipath arrivals dropped, good arrivals dropped,
 //! bursts rejected whole, and runs that ended far from the truth (error > 5 × bound and > 100 m: a lost
 //! track). Each run that ends lost is flown on with its own seed to [`CONTINUE_TO`] steps: back for
@@ -41,7 +43,7 @@ use crate::figures::Figure;
 use crate::grid::{Grid, cell};
 use crate::stats::median;
 use crate::{ExperimentError, ExperimentReport, settings_json};
-use closed_loop::{ReceiverView, run_closed_loop_with};
+use closed_loop::{OpenLoopStep, ReceiverView, estimate_along, run_closed_loop_with};
 
 /// Steps of every run.
 pub const STEPS: usize = 30;
@@ -160,15 +162,32 @@ fn bounds(sc: &Scenario, steps: &[record::StepRecord]) -> Vec<Option<f64>> {
         .collect()
 }
 
+/// The mean NEES per step from [`FROM_STEP`] over runs (`nees[run][step]`, `None` where a run has none)
+/// against the 95 % band of a mean of that many χ²₂ values: (the share of steps inside, the mean over
+/// those steps, each step's mean, the band of the last step).
+fn nees_stats(nees: &[Vec<Option<f64>>]) -> (f64, Option<f64>, Vec<f64>, Option<[f64; 2]>) {
+    let (mut inside, mut by_step, mut band) = (0usize, Vec::new(), None);
+    for k in FROM_STEP..=STEPS {
+        let at: Vec<f64> = nees.iter().filter_map(|r| r.get(k).copied().flatten()).collect();
+        if at.is_empty() {
+            continue;
+        }
+        let (lo, hi) = mean_chi2_band(2.0, at.len(), 0.95);
+        let mean = at.iter().sum::<f64>() / at.len() as f64;
+        inside += usize::from((lo..=hi).contains(&mean));
+        by_step.push(mean);
+        band = Some([lo, hi]);
+    }
+    let fraction = inside as f64 / by_step.len().max(1) as f64;
+    let mean = (!by_step.is_empty()).then(|| by_step.iter().sum::<f64>() / by_step.len() as f64);
+    (fraction, mean, by_step, band)
+}
+
 /// The summary of the runs of one cell with one estimator.
 fn summary(sc: &Scenario, runs: &[RunRecord]) -> Value {
     let m = runs.len();
     let bound: Vec<Vec<Option<f64>>> = runs.iter().map(|r| bounds(sc, &r.steps)).collect();
     let mut ratios = Vec::new();
-    let mut nees_inside = 0usize;
-    let mut nees_steps = 0usize;
-    let mut nees_by_step = Vec::new();
-    let mut nees_band = None;
     for k in FROM_STEP..=STEPS {
         let pick: Vec<(f64, f64)> = runs
             .iter()
@@ -181,16 +200,9 @@ fn summary(sc: &Scenario, runs: &[RunRecord]) -> Value {
         let rmse = (pick.iter().map(|(e, _)| e * e).sum::<f64>() / pick.len() as f64).sqrt();
         let b = (pick.iter().map(|(_, b)| b * b).sum::<f64>() / pick.len() as f64).sqrt();
         ratios.push(rmse / b);
-        let nees: Vec<f64> = runs.iter().filter_map(|r| r.steps.get(k).and_then(|s| s.nees)).collect();
-        if !nees.is_empty() {
-            let (lo, hi) = mean_chi2_band(2.0, nees.len(), 0.95);
-            let mean = nees.iter().sum::<f64>() / nees.len() as f64;
-            nees_steps += 1;
-            nees_inside += usize::from((lo..=hi).contains(&mean));
-            nees_by_step.push(mean);
-            nees_band = Some([lo, hi]);
-        }
     }
+    let nees: Vec<Vec<Option<f64>>> = runs.iter().map(|r| r.steps.iter().map(|s| s.nees).collect()).collect();
+    let (nees_inside, nees_mean, nees_by_step, nees_band) = nees_stats(&nees);
     let within = ratios.iter().filter(|r| (0.9..=1.25).contains(*r)).count();
     let last: Vec<(f64, f64)> =
         runs.iter().zip(&bound).filter_map(|(r, b)| Some((r.steps.last()?.estimate_error_m?, (*b.last()?)?))).collect();
@@ -224,8 +236,8 @@ fn summary(sc: &Scenario, runs: &[RunRecord]) -> Value {
         "rmse_over_bound_max": ratios.iter().copied().fold(0.0, f64::max),
         "steps_within_0_9_1_25_fraction": within as f64 / ratios.len().max(1) as f64,
         "rmse_over_bound_by_step": ratios,
-        "nees_in_95_band_fraction": nees_inside as f64 / nees_steps.max(1) as f64,
-        "nees_mean": (!nees_by_step.is_empty()).then(|| nees_by_step.iter().sum::<f64>() / nees_by_step.len() as f64),
+        "nees_in_95_band_fraction": nees_inside,
+        "nees_mean": nees_mean,
         "nees_mean_by_step": nees_by_step,
         "nees_band": nees_band,
         "terminal_rmse_m": terminal_rmse,
@@ -295,8 +307,28 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
         })
         .collect();
     bar.finish_and_clear();
-    // The runs that ended with a lost track, flown on: lost for good, or back (and from which step).
     let seed_of = |k: usize| derive_seed(s.seed, k as u64, Purpose::OuterRun);
+    // The open-loop control of every run of the stated estimator: its paths flown again, measured by a
+    // world with other draws (`closed_loop::estimate_along`), so that the paths no longer depend on the
+    // noise the estimates are judged against.
+    let bar = engine.bar(jobs.len() as u64 / views.len() as u64, "receiver: the same paths open loop");
+    let controls: Vec<Option<Result<Vec<OpenLoopStep>, String>>> = jobs
+        .par_iter()
+        .zip(&flown)
+        .map(|(&(a, c, v, k), run)| {
+            let run = run.as_ref().ok().filter(|_| views[v].1 == ReceiverView::Stated)?;
+            let sc = Scenario {
+                receiver: cells[c].1,
+                seed: derive_seed(seed_of(k), 0, Purpose::OpenLoopControl),
+                ..scenarios[a].1.clone()
+            };
+            let control = estimate_along(&sc, ReceiverView::Stated, &run.steps).map_err(|e| format!("run {k}: {e}"));
+            bar.inc(1);
+            Some(control)
+        })
+        .collect();
+    bar.finish_and_clear();
+    // The runs that ended with a lost track, flown on: lost for good, or back (and from which step).
     let lost_jobs: Vec<usize> = (0..jobs.len())
         .filter(|&j| {
             let (a, c, _, _) = jobs[j];
@@ -324,6 +356,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             "steps in 0.9–1.25 %",
             "NEES in band %",
             "mean NEES (k ≥ 5)",
+            "NEES in band, same paths open loop %",
             "terminal RMSE m",
             "terminal bound m",
             "not fused",
@@ -356,6 +389,23 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
                 sum["lost_tracks_stopped"] = json!(fate.iter().filter(|f| f.is_err()).count());
                 sum["runs_stopped"] = json!(m - runs.len());
                 sum["runs_stopped_why"] = json!(stopped);
+                let control: Vec<&Result<Vec<OpenLoopStep>, String>> = controls[i0..i0 + m].iter().flatten().collect();
+                if !control.is_empty() {
+                    let nees: Vec<Vec<Option<f64>>> = control
+                        .iter()
+                        .flat_map(|c| c.as_ref().ok())
+                        .map(|r| r.iter().map(|s| s.nees).collect())
+                        .collect();
+                    let (inside, mean, by_step, _) = nees_stats(&nees);
+                    sum["nees_open_loop_in_95_band_fraction"] = json!(inside);
+                    sum["nees_open_loop_mean"] = json!(mean);
+                    sum["nees_open_loop_mean_by_step"] = json!(by_step);
+                    sum["open_loop_runs_stopped"] =
+                        json!(control.iter().filter_map(|c| c.as_ref().err()).collect::<Vec<_>>());
+                } else {
+                    sum["nees_open_loop_in_95_band_fraction"] = Value::Null;
+                    sum["nees_open_loop_mean"] = Value::Null;
+                }
                 values.push(sum["terminal_rmse_over_bound"].as_f64());
                 grid.push(vec![
                     slabel.to_string(),
@@ -365,6 +415,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
                     cell(sum["steps_within_0_9_1_25_fraction"].as_f64().map(|x| 100.0 * x), 0),
                     cell(sum["nees_in_95_band_fraction"].as_f64().map(|x| 100.0 * x), 0),
                     cell(sum["nees_mean"].as_f64(), 2),
+                    cell(sum["nees_open_loop_in_95_band_fraction"].as_f64().map(|x| 100.0 * x), 0),
                     cell(sum["terminal_rmse_m"].as_f64(), 1),
                     cell(sum["terminal_bound_m"].as_f64(), 1),
                     format!("{}/{}", sum["steps_not_fused"], m * (STEPS + 1)),
@@ -452,10 +503,11 @@ fn conclusions(rows: &[Value]) -> Vec<String> {
             .map(|(l, _)| {
                 let s = find(sc, l, "stated");
                 format!(
-                    "{l}: {} ({} % of steps in 0.9–1.25, NEES in band {} %)",
+                    "{l}: {} ({} % of steps in 0.9–1.25, NEES in band {} %; the same paths open loop {} %)",
                     cell(s["rmse_over_bound_median"].as_f64(), 2),
                     cell(s["steps_within_0_9_1_25_fraction"].as_f64().map(|x| 100.0 * x), 0),
                     cell(s["nees_in_95_band_fraction"].as_f64().map(|x| 100.0 * x), 0),
+                    cell(s["nees_open_loop_in_95_band_fraction"].as_f64().map(|x| 100.0 * x), 0),
                 )
             })
             .collect();
@@ -581,6 +633,30 @@ mod tests {
         }
         let back = continued(&sc, ReceiverView::Stated).unwrap();
         assert!(back.is_some_and(|k| (STEPS + 1..=STEPS + 10).contains(&k)), "{back:?}");
+    }
+
+    #[test]
+    fn the_paths_of_the_closed_loop_flown_open_loop_give_a_consistent_nees() {
+        // Five UAVs, perfect receiver: the paths of 30 closed-loop runs, each flown open loop with ten
+        // other worlds' draws (300 runs whose paths do not depend on their noise). The estimator alone
+        // is consistent there: the mean NEES from step 5 near 2 (measured 2.01 over 8 000 such runs;
+        // the closed-loop runs themselves 1.83–1.91 over four studies of 200).
+        let sc = scenarios()[1].1.clone();
+        let mut nees: Vec<Vec<Option<f64>>> = Vec::new();
+        for k in 0..30u64 {
+            let run_sc = Scenario { seed: derive_seed(11, k, Purpose::OuterRun), ..sc.clone() };
+            let run = fly(&run_sc, ReceiverView::Stated).unwrap();
+            for d in 0..10u64 {
+                let other = Scenario { seed: derive_seed(run_sc.seed, d, Purpose::OpenLoopControl), ..sc.clone() };
+                let control = estimate_along(&other, ReceiverView::Stated, &run.steps).unwrap();
+                nees.push(control.iter().map(|s| s.nees).collect());
+            }
+        }
+        let (_, mean, by_step, band) = nees_stats(&nees);
+        assert_eq!(by_step.len(), STEPS - FROM_STEP + 1);
+        assert_eq!(band, Some(mean_chi2_band(2.0, 300, 0.95).into()));
+        let mean = mean.unwrap();
+        assert!((1.8..2.2).contains(&mean), "open-loop mean NEES {mean}");
     }
 
     #[test]

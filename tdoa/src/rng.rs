@@ -29,6 +29,9 @@ pub enum Purpose {
     Receiver = 9,
     /// The receiver model's per-flight GNSS and clock biases (drawn once per run, at step 0).
     FlightBias = 10,
+    /// The world of an open-loop control: a run's paths flown again with other draws
+    /// (`closed_loop::estimate_along`, `uavloc paper receiver`).
+    OpenLoopControl = 11,
 }
 
 /// SplitMix64's increment (2^64 / φ).
