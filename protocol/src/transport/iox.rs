@@ -46,8 +46,17 @@ fn open<T: Message>(node: &IpcNode, name: &str) -> Result<Services<T>, Transport
         .enable_safe_overflow(true)
         .open_or_create()
         .map_err(|e| failed("opening pub/sub service", name, e))?;
-    let event = node
-        .service_builder(&service)
+    Ok(Services { pubsub, event: open_event(node, &service, name)? })
+}
+
+/// The event service of the topic `name` (service name `service`): the same for every payload type,
+/// so compiled once.
+fn open_event(
+    node: &IpcNode,
+    service: &ServiceName,
+    name: &str,
+) -> Result<event::PortFactory<ipc::Service>, TransportError> {
+    node.service_builder(service)
         .event()
         .max_notifiers(MAX_PUBLISHERS)
         .max_listeners(MAX_SUBSCRIBERS)
@@ -56,8 +65,16 @@ fn open<T: Message>(node: &IpcNode, name: &str) -> Result<Services<T>, Transport
         .notifier_dropped_event(EventId::new(event_id::PUBLISHER_DROPPED))
         .notifier_dead_event(EventId::new(event_id::PUBLISHER_DEAD))
         .open_or_create()
-        .map_err(|e| failed("opening event service", name, e))?;
-    Ok(Services { pubsub, event })
+        .map_err(|e| failed("opening event service", name, e))
+}
+
+/// The largest event id the event service of the topic `name` takes, as iceoryx2 keeps it in the
+/// service's static configuration — what every process that opens the topic, a foreign client with
+/// iceoryx2's defaults included, finds ([`event_id::MAX`] for a topic this crate created). Opens (or
+/// creates) the service on `node`.
+pub fn event_id_limit(node: &IpcNode, name: &str) -> Result<usize, TransportError> {
+    let service = service_name(name)?;
+    Ok(open_event(node, &service, name)?.static_config().event_id_max_value())
 }
 
 /// A publisher and the notifier that wakes its subscribers.
