@@ -371,7 +371,7 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
     let mut rows = Vec::new();
     let mut figures = Vec::new();
     for (a, (slabel, sc)) in scenarios.iter().enumerate() {
-        let mut groups = Vec::new();
+        let (mut groups, mut nees_groups) = (Vec::new(), Vec::new());
         for (c, (clabel, model)) in cells.iter().enumerate() {
             let mut values = Vec::new();
             for (v, (vlabel, _)) in views.iter().enumerate() {
@@ -435,6 +435,16 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
                 }));
             }
             groups.push(record::BarGroup { label: AXIS_LABELS[c].to_string(), values, errors: Vec::new() });
+            // The stated estimator's mean NEES, closed loop and its open-loop control (its row of this cell).
+            let stated = rows[rows.len() - views.len()..]
+                .iter()
+                .find(|r| r["estimator"] == "stated")
+                .map_or(&Value::Null, |r| &r["summary"]);
+            nees_groups.push(record::BarGroup {
+                label: AXIS_LABELS[c].to_string(),
+                values: vec![stated["nees_mean"].as_f64(), stated["nees_open_loop_mean"].as_f64()],
+                errors: Vec::new(),
+            });
         }
         figures.push(Figure::Bars {
             name: format!("terminal-{}", if a == 0 { "3-uavs" } else { "5-uavs" }),
@@ -442,6 +452,16 @@ pub fn run(engine: &Engine) -> Result<ExperimentReport, ExperimentError> {
             y_label: "terminal RMSE / bound".into(),
             series: views.iter().map(|(l, _)| l.to_string()).collect(),
             groups,
+            log_y: true,
+        });
+        figures.push(Figure::Bars {
+            name: format!("nees-{}", if a == 0 { "3-uavs" } else { "5-uavs" }),
+            title: format!(
+                "{slabel}: mean NEES from step {FROM_STEP}, closed loop and its paths open loop (2 if consistent)"
+            ),
+            y_label: "mean NEES".into(),
+            series: vec!["closed loop".into(), "open loop".into()],
+            groups: nees_groups,
             log_y: true,
         });
     }
