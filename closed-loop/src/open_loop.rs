@@ -25,9 +25,9 @@ pub struct OpenLoopStep {
 
 /// The estimator of [`run_closed_loop_with`](crate::run_closed_loop_with)`(scenario, …, view, …)` on the
 /// paths of `steps` (each step's UAV positions and headings, e.g. a closed-loop run's record), measured
-/// by the world of `scenario` — its seed, its receiver — at those positions: one [`OpenLoopStep`] per
-/// step. A step the estimator cannot fix (no first fix yet) is `None`s and the next burst is tried, as
-/// the closed loop does. Errors on a step whose geometry cannot be measured (a wrong UAV count, UAVs
+/// by the world of `scenario` — its seed, its receiver — at those positions and at each record's
+/// `step`: one [`OpenLoopStep`] per step. A step the estimator cannot fix (no first fix yet) is `None`s
+/// and the next burst is tried, as the closed loop does. Errors on a step whose geometry cannot be measured (a wrong UAV count, UAVs
 /// that coincide) or an estimator failure other than a missing first fix.
 pub fn estimate_along(
     scenario: &Scenario,
@@ -36,7 +36,8 @@ pub fn estimate_along(
 ) -> Result<Vec<OpenLoopStep>, LoopError> {
     let mut estimator = estimator_of(scenario, view)?;
     let mut out = Vec::with_capacity(steps.len());
-    for (k, s) in (0u64..).zip(steps) {
+    for s in steps {
+        let k = s.step;
         let at = Snapshot { step: k, positions: s.uavs.clone(), headings: s.headings_rad.clone() };
         let world = World::restore(scenario, &at).map_err(failed(Some(k), "world"))?;
         let meas = world.measure().map_err(failed(Some(k), "measurement"))?;
@@ -104,14 +105,14 @@ mod tests {
     #[test]
     fn a_path_that_cannot_be_measured_is_an_error() {
         let sc = Scenario::default();
-        let mut steps = vec![
-            record::StepRecord {
+        let mut steps: Vec<record::StepRecord> = (0..3)
+            .map(|k| record::StepRecord {
+                step: k,
                 uavs: sc.uavs.clone(),
                 headings_rad: vec![0.0; sc.uavs.len()],
                 ..Default::default()
-            };
-            3
-        ];
+            })
+            .collect();
         steps[2].uavs[1] = steps[2].uavs[0];
         let e = estimate_along(&sc, ReceiverView::Stated, &steps).unwrap_err();
         assert_eq!(e.stage, "step 2: measurement", "{e}");
